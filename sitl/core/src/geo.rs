@@ -1,0 +1,65 @@
+//! Geodetic positions and the local NED frame around home.
+
+use nalgebra::Vector3;
+use serde::Deserialize;
+
+const WGS84_A: f64 = 6_378_137.0;
+const WGS84_E2: f64 = 6.694_379_990_14e-3;
+
+/// Latitude, longitude (deg, WGS-84) and altitude (m AMSL).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Geodetic {
+    /// Latitude (deg).
+    pub lat_deg: f64,
+    /// Longitude (deg).
+    pub lon_deg: f64,
+    /// Altitude above mean sea level (m).
+    pub alt_m: f64,
+}
+
+impl Default for Geodetic {
+    /// PX4's default SITL home (Zurich), so ground-station users see a familiar place.
+    fn default() -> Self {
+        Self {
+            lat_deg: 47.397_742,
+            lon_deg: 8.545_594,
+            alt_m: 488.0,
+        }
+    }
+}
+
+impl Geodetic {
+    /// Meridian and prime-vertical radii of curvature at this latitude (m).
+    fn radii(&self) -> (f64, f64) {
+        let s = self.lat_deg.to_radians().sin();
+        let d = 1.0 - WGS84_E2 * s * s;
+        (WGS84_A * (1.0 - WGS84_E2) / d.powf(1.5), WGS84_A / d.sqrt())
+    }
+
+    /// The point `ned` metres away in the local tangent frame at `self` (accurate to millimetres
+    /// over a few kilometres).
+    pub fn offset_by_ned(&self, ned: &Vector3<f64>) -> Geodetic {
+        let (rm, rn) = self.radii();
+        let h = self.alt_m;
+        Geodetic {
+            lat_deg: self.lat_deg + (ned.x / (rm + h)).to_degrees(),
+            lon_deg: self.lon_deg
+                + (ned.y / ((rn + h) * self.lat_deg.to_radians().cos())).to_degrees(),
+            alt_m: self.alt_m - ned.z,
+        }
+    }
+
+    /// The NED offset of `other` from `self`: the inverse of [`Geodetic::offset_by_ned`].
+    pub fn ned_to(&self, other: &Geodetic) -> Vector3<f64> {
+        let (rm, rn) = self.radii();
+        let h = self.alt_m;
+        Vector3::new(
+            (other.lat_deg - self.lat_deg).to_radians() * (rm + h),
+            (other.lon_deg - self.lon_deg).to_radians()
+                * (rn + h)
+                * self.lat_deg.to_radians().cos(),
+            self.alt_m - other.alt_m,
+        )
+    }
+}

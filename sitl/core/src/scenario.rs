@@ -1,0 +1,551 @@
+//! Scenario files: which airframe, where it starts, the weather, the sensors, the seed, how long,
+//! timed events (faults, disturbances), and optionally an open-loop actuator script.
+//!
+//! ```toml
+//! airframe = "quad_x"          # a name in params/airframes/, or a path ending in .toml
+//! seed = 7
+//! duration_s = 20.0
+//! rate_hz = 1000.0             # physics rate
+//! integrator = "rk4"           # rk4 | exp_map | hypersphere | euler_cromer | second_derivative
+//! sensors = "typical"          # ideal | typical | noisy
+//! [initial]
+//! position_ned_m = [0.0, 0.0, 0.0]
+//! attitude_euler_deg = [0.0, 0.0, 90.0]   # roll, pitch, yaw
+//! [wind]
+//! mean_ned_m_s = [3.0, 0.0, 0.0]
+//! turbulence_w20_m_s = 7.7
+//! [[events]]
+//! t_s = 5.0
+//! kind = "motor_fail"
+//! motor = 1                    # 1-based, as MAVLink numbers motors
+//! [[open_loop]]
+//! t_s = 0.0
+//! hover_delta = 0.05           # or: throttle = 0.6, or: controls = [..]
+//! ```
+
+use crate::airframe::Airframe;
+use crate::body::{BodyState, Integrator};
+use crate::environment::WindConfig;
+use crate::error::{Checker, ConfigError, parse_toml, read_toml};
+use crate::geo::Geodetic;
+use crate::sensors::{EarthField, SensorConfig, SensorHealth, SensorKind, SensorPreset};
+use crate::sim::{Action, Event, SimConfig};
+use nalgebra::{UnitQuaternion, Vector3};
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct InitialFile {
+    #[serde(default)]
+    position_ned_m: [f64; 3],
+    #[serde(default)]
+    velocity_ned_m_s: [f64; 3],
+    #[serde(default)]
+    attitude_euler_deg: [f64; 3],
+    #[serde(default)]
+    rate_frd_rad_s: [f64; 3],
+    /// Start with the rotors already at hover speed (for scenarios that start in the air).
+    #[serde(default)]
+    rotors_at_hover: bool,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+enum EventFile {
+    MotorFail {
+        t_s: f64,
+        motor: usize,
+    },
+    MotorThrust {
+        t_s: f64,
+        motor: usize,
+        effectiveness: f64,
+    },
+    MotorRestore {
+        t_s: f64,
+        motor: usize,
+    },
+    SensorOff {
+        t_s: f64,
+        sensor: SensorKind,
+        duration_s: Option<f64>,
+    },
+    SensorStuck {
+        t_s: f64,
+        sensor: SensorKind,
+        duration_s: Option<f64>,
+    },
+    GpsFixLoss {
+        t_s: f64,
+        duration_s: Option<f64>,
+    },
+    MagDisturbance {
+        t_s: f64,
+        field_ned_gauss: [f64; 3],
+        duration_s: Option<f64>,
+    },
+    ForcePulse {
+        t_s: f64,
+        force_ned_n: [f64; 3],
+        duration_s: f64,
+    },
+    TorquePulse {
+        t_s: f64,
+        torque_frd_n_m: [f64; 3],
+        duration_s: f64,
+    },
+    Gust {
+        t_s: f64,
+        peak_ned_m_s: [f64; 3],
+        duration_s: f64,
+    },
+    Wind {
+        t_s: f64,
+        mean_ned_m_s: [f64; 3],
+        #[serde(default)]
+        turbulence_w20_m_s: f64,
+    },
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct OpenLoopFile {
+    t_s: f64,
+    throttle: Option<f64>,
+    hover_delta: Option<f64>,
+    controls: Option<Vec<f64>>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ScenarioFile {
+    airframe: String,
+    #[serde(default = "default_seed")]
+    seed: u64,
+    duration_s: f64,
+    #[serde(default = "default_rate")]
+    rate_hz: f64,
+    #[serde(default)]
+    integrator: Integrator,
+    #[serde(default)]
+    sensors: SensorPreset,
+    #[serde(default)]
+    home: Option<Geodetic>,
+    #[serde(default)]
+    earth_field: Option<EarthField>,
+    #[serde(default)]
+    initial: InitialFile,
+    #[serde(default)]
+    wind: WindConfig,
+    #[serde(default)]
+    events: Vec<EventFile>,
+    #[serde(default)]
+    open_loop: Vec<OpenLoopFile>,
+}
+
+fn default_seed() -> u64 {
+    1
+}
+
+fn default_rate() -> f64 {
+    1000.0
+}
+
+/// One segment of an open-loop actuator script, in force from `t_s` until the next.
+#[derive(Debug, Clone, PartialEq)]
+pub enum OpenLoopCommand {
+    /// The same command on every rotor.
+    Throttle(f64),
+    /// The hover commands (at the battery voltage of the moment) plus a delta on every rotor.
+    HoverDelta(f64),
+    /// One command per rotor.
+    Controls(Vec<f64>),
+}
+
+/// A loaded, validated scenario.
+#[derive(Debug, Clone)]
+pub struct Scenario {
+    /// The airframe to fly.
+    pub airframe: Airframe,
+    /// Simulation settings.
+    pub sim: SimConfig,
+    /// Initial rigid-body state.
+    pub initial: BodyState,
+    /// Start with rotors at hover speed.
+    pub rotors_at_hover: bool,
+    /// How long to run (s).
+    pub duration_s: f64,
+    /// Timed events, motor numbers converted to indices.
+    pub events: Vec<Event>,
+    /// Open-loop script, sorted by time; empty when an autopilot flies.
+    pub open_loop: Vec<(f64, OpenLoopCommand)>,
+}
+
+impl Scenario {
+    /// Loads a scenario file; airframe names are looked up in `airframe_dir`.
+    pub fn load(path: &Path, airframe_dir: &Path) -> Result<Self, ConfigError> {
+        let raw: ScenarioFile = read_toml(path)?;
+        let base = path.parent().unwrap_or(Path::new("."));
+        Self::resolve(raw, &path.display().to_string(), base, airframe_dir)
+    }
+
+    /// Parses scenario TOML text; `origin` names it in errors.
+    pub fn from_toml_str(
+        text: &str,
+        origin: &str,
+        airframe_dir: &Path,
+    ) -> Result<Self, ConfigError> {
+        let raw: ScenarioFile = parse_toml(text, origin)?;
+        Self::resolve(raw, origin, Path::new("."), airframe_dir)
+    }
+
+    /// A scenario with defaults: the airframe landed at home, typical sensors, no wind.
+    pub fn basic(airframe: Airframe, duration_s: f64) -> Self {
+        Self {
+            airframe,
+            sim: SimConfig::default(),
+            initial: BodyState::default(),
+            rotors_at_hover: false,
+            duration_s,
+            events: Vec::new(),
+            open_loop: Vec::new(),
+        }
+    }
+
+    fn resolve(
+        raw: ScenarioFile,
+        file: &str,
+        base: &Path,
+        airframe_dir: &Path,
+    ) -> Result<Self, ConfigError> {
+        let mut c = Checker::default();
+        c.positive("duration_s", raw.duration_s);
+        c.within("rate_hz", raw.rate_hz, 20.0, 10_000.0);
+        let home = raw.home.unwrap_or_default();
+        c.within("home.lat_deg", home.lat_deg, -89.0, 89.0);
+        c.within("home.lon_deg", home.lon_deg, -180.0, 180.0);
+        c.within("home.alt_m", home.alt_m, -400.0, 9000.0);
+        let ini = &raw.initial;
+        c.finite("initial.position_ned_m", &ini.position_ned_m);
+        c.finite("initial.velocity_ned_m_s", &ini.velocity_ned_m_s);
+        c.finite("initial.attitude_euler_deg", &ini.attitude_euler_deg);
+        c.finite("initial.rate_frd_rad_s", &ini.rate_frd_rad_s);
+        c.finite("wind.mean_ned_m_s", &raw.wind.mean_ned_m_s);
+        c.within(
+            "wind.turbulence_w20_m_s",
+            raw.wind.turbulence_w20_m_s,
+            0.0,
+            40.0,
+        );
+        let mut events = Vec::new();
+        for (i, e) in raw.events.iter().enumerate() {
+            resolve_event(&mut c, i, e, &mut events);
+        }
+        let mut open_loop = Vec::new();
+        for (i, s) in raw.open_loop.iter().enumerate() {
+            let key = format!("open_loop[{i}]");
+            c.non_negative(format!("{key}.t_s"), s.t_s);
+            let cmd = match (&s.throttle, &s.hover_delta, &s.controls) {
+                (Some(t), None, None) => {
+                    c.within(format!("{key}.throttle"), *t, 0.0, 1.0);
+                    OpenLoopCommand::Throttle(*t)
+                }
+                (None, Some(d), None) => {
+                    c.within(format!("{key}.hover_delta"), *d, -1.0, 1.0);
+                    OpenLoopCommand::HoverDelta(*d)
+                }
+                (None, None, Some(v)) => {
+                    for (k, x) in v.iter().enumerate() {
+                        c.within(format!("{key}.controls[{k}]"), *x, 0.0, 1.0);
+                    }
+                    OpenLoopCommand::Controls(v.clone())
+                }
+                _ => {
+                    c.fail(
+                        &key,
+                        "give exactly one of throttle, hover_delta or controls",
+                    );
+                    continue;
+                }
+            };
+            open_loop.push((s.t_s, cmd));
+        }
+        open_loop.sort_by(|a, b| a.0.total_cmp(&b.0));
+        c.finish(file)?;
+
+        let airframe_path = resolve_airframe(&raw.airframe, base, airframe_dir);
+        let airframe = Airframe::load(&airframe_path)?;
+        let rotors = airframe.rotors.len();
+        let mut c = Checker::default();
+        for (i, e) in raw.events.iter().enumerate() {
+            let motor = match e {
+                EventFile::MotorFail { motor, .. }
+                | EventFile::MotorThrust { motor, .. }
+                | EventFile::MotorRestore { motor, .. } => Some(*motor),
+                _ => None,
+            };
+            if let Some(m) = motor {
+                if m == 0 || m > rotors {
+                    c.fail(
+                        format!("events[{i}].motor"),
+                        format!(
+                            "must be within [1, {rotors}] for airframe {}, got {m}",
+                            airframe.name
+                        ),
+                    );
+                }
+            }
+        }
+        for (i, (_, cmd)) in open_loop.iter().enumerate() {
+            if let OpenLoopCommand::Controls(v) = cmd {
+                if v.len() != rotors {
+                    c.fail(
+                        format!("open_loop[{i}].controls"),
+                        format!(
+                            "needs {rotors} values for airframe {}, got {}",
+                            airframe.name,
+                            v.len()
+                        ),
+                    );
+                }
+            }
+        }
+        c.finish(file)?;
+
+        let e = ini.attitude_euler_deg;
+        let initial = BodyState {
+            pos_ned_m: Vector3::from(ini.position_ned_m),
+            vel_ned_m_s: Vector3::from(ini.velocity_ned_m_s),
+            q_ned_from_frd: UnitQuaternion::from_euler_angles(
+                e[0].to_radians(),
+                e[1].to_radians(),
+                e[2].to_radians(),
+            ),
+            rate_frd_rad_s: Vector3::from(ini.rate_frd_rad_s),
+        };
+        Ok(Self {
+            airframe,
+            sim: SimConfig {
+                dt_s: 1.0 / raw.rate_hz,
+                integrator: raw.integrator,
+                seed: raw.seed,
+                sensors: SensorConfig::preset(raw.sensors),
+                earth_field: raw.earth_field.unwrap_or_default(),
+                home,
+                wind: raw.wind,
+            },
+            initial,
+            rotors_at_hover: ini.rotors_at_hover,
+            duration_s: raw.duration_s,
+            events,
+            open_loop,
+        })
+    }
+
+    /// The open-loop command in force at time `t`, if the script has started.
+    pub fn open_loop_at(&self, t: f64) -> Option<&OpenLoopCommand> {
+        self.open_loop
+            .iter()
+            .rev()
+            .find(|(start, _)| *start <= t + 1e-9)
+            .map(|(_, c)| c)
+    }
+}
+
+/// An airframe argument: a path if it ends in `.toml` (relative to `base`), else a name in `dir`.
+pub fn resolve_airframe(name: &str, base: &Path, dir: &Path) -> PathBuf {
+    if name.ends_with(".toml") {
+        let p = Path::new(name);
+        if p.is_absolute() {
+            p.to_path_buf()
+        } else {
+            base.join(p)
+        }
+    } else {
+        dir.join(format!("{name}.toml"))
+    }
+}
+
+fn resolve_event(c: &mut Checker, i: usize, e: &EventFile, out: &mut Vec<Event>) {
+    let key = format!("events[{i}]");
+    let mut push = |t_s: f64, action: Action| out.push(Event { t_s, action });
+    let restore = |c: &mut Checker,
+                   t_s: f64,
+                   duration: Option<f64>,
+                   action: Action,
+                   out_restore: &mut Vec<Event>| {
+        if let Some(d) = duration {
+            c.positive(format!("{key}.duration_s"), d);
+            out_restore.push(Event {
+                t_s: t_s + d,
+                action,
+            });
+        }
+    };
+    let mut later = Vec::new();
+    let t = match e {
+        EventFile::MotorFail { t_s, motor } => {
+            push(
+                *t_s,
+                Action::MotorFail {
+                    index: motor.saturating_sub(1),
+                },
+            );
+            *t_s
+        }
+        EventFile::MotorThrust {
+            t_s,
+            motor,
+            effectiveness,
+        } => {
+            c.within(format!("{key}.effectiveness"), *effectiveness, 0.0, 1.0);
+            push(
+                *t_s,
+                Action::MotorEffectiveness {
+                    index: motor.saturating_sub(1),
+                    effectiveness: *effectiveness,
+                },
+            );
+            *t_s
+        }
+        EventFile::MotorRestore { t_s, motor } => {
+            push(
+                *t_s,
+                Action::MotorRestore {
+                    index: motor.saturating_sub(1),
+                },
+            );
+            *t_s
+        }
+        EventFile::SensorOff {
+            t_s,
+            sensor,
+            duration_s,
+        }
+        | EventFile::SensorStuck {
+            t_s,
+            sensor,
+            duration_s,
+        } => {
+            let health = if matches!(e, EventFile::SensorOff { .. }) {
+                SensorHealth::Off
+            } else {
+                SensorHealth::Stuck
+            };
+            push(
+                *t_s,
+                Action::Sensor {
+                    sensor: *sensor,
+                    health,
+                },
+            );
+            restore(
+                c,
+                *t_s,
+                *duration_s,
+                Action::Sensor {
+                    sensor: *sensor,
+                    health: SensorHealth::Ok,
+                },
+                &mut later,
+            );
+            *t_s
+        }
+        EventFile::GpsFixLoss { t_s, duration_s } => {
+            push(*t_s, Action::GpsFixLost(true));
+            restore(c, *t_s, *duration_s, Action::GpsFixLost(false), &mut later);
+            *t_s
+        }
+        EventFile::MagDisturbance {
+            t_s,
+            field_ned_gauss,
+            duration_s,
+        } => {
+            c.finite(format!("{key}.field_ned_gauss"), field_ned_gauss);
+            push(
+                *t_s,
+                Action::MagDisturbance(Vector3::from(*field_ned_gauss)),
+            );
+            restore(
+                c,
+                *t_s,
+                *duration_s,
+                Action::MagDisturbance(Vector3::zeros()),
+                &mut later,
+            );
+            *t_s
+        }
+        EventFile::ForcePulse {
+            t_s,
+            force_ned_n,
+            duration_s,
+        } => {
+            c.finite(format!("{key}.force_ned_n"), force_ned_n);
+            c.positive(format!("{key}.duration_s"), *duration_s);
+            push(
+                *t_s,
+                Action::ForcePulse {
+                    force_ned_n: Vector3::from(*force_ned_n),
+                    duration_s: *duration_s,
+                },
+            );
+            *t_s
+        }
+        EventFile::TorquePulse {
+            t_s,
+            torque_frd_n_m,
+            duration_s,
+        } => {
+            c.finite(format!("{key}.torque_frd_n_m"), torque_frd_n_m);
+            c.positive(format!("{key}.duration_s"), *duration_s);
+            push(
+                *t_s,
+                Action::TorquePulse {
+                    torque_frd_n_m: Vector3::from(*torque_frd_n_m),
+                    duration_s: *duration_s,
+                },
+            );
+            *t_s
+        }
+        EventFile::Gust {
+            t_s,
+            peak_ned_m_s,
+            duration_s,
+        } => {
+            c.finite(format!("{key}.peak_ned_m_s"), peak_ned_m_s);
+            c.positive(format!("{key}.duration_s"), *duration_s);
+            push(
+                *t_s,
+                Action::Gust {
+                    peak_ned_m_s: Vector3::from(*peak_ned_m_s),
+                    duration_s: *duration_s,
+                },
+            );
+            *t_s
+        }
+        EventFile::Wind {
+            t_s,
+            mean_ned_m_s,
+            turbulence_w20_m_s,
+        } => {
+            c.finite(format!("{key}.mean_ned_m_s"), mean_ned_m_s);
+            c.within(
+                format!("{key}.turbulence_w20_m_s"),
+                *turbulence_w20_m_s,
+                0.0,
+                40.0,
+            );
+            push(
+                *t_s,
+                Action::Wind {
+                    mean_ned_m_s: Vector3::from(*mean_ned_m_s),
+                    turbulence_w20_m_s: *turbulence_w20_m_s,
+                },
+            );
+            *t_s
+        }
+    };
+    c.non_negative(format!("{key}.t_s"), t);
+    out.extend(later);
+}

@@ -1,0 +1,640 @@
+//! Sensor models: what a flight board's IMU, magnetometer, barometer, GPS and ESCs report.
+//!
+//! Pure and seeded: the same seed and truth give a bit-identical stream. Each sensor draws from its
+//! own random stream, so turning one off or changing its rate leaves the others' noise unchanged.
+
+use crate::environment::{AirState, isa_altitude_m};
+use crate::rng::Rng;
+use crate::{GRAVITY_M_S2, airframe::MAX_ROTORS, geo::Geodetic};
+use nalgebra::{Matrix3, UnitQuaternion, Vector3};
+use serde::Deserialize;
+use std::collections::VecDeque;
+
+/// `HIL_SENSOR.fields_updated` bits (MAVLink `HIL_SENSOR_UPDATED_FLAGS`).
+pub mod fields {
+    /// x, y, z accelerometer.
+    pub const ACCEL: u32 = 0b111;
+    /// x, y, z gyroscope.
+    pub const GYRO: u32 = 0b111 << 3;
+    /// x, y, z magnetometer.
+    pub const MAG: u32 = 0b111 << 6;
+    /// Absolute pressure.
+    pub const ABS_PRESSURE: u32 = 1 << 9;
+    /// Pressure altitude.
+    pub const PRESSURE_ALT: u32 = 1 << 11;
+    /// Temperature.
+    pub const TEMPERATURE: u32 = 1 << 12;
+    /// Everything the barometer provides.
+    pub const BARO: u32 = ABS_PRESSURE | PRESSURE_ALT | TEMPERATURE;
+}
+
+/// Sensor noise presets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SensorPreset {
+    /// Perfect sensors: truth, quantised only by f64.
+    Ideal,
+    /// Datasheet-like MEMS on a soft-mounted flight board (the default).
+    #[default]
+    Typical,
+    /// A poor installation: more noise and vibration, larger biases, a distorted magnetometer.
+    Noisy,
+}
+
+impl SensorPreset {
+    /// Parses `ideal`, `typical` or `noisy`.
+    pub fn from_name(s: &str) -> Option<Self> {
+        match s {
+            "ideal" => Some(Self::Ideal),
+            "typical" => Some(Self::Typical),
+            "noisy" => Some(Self::Noisy),
+            _ => None,
+        }
+    }
+}
+
+/// Every sensor parameter.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SensorConfig {
+    /// Accelerometer white-noise density (m/s²/√Hz).
+    pub accel_noise_density: f64,
+    /// Standard deviation of the accelerometer's turn-on bias per axis (m/s²).
+    pub accel_bias_sigma: f64,
+    /// Accelerometer bias random walk (m/s³/√Hz).
+    pub accel_bias_walk: f64,
+    /// Standard deviation of the per-axis scale-factor error (fraction).
+    pub accel_scale_sigma: f64,
+    /// Vibration amplitude per rotor at its top speed (m/s²), scaling with speed².
+    pub accel_vibration: f64,
+    /// Accelerometer full scale (m/s²).
+    pub accel_range: f64,
+    /// Gyroscope white-noise density (rad/s/√Hz).
+    pub gyro_noise_density: f64,
+    /// Standard deviation of the gyroscope's turn-on bias per axis (rad/s).
+    pub gyro_bias_sigma: f64,
+    /// Gyroscope bias random walk, the bias instability (rad/s²/√Hz).
+    pub gyro_bias_walk: f64,
+    /// Gyroscope full scale (rad/s).
+    pub gyro_range: f64,
+    /// Magnetometer output rate (Hz).
+    pub mag_rate_hz: f64,
+    /// Magnetometer noise per axis (gauss).
+    pub mag_noise: f64,
+    /// Hard-iron offset added to the reading (gauss): Castillo (75)'s `offset`.
+    pub mag_hard_iron: Vector3<f64>,
+    /// Soft-iron matrix S: `raw = S m_body + offset`. Castillo (75)'s calibration
+    /// `R E Rᵀ` is `S⁻¹`.
+    pub mag_soft_iron: Matrix3<f64>,
+    /// Barometer output rate (Hz).
+    pub baro_rate_hz: f64,
+    /// Barometer white noise (Pa).
+    pub baro_noise_pa: f64,
+    /// Barometer drift random walk (Pa/√s).
+    pub baro_drift_pa: f64,
+    /// GPS output rate (Hz).
+    pub gps_rate_hz: f64,
+    /// GPS horizontal position error, 1σ (m), correlated over `gps_correlation_s`.
+    pub gps_h_sigma: f64,
+    /// GPS vertical position error, 1σ (m).
+    pub gps_v_sigma: f64,
+    /// Correlation time of the GPS position error (s).
+    pub gps_correlation_s: f64,
+    /// GPS velocity noise per axis (m/s).
+    pub gps_vel_sigma: f64,
+    /// Age of a GPS solution when it is delivered (s).
+    pub gps_latency_s: f64,
+    /// Satellites reported while the fix is good.
+    pub gps_satellites: u8,
+    /// ESC telemetry rate (Hz).
+    pub rpm_rate_hz: f64,
+    /// Relative noise of the reported rotor speed.
+    pub rpm_noise: f64,
+}
+
+impl SensorConfig {
+    /// The parameters of a preset.
+    pub fn preset(p: SensorPreset) -> Self {
+        let typical = Self {
+            accel_noise_density: 2.0e-3,
+            accel_bias_sigma: 0.05,
+            accel_bias_walk: 2.0e-4,
+            accel_scale_sigma: 0.003,
+            accel_vibration: 0.3,
+            accel_range: 16.0 * GRAVITY_M_S2,
+            gyro_noise_density: 1.7e-4,
+            gyro_bias_sigma: 0.3f64.to_radians(),
+            gyro_bias_walk: 2.0e-5,
+            gyro_range: 2000f64.to_radians(),
+            mag_rate_hz: 100.0,
+            mag_noise: 0.003,
+            mag_hard_iron: Vector3::zeros(),
+            mag_soft_iron: Matrix3::identity(),
+            baro_rate_hz: 50.0,
+            baro_noise_pa: 3.0,
+            baro_drift_pa: 0.3,
+            gps_rate_hz: 10.0,
+            gps_h_sigma: 0.3,
+            gps_v_sigma: 0.6,
+            gps_correlation_s: 60.0,
+            gps_vel_sigma: 0.05,
+            gps_latency_s: 0.1,
+            gps_satellites: 14,
+            rpm_rate_hz: 50.0,
+            rpm_noise: 0.005,
+        };
+        match p {
+            SensorPreset::Typical => typical,
+            SensorPreset::Ideal => Self {
+                accel_noise_density: 0.0,
+                accel_bias_sigma: 0.0,
+                accel_bias_walk: 0.0,
+                accel_scale_sigma: 0.0,
+                accel_vibration: 0.0,
+                gyro_noise_density: 0.0,
+                gyro_bias_sigma: 0.0,
+                gyro_bias_walk: 0.0,
+                mag_noise: 0.0,
+                baro_noise_pa: 0.0,
+                baro_drift_pa: 0.0,
+                gps_h_sigma: 0.0,
+                gps_v_sigma: 0.0,
+                gps_vel_sigma: 0.0,
+                gps_latency_s: 0.0,
+                rpm_noise: 0.0,
+                ..typical
+            },
+            SensorPreset::Noisy => Self {
+                accel_noise_density: 6.0e-3,
+                accel_bias_sigma: 0.2,
+                accel_bias_walk: 1.0e-3,
+                accel_scale_sigma: 0.01,
+                accel_vibration: 1.5,
+                gyro_noise_density: 5.0e-4,
+                gyro_bias_sigma: 1.0f64.to_radians(),
+                gyro_bias_walk: 1.0e-4,
+                mag_noise: 0.008,
+                mag_hard_iron: Vector3::new(0.12, -0.08, 0.2),
+                mag_soft_iron: Matrix3::new(1.08, 0.04, -0.02, 0.04, 0.95, 0.03, -0.02, 0.03, 1.02),
+                baro_noise_pa: 10.0,
+                baro_drift_pa: 1.5,
+                gps_h_sigma: 1.5,
+                gps_v_sigma: 3.0,
+                gps_vel_sigma: 0.2,
+                gps_latency_s: 0.2,
+                gps_satellites: 8,
+                rpm_noise: 0.02,
+                ..typical
+            },
+        }
+    }
+}
+
+/// The Earth's magnetic field at the flying site.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EarthField {
+    /// Total intensity (gauss).
+    pub intensity_gauss: f64,
+    /// Inclination, positive down (deg).
+    pub inclination_deg: f64,
+    /// Declination, positive east (deg).
+    pub declination_deg: f64,
+}
+
+impl Default for EarthField {
+    /// Zurich, PX4's default SITL home.
+    fn default() -> Self {
+        Self {
+            intensity_gauss: 0.48,
+            inclination_deg: 63.3,
+            declination_deg: 3.0,
+        }
+    }
+}
+
+impl EarthField {
+    /// The field vector in NED (gauss).
+    pub fn ned(&self) -> Vector3<f64> {
+        let (si, ci) = self.inclination_deg.to_radians().sin_cos();
+        let (sd, cd) = self.declination_deg.to_radians().sin_cos();
+        self.intensity_gauss * Vector3::new(ci * cd, ci * sd, si)
+    }
+}
+
+/// What a sensor is doing: working, silent, or repeating its last value.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SensorHealth {
+    /// Working.
+    #[default]
+    Ok,
+    /// Silent: no fresh data (a dead or disconnected sensor).
+    Off,
+    /// Reports fresh timestamps but the same value every time.
+    Stuck,
+}
+
+/// Which sensor an injected fault targets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SensorKind {
+    /// Accelerometer and gyroscope together.
+    Imu,
+    /// Magnetometer.
+    Mag,
+    /// Barometer.
+    Baro,
+    /// GPS receiver (off: no messages; see also fix loss).
+    Gps,
+    /// ESC rpm telemetry.
+    Rpm,
+}
+
+/// The true state the sensors observe.
+#[derive(Debug, Clone, Copy)]
+pub struct Truth<'a> {
+    /// Simulation time (µs).
+    pub time_usec: u64,
+    /// Centre-of-mass position in local NED (m).
+    pub pos_ned_m: Vector3<f64>,
+    /// Velocity in NED (m/s).
+    pub vel_ned_m_s: Vector3<f64>,
+    /// Mean linear acceleration over the last step, NED (m/s²).
+    pub accel_ned_m_s2: Vector3<f64>,
+    /// Attitude.
+    pub q_ned_from_frd: UnitQuaternion<f64>,
+    /// Body rate (rad/s).
+    pub rate_frd_rad_s: Vector3<f64>,
+    /// Mean angular acceleration over the last step (rad/s²).
+    pub ang_accel_frd_rad_s2: Vector3<f64>,
+    /// Air at the vehicle.
+    pub air: AirState,
+    /// Rotor speeds (rad/s).
+    pub rotor_speed_rad_s: &'a [f64],
+    /// Rotor top speeds (rad/s), for vibration scaling.
+    pub rotor_max_speed_rad_s: &'a [f64],
+}
+
+/// A GPS solution as a receiver reports it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GpsFix {
+    /// Time of the solution (µs, simulation clock) — older than the delivery time by the latency.
+    pub time_usec: u64,
+    /// 0–1: no fix, 3: 3D fix.
+    pub fix_type: u8,
+    /// Position.
+    pub position: Geodetic,
+    /// Velocity in NED (m/s).
+    pub vel_ned_m_s: Vector3<f64>,
+    /// Horizontal position accuracy 1σ (m).
+    pub h_acc_m: f64,
+    /// Vertical position accuracy 1σ (m).
+    pub v_acc_m: f64,
+    /// Satellites used.
+    pub satellites: u8,
+}
+
+/// One frame of sensor output.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SensorFrame {
+    /// Sample time (µs).
+    pub time_usec: u64,
+    /// Specific force at the IMU in FRD (m/s²): level at rest reads z ≈ −9.81.
+    pub accel_frd_m_s2: Vector3<f64>,
+    /// Angular rate in FRD (rad/s).
+    pub gyro_frd_rad_s: Vector3<f64>,
+    /// Magnetic field in FRD (gauss), distorted as configured.
+    pub mag_frd_gauss: Vector3<f64>,
+    /// Static pressure (hPa).
+    pub abs_pressure_hpa: f64,
+    /// Pressure altitude (m AMSL, ISA).
+    pub pressure_alt_m: f64,
+    /// Air temperature (°C).
+    pub temperature_c: f64,
+    /// `HIL_SENSOR.fields_updated`: which of the above are fresh in this frame.
+    pub fields_updated: u32,
+    /// A GPS solution delivered in this frame, if any.
+    pub gps: Option<GpsFix>,
+    /// Rotor speeds (rpm) when fresh.
+    pub rotor_rpm: Option<[f64; MAX_ROTORS]>,
+}
+
+/// Most GPS solutions in flight at once (rate × latency is far below this).
+const GPS_QUEUE_LIMIT: usize = 64;
+
+struct Periodic {
+    period_usec: u64,
+    next_usec: u64,
+}
+
+impl Periodic {
+    fn new(rate_hz: f64) -> Self {
+        Self {
+            period_usec: (1e6 / rate_hz.max(1e-3)).round().max(1.0) as u64,
+            next_usec: 0,
+        }
+    }
+
+    fn due(&mut self, t: u64) -> bool {
+        if t >= self.next_usec {
+            self.next_usec = self.next_usec.max(t - t % self.period_usec) + self.period_usec;
+            true
+        } else {
+            false
+        }
+    }
+}
+
+/// All the sensors of one vehicle.
+pub struct SensorSuite {
+    cfg: SensorConfig,
+    field_ned: Vector3<f64>,
+    home: Geodetic,
+    imu_position_frd_m: Vector3<f64>,
+    accel_rng: Rng,
+    gyro_rng: Rng,
+    mag_rng: Rng,
+    baro_rng: Rng,
+    gps_rng: Rng,
+    rpm_rng: Rng,
+    accel_bias: Vector3<f64>,
+    accel_scale: Vector3<f64>,
+    gyro_bias: Vector3<f64>,
+    baro_drift_pa: f64,
+    gps_error_ned: Vector3<f64>,
+    vibration_axis: [Vector3<f64>; MAX_ROTORS],
+    vibration_phase: [f64; MAX_ROTORS],
+    mag_due: Periodic,
+    baro_due: Periodic,
+    gps_due: Periodic,
+    rpm_due: Periodic,
+    gps_queue: VecDeque<(u64, GpsFix)>,
+    last: SensorFrame,
+    last_time_usec: Option<u64>,
+    last_gps: Option<GpsFix>,
+    /// Injected state of each sensor.
+    pub health: [SensorHealth; 5],
+    /// The GPS receiver runs but has no fix (fix type 1, no satellites).
+    pub gps_fix_lost: bool,
+    /// Extra magnetic field added in NED (gauss), to inject disturbances.
+    pub mag_disturbance_ned: Vector3<f64>,
+}
+
+fn kind_index(k: SensorKind) -> usize {
+    match k {
+        SensorKind::Imu => 0,
+        SensorKind::Mag => 1,
+        SensorKind::Baro => 2,
+        SensorKind::Gps => 3,
+        SensorKind::Rpm => 4,
+    }
+}
+
+impl SensorSuite {
+    /// Sensors with parameters `cfg`, seeded by `seed`; `home` anchors the local NED origin.
+    pub fn new(
+        cfg: SensorConfig,
+        field: EarthField,
+        home: Geodetic,
+        imu_position_frd_m: Vector3<f64>,
+        seed: u64,
+    ) -> Self {
+        let mut accel_rng = Rng::stream(seed, 1);
+        let mut gyro_rng = Rng::stream(seed, 2);
+        let mut vib_rng = Rng::stream(seed, 7);
+        let accel_bias = accel_rng.normal3(cfg.accel_bias_sigma);
+        let accel_scale = accel_rng.normal3(cfg.accel_scale_sigma);
+        let gyro_bias = gyro_rng.normal3(cfg.gyro_bias_sigma);
+        let mut vibration_axis = [Vector3::zeros(); MAX_ROTORS];
+        let mut vibration_phase = [0.0; MAX_ROTORS];
+        for i in 0..MAX_ROTORS {
+            // Mostly in the rotor plane, where imbalance shakes the frame.
+            let v = Vector3::new(vib_rng.normal(), vib_rng.normal(), 0.5 * vib_rng.normal());
+            vibration_axis[i] = v / v.norm().max(1e-9);
+            vibration_phase[i] = vib_rng.uniform() * std::f64::consts::TAU;
+        }
+        let (mag_due, baro_due, gps_due, rpm_due) = (
+            Periodic::new(cfg.mag_rate_hz),
+            Periodic::new(cfg.baro_rate_hz),
+            Periodic::new(cfg.gps_rate_hz),
+            Periodic::new(cfg.rpm_rate_hz),
+        );
+        Self {
+            field_ned: field.ned(),
+            home,
+            imu_position_frd_m,
+            accel_rng,
+            gyro_rng,
+            mag_rng: Rng::stream(seed, 3),
+            baro_rng: Rng::stream(seed, 4),
+            gps_rng: Rng::stream(seed, 5),
+            rpm_rng: Rng::stream(seed, 6),
+            accel_bias,
+            accel_scale,
+            gyro_bias,
+            baro_drift_pa: 0.0,
+            gps_error_ned: Vector3::zeros(),
+            vibration_axis,
+            vibration_phase,
+            mag_due,
+            baro_due,
+            gps_due,
+            rpm_due,
+            gps_queue: VecDeque::with_capacity(16),
+            last: SensorFrame {
+                time_usec: 0,
+                accel_frd_m_s2: Vector3::zeros(),
+                gyro_frd_rad_s: Vector3::zeros(),
+                mag_frd_gauss: Vector3::zeros(),
+                abs_pressure_hpa: 0.0,
+                pressure_alt_m: 0.0,
+                temperature_c: 0.0,
+                fields_updated: 0,
+                gps: None,
+                rotor_rpm: None,
+            },
+            last_time_usec: None,
+            last_gps: None,
+            health: [SensorHealth::Ok; 5],
+            gps_fix_lost: false,
+            mag_disturbance_ned: Vector3::zeros(),
+            cfg,
+        }
+    }
+
+    /// Sets the injected state of one sensor.
+    pub fn set_health(&mut self, kind: SensorKind, health: SensorHealth) {
+        self.health[kind_index(kind)] = health;
+    }
+
+    /// The true gyro bias (rad/s), for scoring an estimator.
+    pub fn gyro_bias(&self) -> Vector3<f64> {
+        self.gyro_bias
+    }
+
+    /// The true accelerometer bias (m/s²).
+    pub fn accel_bias(&self) -> Vector3<f64> {
+        self.accel_bias
+    }
+
+    /// Samples every sensor at the truth `t`. Call once per physics step.
+    pub fn sample(&mut self, t: &Truth) -> &SensorFrame {
+        let dt = match self.last_time_usec {
+            Some(prev) if t.time_usec > prev => (t.time_usec - prev) as f64 * 1e-6,
+            _ => 1e-3,
+        };
+        self.last_time_usec = Some(t.time_usec);
+        let mut updated = 0u32;
+        let c = &self.cfg;
+        let rate_noise = 1.0 / dt.sqrt(); // σ = N √(1/Δt) for band-limited white noise
+
+        // IMU: the specific force at the IMU's lever arm, Zabunov (50)–(54) with a rigid mount
+        // (no relative velocity, so no Coriolis term).
+        let q_inv = t.q_ned_from_frd.inverse();
+        let r = self.imu_position_frd_m;
+        let w = t.rate_frd_rad_s;
+        let gravity = Vector3::new(0.0, 0.0, GRAVITY_M_S2);
+        let specific = q_inv * (t.accel_ned_m_s2 - gravity)
+            + t.ang_accel_frd_rad_s2.cross(&r) // Euler (54)
+            + w.cross(&w.cross(&r)); // centripetal (53)
+        let mut vib = Vector3::zeros();
+        if c.accel_vibration > 0.0 {
+            for (i, (&speed, &max)) in t
+                .rotor_speed_rad_s
+                .iter()
+                .zip(t.rotor_max_speed_rad_s)
+                .enumerate()
+            {
+                self.vibration_phase[i] =
+                    (self.vibration_phase[i] + speed * dt) % std::f64::consts::TAU;
+                let amp = c.accel_vibration * (speed / max).powi(2);
+                vib += self.vibration_axis[i] * (amp * self.vibration_phase[i].sin());
+            }
+        }
+        self.accel_bias += self.accel_rng.normal3(c.accel_bias_walk * dt.sqrt());
+        self.gyro_bias += self.gyro_rng.normal3(c.gyro_bias_walk * dt.sqrt());
+        match self.health[0] {
+            SensorHealth::Ok => {
+                let accel = specific.component_mul(&(Vector3::repeat(1.0) + self.accel_scale))
+                    + self.accel_bias
+                    + vib
+                    + self.accel_rng.normal3(c.accel_noise_density * rate_noise);
+                let gyro =
+                    w + self.gyro_bias + self.gyro_rng.normal3(c.gyro_noise_density * rate_noise);
+                self.last.accel_frd_m_s2 = accel.map(|x| x.clamp(-c.accel_range, c.accel_range));
+                self.last.gyro_frd_rad_s = gyro.map(|x| x.clamp(-c.gyro_range, c.gyro_range));
+                updated |= fields::ACCEL | fields::GYRO;
+            }
+            SensorHealth::Stuck => updated |= fields::ACCEL | fields::GYRO,
+            SensorHealth::Off => {}
+        }
+
+        if self.mag_due.due(t.time_usec) {
+            match self.health[1] {
+                SensorHealth::Ok => {
+                    let body = q_inv * (self.field_ned + self.mag_disturbance_ned);
+                    self.last.mag_frd_gauss = c.mag_soft_iron * body
+                        + c.mag_hard_iron
+                        + self.mag_rng.normal3(c.mag_noise);
+                    updated |= fields::MAG;
+                }
+                SensorHealth::Stuck => updated |= fields::MAG,
+                SensorHealth::Off => {}
+            }
+        }
+
+        if self.baro_due.due(t.time_usec) {
+            let period = self.baro_due.period_usec as f64 * 1e-6;
+            self.baro_drift_pa += c.baro_drift_pa * period.sqrt() * self.baro_rng.normal();
+            let noise = c.baro_noise_pa * self.baro_rng.normal();
+            match self.health[2] {
+                SensorHealth::Ok => {
+                    let p = t.air.pressure_pa + self.baro_drift_pa + noise;
+                    self.last.abs_pressure_hpa = p * 0.01;
+                    self.last.pressure_alt_m = isa_altitude_m(p);
+                    self.last.temperature_c = t.air.temperature_k - 273.15;
+                    updated |= fields::BARO;
+                }
+                SensorHealth::Stuck => updated |= fields::BARO,
+                SensorHealth::Off => {}
+            }
+        }
+
+        if self.gps_due.due(t.time_usec) {
+            let period = self.gps_due.period_usec as f64 * 1e-6;
+            // First-order Gauss–Markov position error with the configured stationary σ.
+            let a = (-period / c.gps_correlation_s).exp();
+            let k = (1.0 - a * a).sqrt();
+            let n = self.gps_rng.normal3(1.0);
+            self.gps_error_ned = self.gps_error_ned * a
+                + Vector3::new(
+                    c.gps_h_sigma * k * n.x,
+                    c.gps_h_sigma * k * n.y,
+                    c.gps_v_sigma * k * n.z,
+                );
+            let vel_noise = self.gps_rng.normal3(c.gps_vel_sigma);
+            let fix = if self.gps_fix_lost {
+                GpsFix {
+                    time_usec: t.time_usec,
+                    fix_type: 1,
+                    position: self.home,
+                    vel_ned_m_s: Vector3::zeros(),
+                    h_acc_m: 999.0,
+                    v_acc_m: 999.0,
+                    satellites: 0,
+                }
+            } else {
+                GpsFix {
+                    time_usec: t.time_usec,
+                    fix_type: 3,
+                    position: self.home.offset_by_ned(&(t.pos_ned_m + self.gps_error_ned)),
+                    vel_ned_m_s: t.vel_ned_m_s + vel_noise,
+                    h_acc_m: c.gps_h_sigma.max(0.05),
+                    v_acc_m: c.gps_v_sigma.max(0.05),
+                    satellites: c.gps_satellites,
+                }
+            };
+            let deliver = t.time_usec + (c.gps_latency_s * 1e6).round() as u64;
+            if self.gps_queue.len() < GPS_QUEUE_LIMIT {
+                self.gps_queue.push_back((deliver, fix));
+            }
+        }
+        self.last.gps = None;
+        while let Some(&(deliver, fix)) = self.gps_queue.front() {
+            if deliver > t.time_usec {
+                break;
+            }
+            self.gps_queue.pop_front();
+            match self.health[3] {
+                SensorHealth::Ok => self.last.gps = Some(fix),
+                SensorHealth::Stuck => {
+                    if let Some(prev) = self.last_gps {
+                        self.last.gps = Some(GpsFix {
+                            time_usec: fix.time_usec,
+                            ..prev
+                        });
+                    }
+                }
+                SensorHealth::Off => {}
+            }
+        }
+
+        self.last.rotor_rpm = None;
+        if self.rpm_due.due(t.time_usec) && self.health[4] != SensorHealth::Off {
+            let mut rpm = [0.0; MAX_ROTORS];
+            for (i, &s) in t.rotor_speed_rad_s.iter().enumerate() {
+                rpm[i] = (s * 60.0 / std::f64::consts::TAU
+                    * (1.0 + c.rpm_noise * self.rpm_rng.normal()))
+                .max(0.0);
+            }
+            self.last.rotor_rpm = Some(rpm);
+        }
+
+        self.last.time_usec = t.time_usec;
+        self.last.fields_updated = updated;
+        if self.last.gps.is_some() {
+            self.last_gps = self.last.gps;
+        }
+        &self.last
+    }
+}

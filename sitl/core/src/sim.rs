@@ -1,0 +1,584 @@
+//! The simulated vehicle: rigid body, rotors, battery, air, ground contact, faults and sensors.
+//!
+//! [`Simulator::step`] advances physics by one fixed step under actuator commands;
+//! [`Simulator::sample_sensors`] then reports what the flight board would measure. No I/O, no
+//! clock: the simulation time is the step count times the step.
+
+use crate::GRAVITY_M_S2;
+use crate::airframe::{Airframe, MAX_ROTORS};
+use crate::body::{Accel, BodyState, Integrator, MassProperties};
+use crate::environment::{AirState, Gust, Wind, WindConfig, isa};
+use crate::geo::Geodetic;
+use crate::powertrain::{Battery, RotorWrench, Rotors};
+use crate::rng::Rng;
+use crate::sensors::{
+    EarthField, SensorConfig, SensorFrame, SensorHealth, SensorKind, SensorSuite, Truth,
+};
+use nalgebra::{DVector, UnitQuaternion, Vector3};
+
+/// How the simulation is set up.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimConfig {
+    /// Physics step (s).
+    pub dt_s: f64,
+    /// Integration scheme.
+    pub integrator: Integrator,
+    /// Seed of every random process (sensor noise, turbulence).
+    pub seed: u64,
+    /// Sensor parameters.
+    pub sensors: SensorConfig,
+    /// Earth magnetic field at the site.
+    pub earth_field: EarthField,
+    /// Geodetic position of the local NED origin (on the ground).
+    pub home: Geodetic,
+    /// Wind and turbulence.
+    pub wind: WindConfig,
+}
+
+impl Default for SimConfig {
+    fn default() -> Self {
+        Self {
+            dt_s: 0.001,
+            integrator: Integrator::Rk4,
+            seed: 1,
+            sensors: SensorConfig::preset(crate::sensors::SensorPreset::Typical),
+            earth_field: EarthField::default(),
+            home: Geodetic::default(),
+            wind: WindConfig::default(),
+        }
+    }
+}
+
+/// Something that happens at a scheduled simulation time (scenario events, fault injection).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Action {
+    /// Motor `index` (0-based) stops turning.
+    MotorFail {
+        /// Rotor index.
+        index: usize,
+    },
+    /// Motor `index` keeps turning but its propeller makes only `effectiveness` of nominal thrust.
+    MotorEffectiveness {
+        /// Rotor index.
+        index: usize,
+        /// Fraction of nominal thrust and torque, 0–1.
+        effectiveness: f64,
+    },
+    /// Motor `index` works normally again.
+    MotorRestore {
+        /// Rotor index.
+        index: usize,
+    },
+    /// A sensor goes off, sticks, or recovers.
+    Sensor {
+        /// Which sensor.
+        sensor: SensorKind,
+        /// Its new state.
+        health: SensorHealth,
+    },
+    /// The GPS loses (true) or regains (false) its fix.
+    GpsFixLost(bool),
+    /// An extra magnetic field appears (NED, gauss); zero removes it.
+    MagDisturbance(Vector3<f64>),
+    /// A force in NED (N) acts for a while.
+    ForcePulse {
+        /// Force, NED (N).
+        force_ned_n: Vector3<f64>,
+        /// Length (s).
+        duration_s: f64,
+    },
+    /// A torque in FRD (N·m) acts for a while.
+    TorquePulse {
+        /// Torque, FRD (N·m).
+        torque_frd_n_m: Vector3<f64>,
+        /// Length (s).
+        duration_s: f64,
+    },
+    /// A 1 − cos gust.
+    Gust {
+        /// Peak air velocity, NED (m/s).
+        peak_ned_m_s: Vector3<f64>,
+        /// Length (s).
+        duration_s: f64,
+    },
+    /// The mean wind and turbulence change.
+    Wind {
+        /// Mean wind, NED (m/s).
+        mean_ned_m_s: Vector3<f64>,
+        /// Turbulence intensity W20 (m/s).
+        turbulence_w20_m_s: f64,
+    },
+}
+
+/// A scheduled action.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Event {
+    /// When (s of simulation time).
+    pub t_s: f64,
+    /// What.
+    pub action: Action,
+}
+
+/// Counters of everything the simulator had to correct or refuse.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SimStats {
+    /// Steps taken.
+    pub steps: u64,
+    /// Actuator values outside [0, 1] that were clamped.
+    pub clamped_commands: u64,
+    /// Non-finite actuator values replaced by 0.
+    pub nonfinite_commands: u64,
+    /// Touchdowns (transitions from flying to landed).
+    pub touchdowns: u64,
+    /// Vertical speed at the last touchdown (m/s, positive down).
+    pub last_touchdown_speed_m_s: f64,
+}
+
+/// The true state, for logs, scoring and `HIL_STATE_QUATERNION`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TruthState {
+    /// Simulation time (µs).
+    pub time_usec: u64,
+    /// Rigid-body state.
+    pub body: BodyState,
+    /// Mean linear acceleration over the last step, NED (m/s²).
+    pub accel_ned_m_s2: Vector3<f64>,
+    /// Geodetic position.
+    pub position: Geodetic,
+    /// Air velocity at the vehicle, NED (m/s).
+    pub wind_ned_m_s: Vector3<f64>,
+    /// Whether the vehicle rests on the ground.
+    pub landed: bool,
+    /// Battery terminal voltage (V).
+    pub battery_voltage_v: f64,
+    /// Battery current (A).
+    pub battery_current_a: f64,
+    /// Battery state of charge (0–1).
+    pub battery_remaining: f64,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Pulse {
+    until_s: f64,
+    force_ned_n: Vector3<f64>,
+    torque_frd_n_m: Vector3<f64>,
+}
+
+/// The whole simulated vehicle and its world.
+pub struct Simulator {
+    airframe: Airframe,
+    mass: MassProperties,
+    cfg: SimConfig,
+    dt_usec: u64,
+    time_usec: u64,
+    body: BodyState,
+    rotors: Rotors,
+    battery: Battery,
+    wind: Wind,
+    sensors: SensorSuite,
+    landed: bool,
+    accel_ned: Vector3<f64>,
+    ang_accel_frd: Vector3<f64>,
+    air: AirState,
+    wind_ned: Vector3<f64>,
+    pulses: Vec<Pulse>,
+    events: Vec<Event>,
+    max_speeds: [f64; MAX_ROTORS],
+    stats: SimStats,
+    hover_thrust_n: DVector<f64>,
+}
+
+/// Why a simulator cannot be built.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SimError {
+    /// The step must be positive and at most 50 ms.
+    #[error("physics step must be within (0, 0.05] s, got {0}")]
+    Step(f64),
+    /// An event names a rotor the airframe does not have.
+    #[error("event at t = {t_s} s names motor {motor}, but the airframe has {count} rotors")]
+    Motor {
+        /// Event time.
+        t_s: f64,
+        /// 1-based motor number.
+        motor: usize,
+        /// Rotor count.
+        count: usize,
+    },
+    /// The inertia tensor is singular (validated airframes never are).
+    #[error("inertia tensor is singular")]
+    Inertia,
+}
+
+impl Simulator {
+    /// A vehicle of `airframe` in state `initial`; it starts landed when at or below ground level.
+    pub fn new(airframe: &Airframe, cfg: SimConfig, initial: BodyState) -> Result<Self, SimError> {
+        if !(cfg.dt_s > 0.0 && cfg.dt_s <= 0.05) {
+            return Err(SimError::Step(cfg.dt_s));
+        }
+        let mass = MassProperties::new(airframe.mass_kg, airframe.inertia_kg_m2)
+            .ok_or(SimError::Inertia)?;
+        let mut max_speeds = [0.0; MAX_ROTORS];
+        for (m, r) in max_speeds.iter_mut().zip(&airframe.rotors) {
+            *m = r.max_speed_rad_s;
+        }
+        // Minimum-norm rotor thrusts for the hover wrench [−W, 0, 0, 0]: B⁺ w.
+        let b = airframe.effectiveness();
+        let w = DVector::from_vec(vec![-airframe.weight_n(), 0.0, 0.0, 0.0]);
+        let hover_thrust_n = b
+            .clone()
+            .pseudo_inverse(1e-12)
+            .map(|p| p * w)
+            .unwrap_or_else(|_| {
+                DVector::from_element(
+                    airframe.rotors.len(),
+                    airframe.weight_n() / airframe.rotors.len() as f64,
+                )
+            });
+        let sensors = SensorSuite::new(
+            cfg.sensors.clone(),
+            cfg.earth_field,
+            cfg.home,
+            airframe.imu_position_frd_m,
+            cfg.seed,
+        );
+        let wind = Wind::new(&cfg.wind, Rng::stream(cfg.seed, 8));
+        let mut sim = Self {
+            mass,
+            dt_usec: (cfg.dt_s * 1e6).round() as u64,
+            time_usec: 0,
+            body: initial,
+            rotors: Rotors::new(airframe),
+            battery: Battery::new(&airframe.battery),
+            wind,
+            sensors,
+            landed: false,
+            accel_ned: Vector3::zeros(),
+            ang_accel_frd: Vector3::zeros(),
+            air: isa(cfg.home.alt_m - initial.pos_ned_m.z),
+            wind_ned: Vector3::from(cfg.wind.mean_ned_m_s),
+            pulses: Vec::new(),
+            events: Vec::new(),
+            max_speeds,
+            stats: SimStats::default(),
+            hover_thrust_n,
+            airframe: airframe.clone(),
+            cfg,
+        };
+        if sim.body.pos_ned_m.z >= 0.0 {
+            sim.rest_on_ground();
+        }
+        Ok(sim)
+    }
+
+    /// Schedules events (1-based motor numbers are already converted to indices).
+    pub fn schedule(&mut self, events: &[Event]) -> Result<(), SimError> {
+        for e in events {
+            if let Action::MotorFail { index }
+            | Action::MotorEffectiveness { index, .. }
+            | Action::MotorRestore { index } = e.action
+            {
+                if index >= self.rotors.len() {
+                    return Err(SimError::Motor {
+                        t_s: e.t_s,
+                        motor: index + 1,
+                        count: self.rotors.len(),
+                    });
+                }
+            }
+            self.events.push(*e);
+        }
+        // Latest first, so due events pop off the end; stable for equal times.
+        self.events.sort_by(|a, b| b.t_s.total_cmp(&a.t_s));
+        Ok(())
+    }
+
+    /// Applies an action now.
+    pub fn apply(&mut self, action: Action) {
+        let t = self.time_s();
+        match action {
+            Action::MotorFail { index } => {
+                if let Some(f) = self.rotors.faults.get_mut(index) {
+                    f.failed = true;
+                }
+            }
+            Action::MotorEffectiveness {
+                index,
+                effectiveness,
+            } => {
+                if let Some(f) = self.rotors.faults.get_mut(index) {
+                    f.effectiveness = effectiveness.clamp(0.0, 1.0);
+                }
+            }
+            Action::MotorRestore { index } => {
+                if let Some(f) = self.rotors.faults.get_mut(index) {
+                    *f = Default::default();
+                }
+            }
+            Action::Sensor { sensor, health } => self.sensors.set_health(sensor, health),
+            Action::GpsFixLost(lost) => self.sensors.gps_fix_lost = lost,
+            Action::MagDisturbance(field) => self.sensors.mag_disturbance_ned = field,
+            Action::ForcePulse {
+                force_ned_n,
+                duration_s,
+            } => self.pulses.push(Pulse {
+                until_s: t + duration_s,
+                force_ned_n,
+                torque_frd_n_m: Vector3::zeros(),
+            }),
+            Action::TorquePulse {
+                torque_frd_n_m,
+                duration_s,
+            } => self.pulses.push(Pulse {
+                until_s: t + duration_s,
+                force_ned_n: Vector3::zeros(),
+                torque_frd_n_m,
+            }),
+            Action::Gust {
+                peak_ned_m_s,
+                duration_s,
+            } => self.wind.add_gust(Gust {
+                start_s: t,
+                duration_s,
+                peak_ned_m_s,
+            }),
+            Action::Wind {
+                mean_ned_m_s,
+                turbulence_w20_m_s,
+            } => {
+                self.wind.mean_ned_m_s = mean_ned_m_s;
+                self.wind.set_turbulence(turbulence_w20_m_s);
+            }
+        }
+    }
+
+    /// Simulation time (s).
+    pub fn time_s(&self) -> f64 {
+        self.time_usec as f64 * 1e-6
+    }
+
+    /// Simulation time (µs): the clock of the whole SITL run.
+    pub fn time_usec(&self) -> u64 {
+        self.time_usec
+    }
+
+    /// The airframe being flown.
+    pub fn airframe(&self) -> &Airframe {
+        &self.airframe
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &SimConfig {
+        &self.cfg
+    }
+
+    /// Counters.
+    pub fn stats(&self) -> SimStats {
+        self.stats
+    }
+
+    /// Rotor speeds (rad/s).
+    pub fn rotor_speeds(&self) -> &[f64] {
+        &self.rotors.speed_rad_s[..self.rotors.len()]
+    }
+
+    /// Sets every rotor's speed (rad/s), e.g. to start in hover.
+    pub fn set_rotor_speeds(&mut self, speeds: &[f64]) {
+        for (s, v) in self.rotors.speed_rad_s.iter_mut().zip(speeds) {
+            *s = v.max(0.0);
+        }
+    }
+
+    /// The sensors, for fault injection and scoring (true biases).
+    pub fn sensors(&self) -> &SensorSuite {
+        &self.sensors
+    }
+
+    /// Rotor speeds of the minimum-norm hover thrust split in the current air (rad/s):
+    /// Lewis (4.30) applied to `B⁺ [−W, 0, 0, 0]`.
+    pub fn hover_speeds(&self) -> [f64; MAX_ROTORS] {
+        let mut out = [0.0; MAX_ROTORS];
+        for (i, spec) in self.airframe.rotors.iter().enumerate() {
+            out[i] = spec.speed_for_thrust_rad_s(self.air.density_kg_m3, self.hover_thrust_n[i]);
+        }
+        out
+    }
+
+    /// Commands that hold the hover speeds at the present battery voltage: the inverse motor
+    /// curve of Lewis (6.12).
+    pub fn hover_commands(&self) -> [f64; MAX_ROTORS] {
+        let speeds = self.hover_speeds();
+        let v = self.battery.voltage();
+        let mut out = [0.0; MAX_ROTORS];
+        for (i, spec) in self.airframe.rotors.iter().enumerate() {
+            out[i] = Rotors::command_for_speed(spec, speeds[i], v);
+        }
+        out
+    }
+
+    /// The true state now.
+    pub fn truth(&self) -> TruthState {
+        TruthState {
+            time_usec: self.time_usec,
+            body: self.body,
+            accel_ned_m_s2: self.accel_ned,
+            position: self.cfg.home.offset_by_ned(&self.body.pos_ned_m),
+            wind_ned_m_s: self.wind_ned,
+            landed: self.landed,
+            battery_voltage_v: self.battery.voltage(),
+            battery_current_a: self.battery.current_a,
+            battery_remaining: self.battery.remaining(),
+        }
+    }
+
+    /// Mass properties in use.
+    pub fn mass_properties(&self) -> &MassProperties {
+        &self.mass
+    }
+
+    fn rest_on_ground(&mut self) {
+        let (_, _, yaw) = self.body.q_ned_from_frd.euler_angles();
+        self.body.pos_ned_m.z = 0.0;
+        self.body.vel_ned_m_s = Vector3::zeros();
+        self.body.rate_frd_rad_s = Vector3::zeros();
+        self.body.q_ned_from_frd = UnitQuaternion::from_euler_angles(0.0, 0.0, yaw);
+        self.landed = true;
+    }
+
+    /// Sanitises actuator commands: NaN → 0, clamped to [0, 1], both counted.
+    fn sanitise(&mut self, controls: &[f64]) -> [f64; MAX_ROTORS] {
+        let mut u = [0.0; MAX_ROTORS];
+        for (i, &c) in controls.iter().take(self.rotors.len()).enumerate() {
+            u[i] = if !c.is_finite() {
+                self.stats.nonfinite_commands += 1;
+                0.0
+            } else if !(0.0..=1.0).contains(&c) {
+                self.stats.clamped_commands += 1;
+                c.clamp(0.0, 1.0)
+            } else {
+                c
+            };
+        }
+        u
+    }
+
+    /// Advances the world by one step under actuator commands `controls[i]` ∈ [0, 1] for rotor i.
+    pub fn step(&mut self, controls: &[f64]) {
+        let dt = self.cfg.dt_s;
+        let t = self.time_s();
+        while self.events.last().is_some_and(|e| e.t_s <= t + 1e-9) {
+            if let Some(e) = self.events.pop() {
+                self.apply(e.action);
+            }
+        }
+        let u = self.sanitise(controls);
+        let altitude_agl = -self.body.pos_ned_m.z;
+        self.air = isa(self.cfg.home.alt_m + altitude_agl);
+        let rho = self.air.density_kg_m3;
+        let v_batt = self.battery.voltage();
+        let rotor = self.rotors.step(&u, v_batt, rho, dt);
+        self.wind_ned = self
+            .wind
+            .step(t, dt, &self.body.vel_ned_m_s, altitude_agl.max(0.0));
+        let mut ext_force = Vector3::zeros();
+        let mut ext_torque = Vector3::zeros();
+        self.pulses.retain(|p| t < p.until_s);
+        for p in &self.pulses {
+            ext_force += p.force_ned_n;
+            ext_torque += p.torque_frd_n_m;
+        }
+        let forces = Forces {
+            rotor,
+            mass: &self.mass,
+            drag: &self.airframe.drag,
+            rho,
+            wind_ned: self.wind_ned,
+            ext_force_ned: ext_force,
+            ext_torque_frd: ext_torque,
+        };
+        let before = self.body;
+        if self.landed {
+            // Lift off only when the forces at rest would accelerate the vehicle upward.
+            if forces.accel(&self.body).lin_ned_m_s2.z < 0.0 {
+                self.landed = false;
+            }
+        }
+        if !self.landed {
+            self.body = self
+                .cfg
+                .integrator
+                .step(&self.body, dt, |s| forces.accel(s));
+            if self.body.pos_ned_m.z > 0.0 {
+                self.stats.touchdowns += 1;
+                self.stats.last_touchdown_speed_m_s = self.body.vel_ned_m_s.z;
+                self.rest_on_ground();
+            }
+        } else {
+            self.rest_on_ground();
+        }
+        self.accel_ned = (self.body.vel_ned_m_s - before.vel_ned_m_s) / dt;
+        self.ang_accel_frd = (self.body.rate_frd_rad_s - before.rate_frd_rad_s) / dt;
+        self.battery.draw(rotor.shaft_power_w, dt);
+        self.time_usec += self.dt_usec;
+        self.stats.steps += 1;
+    }
+
+    /// What the sensors report after the last step.
+    pub fn sample_sensors(&mut self) -> &SensorFrame {
+        let n = self.rotors.len();
+        let truth = Truth {
+            time_usec: self.time_usec,
+            pos_ned_m: self.body.pos_ned_m,
+            vel_ned_m_s: self.body.vel_ned_m_s,
+            accel_ned_m_s2: self.accel_ned,
+            q_ned_from_frd: self.body.q_ned_from_frd,
+            rate_frd_rad_s: self.body.rate_frd_rad_s,
+            ang_accel_frd_rad_s2: self.ang_accel_frd,
+            air: self.air,
+            rotor_speed_rad_s: &self.rotors.speed_rad_s[..n],
+            rotor_max_speed_rad_s: &self.max_speeds[..n],
+        };
+        self.sensors.sample(&truth)
+    }
+}
+
+/// The forces of one step, as a function of the state the integrator asks about.
+struct Forces<'a> {
+    rotor: RotorWrench,
+    mass: &'a MassProperties,
+    drag: &'a crate::airframe::DragSpec,
+    rho: f64,
+    wind_ned: Vector3<f64>,
+    ext_force_ned: Vector3<f64>,
+    ext_torque_frd: Vector3<f64>,
+}
+
+impl Forces<'_> {
+    fn accel(&self, s: &BodyState) -> Accel {
+        let q = &s.q_ned_from_frd;
+        let w = &s.rate_frd_rad_s;
+        let air_frd = q.inverse_transform_vector(&(s.vel_ned_m_s - self.wind_ned));
+        let lin = Vector3::from(self.drag.linear_n_s_m);
+        let quad = Vector3::from(self.drag.quadratic_n_s2_m2);
+        let drag_frd = -lin.component_mul(&air_frd)
+            - quad.component_mul(&air_frd.component_mul(&air_frd.abs()));
+        let force_ned = q.transform_vector(&(self.rotor.force_frd_n + drag_frd))
+            + Vector3::new(0.0, 0.0, self.mass.mass_kg * GRAVITY_M_S2)
+            + self.ext_force_ned;
+        // Castillo (57)–(59): rotor moments, gyroscopic torque of the spinning rotors −ω × h,
+        // aerodynamic torque (signed so that it opposes the air-relative velocity), damping.
+        let aero = Vector3::from(self.drag.aero_torque_m3)
+            .component_mul(&air_frd.component_mul(&air_frd.abs()))
+            * (0.5 * self.rho);
+        let damping = Vector3::from(self.drag.rotational_n_m_s_rad).component_mul(w);
+        let torque =
+            self.rotor.torque_frd_n_m - w.cross(&self.rotor.rotor_momentum_frd) - aero - damping
+                + self.ext_torque_frd;
+        Accel {
+            lin_ned_m_s2: force_ned / self.mass.mass_kg,
+            ang_frd_rad_s2: self.mass.angular_accel(w, &torque),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;
