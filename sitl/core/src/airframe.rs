@@ -384,4 +384,4 @@ fn check_inertia(c: &mut Checker, i: &Matrix3<f64>) {
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

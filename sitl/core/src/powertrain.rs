@@ -148,13 +148,10 @@ impl Rotors {
     /// Advances the motors by `dt` under commands `u` (already sanitised to [0, 1]) and returns the
     /// wrench on the body from the mid-step speeds, in air of density `rho`.
     pub fn step(&mut self, u: &[f64], v_batt: f64, rho: f64, dt: f64) -> RotorWrench {
-        let mut force = Vector3::zeros();
-        let mut torque = Vector3::zeros();
-        let mut momentum_z = 0.0;
-        let mut power = 0.0;
+        let mut w_mid = [0.0; MAX_ROTORS];
+        let mut w_dot_mid = [0.0; MAX_ROTORS];
         for (i, spec) in self.specs.iter().enumerate() {
-            let fault = self.faults[i];
-            let target = if fault.failed {
+            let target = if self.faults[i].failed {
                 0.0
             } else {
                 Self::commanded_speed(spec, u.get(i).copied().unwrap_or(0.0), v_batt)
@@ -165,11 +162,30 @@ impl Rotors {
             }
             let (_, full, half) = self.decay[i];
             let w0 = self.speed_rad_s[i];
-            let w_mid = target + (w0 - target) * half;
+            w_mid[i] = target + (w0 - target) * half;
+            w_dot_mid[i] = (target - w_mid[i]) / spec.time_constant_s;
             self.speed_rad_s[i] = (target + (w0 - target) * full).max(0.0);
-            let w_dot_mid = (target - w_mid) / spec.time_constant_s;
-            let thrust = fault.effectiveness * spec.thrust_n(rho, w_mid); // Lewis (4.28)
-            let drag_torque = fault.effectiveness * spec.drag_torque_n_m(rho, w_mid); // Lewis (4.29)
+        }
+        self.wrench_at(&w_mid, &w_dot_mid, rho)
+    }
+
+    /// Sets the speeds as if they had been held for long (no spin-up torque).
+    fn set_steady(&mut self, speeds: &[f64]) {
+        for (s, v) in self.speed_rad_s.iter_mut().zip(speeds) {
+            *s = v.max(0.0);
+        }
+    }
+
+    /// The wrench of rotors at speeds `w` accelerating at `w_dot`.
+    fn wrench_at(&self, w: &[f64; MAX_ROTORS], w_dot: &[f64; MAX_ROTORS], rho: f64) -> RotorWrench {
+        let mut force = Vector3::zeros();
+        let mut torque = Vector3::zeros();
+        let mut momentum_z = 0.0;
+        let mut power = 0.0;
+        for (i, spec) in self.specs.iter().enumerate() {
+            let eff = self.faults[i].effectiveness;
+            let thrust = eff * spec.thrust_n(rho, w[i]); // Lewis (4.28)
+            let drag_torque = eff * spec.drag_torque_n_m(rho, w[i]); // Lewis (4.29)
             let s = spec.spin.sign();
             let p = &spec.position_frd_m;
             // Thrust along −z at the hub: moment r × (0, 0, −T) = (−y T, x T, 0).
@@ -178,10 +194,10 @@ impl Rotors {
             torque.y += p.x * thrust;
             // Reaction to the drag torque (+z for ccw) and to spinning the rotor up (a ccw rotor
             // spins about −z; the motor pushing it faster pushes the body about +z).
-            torque.z += s * (drag_torque + spec.inertia_kg_m2 * w_dot_mid);
+            torque.z += s * (drag_torque + spec.inertia_kg_m2 * w_dot[i]);
             // Rotor angular momentum: ccw spins about −z.
-            momentum_z -= s * spec.inertia_kg_m2 * w_mid;
-            power += drag_torque * w_mid;
+            momentum_z -= s * spec.inertia_kg_m2 * w[i];
+            power += drag_torque * w[i];
         }
         RotorWrench {
             force_frd_n: force,
@@ -190,6 +206,21 @@ impl Rotors {
             shaft_power_w: power,
         }
     }
+}
+
+/// The steady-state body wrench `[F_z, M_x, M_y, M_z]` (FRD) of the rotors turning at `speeds`
+/// (rad/s) in air of density `rho`, computed rotor by rotor from the physics of [`Rotors::step`]:
+/// the simulator's side of the check that a mixer's allocation reproduces the vehicle.
+pub fn steady_wrench(airframe: &Airframe, speeds: &[f64], rho: f64) -> [f64; 4] {
+    let mut rotors = Rotors::new(airframe);
+    rotors.set_steady(speeds);
+    let w = rotors.wrench_at(&rotors.speed_rad_s.clone(), &[0.0; MAX_ROTORS], rho);
+    [
+        w.force_frd_n.z,
+        w.torque_frd_n_m.x,
+        w.torque_frd_n_m.y,
+        w.torque_frd_n_m.z,
+    ]
 }
 
 #[cfg(test)]

@@ -1,1 +1,419 @@
+use super::*;
+use crate::airframe::tests::{SHIPPED, shipped};
+use crate::powertrain::steady_wrench;
+use crate::sensors::{SensorPreset, fields};
+use nalgebra::DVector;
 
+fn config(preset: SensorPreset) -> SimConfig {
+    SimConfig {
+        sensors: SensorConfig::preset(preset),
+        ..SimConfig::default()
+    }
+}
+
+fn airborne(name: &str, preset: SensorPreset) -> Simulator {
+    let a = shipped(name);
+    let initial = BodyState {
+        pos_ned_m: Vector3::new(0.0, 0.0, -10.0),
+        ..BodyState::default()
+    };
+    let mut sim = Simulator::new(&a, config(preset), initial).unwrap();
+    let hover = sim.hover_speeds();
+    sim.set_rotor_speeds(&hover);
+    sim
+}
+
+/// At the analytic hover speeds (Lewis (4.30) of B⁺[−W,0,0,0]), held through the inverse motor
+/// curve as the battery sags, every airframe stays put: < 1 mm over 10 s.
+#[test]
+fn hover_equilibrium_holds_position_for_every_airframe() {
+    for name in SHIPPED {
+        let mut sim = airborne(name, SensorPreset::Ideal);
+        let p0 = sim.truth().body.pos_ned_m;
+        for _ in 0..10_000 {
+            let u = sim.hover_commands();
+            sim.step(&u);
+        }
+        let t = sim.truth();
+        let drift = (t.body.pos_ned_m - p0).norm();
+        println!(
+            "hover 10 s {name:>9}: drift {drift:.2e} m, tilt {:.2e} rad, battery {:.2} V",
+            t.body.q_ned_from_frd.angle(),
+            t.battery_voltage_v
+        );
+        assert!(drift < 1e-3, "{name}: drifted {drift} m");
+        assert!(
+            t.battery_voltage_v < 4.2 * sim.airframe().battery.cells as f64,
+            "the battery must have sagged"
+        );
+    }
+}
+
+#[test]
+fn free_fall_without_drag_is_exact_and_with_drag_reaches_terminal_speed() {
+    let mut a = shipped("quad_x");
+    a.drag.linear_n_s_m = [0.0; 3];
+    a.drag.quadratic_n_s2_m2 = [0.0; 3];
+    let start = BodyState {
+        pos_ned_m: Vector3::new(0.0, 0.0, -1000.0),
+        ..BodyState::default()
+    };
+    let mut sim = Simulator::new(&a, config(SensorPreset::Ideal), start).unwrap();
+    for _ in 0..3000 {
+        sim.step(&[0.0; 4]);
+    }
+    let z = sim.truth().body.pos_ned_m.z + 1000.0;
+    assert!((z - 0.5 * GRAVITY_M_S2 * 9.0).abs() < 1e-6, "fell {z} m");
+    // The accelerometer of a falling body reads zero specific force.
+    let f = sim.sample_sensors().accel_frd_m_s2;
+    assert!(f.norm() < 1e-6, "{f:?}");
+
+    // With drag: m g = c₁ v + c₂ v² along body z.
+    let a = shipped("quad_x");
+    let mut sim = Simulator::new(&a, config(SensorPreset::Ideal), start).unwrap();
+    for _ in 0..30_000 {
+        sim.step(&[0.0; 4]);
+    }
+    let (c1, c2, w) = (
+        a.drag.linear_n_s_m[2],
+        a.drag.quadratic_n_s2_m2[2],
+        a.weight_n(),
+    );
+    let v_terminal = (-c1 + (c1 * c1 + 4.0 * c2 * w).sqrt()) / (2.0 * c2);
+    let v = sim.truth().body.vel_ned_m_s.z;
+    assert!((v / v_terminal - 1.0).abs() < 1e-3, "{v} vs {v_terminal}");
+}
+
+/// The force model, rotor by rotor, equals the effectiveness matrix B the mixer will invert:
+/// [F_z, M_x, M_y, M_z] = B · T for arbitrary speeds, on every airframe. This is the test that
+/// catches motor order and spin-direction mistakes.
+#[test]
+fn rotor_wrench_equals_the_effectiveness_matrix() {
+    let mut rng = crate::rng::Rng::stream(3, 3);
+    for name in SHIPPED {
+        let a = shipped(name);
+        let b = a.effectiveness();
+        for _ in 0..20 {
+            let speeds: Vec<f64> = a
+                .rotors
+                .iter()
+                .map(|r| rng.uniform() * r.max_speed_rad_s)
+                .collect();
+            let thrust = DVector::from_iterator(
+                speeds.len(),
+                a.rotors
+                    .iter()
+                    .zip(&speeds)
+                    .map(|(r, &w)| r.thrust_n(1.1, w)),
+            );
+            let expected = &b * thrust;
+            let got = steady_wrench(&a, &speeds, 1.1);
+            for k in 0..4 {
+                assert!(
+                    (got[k] - expected[k]).abs() < 1e-9 * (1.0 + expected[k].abs()),
+                    "{name} row {k}"
+                );
+            }
+        }
+    }
+}
+
+fn run(sim: &mut Simulator, u: &[f64], steps: usize) {
+    for _ in 0..steps {
+        sim.step(u);
+    }
+}
+
+/// Sign conventions: front rotors faster → nose up (positive pitch rate); left faster → roll right;
+/// ccw rotors faster → yaw right (ARCHITECTURE.md: a ccw rotor's reaction torque is +z).
+#[test]
+fn differential_thrust_turns_the_way_the_conventions_say() {
+    // quad_x: 1 front-right ccw, 2 rear-left ccw, 3 front-left cw, 4 rear-right cw.
+    let cases: [([f64; 4], usize, f64); 3] = [
+        ([1.0, -1.0, 1.0, -1.0], 1, 1.0), // front up → pitch rate q > 0 (nose up)
+        ([-1.0, 1.0, 1.0, -1.0], 0, 1.0), // left up → roll rate p > 0
+        ([1.0, 1.0, -1.0, -1.0], 2, 1.0), // ccw up → yaw rate r > 0
+    ];
+    for (delta, axis, sign) in cases {
+        let mut sim = airborne("quad_x", SensorPreset::Ideal);
+        let mut u = [0.0; 4];
+        let hover = sim.hover_commands();
+        for i in 0..4 {
+            u[i] = hover[i] + 0.03 * delta[i];
+        }
+        run(&mut sim, &u, 200);
+        let w = sim.truth().body.rate_frd_rad_s;
+        assert!(sign * w[axis] > 0.1, "axis {axis}: {w:?}");
+        for other in (0..3).filter(|&k| k != axis) {
+            assert!(
+                w[other].abs() < 0.05 * w[axis].abs(),
+                "axis {axis} leaks into {other}: {w:?}"
+            );
+        }
+    }
+}
+
+#[test]
+fn vehicle_rests_on_the_ground_lifts_off_and_touches_down() {
+    let a = shipped("quad_x");
+    let mut sim = Simulator::new(&a, config(SensorPreset::Ideal), BodyState::default()).unwrap();
+    assert!(sim.truth().landed);
+    run(&mut sim, &[0.2; 4], 2000); // below hover: stays down
+    let t = sim.truth();
+    assert!(t.landed && t.body.pos_ned_m.z == 0.0 && t.body.vel_ned_m_s == Vector3::zeros());
+    let f = sim.sample_sensors().accel_frd_m_s2;
+    assert!(
+        (f - Vector3::new(0.0, 0.0, -GRAVITY_M_S2)).norm() < 1e-9,
+        "resting accel {f:?}"
+    );
+    run(&mut sim, &[0.8; 4], 1500); // climb
+    let t = sim.truth();
+    assert!(
+        !t.landed && t.body.pos_ned_m.z < -1.0,
+        "{:?}",
+        t.body.pos_ned_m
+    );
+    run(&mut sim, &[0.0; 4], 5000); // fall back
+    let t = sim.truth();
+    assert!(t.landed && t.body.pos_ned_m.z == 0.0);
+    assert_eq!(sim.stats().touchdowns, 1);
+    assert!(sim.stats().last_touchdown_speed_m_s > 2.0);
+}
+
+#[test]
+fn bad_actuator_values_are_clamped_and_counted() {
+    let mut sim = airborne("quad_x", SensorPreset::Ideal);
+    sim.step(&[f64::NAN, 1.5, -0.2, f64::INFINITY]);
+    let s = sim.stats();
+    assert_eq!((s.nonfinite_commands, s.clamped_commands), (2, 2));
+    assert!(sim.truth().body.pos_ned_m.iter().all(|x| x.is_finite()));
+}
+
+#[test]
+fn motor_lag_is_first_order_with_the_airframe_time_constant() {
+    let mut sim = airborne("quad_x", SensorPreset::Ideal);
+    sim.set_rotor_speeds(&[0.0; 4]);
+    let tau = sim.airframe().rotors[0].time_constant_s;
+    let steps = (tau / sim.config().dt_s).round() as usize;
+    let v = sim.truth().battery_voltage_v;
+    run(&mut sim, &[0.5; 4], steps);
+    let target = Rotors::commanded_speed(&sim.airframe().rotors[0], 0.5, v);
+    let frac = sim.rotor_speeds()[0] / target;
+    assert!(
+        (frac - (1.0 - (-1.0f64).exp())).abs() < 0.01,
+        "reached {frac} of target after τ"
+    );
+}
+
+#[test]
+fn same_seed_gives_identical_streams_and_another_seed_does_not() {
+    let trace = |seed: u64| {
+        let a = shipped("hexa_x");
+        let cfg = SimConfig {
+            seed,
+            wind: WindConfig {
+                mean_ned_m_s: [3.0, 1.0, 0.0],
+                turbulence_w20_m_s: 8.0,
+            },
+            ..SimConfig::default()
+        };
+        let initial = BodyState {
+            pos_ned_m: Vector3::new(0.0, 0.0, -5.0),
+            ..BodyState::default()
+        };
+        let mut sim = Simulator::new(&a, cfg, initial).unwrap();
+        let mut out = Vec::new();
+        for _ in 0..3000 {
+            let u = sim.hover_commands();
+            sim.step(&u);
+            let f = sim.sample_sensors().clone();
+            out.extend(
+                f.accel_frd_m_s2
+                    .iter()
+                    .chain(f.gyro_frd_rad_s.iter())
+                    .chain(f.mag_frd_gauss.iter())
+                    .map(|x| x.to_bits()),
+            );
+            out.extend(sim.truth().body.pos_ned_m.iter().map(|x| x.to_bits()));
+        }
+        out
+    };
+    assert_eq!(trace(11), trace(11));
+    assert_ne!(trace(11), trace(12));
+}
+
+#[test]
+fn sensor_rates_and_fields_updated() {
+    let mut sim = airborne("quad_x", SensorPreset::Typical);
+    let (mut mag, mut baro, mut gps, mut imu) = (0, 0, 0, 0);
+    for _ in 0..2000 {
+        let u = sim.hover_commands();
+        sim.step(&u);
+        let f = sim.sample_sensors();
+        imu += (f.fields_updated & fields::ACCEL == fields::ACCEL) as u32;
+        mag += (f.fields_updated & fields::MAG != 0) as u32;
+        baro += (f.fields_updated & fields::BARO == fields::BARO) as u32;
+        gps += f.gps.is_some() as u32;
+    }
+    // First samples at t = 1 ms, then one per period through t = 2 s inclusive.
+    assert_eq!((imu, mag, baro), (2000, 201, 101));
+    assert!((19..=20).contains(&gps), "gps {gps}");
+}
+
+/// Typical gyro noise is N/√Δt per sample; the accelerometer at hover sees −g plus vibration.
+#[test]
+fn typical_noise_matches_its_density() {
+    let mut sim = airborne("quad_x", SensorPreset::Typical);
+    let cfg = sim.config().sensors.clone();
+    let n = 20_000;
+    let mut gyro = Vec::with_capacity(n);
+    for _ in 0..n {
+        let u = sim.hover_commands();
+        sim.step(&u);
+        gyro.push(sim.sample_sensors().gyro_frd_rad_s.x);
+    }
+    let mean = gyro.iter().sum::<f64>() / n as f64;
+    let sd = (gyro.iter().map(|g| (g - mean).powi(2)).sum::<f64>() / n as f64).sqrt();
+    let expected = cfg.gyro_noise_density / sim.config().dt_s.sqrt();
+    assert!(
+        (sd / expected - 1.0).abs() < 0.05,
+        "gyro σ {sd} vs {expected}"
+    );
+    assert!(
+        (mean - sim.sensors().gyro_bias().x).abs() < 5e-4,
+        "bias {mean}"
+    );
+}
+
+/// Castillo (75) calibration m = R E Rᵀ (m_raw − offset), whose R E Rᵀ is our S⁻¹, recovers the
+/// body-frame field from the distorted reading.
+#[test]
+fn magnetometer_distortion_is_inverted_by_castillo_calibration() {
+    let mut cfg = config(SensorPreset::Ideal);
+    let noisy = SensorConfig::preset(SensorPreset::Noisy);
+    cfg.sensors.mag_hard_iron = noisy.mag_hard_iron;
+    cfg.sensors.mag_soft_iron = noisy.mag_soft_iron;
+    let q = UnitQuaternion::from_euler_angles(0.3, -0.5, 2.0);
+    let initial = BodyState {
+        pos_ned_m: Vector3::new(0.0, 0.0, -10.0),
+        q_ned_from_frd: q,
+        ..BodyState::default()
+    };
+    let mut sim = Simulator::new(&shipped("quad_x"), cfg.clone(), initial).unwrap();
+    sim.step(&[0.0; 4]);
+    let raw = sim.sample_sensors().mag_frd_gauss;
+    let body = sim.truth().body.q_ned_from_frd.inverse() * cfg.earth_field.ned();
+    let calibrated =
+        cfg.sensors.mag_soft_iron.try_inverse().unwrap() * (raw - cfg.sensors.mag_hard_iron);
+    assert!((calibrated - body).norm() < 1e-12);
+    assert!((raw - body).norm() > 0.05, "the distortion must be visible");
+}
+
+#[test]
+fn gps_reports_the_position_of_its_latency_ago_and_baro_the_isa_altitude() {
+    let mut cfg = config(SensorPreset::Ideal);
+    cfg.sensors.gps_latency_s = 0.2;
+    let initial = BodyState {
+        pos_ned_m: Vector3::new(0.0, 0.0, -20.0),
+        vel_ned_m_s: Vector3::new(5.0, 0.0, 0.0),
+        ..BodyState::default()
+    };
+    let mut a = shipped("quad_x");
+    a.drag.linear_n_s_m = [0.0; 3];
+    a.drag.quadratic_n_s2_m2 = [0.0; 3];
+    let mut sim = Simulator::new(&a, cfg.clone(), initial).unwrap();
+    let hover = sim.hover_speeds();
+    sim.set_rotor_speeds(&hover);
+    let mut history = Vec::new();
+    let mut checked = 0;
+    for _ in 0..1000 {
+        let u = sim.hover_commands();
+        sim.step(&u);
+        history.push((sim.time_usec(), sim.truth().body.pos_ned_m));
+        let f = sim.sample_sensors().clone();
+        if let Some(fix) = f.gps {
+            assert!(sim.time_usec() - fix.time_usec == 200_000);
+            let (_, then) = history.iter().find(|(t, _)| *t == fix.time_usec).unwrap();
+            let ned = cfg.home.ned_to(&fix.position);
+            assert!((ned - then).norm() < 1e-6, "{ned:?} vs {then:?}");
+            checked += 1;
+        }
+        if f.fields_updated & fields::PRESSURE_ALT != 0 {
+            let truth_alt = cfg.home.alt_m - sim.truth().body.pos_ned_m.z;
+            assert!((f.pressure_alt_m - truth_alt).abs() < 1e-6);
+        }
+    }
+    assert!(checked >= 7);
+}
+
+#[test]
+fn lever_arm_adds_centripetal_acceleration() {
+    // IMU 0.1 m forward of the CG, body spinning about z at 3 rad/s in free fall: the
+    // accelerometer feels −ω² r = 0.9 m/s² toward the centre (Zabunov (53)).
+    let mut a = shipped("quad_x");
+    a.imu_position_frd_m = Vector3::new(0.1, 0.0, 0.0);
+    a.drag.rotational_n_m_s_rad = [0.0; 3];
+    a.drag.linear_n_s_m = [0.0; 3];
+    a.drag.quadratic_n_s2_m2 = [0.0; 3];
+    let initial = BodyState {
+        pos_ned_m: Vector3::new(0.0, 0.0, -100.0),
+        rate_frd_rad_s: Vector3::new(0.0, 0.0, 3.0),
+        ..BodyState::default()
+    };
+    let mut sim = Simulator::new(&a, config(SensorPreset::Ideal), initial).unwrap();
+    sim.step(&[0.0; 4]);
+    let f = sim.sample_sensors().accel_frd_m_s2;
+    assert!((f - Vector3::new(-0.9, 0.0, 0.0)).norm() < 1e-6, "{f:?}");
+}
+
+#[test]
+fn scheduled_motor_failure_stops_the_rotor_and_makes_the_vehicle_fall() {
+    let mut sim = airborne("quad_x", SensorPreset::Ideal);
+    sim.schedule(&[Event {
+        t_s: 0.5,
+        action: Action::MotorFail { index: 0 },
+    }])
+    .unwrap();
+    assert!(
+        sim.schedule(&[Event {
+            t_s: 0.5,
+            action: Action::MotorFail { index: 4 }
+        }])
+        .is_err()
+    );
+    for _ in 0..1500 {
+        let u = sim.hover_commands();
+        sim.step(&u);
+    }
+    assert!(sim.rotor_speeds()[0] < 1.0);
+    assert!(
+        sim.truth().body.q_ned_from_frd.angle() > 0.5,
+        "a quad losing a rotor must tumble"
+    );
+}
+
+#[test]
+fn torque_pulse_is_felt_and_ends() {
+    let mut sim = airborne("quad_x", SensorPreset::Ideal);
+    sim.apply(Action::TorquePulse {
+        torque_frd_n_m: Vector3::new(0.029 * 40.0, 0.0, 0.0),
+        duration_s: 0.1,
+    });
+    for _ in 0..100 {
+        let u = sim.hover_commands();
+        sim.step(&u);
+    }
+    let p = sim.truth().body.rate_frd_rad_s.x;
+    assert!(
+        (p - 4.0).abs() < 0.1,
+        "40 rad/s² for 0.1 s gives ≈ 4 rad/s, got {p}"
+    );
+    for _ in 0..100 {
+        let u = sim.hover_commands();
+        sim.step(&u);
+    }
+    assert!(
+        (sim.truth().body.rate_frd_rad_s.x - p).abs() < 0.1,
+        "the pulse must end"
+    );
+}
