@@ -1,1 +1,213 @@
-fn main() {}
+//! `sitl`: the multirotor simulator process.
+//!
+//! Runs the physics and sensors of `sitl-core` behind the MAVLink HIL link of ARCHITECTURE.md:
+//! sends `HIL_SENSOR`, `HIL_GPS`, `ESC_STATUS` and `HIL_STATE_QUATERNION` to the autopilot's UDP
+//! port and steps physics on its `HIL_ACTUATOR_CONTROLS`, in lockstep (default) or real time. With
+//! `--open-loop` it flies the scenario's actuator script with no autopilot at all.
+
+mod hil;
+mod run;
+mod truth_csv;
+
+use anyhow::{Context, Result, bail};
+use clap::{Parser, ValueEnum};
+use sitl_core::scenario::Scenario;
+use sitl_core::sensors::{SensorConfig, SensorPreset};
+use sitl_core::{Airframe, Integrator};
+use std::net::SocketAddr;
+use std::path::PathBuf;
+
+/// How simulation time relates to wall time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Mode {
+    /// Physics advances only when the autopilot has answered the last sensor frame; the
+    /// simulation clock is the autopilot's clock. As fast as the autopilot allows.
+    Lockstep,
+    /// Physics advances with the wall clock (times `--speed`); the latest actuator command is used.
+    Realtime,
+}
+
+/// Multirotor simulator: physics, sensors and a MAVLink HIL link over UDP.
+#[derive(Debug, Parser)]
+#[command(name = "sitl", version, about, long_about = None)]
+pub struct Cli {
+    /// Scenario file (TOML): airframe, initial state, sensors, wind, seed, duration, events,
+    /// open-loop script. Without one: the airframe rests at home, typical sensors, no wind.
+    #[arg(long, value_name = "FILE")]
+    pub scenario: Option<PathBuf>,
+    /// Airframe: a name in <params-dir>/airframes/ (quad_x, quad_plus, hexa_x, octa_x, dodeca) or a
+    /// path to a .toml file. Overrides the scenario's.
+    #[arg(long, value_name = "NAME|FILE")]
+    pub airframe: Option<String>,
+    /// Directory that holds airframes/ [default: ./params, else the source tree's params/].
+    #[arg(long, value_name = "DIR")]
+    pub params_dir: Option<PathBuf>,
+    /// Fly the scenario's open-loop actuator script with no autopilot (a physics demo).
+    #[arg(long)]
+    pub open_loop: bool,
+    /// The autopilot's HIL address; its port is offset by --instance.
+    #[arg(long, default_value = "127.0.0.1:4560", value_name = "ADDR")]
+    pub autopilot: SocketAddr,
+    /// Instance number N: talks to autopilot port 4560 + N (several vehicles on one machine).
+    #[arg(short = 'i', long, default_value_t = 0)]
+    pub instance: u16,
+    /// Local UDP address to bind.
+    #[arg(long, default_value = "127.0.0.1:0", value_name = "ADDR")]
+    pub bind: SocketAddr,
+    /// Pacing: lockstep with the autopilot, or real time.
+    #[arg(long, value_enum, default_value_t = Mode::Lockstep)]
+    pub mode: Mode,
+    /// Real-time factor for --mode realtime (and --open-loop), e.g. 1, 20, or "max".
+    #[arg(long, default_value = "1", value_name = "FACTOR|max")]
+    pub speed: String,
+    /// HIL exchange rate (Hz): one sensor frame out and one actuator command in per exchange.
+    /// Physics runs at the scenario's rate; the IMU is averaged over each exchange interval.
+    #[arg(long, default_value_t = 250.0, value_name = "HZ")]
+    pub hil_rate: f64,
+    /// Lockstep: wall-clock time (ms) to wait for an answer before stepping with the last
+    /// command; every such timeout is counted and reported.
+    #[arg(long, default_value_t = 1000, value_name = "MS")]
+    pub timeout_ms: u64,
+    /// Give up if no autopilot has answered within this many wall-clock seconds (0 = wait forever).
+    #[arg(long, default_value_t = 0.0, value_name = "S")]
+    pub connect_timeout: f64,
+    /// Simulated seconds to run (overrides the scenario).
+    #[arg(long, value_name = "S")]
+    pub duration: Option<f64>,
+    /// Seed of every random process (overrides the scenario).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Sensor preset: ideal, typical or noisy (overrides the scenario).
+    #[arg(long, value_name = "PRESET")]
+    pub sensors: Option<String>,
+    /// Integrator: rk4, exp_map, hypersphere, euler_cromer, second_derivative (overrides the scenario).
+    #[arg(long, value_name = "NAME")]
+    pub integrator: Option<String>,
+    /// Physics rate in Hz (overrides the scenario).
+    #[arg(long, value_name = "HZ")]
+    pub rate: Option<f64>,
+    /// Write ground truth (position, velocity, attitude, rates, rotor speeds) to this CSV file.
+    #[arg(long, value_name = "FILE")]
+    pub truth_csv: Option<PathBuf>,
+    /// Rows per simulated second in the truth CSV.
+    #[arg(long, default_value_t = 100.0, value_name = "HZ")]
+    pub truth_rate: f64,
+    /// Print a status line every this many simulated seconds (0: only the summary).
+    #[arg(long, default_value_t = 1.0, value_name = "S")]
+    pub status_interval: f64,
+}
+
+fn params_dir(cli: &Cli) -> PathBuf {
+    if let Some(d) = &cli.params_dir {
+        return d.clone();
+    }
+    let local = PathBuf::from("params");
+    if local.join("airframes").is_dir() {
+        local
+    } else {
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../params")
+    }
+}
+
+/// The scenario after command-line overrides.
+fn load_scenario(cli: &Cli) -> Result<Scenario> {
+    let dir = params_dir(cli).join("airframes");
+    let mut scenario = match &cli.scenario {
+        Some(path) => Scenario::load(path, &dir)?,
+        None => {
+            let name = cli.airframe.as_deref().unwrap_or("quad_x");
+            let path = sitl_core::scenario::resolve_airframe(name, std::path::Path::new("."), &dir);
+            Scenario::basic(Airframe::load(&path)?, 10.0)
+        }
+    };
+    if let (Some(name), Some(_)) = (&cli.airframe, &cli.scenario) {
+        let path = sitl_core::scenario::resolve_airframe(name, std::path::Path::new("."), &dir);
+        scenario.airframe = Airframe::load(&path)?;
+    }
+    if let Some(d) = cli.duration {
+        if !(d.is_finite() && d > 0.0) {
+            bail!("--duration must be > 0 s, got {d}");
+        }
+        scenario.duration_s = d;
+    }
+    if let Some(s) = cli.seed {
+        scenario.sim.seed = s;
+    }
+    if let Some(p) = &cli.sensors {
+        let preset = SensorPreset::from_name(p)
+            .with_context(|| format!("--sensors must be ideal, typical or noisy, got {p:?}"))?;
+        scenario.sim.sensors = SensorConfig::preset(preset);
+    }
+    if let Some(i) = &cli.integrator {
+        scenario.sim.integrator = Integrator::from_name(i).with_context(|| {
+            let names: Vec<&str> = Integrator::ALL.iter().map(|i| i.name()).collect();
+            format!(
+                "--integrator must be one of {}, got {i:?}",
+                names.join(", ")
+            )
+        })?;
+    }
+    if let Some(r) = cli.rate {
+        if !(20.0..=10_000.0).contains(&r) {
+            bail!("--rate must be within [20, 10000] Hz, got {r}");
+        }
+        scenario.sim.dt_s = 1.0 / r;
+    }
+    Ok(scenario)
+}
+
+/// Parsed `--speed`: `None` for as fast as possible.
+fn speed(cli: &Cli) -> Result<Option<f64>> {
+    if cli.speed == "max" {
+        return Ok(None);
+    }
+    match cli.speed.parse::<f64>() {
+        Ok(f) if f.is_finite() && f > 0.0 && f <= 10_000.0 => Ok(Some(f)),
+        _ => bail!(
+            "--speed must be a factor in (0, 10000] or \"max\", got {:?}",
+            cli.speed
+        ),
+    }
+}
+
+fn main() -> std::process::ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    let cli = Cli::parse();
+    match try_main(&cli) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("sitl: error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn try_main(cli: &Cli) -> Result<()> {
+    let scenario = load_scenario(cli)?;
+    if !(cli.hil_rate.is_finite() && cli.hil_rate >= 10.0) {
+        bail!("--hil-rate must be at least 10 Hz, got {}", cli.hil_rate);
+    }
+    let speed = speed(cli)?;
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        ctrlc::set_handler(move || stop.store(true, std::sync::atomic::Ordering::SeqCst))
+            .context("installing the Ctrl-C handler")?;
+    }
+    let summary = if cli.open_loop {
+        if scenario.open_loop.is_empty() {
+            bail!("--open-loop needs a scenario with an [[open_loop]] script");
+        }
+        run::open_loop(&scenario, cli, speed, &stop)?
+    } else {
+        run::hil(&scenario, cli, speed, &stop)?
+    };
+    println!("{summary}");
+    Ok(())
+}

@@ -1,0 +1,294 @@
+//! The HIL wire protocol of ARCHITECTURE.md: MAVLink 2 messages between simulator and autopilot.
+//!
+//! Encoding turns a [`SensorFrame`] and the truth into `HIL_SENSOR`, `HIL_GPS`, `ESC_STATUS` and
+//! `HIL_STATE_QUATERNION`; decoding splits a datagram into frames, counting every malformed one.
+
+use mavlink::MavHeader;
+use mavlink::dialects::common::{
+    ESC_STATUS_DATA, HIL_ACTUATOR_CONTROLS_DATA, HIL_GPS_DATA, HIL_SENSOR_DATA,
+    HIL_STATE_QUATERNION_DATA, HilSensorUpdatedFlags, MavMessage, MavModeFlag,
+};
+use sitl_core::sensors::{GpsFix, SensorFrame};
+use sitl_core::sim::TruthState;
+
+/// System id the simulator speaks as on the HIL link: the vehicle it simulates.
+pub const SIM_SYSTEM_ID: u8 = 1;
+/// Component id of the simulator: MAV_COMP_ID_USER1 (0 is the broadcast address, 1 the autopilot).
+pub const SIM_COMPONENT_ID: u8 = 25;
+
+/// Encodes messages as MAVLink 2 frames with a running sequence number.
+#[derive(Debug, Default)]
+pub struct Encoder {
+    sequence: u8,
+}
+
+impl Encoder {
+    /// Appends `msg` as one MAVLink 2 frame to `out`.
+    pub fn push(&mut self, out: &mut Vec<u8>, msg: &MavMessage) {
+        let header = MavHeader {
+            system_id: SIM_SYSTEM_ID.into(),
+            component_id: SIM_COMPONENT_ID,
+            sequence: self.sequence,
+        };
+        self.sequence = self.sequence.wrapping_add(1);
+        // Writing into a Vec cannot fail.
+        let _ = mavlink::write_v2_msg(out, header, msg);
+    }
+}
+
+/// `HIL_SENSOR` from a sensor frame (SI units; pressure in hPa as the message defines).
+pub fn hil_sensor(f: &SensorFrame) -> MavMessage {
+    let a = f.accel_frd_m_s2.cast::<f32>();
+    let g = f.gyro_frd_rad_s.cast::<f32>();
+    let m = f.mag_frd_gauss.cast::<f32>();
+    MavMessage::HIL_SENSOR(HIL_SENSOR_DATA {
+        time_usec: f.time_usec,
+        xacc: a.x,
+        yacc: a.y,
+        zacc: a.z,
+        xgyro: g.x,
+        ygyro: g.y,
+        zgyro: g.z,
+        xmag: m.x,
+        ymag: m.y,
+        zmag: m.z,
+        abs_pressure: f.abs_pressure_hpa as f32,
+        diff_pressure: 0.0,
+        pressure_alt: f.pressure_alt_m as f32,
+        temperature: f.temperature_c as f32,
+        fields_updated: HilSensorUpdatedFlags::from_bits_truncate(f.fields_updated),
+        id: 0,
+    })
+}
+
+fn clamp_i16(x: f64) -> i16 {
+    x.round().clamp(i16::MIN as f64, i16::MAX as f64) as i16
+}
+
+/// `HIL_GPS` delivered at `time_usec` (the solution itself is older by the receiver's latency).
+pub fn hil_gps(time_usec: u64, fix: &GpsFix) -> MavMessage {
+    let v = fix.vel_ned_m_s;
+    let ground_speed = v.x.hypot(v.y);
+    let cog = if ground_speed > 0.2 {
+        (v.y.atan2(v.x).to_degrees().rem_euclid(360.0) * 100.0) as u16
+    } else {
+        u16::MAX
+    };
+    MavMessage::HIL_GPS(HIL_GPS_DATA {
+        time_usec,
+        lat: (fix.position.lat_deg * 1e7).round() as i32,
+        lon: (fix.position.lon_deg * 1e7).round() as i32,
+        alt: (fix.position.alt_m * 1000.0).round() as i32,
+        // HDOP/VDOP × 100; a DOP of about 1 per metre of accuracy.
+        eph: (fix.h_acc_m * 100.0).clamp(1.0, 65534.0) as u16,
+        epv: (fix.v_acc_m * 100.0).clamp(1.0, 65534.0) as u16,
+        vel: (ground_speed * 100.0).clamp(0.0, 65534.0) as u16,
+        vn: clamp_i16(v.x * 100.0),
+        ve: clamp_i16(v.y * 100.0),
+        vd: clamp_i16(v.z * 100.0),
+        cog,
+        fix_type: fix.fix_type,
+        satellites_visible: fix.satellites,
+        id: 0,
+        yaw: 0, // 0: no GPS heading (a single-antenna receiver)
+    })
+}
+
+/// `ESC_STATUS` messages (four rotors each, `index` = first rotor) for `rpm` of `count` rotors.
+pub fn esc_status(time_usec: u64, rpm: &[f64], voltage_v: f64, current_a: f64) -> Vec<MavMessage> {
+    let per = current_a / rpm.len().max(1) as f64;
+    rpm.chunks(4)
+        .enumerate()
+        .map(|(k, chunk)| {
+            let mut r = [0i32; 4];
+            let mut v = [0f32; 4];
+            let mut c = [0f32; 4];
+            for (i, x) in chunk.iter().enumerate() {
+                r[i] = x.round() as i32;
+                v[i] = voltage_v as f32;
+                c[i] = per as f32;
+            }
+            MavMessage::ESC_STATUS(ESC_STATUS_DATA {
+                time_usec,
+                rpm: r,
+                voltage: v,
+                current: c,
+                index: (4 * k) as u8,
+            })
+        })
+        .collect()
+}
+
+/// `HIL_STATE_QUATERNION`: ground truth for logs and scoring (never for the estimator).
+pub fn hil_state_quaternion(t: &TruthState) -> MavMessage {
+    let q = t.body.q_ned_from_frd.quaternion();
+    let w = t.body.rate_frd_rad_s;
+    let v = t.body.vel_ned_m_s;
+    let airspeed = ((v - t.wind_ned_m_s).norm() * 100.0).clamp(0.0, 65534.0) as u16;
+    // Specific force in the body frame, in milli-g.
+    let f = t.body.q_ned_from_frd.inverse()
+        * (t.accel_ned_m_s2 - nalgebra::Vector3::new(0.0, 0.0, sitl_core::GRAVITY_M_S2));
+    let mg = |x: f64| clamp_i16(x / sitl_core::GRAVITY_M_S2 * 1000.0);
+    MavMessage::HIL_STATE_QUATERNION(HIL_STATE_QUATERNION_DATA {
+        time_usec: t.time_usec,
+        attitude_quaternion: [q.w as f32, q.i as f32, q.j as f32, q.k as f32],
+        rollspeed: w.x as f32,
+        pitchspeed: w.y as f32,
+        yawspeed: w.z as f32,
+        lat: (t.position.lat_deg * 1e7).round() as i32,
+        lon: (t.position.lon_deg * 1e7).round() as i32,
+        alt: (t.position.alt_m * 1000.0).round() as i32,
+        vx: clamp_i16(v.x * 100.0),
+        vy: clamp_i16(v.y * 100.0),
+        vz: clamp_i16(v.z * 100.0),
+        ind_airspeed: airspeed,
+        true_airspeed: airspeed,
+        xacc: mg(f.x),
+        yacc: mg(f.y),
+        zacc: mg(f.z),
+    })
+}
+
+/// Actuator commands as the autopilot sent them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ActuatorCommand {
+    /// The sensor frame this answers (`time_usec` echo).
+    pub time_usec: u64,
+    /// Normalised rotor commands, [0, 1] expected (the simulator clamps and counts).
+    pub controls: [f64; 16],
+    /// `mode` has MAV_MODE_FLAG_SAFETY_ARMED.
+    pub armed: bool,
+}
+
+/// An actuator command from `HIL_ACTUATOR_CONTROLS`.
+pub fn actuator_command(m: &HIL_ACTUATOR_CONTROLS_DATA) -> ActuatorCommand {
+    let mut controls = [0.0; 16];
+    for (c, x) in controls.iter_mut().zip(m.controls) {
+        *c = x as f64;
+    }
+    ActuatorCommand {
+        time_usec: m.time_usec,
+        controls,
+        armed: m.mode.contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED),
+    }
+}
+
+/// What one datagram held.
+#[derive(Debug, Default, PartialEq)]
+pub struct Decoded {
+    /// Well-formed messages with their headers.
+    pub messages: Vec<(MavHeader, MavMessage)>,
+    /// Frames or runs of bytes that were not a valid message (bad CRC, truncated, unknown id,
+    /// garbage between frames).
+    pub malformed: u32,
+}
+
+const STX_V1: u8 = 0xFE;
+const STX_V2: u8 = 0xFD;
+
+/// Length of the frame starting at `b[0]`, if the header is complete.
+fn frame_len(b: &[u8]) -> Option<usize> {
+    match *b.first()? {
+        STX_V1 => Some(6 + *b.get(1)? as usize + 2),
+        STX_V2 => {
+            let len = *b.get(1)? as usize;
+            let signed = (*b.get(2)? & 0x01) != 0;
+            Some(10 + len + 2 + if signed { 13 } else { 0 })
+        }
+        _ => None,
+    }
+}
+
+/// Splits a datagram into MAVLink 1/2 frames; each bad frame or run of junk counts once.
+pub fn decode(datagram: &[u8]) -> Decoded {
+    let mut out = Decoded::default();
+    let mut i = 0;
+    let mut in_junk = false;
+    while i < datagram.len() {
+        let rest = &datagram[i..];
+        let Some(len) = frame_len(rest) else {
+            if !in_junk {
+                out.malformed += 1;
+                in_junk = true;
+            }
+            i += 1;
+            continue;
+        };
+        in_junk = false;
+        if len > rest.len() {
+            out.malformed += 1; // truncated
+            break;
+        }
+        let mut reader = mavlink::MavlinkReader::new(&rest[..len]);
+        match reader.read_any_message::<MavMessage>() {
+            Ok(msg) => {
+                out.messages.push(msg);
+                i += len;
+            }
+            Err(_) => {
+                out.malformed += 1;
+                // Resynchronise on the next start byte.
+                i += 1;
+                in_junk = true;
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use mavlink::dialects::common::HilActuatorControlsFlags;
+
+    fn actuators(t: u64) -> MavMessage {
+        MavMessage::HIL_ACTUATOR_CONTROLS(HIL_ACTUATOR_CONTROLS_DATA {
+            time_usec: t,
+            flags: HilActuatorControlsFlags::HIL_ACTUATOR_CONTROLS_FLAGS_LOCKSTEP,
+            controls: [0.5; 16],
+            mode: MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED,
+        })
+    }
+
+    #[test]
+    fn frames_round_trip_and_junk_is_counted() {
+        let mut enc = Encoder::default();
+        let mut buf = Vec::new();
+        enc.push(&mut buf, &actuators(10));
+        enc.push(&mut buf, &actuators(20));
+        let d = decode(&buf);
+        assert_eq!(d.malformed, 0);
+        assert_eq!(d.messages.len(), 2);
+        let MavMessage::HIL_ACTUATOR_CONTROLS(m) = &d.messages[1].1 else {
+            panic!()
+        };
+        let cmd = actuator_command(m);
+        assert_eq!((cmd.time_usec, cmd.armed, cmd.controls[3]), (20, true, 0.5));
+
+        // Junk before, a corrupted CRC in the middle, a truncated frame at the end.
+        let mut bad = b"hello".to_vec();
+        let mut one = Vec::new();
+        enc.push(&mut one, &actuators(30));
+        bad.extend_from_slice(&one);
+        let mut corrupt = one.clone();
+        let n = corrupt.len();
+        corrupt[n - 1] ^= 0xFF;
+        bad.extend_from_slice(&corrupt);
+        bad.extend_from_slice(&one[..n / 2]);
+        let d = decode(&bad);
+        assert_eq!(d.messages.len(), 1);
+        assert_eq!(d.malformed, 3, "junk, bad CRC, truncation");
+    }
+
+    #[test]
+    fn esc_status_splits_rotors_in_fours() {
+        let rpm: Vec<f64> = (0..12).map(|i| 1000.0 + i as f64).collect();
+        let msgs = esc_status(5, &rpm, 22.0, 24.0);
+        assert_eq!(msgs.len(), 3);
+        let MavMessage::ESC_STATUS(m) = &msgs[2] else {
+            panic!()
+        };
+        assert_eq!((m.index, m.rpm[3]), (8, 1011));
+        assert!((m.current[0] - 2.0).abs() < 1e-6);
+    }
+}
