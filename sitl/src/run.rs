@@ -351,9 +351,7 @@ pub fn hil(
                         cli.connect_timeout
                     );
                 }
-                if (waited_s as u64) % 5 == 0
-                    && last_timeout_log.is_none_or(|t| t.elapsed() > Duration::from_secs(4))
-                {
+                if last_timeout_log.is_none_or(|t| t.elapsed() > Duration::from_secs(5)) {
                     tracing::info!("waiting for an autopilot at {target}");
                     last_timeout_log = Some(Instant::now());
                 }

@@ -1,5 +1,8 @@
 //! The `sitl` process driven over UDP as an autopilot drives it.
 
+// Test code: a failed unwrap is a failed test.
+#![allow(clippy::unwrap_used)]
+
 use mavlink::MavHeader;
 use mavlink::dialects::common::{
     HIL_ACTUATOR_CONTROLS_DATA, HilActuatorControlsFlags, MavMessage, MavModeFlag,

@@ -211,7 +211,7 @@ impl Airframe {
                 own.or(dflt).unwrap_or_else(|| {
                     check.fail(
                         format!("rotors[{i}].{name}"),
-                        format!("missing: set it on the rotor or in [rotor_defaults]"),
+                        "missing: set it on the rotor or in [rotor_defaults]",
                     );
                     f64::NAN
                 })

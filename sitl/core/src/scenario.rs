@@ -285,8 +285,10 @@ impl Scenario {
                 | EventFile::MotorRestore { motor, .. } => Some(*motor),
                 _ => None,
             };
-            if let Some(m) = motor {
-                if m == 0 || m > rotors {
+            if let Some(m) = motor
+                && (m == 0 || m > rotors)
+            {
+                {
                     c.fail(
                         format!("events[{i}].motor"),
                         format!(
@@ -298,8 +300,10 @@ impl Scenario {
             }
         }
         for (i, (_, cmd)) in open_loop.iter().enumerate() {
-            if let OpenLoopCommand::Controls(v) = cmd {
-                if v.len() != rotors {
+            if let OpenLoopCommand::Controls(v) = cmd
+                && v.len() != rotors
+            {
+                {
                     c.fail(
                         format!("open_loop[{i}].controls"),
                         format!(

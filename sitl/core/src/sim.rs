@@ -276,14 +276,13 @@ impl Simulator {
             if let Action::MotorFail { index }
             | Action::MotorEffectiveness { index, .. }
             | Action::MotorRestore { index } = e.action
+                && index >= self.rotors.len()
             {
-                if index >= self.rotors.len() {
-                    return Err(SimError::Motor {
-                        t_s: e.t_s,
-                        motor: index + 1,
-                        count: self.rotors.len(),
-                    });
-                }
+                return Err(SimError::Motor {
+                    t_s: e.t_s,
+                    motor: index + 1,
+                    count: self.rotors.len(),
+                });
             }
             self.events.push(*e);
         }
