@@ -29,7 +29,7 @@ pub enum Mode {
 
 /// Multirotor simulator: physics, sensors and a MAVLink HIL link over UDP.
 #[derive(Debug, Parser)]
-#[command(name = "sitl", version, about, long_about = None)]
+#[command(name = "sitl", version, about, long_about = None, args_override_self = true)]
 pub struct Cli {
     /// Scenario file (TOML): airframe, initial state, sensors, wind, seed, duration, events,
     /// open-loop script. Without one: the airframe rests at home, typical sensors, no wind.

@@ -378,8 +378,7 @@ pub fn hil(
         acc.start();
         for _ in 0..steps_per_exchange {
             sim.step(&u[..n]);
-            let f = sim.sample_sensors().clone();
-            acc.add(&f);
+            acc.add(sim.sample_sensors());
             if let Some(csv) = truth.as_mut() {
                 csv.record(&sim.truth(), sim.rotor_speeds())?;
             }

@@ -322,3 +322,34 @@ fn open_loop_demo_flies_lands_and_writes_truth() {
     );
     assert_eq!(rows.last().unwrap()[14], 1.0, "landed at the end");
 }
+
+/// Real time: physics never waits for the autopilot, and simulated time never runs ahead of
+/// wall time × speed (pacing by absolute deadlines gives that lower bound on wall time).
+#[test]
+fn realtime_mode_does_not_wait_and_is_paced() {
+    let ap = Autopilot::new();
+    let (child, _dir) = spawn(
+        HOVER_SCENARIO,
+        ap.port(),
+        &["--mode", "realtime", "--speed", "4"],
+    );
+    let s = summary(child); // nobody answers: it must still finish
+    let sim: f64 = s["sim_time_s"].parse().unwrap();
+    let wall: f64 = s["wall_time_s"].parse().unwrap();
+    assert!((sim - 0.4).abs() < 1e-9);
+    assert!(
+        wall >= sim / 4.0 * 0.99,
+        "ran ahead of 4x real time: {wall} s for {sim} s"
+    );
+    assert_eq!(s["lockstep_timeouts"], "0");
+    assert_eq!(s["actuator_messages"], "0");
+}
+
+#[test]
+fn lockstep_gives_up_when_no_autopilot_answers_within_the_connect_timeout() {
+    let ap = Autopilot::new();
+    let (child, _dir) = spawn(HOVER_SCENARIO, ap.port(), &["--connect-timeout", "0.3"]);
+    let out = child.wait_with_output().unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("no autopilot answered"));
+}

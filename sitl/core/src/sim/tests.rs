@@ -1,6 +1,7 @@
 use super::*;
 use crate::airframe::tests::{SHIPPED, shipped};
 use crate::powertrain::steady_wrench;
+use crate::sensors::{SensorHealth, SensorKind};
 use crate::sensors::{SensorPreset, fields};
 use nalgebra::DVector;
 
@@ -416,4 +417,50 @@ fn torque_pulse_is_felt_and_ends() {
         (sim.truth().body.rate_frd_rad_s.x - p).abs() < 0.1,
         "the pulse must end"
     );
+}
+
+#[test]
+fn sensor_faults_silence_freeze_and_lose_fix() {
+    let mut sim = airborne("quad_x", SensorPreset::Typical);
+    let hover = |s: &mut Simulator| {
+        let u = s.hover_commands();
+        s.step(&u);
+        s.sample_sensors().clone()
+    };
+    for _ in 0..300 {
+        hover(&mut sim);
+    }
+    sim.apply(Action::Sensor {
+        sensor: SensorKind::Mag,
+        health: SensorHealth::Off,
+    });
+    sim.apply(Action::Sensor {
+        sensor: SensorKind::Imu,
+        health: SensorHealth::Stuck,
+    });
+    sim.apply(Action::GpsFixLost(true));
+    let fault_usec = sim.time_usec();
+    let first = hover(&mut sim);
+    let mut gps_seen = 0;
+    for _ in 0..300 {
+        let f = hover(&mut sim);
+        assert_eq!(f.fields_updated & fields::MAG, 0, "mag is off");
+        assert_ne!(
+            f.fields_updated & fields::ACCEL,
+            0,
+            "a stuck IMU still reports"
+        );
+        assert_eq!(f.accel_frd_m_s2, first.accel_frd_m_s2, "stuck: same value");
+        // Solutions computed before the fault are still in the receiver's latency queue.
+        if let Some(fix) = f.gps.filter(|g| g.time_usec > fault_usec) {
+            assert_eq!((fix.fix_type, fix.satellites), (1, 0));
+            gps_seen += 1;
+        }
+    }
+    assert!(gps_seen > 0, "the receiver keeps reporting, without a fix");
+    sim.apply(Action::Sensor {
+        sensor: SensorKind::Imu,
+        health: SensorHealth::Ok,
+    });
+    assert_ne!(hover(&mut sim).accel_frd_m_s2, first.accel_frd_m_s2);
 }
