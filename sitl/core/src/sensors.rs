@@ -116,7 +116,9 @@ impl SensorConfig {
     pub fn preset(p: SensorPreset) -> Self {
         let typical = Self {
             accel_noise_density: 2.0e-3,
-            accel_bias_sigma: 0.05,
+            // Residual after the user's accelerometer calibration (every PX4/ArduPilot setup
+            // does one): ≈ 2 mg. The raw datasheet offset (±20 mg) is the noisy preset's.
+            accel_bias_sigma: 0.02,
             accel_bias_walk: 2.0e-4,
             accel_scale_sigma: 0.003,
             accel_vibration: 0.3,

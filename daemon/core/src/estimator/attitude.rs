@@ -1,0 +1,309 @@
+//! The attitude estimator: q-method measurement (Castillo (80)–(90)) from the accelerometer and
+//! the calibrated magnetometer, filtered by the nonlinear observer (97)–(105) with the gyros.
+//!
+//! Beyond the paper, as a flying autopilot must: an initial alignment at rest (averaged vectors,
+//! gyro bias from the mean rate), an accelerometer weight that falls as |a| departs from the
+//! expected specific force (and gating beyond a limit), an optional known NED acceleration that
+//! turns the gravity reference into the true specific-force reference in accelerated flight, typed
+//! rejection of degenerate vectors, and counters for all of it.
+
+use super::observer::AttitudeObserver;
+use super::wahba::{ObservationError, VectorObservation, quest};
+use crate::GRAVITY_M_S2;
+use crate::params::AttitudeParams;
+use nalgebra::{Matrix3, UnitQuaternion, Vector3};
+
+/// Magnetometer calibration of Castillo (75): offset, rotation R and scale E of the fitted
+/// ellipsoid.
+///
+/// (75) as printed, `m = E Rᵀ (m_raw − offset)`, gives the field in the ellipsoid's principal axes,
+/// which differ from the body axes by R. The body-frame field is `R E Rᵀ (m_raw − offset)`; that
+/// is what [`MagCalibration::apply`] returns.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MagCalibration {
+    /// Hard-iron offset (sensor units).
+    pub offset: Vector3<f64>,
+    /// `R E Rᵀ`, the soft-iron correction in body axes.
+    pub correction: Matrix3<f64>,
+}
+
+impl MagCalibration {
+    /// No correction.
+    pub fn identity() -> Self {
+        Self {
+            offset: Vector3::zeros(),
+            correction: Matrix3::identity(),
+        }
+    }
+
+    /// From Castillo's parameters: offset, ellipsoid rotation R and scale E = diag(scale).
+    pub fn from_ellipsoid(
+        offset: Vector3<f64>,
+        rotation: &Matrix3<f64>,
+        scale: &Vector3<f64>,
+    ) -> Self {
+        Self {
+            offset,
+            correction: rotation * Matrix3::from_diagonal(scale) * rotation.transpose(),
+        }
+    }
+
+    /// The field in the body frame.
+    pub fn apply(&self, raw: &Vector3<f64>) -> Vector3<f64> {
+        self.correction * (raw - self.offset)
+    }
+}
+
+/// One IMU sample with the other sensors' latest values.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AttitudeInput {
+    /// Gyroscope, FRD (rad/s).
+    pub gyro: Vector3<f64>,
+    /// Accelerometer specific force, FRD (m/s²).
+    pub accel: Vector3<f64>,
+    /// Raw magnetometer, FRD (any unit consistent with the calibration), if fresh.
+    pub mag: Option<Vector3<f64>>,
+    /// The vehicle's acceleration in NED (m/s²), when the position estimator knows it.
+    pub accel_ned_hint: Option<Vector3<f64>>,
+}
+
+/// The estimator's output.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AttitudeEstimate {
+    /// Attitude `q_ned_from_frd`, `w ≥ 0`.
+    pub q: UnitQuaternion<f64>,
+    /// Body rate corrected by the bias estimate (rad/s).
+    pub rate: Vector3<f64>,
+    /// Gyro bias estimate (rad/s).
+    pub gyro_bias: Vector3<f64>,
+    /// Whether the estimate can be flown on: aligned, and corrected recently enough.
+    pub valid: bool,
+}
+
+/// Counters and health of the attitude estimator.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct AttitudeStatus {
+    /// Initial alignment finished.
+    pub aligned: bool,
+    /// Samples taken.
+    pub samples: u64,
+    /// Accelerometer samples given reduced weight because |a| differed from the expected magnitude.
+    pub accel_deweighted: u64,
+    /// Accelerometer samples rejected outright (too far from the expected magnitude).
+    pub accel_rejected: u64,
+    /// q-method solutions refused, by reason.
+    pub rejected_non_finite: u64,
+    /// Zero-length vectors.
+    pub rejected_zero: u64,
+    /// Parallel vectors (or only one usable).
+    pub rejected_parallel: u64,
+    /// Time steps outside the accepted range, clamped.
+    pub dt_clamped: u64,
+    /// Angle between the last measurement and the estimate (rad): the innovation.
+    pub innovation_rad: f64,
+    /// Time since the last measurement correction (s).
+    pub since_correction_s: f64,
+}
+
+/// Smallest and largest time step accepted (s); outside, the step is clamped and counted.
+pub const DT_RANGE_S: (f64, f64) = (1.25e-4, 0.02);
+
+/// The attitude estimator.
+#[derive(Debug, Clone)]
+pub struct AttitudeEstimator {
+    params: AttitudeParams,
+    mag_cal: MagCalibration,
+    mag_ref_ned: Vector3<f64>,
+    observer: Option<AttitudeObserver>,
+    align_sum: (Vector3<f64>, Vector3<f64>, Vector3<f64>, u32, u32),
+    last_mag: Option<Vector3<f64>>,
+    status: AttitudeStatus,
+}
+
+impl AttitudeEstimator {
+    /// An estimator that has not aligned yet.
+    pub fn new(params: &AttitudeParams) -> Self {
+        let mag_cal = params.mag_calibration();
+        Self {
+            mag_ref_ned: params.earth_field_ned(),
+            params: params.clone(),
+            mag_cal,
+            observer: None,
+            align_sum: (Vector3::zeros(), Vector3::zeros(), Vector3::zeros(), 0, 0),
+            last_mag: None,
+            status: AttitudeStatus::default(),
+        }
+    }
+
+    /// Starts the observer at a given attitude (skipping alignment), e.g. to test recovery.
+    pub fn start_at(&mut self, q: UnitQuaternion<f64>) {
+        let p = &self.params;
+        self.observer = Some(AttitudeObserver::new(
+            q,
+            p.observer_gain,
+            p.bias_gain,
+            p.bias_limit_rad_s,
+        ));
+        self.status.aligned = true;
+    }
+
+    /// Forgets everything: the next samples align again.
+    pub fn reset(&mut self) {
+        *self = Self::new(&self.params);
+    }
+
+    /// Counters and health.
+    pub fn status(&self) -> AttitudeStatus {
+        self.status
+    }
+
+    /// The current estimate, if aligned.
+    pub fn estimate(&self, gyro: &Vector3<f64>) -> Option<AttitudeEstimate> {
+        let o = self.observer.as_ref()?;
+        Some(AttitudeEstimate {
+            q: crate::quat::shortest(&o.q),
+            rate: o.rate(gyro),
+            gyro_bias: o.bias,
+            valid: self.status.since_correction_s <= self.params.max_uncorrected_s,
+        })
+    }
+
+    /// The q-method attitude from one accelerometer and magnetometer sample, and how far to trust
+    /// it (1: |a| matches the expected specific force; falling to 0 at the gate).
+    fn measure(
+        &mut self,
+        accel: &Vector3<f64>,
+        mag: &Vector3<f64>,
+        accel_ned: Option<&Vector3<f64>>,
+    ) -> Option<(UnitQuaternion<f64>, f64)> {
+        // Specific force in NED: a − g. At rest: (0, 0, −g).
+        let reference = accel_ned.copied().unwrap_or_else(Vector3::zeros)
+            - Vector3::new(0.0, 0.0, GRAVITY_M_S2);
+        let expected = reference.norm();
+        let deviation = (accel.norm() - expected).abs() / GRAVITY_M_S2;
+        let p = &self.params;
+        if deviation > p.accel_gate_g {
+            self.status.accel_rejected += 1;
+            return None;
+        }
+        let mut trust = 1.0;
+        if deviation > p.accel_deweight_g {
+            // Linear fall from full trust at the soft limit to none at the gate. The trust scales
+            // the observer's correction, not the Wahba weight: a de-weighted accelerometer would
+            // still define the tilt of the q-method solution, only with the magnetometer's noise.
+            trust = 1.0 - (deviation - p.accel_deweight_g) / (p.accel_gate_g - p.accel_deweight_g);
+            self.status.accel_deweighted += 1;
+        }
+        let obs = [
+            VectorObservation {
+                body: *accel,
+                reference,
+                weight: p.accel_weight,
+            },
+            VectorObservation {
+                body: self.mag_cal.apply(mag),
+                reference: self.mag_ref_ned,
+                weight: p.mag_weight,
+            },
+        ];
+        match quest(&obs) {
+            Ok(q) => Some((q, trust)),
+            Err(e) => {
+                match e {
+                    ObservationError::NonFinite => self.status.rejected_non_finite += 1,
+                    ObservationError::Zero => self.status.rejected_zero += 1,
+                    ObservationError::Parallel | ObservationError::TooFew => {
+                        self.status.rejected_parallel += 1
+                    }
+                }
+                None
+            }
+        }
+    }
+
+    /// One IMU sample after `dt` seconds. Returns the estimate once aligned.
+    pub fn update(&mut self, input: &AttitudeInput, dt: f64) -> Option<AttitudeEstimate> {
+        self.status.samples += 1;
+        let dt = if !(DT_RANGE_S.0..=DT_RANGE_S.1).contains(&dt) {
+            self.status.dt_clamped += 1;
+            if dt.is_finite() {
+                dt.clamp(DT_RANGE_S.0, DT_RANGE_S.1)
+            } else {
+                DT_RANGE_S.0
+            }
+        } else {
+            dt
+        };
+        if !(input
+            .gyro
+            .iter()
+            .chain(input.accel.iter())
+            .all(|x| x.is_finite()))
+        {
+            self.status.rejected_non_finite += 1;
+            return self.estimate(&Vector3::zeros());
+        }
+        if let Some(m) = input.mag {
+            if m.iter().all(|x| x.is_finite()) {
+                self.last_mag = Some(m);
+            } else {
+                self.status.rejected_non_finite += 1;
+            }
+        }
+        if self.observer.is_none() {
+            self.align(input);
+            return self.estimate(&input.gyro);
+        }
+        let measured = match (self.last_mag, input.mag.is_some()) {
+            // Correct at the magnetometer's rate, with the freshest accelerometer sample.
+            (Some(m), true) => self.measure(&input.accel, &m, input.accel_ned_hint.as_ref()),
+            _ => None,
+        };
+        let observer = self.observer.as_mut()?;
+        let (q_meas, trust) = match measured {
+            Some((q, t)) => (Some(q), t),
+            None => (None, 0.0),
+        };
+        let innovation = observer.update(q_meas.as_ref(), trust, &input.gyro, dt);
+        if measured.is_some() {
+            self.status.innovation_rad = innovation;
+            self.status.since_correction_s = 0.0;
+        } else {
+            self.status.since_correction_s += dt;
+        }
+        self.estimate(&input.gyro)
+    }
+
+    /// Initial alignment at rest: average the vectors over the alignment window, then solve the
+    /// q-method once and take the mean gyro rate as the initial bias.
+    fn align(&mut self, input: &AttitudeInput) {
+        let (acc, gyr, mag, n, nm) = &mut self.align_sum;
+        *acc += input.accel;
+        *gyr += input.gyro;
+        *n += 1;
+        if let Some(m) = input.mag.filter(|m| m.iter().all(|x| x.is_finite())) {
+            *mag += m;
+            *nm += 1;
+        }
+        if *n < self.params.align_samples || *nm == 0 {
+            return;
+        }
+        let (acc, gyr, mag) = (*acc / *n as f64, *gyr / *n as f64, *mag / *nm as f64);
+        let q = self.measure(&acc, &mag, None);
+        match q {
+            Some((q, _)) => {
+                self.start_at(q);
+                if let Some(o) = self.observer.as_mut() {
+                    // At rest the mean rate is the bias, if it is plausibly one.
+                    if gyr.norm() < self.params.bias_limit_rad_s {
+                        o.bias = gyr;
+                    }
+                }
+            }
+            None => self.align_sum = (Vector3::zeros(), Vector3::zeros(), Vector3::zeros(), 0, 0),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,5 @@
+//! State estimation: attitude (q-method + nonlinear observer) and, later, translation.
+
+pub mod attitude;
+pub mod observer;
+pub mod wahba;

@@ -1,0 +1,12 @@
+//! The autopilot's flight core: the algorithms of the four papers as plain, tested code.
+//!
+//! No sockets, no runtime, no clock reads: every stage is a struct with an `update`/`step`
+//! function of its inputs and the sample time. Conventions (NED/FRD, Hamilton quaternions
+//! `q_ned_from_frd`, SI units) are those of `ARCHITECTURE.md`.
+
+pub mod estimator;
+pub mod params;
+pub mod quat;
+
+/// Standard gravity (m/s²), along NED +z.
+pub const GRAVITY_M_S2: f64 = 9.806_65;
