@@ -1,0 +1,4 @@
+//! The cascade controller: attitude (outer) and rate (inner) loops.
+
+pub mod attitude;
+pub mod rate;
