@@ -6,10 +6,12 @@
 //! HIL link. Conventions (frames NED/FRD, Hamilton quaternions `q_ned_from_frd`, SI units) are
 //! those of `ARCHITECTURE.md`.
 
-pub mod airframe;
+/// Airframe descriptions (the shared `airframe` crate).
+pub mod airframe {
+    pub use ::airframe::*;
+}
 pub mod body;
 pub mod environment;
-pub mod error;
 pub mod geo;
 pub mod powertrain;
 pub mod quat;
@@ -20,9 +22,9 @@ pub mod sim;
 pub mod torque_free;
 
 /// Standard gravity (m/s²), along NED +z.
-pub const GRAVITY_M_S2: f64 = 9.806_65;
+pub const GRAVITY_M_S2: f64 = ::airframe::GRAVITY_M_S2;
 
+pub use ::airframe::ConfigError;
 pub use airframe::Airframe;
 pub use body::{BodyState, Integrator};
-pub use error::ConfigError;
 pub use sim::{SimConfig, Simulator};

@@ -26,10 +26,10 @@
 use crate::airframe::Airframe;
 use crate::body::{BodyState, Integrator};
 use crate::environment::WindConfig;
-use crate::error::{Checker, ConfigError, parse_toml, read_toml};
 use crate::geo::Geodetic;
 use crate::sensors::{EarthField, SensorConfig, SensorHealth, SensorKind, SensorPreset};
 use crate::sim::{Action, Event, SimConfig};
+use ::airframe::config::{Checker, ConfigError, parse_toml, read_toml};
 use nalgebra::{UnitQuaternion, Vector3};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};

@@ -1,5 +1,12 @@
 use super::*;
-use crate::airframe::tests::{SHIPPED, shipped};
+
+const SHIPPED: [&str; 5] = ["quad_x", "quad_plus", "hexa_x", "octa_x", "dodeca"];
+
+fn shipped(name: &str) -> Airframe {
+    let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../params/airframes");
+    Airframe::load(&dir.join(format!("{name}.toml"))).unwrap()
+}
+
 use crate::powertrain::steady_wrench;
 use crate::sensors::{SensorHealth, SensorKind};
 use crate::sensors::{SensorPreset, fields};

@@ -1,4 +1,5 @@
-//! Configuration errors that name the file, the key and the reason.
+//! Configuration errors that name the file, the key and the reason, and the helpers that
+//! produce them for any TOML file of the project.
 
 use std::fmt;
 
@@ -56,14 +57,16 @@ impl fmt::Display for Violations<'_> {
     }
 }
 
-/// Collects violations while validating a parsed file.
+/// Collects every violation while validating a parsed file.
 #[derive(Debug, Default)]
-pub(crate) struct Checker {
-    pub(crate) violations: Vec<Violation>,
+pub struct Checker {
+    /// Violations found so far.
+    pub violations: Vec<Violation>,
 }
 
 impl Checker {
-    pub(crate) fn fail(&mut self, key: impl Into<String>, reason: impl Into<String>) {
+    /// Records a violation.
+    pub fn fail(&mut self, key: impl Into<String>, reason: impl Into<String>) {
         self.violations.push(Violation {
             key: key.into(),
             reason: reason.into(),
@@ -71,34 +74,35 @@ impl Checker {
     }
 
     /// A finite value strictly greater than zero.
-    pub(crate) fn positive(&mut self, key: impl Into<String>, v: f64) {
+    pub fn positive(&mut self, key: impl Into<String>, v: f64) {
         if !(v.is_finite() && v > 0.0) {
             self.fail(key, format!("must be a finite number > 0, got {v}"));
         }
     }
 
     /// A finite value greater than or equal to zero.
-    pub(crate) fn non_negative(&mut self, key: impl Into<String>, v: f64) {
+    pub fn non_negative(&mut self, key: impl Into<String>, v: f64) {
         if !(v.is_finite() && v >= 0.0) {
             self.fail(key, format!("must be a finite number >= 0, got {v}"));
         }
     }
 
     /// A finite value inside `[lo, hi]`.
-    pub(crate) fn within(&mut self, key: impl Into<String>, v: f64, lo: f64, hi: f64) {
+    pub fn within(&mut self, key: impl Into<String>, v: f64, lo: f64, hi: f64) {
         if !(v.is_finite() && v >= lo && v <= hi) {
             self.fail(key, format!("must be within [{lo}, {hi}], got {v}"));
         }
     }
 
     /// Every component finite.
-    pub(crate) fn finite(&mut self, key: impl Into<String>, v: &[f64]) {
+    pub fn finite(&mut self, key: impl Into<String>, v: &[f64]) {
         if v.iter().any(|x| !x.is_finite()) {
             self.fail(key, "must be finite");
         }
     }
 
-    pub(crate) fn finish(self, file: &str) -> Result<(), ConfigError> {
+    /// `Ok` when nothing was found, else every violation for `file`.
+    pub fn finish(self, file: &str) -> Result<(), ConfigError> {
         if self.violations.is_empty() {
             Ok(())
         } else {
@@ -111,9 +115,7 @@ impl Checker {
 }
 
 /// Reads and deserialises a TOML file, naming the file in any error.
-pub(crate) fn read_toml<T: serde::de::DeserializeOwned>(
-    path: &std::path::Path,
-) -> Result<T, ConfigError> {
+pub fn read_toml<T: serde::de::DeserializeOwned>(path: &std::path::Path) -> Result<T, ConfigError> {
     let file = path.display().to_string();
     let text = std::fs::read_to_string(path).map_err(|e| ConfigError::Io {
         file: file.clone(),
@@ -123,7 +125,7 @@ pub(crate) fn read_toml<T: serde::de::DeserializeOwned>(
 }
 
 /// Deserialises TOML text; `file` names its origin in errors.
-pub(crate) fn parse_toml<T: serde::de::DeserializeOwned>(
+pub fn parse_toml<T: serde::de::DeserializeOwned>(
     text: &str,
     file: &str,
 ) -> Result<T, ConfigError> {

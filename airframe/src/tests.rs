@@ -1,9 +1,8 @@
 use super::*;
-use crate::ConfigError;
 use std::path::PathBuf;
 
 pub(crate) fn airframe_dir() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../params/airframes")
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../params/airframes")
 }
 
 pub(crate) fn shipped(name: &str) -> Airframe {

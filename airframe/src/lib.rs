@@ -1,15 +1,24 @@
 //! Airframes: mass, inertia tensor, rotors, drag and battery, read from `params/airframes/*.toml`.
 //!
+//! Shared by the simulator (which turns rotor speeds into forces) and the autopilot's mixer (which
+//! builds its allocation from the geometry): one schema, one validation, two independent uses.
+//!
 //! The file gives rotor properties once in `[rotor_defaults]` and each rotor's position and spin in
 //! `[[rotors]]`; a rotor may override any default (a bent prop, a different motor). Parsing
 //! resolves every rotor to a complete [`RotorSpec`] and [`Airframe::validate`] checks physics
 //! (positive mass, a symmetric positive-definite inertia tensor that a real body can have, 1–16
 //! rotors, an allocation of rank 4) before anything flies.
 
-use crate::error::{Checker, ConfigError, parse_toml, read_toml};
+pub mod config;
+
+use config::{Checker, parse_toml, read_toml};
+pub use config::{ConfigError, Violation};
 use nalgebra::{DMatrix, Matrix3, Vector3};
 use serde::Deserialize;
 use std::path::Path;
+
+/// Standard gravity (m/s²).
+pub const GRAVITY_M_S2: f64 = 9.806_65;
 
 /// Most rotors a vehicle may have: `HIL_ACTUATOR_CONTROLS` carries 16 channels.
 pub const MAX_ROTORS: usize = 16;
@@ -343,7 +352,7 @@ impl Airframe {
 
     /// Weight (N) at standard gravity.
     pub fn weight_n(&self) -> f64 {
-        self.mass_kg * crate::GRAVITY_M_S2
+        self.mass_kg * GRAVITY_M_S2
     }
 }
 
@@ -384,4 +393,4 @@ fn check_inertia(c: &mut Checker, i: &Matrix3<f64>) {
 }
 
 #[cfg(test)]
-pub(crate) mod tests;
+mod tests;
