@@ -6,6 +6,7 @@
 
 pub mod control;
 pub mod estimator;
+pub mod geo;
 pub mod mixer;
 pub mod params;
 pub mod quat;

@@ -37,15 +37,20 @@ impl Geodetic {
         (WGS84_A * (1.0 - WGS84_E2) / d.powf(1.5), WGS84_A / d.sqrt())
     }
 
-    /// The point `ned` metres away in the local tangent frame at `self` (accurate to millimetres
-    /// over a few kilometres).
+    /// The point `ned` metres away in the local tangent frame at `self`: meridian and
+    /// prime-vertical radii at the origin, the east offset scaled by the cosine of the mean
+    /// latitude (a second-order term the plain tangent plane gets wrong by 1e-4 of the
+    /// distance). Within a kilometre it agrees with the autopilot's exact tangent-plane frame to
+    /// centimetres; farther out the two differ at second order (e² tan(lat)/2R: 0.5 m at 4 km
+    /// east), and vertically by the Earth's curvature d²/2R.
     pub fn offset_by_ned(&self, ned: &Vector3<f64>) -> Geodetic {
         let (rm, rn) = self.radii();
         let h = self.alt_m;
+        let lat_deg = self.lat_deg + (ned.x / (rm + h)).to_degrees();
+        let mean_lat = (0.5 * (self.lat_deg + lat_deg)).to_radians();
         Geodetic {
-            lat_deg: self.lat_deg + (ned.x / (rm + h)).to_degrees(),
-            lon_deg: self.lon_deg
-                + (ned.y / ((rn + h) * self.lat_deg.to_radians().cos())).to_degrees(),
+            lat_deg,
+            lon_deg: self.lon_deg + (ned.y / ((rn + h) * mean_lat.cos())).to_degrees(),
             alt_m: self.alt_m - ned.z,
         }
     }
@@ -54,11 +59,10 @@ impl Geodetic {
     pub fn ned_to(&self, other: &Geodetic) -> Vector3<f64> {
         let (rm, rn) = self.radii();
         let h = self.alt_m;
+        let mean_lat = (0.5 * (self.lat_deg + other.lat_deg)).to_radians();
         Vector3::new(
             (other.lat_deg - self.lat_deg).to_radians() * (rm + h),
-            (other.lon_deg - self.lon_deg).to_radians()
-                * (rn + h)
-                * self.lat_deg.to_radians().cos(),
+            (other.lon_deg - self.lon_deg).to_radians() * (rn + h) * mean_lat.cos(),
             self.alt_m - other.alt_m,
         )
     }

@@ -2,4 +2,5 @@
 
 pub mod attitude;
 pub mod observer;
+pub mod translation;
 pub mod wahba;

@@ -1,0 +1,480 @@
+//! Position and velocity in a local NED frame: the accelerometer, rotated to NED, integrated and
+//! corrected by GPS (horizontal) and the barometer (vertical).
+//!
+//! A third-order complementary filter per axis, state (p, v, accelerometer bias b):
+//! `v̇ = R f + g − b`, `ṗ = v`, corrected by the position innovation e with gains from one time
+//! constant τ (a triple pole at −1/τ): `p += 3/τ e`, `v += 3/τ² e`, `b −= 1/τ³ e` (per second of
+//! measurement interval), and by the GPS velocity innovation with gain `1/τ_v`. GPS solutions
+//! are old when they arrive (the receiver's latency): each is compared with the estimate of its
+//! own time from a short history, and the correction is applied now.
+//!
+//! The origin (and home) is the first good fix; the barometer's reference is its first sample,
+//! so altitude is relative to where the vehicle started.
+
+use crate::geo::{LatLonAlt, LocalFrame};
+use nalgebra::{UnitQuaternion, Vector3};
+use std::collections::VecDeque;
+
+/// Parameters of the translation filter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TranslationParams {
+    /// Horizontal time constant τ (s): larger trusts the accelerometer longer.
+    pub tau_xy_s: f64,
+    /// Vertical time constant τ (s) for the barometer.
+    pub tau_z_s: f64,
+    /// GPS velocity correction time constant (s).
+    pub tau_vel_s: f64,
+    /// Age of a GPS solution on arrival (s).
+    pub gps_delay_s: f64,
+    /// Worst horizontal accuracy (m) accepted from the GPS.
+    pub gps_max_h_acc_m: f64,
+    /// Local position is invalid after this long without GPS (s).
+    pub gps_timeout_s: f64,
+    /// Altitude is invalid after this long without the barometer (s).
+    pub baro_timeout_s: f64,
+    /// Bound on the accelerometer bias estimate (m/s²).
+    pub accel_bias_limit: f64,
+}
+
+impl Default for TranslationParams {
+    fn default() -> Self {
+        Self {
+            tau_xy_s: 1.5,
+            tau_z_s: 1.0,
+            tau_vel_s: 0.5,
+            gps_delay_s: 0.1,
+            gps_max_h_acc_m: 5.0,
+            gps_timeout_s: 1.0,
+            baro_timeout_s: 0.5,
+            accel_bias_limit: 1.0,
+        }
+    }
+}
+
+/// A GPS solution.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GpsMeasurement {
+    /// Fix type (3 = 3D).
+    pub fix_type: u8,
+    /// Position.
+    pub position: LatLonAlt,
+    /// Velocity NED (m/s).
+    pub vel_ned_m_s: Vector3<f64>,
+    /// Horizontal accuracy (m).
+    pub h_acc_m: f64,
+}
+
+/// The estimate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TranslationEstimate {
+    /// Position NED relative to the origin (m).
+    pub pos_ned_m: Vector3<f64>,
+    /// Velocity NED (m/s).
+    pub vel_ned_m_s: Vector3<f64>,
+    /// Acceleration NED (m/s²), the attitude estimator's hint.
+    pub accel_ned_m_s2: Vector3<f64>,
+    /// Horizontal position is usable (origin set, GPS fresh).
+    pub horizontal_valid: bool,
+    /// Altitude is usable (barometer fresh).
+    pub vertical_valid: bool,
+    /// The origin, once set.
+    pub origin: Option<LatLonAlt>,
+}
+
+/// Counters and innovations.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct TranslationStatus {
+    /// GPS solutions fused.
+    pub gps_fused: u64,
+    /// GPS solutions refused (no 3D fix, poor accuracy, non-finite).
+    pub gps_rejected: u64,
+    /// Barometer samples fused.
+    pub baro_fused: u64,
+    /// Last horizontal position innovation (m).
+    pub gps_innovation_m: f64,
+    /// Last barometer innovation (m).
+    pub baro_innovation_m: f64,
+    /// Accelerometer bias estimate, NED (m/s²).
+    pub accel_bias: [f64; 3],
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Snapshot {
+    t_usec: u64,
+    pos: Vector3<f64>,
+    vel: Vector3<f64>,
+}
+
+const HISTORY: usize = 512;
+
+/// The translation estimator.
+#[derive(Debug, Clone)]
+pub struct TranslationEstimator {
+    params: TranslationParams,
+    frame: Option<LocalFrame>,
+    pos: Vector3<f64>,
+    vel: Vector3<f64>,
+    bias: Vector3<f64>,
+    accel: Vector3<f64>,
+    history: VecDeque<Snapshot>,
+    baro_ref_m: Option<f64>,
+    last_gps_usec: Option<u64>,
+    last_baro_usec: Option<u64>,
+    now_usec: u64,
+    status: TranslationStatus,
+}
+
+impl TranslationEstimator {
+    /// An estimator with no origin yet.
+    pub fn new(params: TranslationParams) -> Self {
+        Self {
+            params,
+            frame: None,
+            pos: Vector3::zeros(),
+            vel: Vector3::zeros(),
+            bias: Vector3::zeros(),
+            accel: Vector3::zeros(),
+            history: VecDeque::with_capacity(HISTORY),
+            baro_ref_m: None,
+            last_gps_usec: None,
+            last_baro_usec: None,
+            now_usec: 0,
+            status: TranslationStatus::default(),
+        }
+    }
+
+    /// Counters, innovations and the bias estimate.
+    pub fn status(&self) -> TranslationStatus {
+        TranslationStatus {
+            accel_bias: self.bias.into(),
+            ..self.status
+        }
+    }
+
+    /// The local frame (origin), once set.
+    pub fn frame(&self) -> Option<&LocalFrame> {
+        self.frame.as_ref()
+    }
+
+    /// Prediction with one IMU sample: specific force `accel_frd` (m/s²) and attitude `q`.
+    pub fn predict(
+        &mut self,
+        t_usec: u64,
+        accel_frd: &Vector3<f64>,
+        q: &UnitQuaternion<f64>,
+        dt: f64,
+    ) {
+        self.now_usec = t_usec;
+        if !(accel_frd.iter().all(|x| x.is_finite()) && dt.is_finite() && dt > 0.0) {
+            return;
+        }
+        let a = q * accel_frd + Vector3::new(0.0, 0.0, crate::GRAVITY_M_S2) - self.bias;
+        self.accel = a;
+        self.pos += self.vel * dt + a * (0.5 * dt * dt);
+        self.vel += a * dt;
+        if self.history.len() == HISTORY {
+            self.history.pop_front();
+        }
+        self.history.push_back(Snapshot {
+            t_usec,
+            pos: self.pos,
+            vel: self.vel,
+        });
+    }
+
+    fn past(&self, t_usec: u64) -> Snapshot {
+        // Newest snapshot not after t (the history is in time order).
+        self.history
+            .iter()
+            .rev()
+            .find(|s| s.t_usec <= t_usec)
+            .copied()
+            .unwrap_or(Snapshot {
+                t_usec,
+                pos: self.pos,
+                vel: self.vel,
+            })
+    }
+
+    fn correct(&mut self, axes: [bool; 3], e: &Vector3<f64>, tau: f64, interval: f64) {
+        let (k1, k2, k3) = (3.0 / tau, 3.0 / (tau * tau), 1.0 / (tau * tau * tau));
+        let interval = interval.clamp(0.0, 1.0);
+        for i in 0..3 {
+            if !axes[i] {
+                continue;
+            }
+            self.pos[i] += k1 * interval * e[i];
+            self.vel[i] += k2 * interval * e[i];
+            self.bias[i] = (self.bias[i] - k3 * interval * e[i])
+                .clamp(-self.params.accel_bias_limit, self.params.accel_bias_limit);
+        }
+        // Shift the history by the same correction so later delayed comparisons stay consistent.
+        let (dp, dv): (Vector3<f64>, Vector3<f64>) = (
+            Vector3::from_fn(|i, _| if axes[i] { k1 * interval * e[i] } else { 0.0 }),
+            Vector3::from_fn(|i, _| if axes[i] { k2 * interval * e[i] } else { 0.0 }),
+        );
+        for s in self.history.iter_mut() {
+            s.pos += dp;
+            s.vel += dv;
+        }
+    }
+
+    /// Fuses a GPS solution delivered at `t_usec` (older by `gps_delay_s`).
+    pub fn fuse_gps(&mut self, t_usec: u64, gps: &GpsMeasurement) {
+        let finite = [
+            gps.position.lat_deg,
+            gps.position.lon_deg,
+            gps.position.alt_m,
+            gps.h_acc_m,
+        ]
+        .iter()
+        .all(|x| x.is_finite())
+            && gps.vel_ned_m_s.iter().all(|x| x.is_finite());
+        if gps.fix_type < 3 || !finite || gps.h_acc_m > self.params.gps_max_h_acc_m {
+            self.status.gps_rejected += 1;
+            return;
+        }
+        let interval = self
+            .last_gps_usec
+            .map_or(0.1, |t| t_usec.saturating_sub(t) as f64 * 1e-6);
+        self.last_gps_usec = Some(t_usec);
+        let frame = match self.frame {
+            Some(f) => f,
+            None => {
+                // Origin: the first good fix, at the barometer's reference level.
+                let origin = LatLonAlt {
+                    alt_m: gps.position.alt_m + self.pos.z,
+                    ..gps.position
+                };
+                let f = LocalFrame::new(origin);
+                self.frame = Some(f);
+                self.pos.x = 0.0;
+                self.pos.y = 0.0;
+                self.vel.x = gps.vel_ned_m_s.x;
+                self.vel.y = gps.vel_ned_m_s.y;
+                self.history.clear();
+                return;
+            }
+        };
+        let measured = frame.to_ned(&gps.position);
+        let then = self.past(t_usec.saturating_sub((self.params.gps_delay_s * 1e6) as u64));
+        let e = measured - then.pos;
+        self.status.gps_innovation_m = e.xy().norm();
+        self.correct([true, true, false], &e, self.params.tau_xy_s, interval);
+        let ev = gps.vel_ned_m_s - then.vel;
+        let kv = (interval / self.params.tau_vel_s).min(1.0);
+        self.vel.x += kv * ev.x;
+        self.vel.y += kv * ev.y;
+        self.status.gps_fused += 1;
+    }
+
+    /// Fuses a barometric altitude (m AMSL, ISA) measured at `t_usec`.
+    pub fn fuse_baro(&mut self, t_usec: u64, pressure_alt_m: f64) {
+        if !pressure_alt_m.is_finite() {
+            return;
+        }
+        let interval = self
+            .last_baro_usec
+            .map_or(0.02, |t| t_usec.saturating_sub(t) as f64 * 1e-6);
+        self.last_baro_usec = Some(t_usec);
+        let reference = *self.baro_ref_m.get_or_insert(pressure_alt_m + self.pos.z);
+        let measured_down = -(pressure_alt_m - reference);
+        let e = Vector3::new(0.0, 0.0, measured_down - self.pos.z);
+        self.status.baro_innovation_m = e.z;
+        self.correct([false, false, true], &e, self.params.tau_z_s, interval);
+        self.status.baro_fused += 1;
+    }
+
+    /// The estimate now.
+    pub fn estimate(&self) -> TranslationEstimate {
+        let fresh = |last: Option<u64>, timeout: f64| {
+            last.is_some_and(|t| self.now_usec.saturating_sub(t) as f64 * 1e-6 <= timeout)
+        };
+        TranslationEstimate {
+            pos_ned_m: self.pos,
+            vel_ned_m_s: self.vel,
+            accel_ned_m_s2: self.accel,
+            horizontal_valid: self.frame.is_some()
+                && fresh(self.last_gps_usec, self.params.gps_timeout_s),
+            vertical_valid: fresh(self.last_baro_usec, self.params.baro_timeout_s),
+            origin: self.frame.map(|f| f.origin()),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use sitl_core::environment::isa;
+    use sitl_core::geo::Geodetic;
+    use sitl_core::sensors::{EarthField, SensorConfig, SensorPreset, SensorSuite, Truth, fields};
+
+    /// A 20 m circle at 5 m/s with a 3 m altitude swing, level flight, typical sensors.
+    #[test]
+    fn tracks_a_circle_with_typical_sensors_and_flags_gps_loss() {
+        let dt = 0.004;
+        let home = Geodetic::default();
+        let mut sensors = SensorSuite::new(
+            SensorConfig::preset(SensorPreset::Typical),
+            EarthField::default(),
+            home,
+            Vector3::zeros(),
+            4,
+        );
+        let mut est = TranslationEstimator::new(TranslationParams::default());
+        let (r, w) = (20.0, 0.25); // m, rad/s: 5 m/s
+        let truth_at = |t: f64| {
+            let p = Vector3::new(
+                r * (w * t).sin(),
+                r * (1.0 - (w * t).cos()),
+                -10.0 - 3.0 * (0.2 * t).sin(),
+            );
+            let v = Vector3::new(
+                r * w * (w * t).cos(),
+                r * w * (w * t).sin(),
+                -0.6 * (0.2 * t).cos(),
+            );
+            let a = Vector3::new(
+                -r * w * w * (w * t).sin(),
+                r * w * w * (w * t).cos(),
+                0.12 * (0.2 * t).sin(),
+            );
+            (p, v, a)
+        };
+        let speeds = [520.0; 4];
+        let max = [950.0; 4];
+        let (mut sum_p, mut sum_v, mut sum_z, mut n) = (0.0, 0.0, 0.0, 0);
+        let (mut sum_gps, mut n_gps) = (0.0, 0);
+        let q = UnitQuaternion::identity();
+        let mut gps_lost_at = None;
+        for k in 1..=(90.0 / dt) as usize {
+            let t = k as f64 * dt;
+            let (p, v, a) = truth_at(t);
+            let t_usec = (t * 1e6).round() as u64;
+            let truth = Truth {
+                time_usec: t_usec,
+                pos_ned_m: p,
+                vel_ned_m_s: v,
+                accel_ned_m_s2: a,
+                q_ned_from_frd: q,
+                rate_frd_rad_s: Vector3::zeros(),
+                ang_accel_frd_rad_s2: Vector3::zeros(),
+                air: isa(home.alt_m - p.z),
+                rotor_speed_rad_s: &speeds,
+                rotor_max_speed_rad_s: &max,
+            };
+            if t > 80.0 && gps_lost_at.is_none() {
+                sensors.set_health(
+                    sitl_core::sensors::SensorKind::Gps,
+                    sitl_core::sensors::SensorHealth::Off,
+                );
+                gps_lost_at = Some(t);
+            }
+            let f = sensors.sample(&truth).clone();
+            est.predict(t_usec, &f.accel_frd_m_s2, &q, dt);
+            if let Some(g) = f.gps {
+                if (20.0..80.0).contains(&t) {
+                    // The receiver's own error against the truth of the solution's time.
+                    let then = truth_at(g.time_usec as f64 * 1e-6).0;
+                    sum_gps += (home.ned_to(&g.position) - then).xy().norm_squared();
+                    n_gps += 1;
+                }
+                let pos = LatLonAlt {
+                    lat_deg: g.position.lat_deg,
+                    lon_deg: g.position.lon_deg,
+                    alt_m: g.position.alt_m,
+                };
+                est.fuse_gps(
+                    t_usec,
+                    &GpsMeasurement {
+                        fix_type: g.fix_type,
+                        position: pos,
+                        vel_ned_m_s: g.vel_ned_m_s,
+                        h_acc_m: g.h_acc_m,
+                    },
+                );
+            }
+            if f.fields_updated & fields::PRESSURE_ALT != 0 {
+                est.fuse_baro(t_usec, f.pressure_alt_m);
+            }
+            let e = est.estimate();
+            if (20.0..80.0).contains(&t) {
+                // The origin is where the first fix was: compare displacements from it.
+                let origin = e.origin.expect("origin set");
+                let origin_ned = sitl_core::geo::Geodetic {
+                    lat_deg: origin.lat_deg,
+                    lon_deg: origin.lon_deg,
+                    alt_m: origin.alt_m,
+                };
+                let offset = home.ned_to(&origin_ned);
+                let err = e.pos_ned_m + Vector3::new(offset.x, offset.y, 0.0) - p;
+                sum_p += err.xy().norm_squared();
+                sum_z += (e.pos_ned_m.z - (p.z - truth_at(0.0).0.z)).powi(2);
+                sum_v += (e.vel_ned_m_s - v).norm_squared();
+                n += 1;
+                assert!(e.horizontal_valid && e.vertical_valid);
+            }
+        }
+        let (rp, rv, rz) = (
+            (sum_p / n as f64).sqrt(),
+            (sum_v / n as f64).sqrt(),
+            (sum_z / n as f64).sqrt(),
+        );
+        let gps_rms = (sum_gps / n_gps as f64).sqrt();
+        println!(
+            "circle at 5 m/s: horizontal RMS {rp:.3} m (the GPS itself {gps_rms:.3} m), altitude RMS {rz:.3} m, velocity RMS {rv:.3} m/s; accel bias {:?}",
+            est.status().accel_bias
+        );
+        // The GPS error is correlated over a minute: no filter removes it; it must not add to it.
+        assert!(rp < 1.1 * gps_rms + 0.05, "{rp} vs GPS {gps_rms}");
+        assert!(rz < 0.5 && rv < 0.2);
+        assert!(
+            !est.estimate().horizontal_valid,
+            "10 s without GPS must invalidate the horizontal estimate"
+        );
+        assert!(est.estimate().vertical_valid);
+    }
+
+    #[test]
+    fn refuses_bad_fixes() {
+        let mut est = TranslationEstimator::new(TranslationParams::default());
+        let good = GpsMeasurement {
+            fix_type: 3,
+            position: LatLonAlt {
+                lat_deg: 47.0,
+                lon_deg: 8.0,
+                alt_m: 500.0,
+            },
+            vel_ned_m_s: Vector3::zeros(),
+            h_acc_m: 0.5,
+        };
+        est.fuse_gps(
+            0,
+            &GpsMeasurement {
+                fix_type: 1,
+                ..good
+            },
+        );
+        est.fuse_gps(
+            0,
+            &GpsMeasurement {
+                h_acc_m: 50.0,
+                ..good
+            },
+        );
+        est.fuse_gps(
+            0,
+            &GpsMeasurement {
+                position: LatLonAlt {
+                    lat_deg: f64::NAN,
+                    ..good.position
+                },
+                ..good
+            },
+        );
+        assert_eq!(est.status().gps_rejected, 3);
+        assert!(est.estimate().origin.is_none());
+        est.fuse_gps(1000, &good);
+        assert_eq!(est.estimate().origin, Some(good.position));
+    }
+}
