@@ -5,6 +5,7 @@
 //! `q_ned_from_frd`, SI units) are those of `ARCHITECTURE.md`.
 
 pub mod control;
+pub mod core;
 pub mod estimator;
 pub mod geo;
 pub mod mixer;

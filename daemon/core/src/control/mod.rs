@@ -1,4 +1,5 @@
 //! The cascade controller: attitude (outer) and rate (inner) loops.
 
 pub mod attitude;
+pub mod position;
 pub mod rate;

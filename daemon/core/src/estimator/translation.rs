@@ -39,7 +39,7 @@ pub struct TranslationParams {
 impl Default for TranslationParams {
     fn default() -> Self {
         Self {
-            tau_xy_s: 1.5,
+            tau_xy_s: 2.5,
             tau_z_s: 1.0,
             tau_vel_s: 0.5,
             gps_delay_s: 0.1,

@@ -1,0 +1,370 @@
+//! Position and altitude control: where to be → desired attitude and collective thrust.
+//!
+//! Position: P on position → velocity set-point (speed-limited, slew-limited for smooth
+//! set-point changes) → PID on velocity → acceleration set-point (limited) → thrust vector
+//! `T = m (a_sp − g)` → desired attitude (body −z along T, heading from the yaw set-point, tilt
+//! limited) and collective thrust `T · (−z_b)` on the current body axis, which is Lewis's tilt
+//! compensation (4.25)–(4.26) in vector form.
+//!
+//! Altitude alone (Lewis (4.23)–(4.26)): `F = (m g + F_PID) / K_tilt` with
+//! `K_tilt = [0 0 1]·(q ⊗ (0, 0, −1) ⊗ q*)` as a cosine of the tilt, bounded below by the tilt
+//! limit so the compensation cannot blow up; integrator clamped and frozen while saturated.
+
+use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
+
+const G: f64 = crate::GRAVITY_M_S2;
+
+/// Position-loop parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PositionParams {
+    /// Vehicle mass (kg).
+    pub mass_kg: f64,
+    /// Position gain (1/s), horizontal and vertical.
+    pub k_pos: Vector3<f64>,
+    /// Velocity proportional gain (1/s).
+    pub k_vel: Vector3<f64>,
+    /// Velocity integral gain (1/s²).
+    pub k_vel_i: Vector3<f64>,
+    /// Largest horizontal speed (m/s).
+    pub max_speed_h: f64,
+    /// Largest climb rate (m/s).
+    pub max_speed_up: f64,
+    /// Largest descent rate (m/s).
+    pub max_speed_down: f64,
+    /// Largest horizontal acceleration (m/s²).
+    pub max_accel_h: f64,
+    /// Largest vertical acceleration (m/s²).
+    pub max_accel_v: f64,
+    /// Largest tilt (rad).
+    pub max_tilt: f64,
+    /// Largest collective thrust (N).
+    pub max_thrust_n: f64,
+    /// Bound on the integral term (m/s²).
+    pub i_limit: f64,
+}
+
+/// What to fly to.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PositionSetpoint {
+    /// Position NED (m).
+    pub pos_ned_m: Vector3<f64>,
+    /// Velocity feed-forward NED (m/s).
+    pub vel_ned_m_s: Vector3<f64>,
+    /// Heading (rad, from north, clockwise).
+    pub yaw_rad: f64,
+}
+
+/// The position loop's output.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AttitudeSetpoint {
+    /// Desired attitude.
+    pub q_d: UnitQuaternion<f64>,
+    /// Collective thrust (N, up).
+    pub thrust_n: f64,
+    /// The acceleration set-point it came from, NED (m/s²).
+    pub accel_ned_m_s2: Vector3<f64>,
+    /// The velocity set-point, NED (m/s).
+    pub vel_ned_m_s: Vector3<f64>,
+}
+
+/// Position → velocity → acceleration → attitude and thrust.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PositionController {
+    /// Parameters.
+    pub params: PositionParams,
+    integral: Vector3<f64>,
+    vel_sp: Option<Vector3<f64>>,
+}
+
+/// The attitude whose body −z points along `thrust_dir` (unit, NED) with heading `yaw`.
+pub fn attitude_from_thrust(thrust_dir: &Vector3<f64>, yaw: f64) -> UnitQuaternion<f64> {
+    let z_b = -thrust_dir;
+    let x_c = Vector3::new(yaw.cos(), yaw.sin(), 0.0);
+    let mut y_b = z_b.cross(&x_c);
+    if y_b.norm() < 1e-6 {
+        // Thrust horizontal along the heading: any perpendicular will do.
+        y_b = Vector3::new(-yaw.sin(), yaw.cos(), 0.0);
+    }
+    let y_b = y_b.normalize();
+    let x_b = y_b.cross(&z_b);
+    UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(Matrix3::from_columns(
+        &[x_b, y_b, z_b],
+    )))
+}
+
+impl PositionController {
+    /// A controller at rest.
+    pub fn new(params: PositionParams) -> Self {
+        Self {
+            params,
+            integral: Vector3::zeros(),
+            vel_sp: None,
+        }
+    }
+
+    /// Forgets the integrator and the velocity set-point history (mode change, disarm).
+    pub fn reset(&mut self) {
+        self.integral = Vector3::zeros();
+        self.vel_sp = None;
+    }
+
+    /// One step with the estimated position, velocity and attitude.
+    pub fn update(
+        &mut self,
+        sp: &PositionSetpoint,
+        pos: &Vector3<f64>,
+        vel: &Vector3<f64>,
+        q: &UnitQuaternion<f64>,
+        dt: f64,
+    ) -> AttitudeSetpoint {
+        let p = &self.params;
+        // Position P → velocity set-point, limited.
+        let mut v_sp = (sp.pos_ned_m - pos).component_mul(&p.k_pos) + sp.vel_ned_m_s;
+        let h = v_sp.xy().norm();
+        if h > p.max_speed_h {
+            v_sp.x *= p.max_speed_h / h;
+            v_sp.y *= p.max_speed_h / h;
+        }
+        v_sp.z = v_sp.z.clamp(-p.max_speed_up, p.max_speed_down);
+        // Smooth set-point changes: the velocity set-point moves at most at the acceleration limits.
+        // After a reset the slew starts from the vehicle's own velocity.
+        {
+            let prev = self.vel_sp.unwrap_or(*vel);
+            let mut dv = v_sp - prev;
+            let dh = dv.xy().norm();
+            if dh > p.max_accel_h * dt {
+                dv.x *= p.max_accel_h * dt / dh;
+                dv.y *= p.max_accel_h * dt / dh;
+            }
+            dv.z = dv.z.clamp(-p.max_accel_v * dt, p.max_accel_v * dt);
+            v_sp = prev + dv;
+        }
+        self.vel_sp = Some(v_sp);
+        // Velocity PID → acceleration set-point.
+        let e = v_sp - vel;
+        let mut a_sp = e.component_mul(&p.k_vel) + self.integral;
+        let h = a_sp.xy().norm();
+        let h_limited = h > p.max_accel_h;
+        if h_limited {
+            a_sp.x *= p.max_accel_h / h;
+            a_sp.y *= p.max_accel_h / h;
+        }
+        let z_limited = a_sp.z.abs() > p.max_accel_v;
+        a_sp.z = a_sp.z.clamp(-p.max_accel_v, p.max_accel_v);
+        // Thrust vector, tilt-limited: keep the vertical component, shorten the horizontal one.
+        let mut t = (a_sp - Vector3::new(0.0, 0.0, G)) * p.mass_kg;
+        t.z = t.z.min(-0.1 * p.mass_kg * G); // always some thrust up
+        let horizontal = t.xy().norm();
+        let max_h = -t.z * p.max_tilt.tan();
+        let tilt_limited = horizontal > max_h;
+        if tilt_limited {
+            t.x *= max_h / horizontal;
+            t.y *= max_h / horizontal;
+        }
+        // Anti-windup: integrate unless that axis is being limited.
+        let freeze_h = h_limited || tilt_limited;
+        for i in 0..3 {
+            let frozen = if i < 2 { freeze_h } else { z_limited };
+            if !frozen {
+                self.integral[i] =
+                    (self.integral[i] + p.k_vel_i[i] * e[i] * dt).clamp(-p.i_limit, p.i_limit);
+            }
+        }
+        let q_d = attitude_from_thrust(&t.normalize(), sp.yaw_rad);
+        // Collective along the current body −z axis: tilt compensation (Lewis (4.25)–(4.26)).
+        let body_up = q * Vector3::new(0.0, 0.0, -1.0);
+        let thrust_n = t.dot(&body_up).clamp(0.0, p.max_thrust_n);
+        AttitudeSetpoint {
+            q_d,
+            thrust_n,
+            accel_ned_m_s2: a_sp,
+            vel_ned_m_s: v_sp,
+        }
+    }
+}
+
+/// Lewis's altitude law (4.23)–(4.26), for modes that hold altitude but not position.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AltitudeController {
+    /// Mass (kg).
+    pub mass_kg: f64,
+    /// K_Pz (N/m).
+    pub k_p: f64,
+    /// K_Iz (N/(m·s)).
+    pub k_i: f64,
+    /// K_Dz (N·s/m).
+    pub k_d: f64,
+    /// Largest tilt for the compensation (rad).
+    pub max_tilt: f64,
+    /// Largest collective thrust (N).
+    pub max_thrust_n: f64,
+    /// Bound on the integral term (N).
+    pub i_limit: f64,
+    integral: f64,
+}
+
+impl AltitudeController {
+    /// A controller with zero integral.
+    pub fn new(
+        mass_kg: f64,
+        k_p: f64,
+        k_i: f64,
+        k_d: f64,
+        max_tilt: f64,
+        max_thrust_n: f64,
+        i_limit: f64,
+    ) -> Self {
+        Self {
+            mass_kg,
+            k_p,
+            k_i,
+            k_d,
+            max_tilt,
+            max_thrust_n,
+            i_limit,
+            integral: 0.0,
+        }
+    }
+
+    /// Collective thrust (N) for altitude `alt` (m, up) with climb rate `climb` toward `alt_sp`.
+    pub fn update(
+        &mut self,
+        alt_sp: f64,
+        alt: f64,
+        climb: f64,
+        q: &UnitQuaternion<f64>,
+        dt: f64,
+    ) -> f64 {
+        let e = alt_sp - alt; // (4.23)
+        let f_pid = self.k_p * e + self.integral - self.k_d * climb; // (4.24), derivative on the measurement
+        // (4.26): K_tilt = z-component of the body's up axis, i.e. cos(tilt), bounded by the limit.
+        let k_tilt = (q * Vector3::new(0.0, 0.0, -1.0))
+            .z
+            .abs()
+            .max(self.max_tilt.cos());
+        let raw = (self.mass_kg * G + f_pid) / k_tilt; // (4.25)
+        let out = raw.clamp(0.0, self.max_thrust_n);
+        if out == raw || (out > raw) == (e > 0.0) {
+            self.integral = (self.integral + self.k_i * e * dt).clamp(-self.i_limit, self.i_limit);
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn params() -> PositionParams {
+        PositionParams {
+            mass_kg: 1.5,
+            k_pos: Vector3::new(1.0, 1.0, 1.0),
+            k_vel: Vector3::new(3.0, 3.0, 4.0),
+            k_vel_i: Vector3::new(0.5, 0.5, 1.0),
+            max_speed_h: 5.0,
+            max_speed_up: 3.0,
+            max_speed_down: 1.5,
+            max_accel_h: 4.0,
+            max_accel_v: 4.0,
+            max_tilt: 35f64.to_radians(),
+            max_thrust_n: 40.0,
+            i_limit: 3.0,
+        }
+    }
+
+    #[test]
+    fn attitude_from_thrust_points_body_down_axis_against_thrust() {
+        let yaw = 0.7;
+        let dir = Vector3::new(0.2, -0.1, -1.0).normalize();
+        let q = attitude_from_thrust(&dir, yaw);
+        assert!((q * Vector3::new(0.0, 0.0, -1.0) - dir).norm() < 1e-12);
+        let level = attitude_from_thrust(&Vector3::new(0.0, 0.0, -1.0), yaw);
+        assert!((level.euler_angles().2 - yaw).abs() < 1e-12);
+    }
+
+    #[test]
+    fn hover_at_the_set_point_needs_exactly_the_weight() {
+        let mut c = PositionController::new(params());
+        let sp = PositionSetpoint {
+            pos_ned_m: Vector3::new(0.0, 0.0, -5.0),
+            vel_ned_m_s: Vector3::zeros(),
+            yaw_rad: 0.0,
+        };
+        let out = c.update(
+            &sp,
+            &sp.pos_ned_m,
+            &Vector3::zeros(),
+            &UnitQuaternion::identity(),
+            0.01,
+        );
+        assert!((out.thrust_n - 1.5 * G).abs() < 1e-9);
+        assert!(out.q_d.angle() < 1e-12);
+    }
+
+    #[test]
+    fn far_set_points_are_limited_in_speed_tilt_and_slew() {
+        let mut c = PositionController::new(params());
+        let sp = PositionSetpoint {
+            pos_ned_m: Vector3::new(100.0, 0.0, 0.0),
+            vel_ned_m_s: Vector3::zeros(),
+            yaw_rad: 0.0,
+        };
+        let first = c.update(
+            &sp,
+            &Vector3::zeros(),
+            &Vector3::zeros(),
+            &UnitQuaternion::identity(),
+            0.01,
+        );
+        assert!(
+            first.vel_ned_m_s.x <= 4.0 * 0.01 + 1e-12,
+            "slew-limited start: {}",
+            first.vel_ned_m_s.x
+        );
+        let mut out = first;
+        for _ in 0..500 {
+            out = c.update(
+                &sp,
+                &Vector3::zeros(),
+                &Vector3::zeros(),
+                &UnitQuaternion::identity(),
+                0.01,
+            );
+        }
+        assert!((out.vel_ned_m_s.x - 5.0).abs() < 1e-9, "speed limit");
+        let tilt = (out.q_d * Vector3::new(0.0, 0.0, -1.0)).angle(&Vector3::new(0.0, 0.0, -1.0));
+        assert!(
+            tilt <= 35f64.to_radians() + 1e-9,
+            "tilt limit: {}",
+            tilt.to_degrees()
+        );
+        // Going north means pitching nose down.
+        assert!(out.q_d.euler_angles().1 < 0.0);
+    }
+
+    #[test]
+    fn lewis_altitude_law_compensates_tilt_within_its_limit() {
+        let mut a = AltitudeController::new(1.5, 4.0, 1.0, 3.0, 35f64.to_radians(), 40.0, 5.0);
+        let level = a.update(10.0, 10.0, 0.0, &UnitQuaternion::identity(), 0.01);
+        assert!((level - 1.5 * G).abs() < 1e-9);
+        let tilted = a.update(
+            10.0,
+            10.0,
+            0.0,
+            &UnitQuaternion::from_euler_angles(0.5, 0.0, 0.0),
+            0.01,
+        );
+        assert!((tilted - 1.5 * G / 0.5f64.cos()).abs() < 1e-9);
+        let upside = a.update(
+            10.0,
+            10.0,
+            0.0,
+            &UnitQuaternion::from_euler_angles(1.5, 0.0, 0.0),
+            0.01,
+        );
+        assert!(
+            (upside - 1.5 * G / 35f64.to_radians().cos()).abs() < 1e-9,
+            "bounded compensation"
+        );
+    }
+}

@@ -1,0 +1,163 @@
+//! The flight core flying the simulator, in one process, in lockstep: no sockets, no clock.
+
+// Test code: a failed unwrap is a failed test.
+#![allow(clippy::unwrap_used)]
+
+use airframe::Airframe;
+use flight_core::control::position::PositionSetpoint;
+use flight_core::core::{FlightCore, FlightCoreConfig, SensorSample};
+use flight_core::estimator::translation::GpsMeasurement;
+use flight_core::geo::LatLonAlt;
+use nalgebra::Vector3;
+use sitl_core::BodyState;
+use sitl_core::sensors::fields;
+use sitl_core::sim::{SimConfig, Simulator};
+use std::path::PathBuf;
+
+/// Physics steps per control step: 1 kHz physics, 250 Hz control (as the HIL link).
+const DECIMATION: usize = 4;
+
+/// Flight-quality figures of one flight.
+#[derive(Debug)]
+pub struct Flight {
+    pub alt_rms_m: f64,
+    pub horizontal_rms_m: f64,
+    pub attitude_rms_deg: f64,
+    pub max_tilt_deg: f64,
+    pub reached_s: Option<f64>,
+}
+
+/// Flies `name` to `target_alt` m and hovers for `duration` s in total.
+pub fn fly(name: &str, use_pid: bool, seed: u64, duration: f64, target_alt: f64) -> Flight {
+    let a = Airframe::load(
+        &PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join(format!("../../params/airframes/{name}.toml")),
+    )
+    .unwrap();
+    let mut sim = Simulator::new(
+        &a,
+        SimConfig {
+            seed,
+            ..SimConfig::default()
+        },
+        BodyState::default(),
+    )
+    .unwrap();
+    let mut core = FlightCore::new(&a, FlightCoreConfig::for_airframe(&a, use_pid)).unwrap();
+    let n = a.rotors.len();
+    let mut commands = [0.0; 16];
+    let sp = PositionSetpoint {
+        pos_ned_m: Vector3::new(0.0, 0.0, -target_alt),
+        vel_ned_m_s: Vector3::zeros(),
+        yaw_rad: 0.0,
+    };
+    let (mut sum_alt, mut sum_h, mut sum_att, mut count, mut max_tilt) =
+        (0.0, 0.0, 0.0, 0usize, 0.0f64);
+    let mut reached = None;
+    let steps = (duration * 1000.0) as usize / DECIMATION;
+    for _ in 0..steps {
+        let (mut gyro, mut accel) = (Vector3::zeros(), Vector3::zeros());
+        let (mut mag, mut baro, mut gps) = (None, None, None);
+        for _ in 0..DECIMATION {
+            sim.step(&commands[..n]);
+            let f = sim.sample_sensors();
+            gyro += f.gyro_frd_rad_s / DECIMATION as f64;
+            accel += f.accel_frd_m_s2 / DECIMATION as f64;
+            if f.fields_updated & fields::MAG != 0 {
+                mag = Some(f.mag_frd_gauss);
+            }
+            if f.fields_updated & fields::PRESSURE_ALT != 0 {
+                baro = Some(f.pressure_alt_m);
+            }
+            if let Some(g) = f.gps {
+                gps = Some(GpsMeasurement {
+                    fix_type: g.fix_type,
+                    position: LatLonAlt {
+                        lat_deg: g.position.lat_deg,
+                        lon_deg: g.position.lon_deg,
+                        alt_m: g.position.alt_m,
+                    },
+                    vel_ned_m_s: g.vel_ned_m_s,
+                    h_acc_m: g.h_acc_m,
+                });
+            }
+        }
+        let truth = sim.truth();
+        let sample = SensorSample {
+            t_usec: sim.time_usec(),
+            gyro,
+            accel,
+            mag,
+            baro_alt_m: baro,
+            gps,
+            battery_v: truth.battery_voltage_v,
+        };
+        let t = sim.time_s();
+        let armed = t > 3.0; // after the initial alignment and the first fixes
+        let out = core.step(&sample, &sp, armed);
+        commands = out.commands;
+        let alt = -truth.body.pos_ned_m.z;
+        if reached.is_none() && alt > 0.9 * target_alt {
+            reached = Some(t);
+        }
+        if t > duration - 20.0 {
+            sum_alt += (alt - target_alt).powi(2);
+            sum_h += truth.body.pos_ned_m.xy().norm_squared();
+            if let Some(e) = out.attitude {
+                sum_att += e.q.angle_to(&truth.body.q_ned_from_frd).powi(2);
+            }
+            max_tilt =
+                max_tilt.max((truth.body.q_ned_from_frd * Vector3::z()).angle(&Vector3::z()));
+            count += 1;
+        }
+    }
+    let c = count as f64;
+    Flight {
+        alt_rms_m: (sum_alt / c).sqrt(),
+        horizontal_rms_m: (sum_h / c).sqrt(),
+        attitude_rms_deg: (sum_att / c).sqrt().to_degrees(),
+        max_tilt_deg: max_tilt.to_degrees(),
+        reached_s: reached,
+    }
+}
+
+/// Every multirotor, with either rate loop, over three seeds: armed at 3 s on the ground, it
+/// climbs to 5 m and hovers; scored over the last 20 s against the simulator's truth. The
+/// altitude and horizontal figures are set by the seed's barometer drift and correlated GPS
+/// error, the same for every airframe.
+#[test]
+fn every_airframe_takes_off_and_hovers_with_either_rate_loop() {
+    for name in ["quad_x", "hexa_x", "octa_x", "dodeca"] {
+        for pid in [false, true] {
+            for seed in [1, 2, 3] {
+                let f = fly(name, pid, seed, 35.0, 5.0);
+                println!(
+                    "{name:>7} {} seed {seed}: alt RMS {:.3} m, horizontal RMS {:.3} m, attitude RMS {:.2} deg, max tilt {:.1} deg, 4.5 m at {:.2} s",
+                    if pid { "PID  " } else { "LADRC" },
+                    f.alt_rms_m,
+                    f.horizontal_rms_m,
+                    f.attitude_rms_deg,
+                    f.max_tilt_deg,
+                    f.reached_s.unwrap_or(f64::NAN)
+                );
+                assert!(f.reached_s.is_some_and(|t| t < 7.0), "{name}: climb");
+                assert!(
+                    f.alt_rms_m < 0.25 && f.horizontal_rms_m < 0.6,
+                    "{name} {pid} {seed}: {f:?}"
+                );
+                assert!(
+                    f.attitude_rms_deg < 2.0 && f.max_tilt_deg < 5.0,
+                    "{name} {pid} {seed}: {f:?}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn same_seed_same_flight() {
+    let a = fly("hexa_x", false, 9, 12.0, 3.0);
+    let b = fly("hexa_x", false, 9, 12.0, 3.0);
+    assert_eq!(a.alt_rms_m.to_bits(), b.alt_rms_m.to_bits());
+    assert_eq!(a.attitude_rms_deg.to_bits(), b.attitude_rms_deg.to_bits());
+}
