@@ -19,16 +19,16 @@ const DECIMATION: usize = 4;
 
 /// Flight-quality figures of one flight.
 #[derive(Debug)]
-pub struct Flight {
-    pub alt_rms_m: f64,
-    pub horizontal_rms_m: f64,
-    pub attitude_rms_deg: f64,
-    pub max_tilt_deg: f64,
-    pub reached_s: Option<f64>,
+struct Flight {
+    alt_rms_m: f64,
+    horizontal_rms_m: f64,
+    attitude_rms_deg: f64,
+    max_tilt_deg: f64,
+    reached_s: Option<f64>,
 }
 
 /// Flies `name` to `target_alt` m and hovers for `duration` s in total.
-pub fn fly(name: &str, use_pid: bool, seed: u64, duration: f64, target_alt: f64) -> Flight {
+fn fly(name: &str, use_pid: bool, seed: u64, duration: f64, target_alt: f64) -> Flight {
     let a = Airframe::load(
         &PathBuf::from(env!("CARGO_MANIFEST_DIR"))
             .join(format!("../../params/airframes/{name}.toml")),
