@@ -13,7 +13,7 @@
 //! curve (6.12) with `f(u, V) = u V`.
 
 use airframe::{Airframe, MAX_ROTORS, RotorSpec};
-use nalgebra::{DMatrix, DVector, Vector3};
+use nalgebra::{DMatrix, Vector3};
 
 /// What the controllers ask for.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -154,7 +154,7 @@ impl Mixer {
         r.thrust_n(rho, top)
     }
 
-    /// Allocates one request.
+    /// Allocates one request. Allocation-free: fixed-size arrays throughout.
     pub fn mix(&self, input: &MixerInput) -> MixerOutput {
         let n = self.rotors.len();
         let rho = input.air_density.max(0.1);
@@ -162,51 +162,53 @@ impl Mixer {
         let sanitize = |x: f64| if x.is_finite() { x } else { 0.0 };
         let thrust_req = sanitize(req.thrust_n).max(0.0);
         let t = req.torque_frd_n_m.map(sanitize);
-        let col = |k: usize| DVector::from_iterator(n, (0..n).map(|i| self.pinv[(i, k)]));
-        // Thrust pattern per unit of each wrench component. F_z = −thrust.
-        let c_f = -col(0);
-        let rp = col(1) * t.x + col(2) * t.y;
-        let c_yaw = col(3);
-        let t_max: Vec<f64> = (0..n)
-            .map(|i| self.max_thrust(i, rho, input.battery_v))
-            .collect();
-
-        // 1. Roll/pitch whole if possible, then the collective closest to the request that fits.
-        let fits = |pattern: &DVector<f64>| -> Option<(f64, f64)> {
-            // Range of collective s with 0 ≤ pattern + s c_F ≤ T_max for every working rotor.
+        // Thrust pattern per unit of each wrench component (F_z = −thrust), and the limits.
+        let mut c_f = [0.0; MAX_ROTORS];
+        let mut rp = [0.0; MAX_ROTORS];
+        let mut c_yaw = [0.0; MAX_ROTORS];
+        let mut t_max = [0.0; MAX_ROTORS];
+        for i in 0..n {
+            c_f[i] = -self.pinv[(i, 0)];
+            rp[i] = self.pinv[(i, 1)] * t.x + self.pinv[(i, 2)] * t.y;
+            c_yaw[i] = self.pinv[(i, 3)];
+            t_max[i] = self.max_thrust(i, rho, input.battery_v);
+        }
+        let working = |i: usize| !self.failed[i] && c_f[i] > 1e-12;
+        // Range of collective s with 0 ≤ α·rp + s·c_F ≤ T_max on every working rotor.
+        let fits = |alpha: f64| -> Option<(f64, f64)> {
             let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
-            for i in 0..n {
-                if self.failed[i] || c_f[i] <= 1e-12 {
-                    continue;
-                }
-                lo = lo.max((0.0 - pattern[i]) / c_f[i]);
-                hi = hi.min((t_max[i] - pattern[i]) / c_f[i]);
+            for i in (0..n).filter(|&i| working(i)) {
+                lo = lo.max(-alpha * rp[i] / c_f[i]);
+                hi = hi.min((t_max[i] - alpha * rp[i]) / c_f[i]);
             }
             (lo <= hi).then_some((lo, hi))
         };
+        // 1. Roll/pitch whole if possible; otherwise scaled down (bisection) until it fits.
         let mut tilt_scale = 1.0;
-        let (lo, hi) = match fits(&rp) {
+        let (lo, hi) = match fits(1.0) {
             Some(r) => r,
             None => {
-                // Scale the roll/pitch pattern down until it fits at some collective.
                 let (mut a, mut b) = (0.0, 1.0);
-                for _ in 0..40 {
+                for _ in 0..24 {
                     let mid = 0.5 * (a + b);
-                    if fits(&(&rp * mid)).is_some() {
+                    if fits(mid).is_some() {
                         a = mid
                     } else {
                         b = mid
                     }
                 }
                 tilt_scale = a;
-                fits(&(&rp * a)).unwrap_or((0.0, 0.0))
+                fits(a).unwrap_or((0.0, 0.0))
             }
         };
+        // 2. The collective closest to the request that leaves the roll/pitch pattern whole.
         let collective = thrust_req.clamp(lo, hi);
-        let mut thrust = &rp * tilt_scale + &c_f * collective;
-
-        // 2. Yaw with the margin left, never moving the collective.
-        let mut yaw_scale: f64 = 1.0;
+        let mut thrust = [0.0; MAX_ROTORS];
+        for i in 0..n {
+            thrust[i] = tilt_scale * rp[i] + collective * c_f[i];
+        }
+        // 3. Yaw with the margin left, never moving the collective.
+        let mut yaw_scale: f64 = if self.yaw_controllable { 1.0 } else { 0.0 };
         if t.z != 0.0 && self.yaw_controllable {
             for i in 0..n {
                 let d = c_yaw[i] * t.z;
@@ -220,11 +222,10 @@ impl Mixer {
                 };
                 yaw_scale = yaw_scale.min((room / d.abs()).max(0.0));
             }
-            thrust += &c_yaw * (t.z * yaw_scale);
-        } else if t.z != 0.0 {
-            yaw_scale = 0.0;
+            for i in 0..n {
+                thrust[i] += c_yaw[i] * t.z * yaw_scale;
+            }
         }
-
         let mut out = MixerOutput {
             commands: [0.0; MAX_ROTORS],
             thrust_n: [0.0; MAX_ROTORS],
@@ -240,6 +241,7 @@ impl Mixer {
             tilt_scale,
             yaw_scale,
         };
+        let mut w = [0.0; 4];
         for i in 0..n {
             let ti = if self.failed[i] {
                 0.0
@@ -253,8 +255,10 @@ impl Mixer {
             out.commands[i] = (out.speed_rad_s[i]
                 / (r.motor_gain_rad_s_per_v * input.battery_v.max(1.0)))
             .clamp(0.0, 1.0);
+            for (k, wk) in w.iter_mut().enumerate() {
+                *wk += self.b[(k, i)] * ti;
+            }
         }
-        let w = &self.b * DVector::from_column_slice(&out.thrust_n[..n]);
         out.achieved = WrenchRequest {
             thrust_n: -w[0],
             torque_frd_n_m: Vector3::new(w[1], w[2], w[3]),
