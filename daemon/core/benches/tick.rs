@@ -29,7 +29,7 @@ fn airframe(name: &str) -> Airframe {
 /// Advances the simulator one 250 Hz control interval and returns the averaged sensor sample.
 fn sample(sim: &mut Simulator, commands: &[f64]) -> SensorSample {
     let (mut gyro, mut accel) = (Vector3::zeros(), Vector3::zeros());
-    let (mut mag, mut baro, mut gps) = (None, None, None);
+    let (mut mag, mut baro, mut gps, mut rpm) = (None, None, None, None);
     for _ in 0..4 {
         sim.step(commands);
         let f = sim.sample_sensors();
@@ -40,6 +40,9 @@ fn sample(sim: &mut Simulator, commands: &[f64]) -> SensorSample {
         }
         if f.fields_updated & fields::PRESSURE_ALT != 0 {
             baro = Some(f.pressure_alt_m);
+        }
+        if let Some(r) = f.rotor_rpm {
+            rpm = Some(r.map(|x| x * std::f64::consts::TAU / 60.0));
         }
         if let Some(g) = f.gps {
             gps = Some(GpsMeasurement {
@@ -62,6 +65,7 @@ fn sample(sim: &mut Simulator, commands: &[f64]) -> SensorSample {
         baro_alt_m: baro,
         gps,
         battery_v: sim.truth().battery_voltage_v,
+        rotor_speed_rad_s: rpm,
     }
 }
 

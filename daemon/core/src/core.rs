@@ -5,6 +5,7 @@
 //! Pure: no clock (time comes with the sample), no I/O, no allocation in `step`.
 
 use crate::control::attitude::{KinematicAttitude, KinematicParams};
+use crate::control::motor::{MotorLoopParams, MotorSpeedLoop};
 use crate::control::position::{
     AttitudeSetpoint, PositionController, PositionParams, PositionSetpoint,
 };
@@ -40,6 +41,8 @@ pub struct FlightCoreConfig {
     pub kinematic: KinematicParams,
     /// Rate loop.
     pub rate: RateLoopParams,
+    /// Rotor-speed loop (used when the ESCs report rpm).
+    pub motor: MotorLoopParams,
 }
 
 impl FlightCoreConfig {
@@ -99,6 +102,13 @@ impl FlightCoreConfig {
                 max_yaw_rate: 1.5,
             },
             rate,
+            motor: MotorLoopParams {
+                k_p: 2e-4,
+                k_i: 2e-3,
+                k_g: 2.0,
+                i_limit: 0.2,
+                gain_range: 0.3,
+            },
         }
     }
 }
@@ -120,6 +130,8 @@ pub struct SensorSample {
     pub gps: Option<GpsMeasurement>,
     /// Battery voltage (V).
     pub battery_v: f64,
+    /// Rotor speeds from ESC telemetry (rad/s), when fresh.
+    pub rotor_speed_rad_s: Option<[f64; MAX_ROTORS]>,
 }
 
 /// What one step produced.
@@ -153,6 +165,7 @@ pub struct FlightCore {
     kinematic: KinematicAttitude,
     rate: [RateAxis; 3],
     mixer: Mixer,
+    motor: MotorSpeedLoop,
     last_t_usec: Option<u64>,
     flying: bool,
     /// Time steps clamped into the accepted range.
@@ -183,6 +196,7 @@ impl FlightCore {
             },
             rate: rate_axes(&config.rate),
             mixer: Mixer::new(airframe)?,
+            motor: MotorSpeedLoop::new(airframe, config.motor),
             last_t_usec: None,
             flying: false,
             dt_clamped: 0,
@@ -291,7 +305,10 @@ impl FlightCore {
                 ),
             }
         }
-        out.commands = m.commands;
+        // Rotor speeds → commands: the inverse motor curve with the estimated gains, plus the speed
+        // PI when rpm is measured (Lewis (4.40)–(4.41), (6.13)).
+        let rpm = s.rotor_speed_rad_s.as_ref().map(|r| &r[..]);
+        out.commands = self.motor.update(&m.speed_rad_s, rpm, s.battery_v, dt);
         out.attitude_setpoint = Some(sp);
         out.rate_reference = r.rate;
         out.mixer = Some(m);

@@ -57,7 +57,7 @@ fn fly(name: &str, use_pid: bool, seed: u64, duration: f64, target_alt: f64) -> 
     let steps = (duration * 1000.0) as usize / DECIMATION;
     for _ in 0..steps {
         let (mut gyro, mut accel) = (Vector3::zeros(), Vector3::zeros());
-        let (mut mag, mut baro, mut gps) = (None, None, None);
+        let (mut mag, mut baro, mut gps, mut rpm) = (None, None, None, None);
         for _ in 0..DECIMATION {
             sim.step(&commands[..n]);
             let f = sim.sample_sensors();
@@ -68,6 +68,9 @@ fn fly(name: &str, use_pid: bool, seed: u64, duration: f64, target_alt: f64) -> 
             }
             if f.fields_updated & fields::PRESSURE_ALT != 0 {
                 baro = Some(f.pressure_alt_m);
+            }
+            if let Some(r) = f.rotor_rpm {
+                rpm = Some(r.map(|x| x * std::f64::consts::TAU / 60.0));
             }
             if let Some(g) = f.gps {
                 gps = Some(GpsMeasurement {
@@ -91,6 +94,7 @@ fn fly(name: &str, use_pid: bool, seed: u64, duration: f64, target_alt: f64) -> 
             baro_alt_m: baro,
             gps,
             battery_v: truth.battery_voltage_v,
+            rotor_speed_rad_s: rpm,
         };
         let t = sim.time_s();
         let armed = t > 3.0; // after the initial alignment and the first fixes
