@@ -4,7 +4,7 @@
 //! loop ─► kinematic attitude law (Castillo (63)) ─► rate loop (LADRC or PID) ─► mixer.
 //! Pure: no clock (time comes with the sample), no I/O, no allocation in `step`.
 
-use crate::control::attitude::{KinematicAttitude, KinematicParams};
+use crate::control::attitude::{KinematicAttitude, KinematicParams, TiltYawPd, TiltYawPdParams};
 use crate::control::motor::{MotorLoopParams, MotorSpeedLoop};
 use crate::control::position::{
     AttitudeSetpoint, PositionController, PositionParams, PositionSetpoint,
@@ -15,7 +15,7 @@ use crate::estimator::translation::{
     GpsMeasurement, TranslationEstimate, TranslationEstimator, TranslationParams,
 };
 use crate::mixer::{Mixer, MixerError, MixerInput, MixerOutput, WrenchRequest};
-use crate::params::AttitudeParams;
+use crate::params::{AttitudeParams, FlightParams};
 use airframe::{Airframe, MAX_ROTORS};
 use nalgebra::Vector3;
 
@@ -28,6 +28,15 @@ pub enum RateLoopParams {
     Pid([PidParams; 3]),
 }
 
+/// Which attitude law flies.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum AttitudeLaw {
+    /// Castillo's kinematic law (63) feeding the rate loop.
+    Kinematic(KinematicParams),
+    /// Lewis's tilt/yaw PD (4.19)–(4.21): moments directly, no rate loop.
+    TiltYawPd(TiltYawPdParams),
+}
+
 /// Everything the flight core needs to know.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FlightCoreConfig {
@@ -38,7 +47,7 @@ pub struct FlightCoreConfig {
     /// Position loop.
     pub position: PositionParams,
     /// Attitude loop.
-    pub kinematic: KinematicParams,
+    pub attitude_law: AttitudeLaw,
     /// Rate loop.
     pub rate: RateLoopParams,
     /// Rotor-speed loop (used when the ESCs report rpm).
@@ -46,68 +55,108 @@ pub struct FlightCoreConfig {
 }
 
 impl FlightCoreConfig {
-    /// Defaults for an airframe: b̄ = 1/I per axis (so the rate loop's output is a torque), mass
-    /// and thrust limits from the airframe.
+    /// Defaults for an airframe (`params/flight.toml`'s values), with the PID rate loop if
+    /// `use_pid`.
     pub fn for_airframe(a: &Airframe, use_pid: bool) -> Self {
+        let mut p = FlightParams::default();
+        p.rate.controller = use_pid as u32;
+        Self::from_params(&p, a)
+    }
+
+    /// The configuration a parameter set gives for an airframe: b̄ = 1/I per axis (so the rate
+    /// loop's output is a torque); gains given "per unit inertia" are scaled by I; mass and thrust
+    /// limits from the airframe.
+    pub fn from_params(p: &FlightParams, a: &Airframe) -> Self {
         let inertia = a.inertia_kg_m2.diagonal();
         let max_thrust: f64 = a
             .rotors
             .iter()
             .map(|r| r.thrust_n(1.225, r.max_speed_rad_s))
             .sum();
-        let rate = if use_pid {
+        let r = &p.rate;
+        let rate = if r.controller == 1 {
             RateLoopParams::Pid([0, 1, 2].map(|i| {
                 let j = inertia[i];
-                let (kp, ki) = if i < 2 { (12.0, 20.0) } else { (6.0, 4.0) };
+                let (kp, ki, kd) = if i < 2 {
+                    (r.pid_p_rp, r.pid_i_rp, r.pid_d_rp)
+                } else {
+                    (r.pid_p_y, r.pid_i_y, 0.0)
+                };
                 PidParams {
                     k_p: kp * j,
                     k_i: ki * j,
-                    k_d: 0.0,
+                    k_d: kd * j,
                     k_ff: 0.0,
-                    d_cutoff_hz: 30.0,
-                    i_limit: 0.3 * a.weight_n() * 0.2,
+                    d_cutoff_hz: r.pid_d_cutoff_hz,
+                    i_limit: 0.06 * a.weight_n(),
                     u_max: 1e3,
                 }
             }))
         } else {
             RateLoopParams::Ladrc([0, 1, 2].map(|i| LadrcParams {
-                b_bar: 1.0 / inertia[i],
-                k_d: if i < 2 { 12.0 } else { 6.0 },
-                beta: 60.0,
-                td_limit: f64::INFINITY,
+                b_bar: r.adrc_b_scale / inertia[i],
+                k_d: if i < 2 { r.adrc_kd_rp } else { r.adrc_kd_y },
+                beta: r.adrc_beta,
+                td_limit: if r.adrc_td_limit > 0.0 {
+                    r.adrc_td_limit
+                } else {
+                    f64::INFINITY
+                },
                 u_max: 1e3,
             }))
         };
+        let c = &p.attitude_control;
+        let attitude_law = if c.law == 1 {
+            let tilt_inertia = inertia.x.max(inertia.y);
+            AttitudeLaw::TiltYawPd(TiltYawPdParams {
+                k_p_tilt: c.pd_k_p_tilt * tilt_inertia,
+                k_d_tilt: c.pd_k_d_tilt * tilt_inertia,
+                k_p_yaw: c.pd_k_p_yaw * inertia.z,
+                k_d_yaw: c.pd_k_d_yaw * inertia.z,
+            })
+        } else {
+            AttitudeLaw::Kinematic(KinematicParams {
+                k_k: c.k_k,
+                yaw_weight: c.yaw_weight,
+                max_tilt_rate: c.max_tilt_rate_deg_s.to_radians(),
+                max_yaw_rate: c.max_yaw_rate_deg_s.to_radians(),
+            })
+        };
+        let (t, q, m) = (&p.translation, &p.position, &p.motor);
         Self {
-            attitude: AttitudeParams::default(),
-            translation: TranslationParams::default(),
+            attitude: p.attitude.clone(),
+            translation: TranslationParams {
+                tau_xy_s: t.tau_xy_s,
+                tau_z_s: t.tau_z_s,
+                tau_vel_s: t.tau_vel_s,
+                gps_delay_s: t.gps_delay_s,
+                gps_max_h_acc_m: t.gps_max_h_acc_m,
+                gps_timeout_s: t.gps_timeout_s,
+                baro_timeout_s: t.baro_timeout_s,
+                accel_bias_limit: t.accel_bias_limit,
+            },
             position: PositionParams {
                 mass_kg: a.mass_kg,
-                k_pos: Vector3::new(0.95, 0.95, 1.0),
-                k_vel: Vector3::new(1.8, 1.8, 4.0),
-                k_vel_i: Vector3::new(0.4, 0.4, 2.0),
-                max_speed_h: 5.0,
-                max_speed_up: 3.0,
-                max_speed_down: 1.0,
-                max_accel_h: 4.0,
-                max_accel_v: 4.0,
-                max_tilt: 35f64.to_radians(),
+                k_pos: Vector3::new(q.k_pos_xy, q.k_pos_xy, q.k_pos_z),
+                k_vel: Vector3::new(q.k_vel_xy, q.k_vel_xy, q.k_vel_z),
+                k_vel_i: Vector3::new(q.k_vel_i_xy, q.k_vel_i_xy, q.k_vel_i_z),
+                max_speed_h: q.max_speed_h,
+                max_speed_up: q.max_speed_up,
+                max_speed_down: q.max_speed_down,
+                max_accel_h: q.max_accel_h,
+                max_accel_v: q.max_accel_v,
+                max_tilt: q.max_tilt_deg.to_radians(),
                 max_thrust_n: max_thrust,
-                i_limit: 3.0,
+                i_limit: q.i_limit,
             },
-            kinematic: KinematicParams {
-                k_k: 6.0,
-                yaw_weight: 0.4,
-                max_tilt_rate: 3.5,
-                max_yaw_rate: 1.5,
-            },
+            attitude_law,
             rate,
             motor: MotorLoopParams {
-                k_p: 2e-4,
-                k_i: 2e-3,
-                k_g: 2.0,
-                i_limit: 0.2,
-                gain_range: 0.3,
+                k_p: m.k_p,
+                k_i: m.k_i,
+                k_g: m.k_g,
+                i_limit: m.i_limit,
+                gain_range: m.gain_range,
             },
         }
     }
@@ -162,7 +211,7 @@ pub struct FlightCore {
     attitude: AttitudeEstimator,
     translation: TranslationEstimator,
     position: PositionController,
-    kinematic: KinematicAttitude,
+    attitude_law: AttitudeLaw,
     rate: [RateAxis; 3],
     mixer: Mixer,
     motor: MotorSpeedLoop,
@@ -191,9 +240,7 @@ impl FlightCore {
             attitude: AttitudeEstimator::new(&config.attitude),
             translation: TranslationEstimator::new(config.translation),
             position: PositionController::new(config.position),
-            kinematic: KinematicAttitude {
-                params: config.kinematic,
-            },
+            attitude_law: config.attitude_law,
             rate: rate_axes(&config.rate),
             mixer: Mixer::new(airframe)?,
             motor: MotorSpeedLoop::new(airframe, config.motor),
@@ -279,14 +326,23 @@ impl FlightCore {
             &a.q,
             dt,
         );
-        let r = self.kinematic.update(&a.q, &sp.q_d, &Vector3::zeros());
-        let mut torque = Vector3::zeros();
-        for (i, axis) in self.rate.iter_mut().enumerate() {
-            torque[i] = match axis {
-                RateAxis::Ladrc(l) => l.update(r.rate[i], a.rate[i], dt),
-                RateAxis::Pid(p) => p.update(r.rate[i], a.rate[i], dt),
-            };
-        }
+        let (rate_reference, torque) = match self.attitude_law {
+            AttitudeLaw::Kinematic(params) => {
+                let r = KinematicAttitude { params }.update(&a.q, &sp.q_d, &Vector3::zeros());
+                let mut torque = Vector3::zeros();
+                for (i, axis) in self.rate.iter_mut().enumerate() {
+                    torque[i] = match axis {
+                        RateAxis::Ladrc(l) => l.update(r.rate[i], a.rate[i], dt),
+                        RateAxis::Pid(p) => p.update(r.rate[i], a.rate[i], dt),
+                    };
+                }
+                (r.rate, torque)
+            }
+            AttitudeLaw::TiltYawPd(params) => (
+                Vector3::zeros(),
+                TiltYawPd { params }.update(&a.q, &sp.q_d, &a.rate),
+            ),
+        };
         let rho = air_density(s.baro_alt_m.unwrap_or(0.0));
         let m = self.mixer.mix(&MixerInput {
             request: WrenchRequest {
@@ -310,7 +366,7 @@ impl FlightCore {
         let rpm = s.rotor_speed_rad_s.as_ref().map(|r| &r[..]);
         out.commands = self.motor.update(&m.speed_rad_s, rpm, s.battery_v, dt);
         out.attitude_setpoint = Some(sp);
-        out.rate_reference = r.rate;
+        out.rate_reference = rate_reference;
         out.mixer = Some(m);
         out
     }

@@ -8,6 +8,7 @@ use flight_core::control::position::PositionSetpoint;
 use flight_core::core::{FlightCore, FlightCoreConfig, SensorSample};
 use flight_core::estimator::translation::GpsMeasurement;
 use flight_core::geo::LatLonAlt;
+use flight_core::params::FlightParams;
 use nalgebra::Vector3;
 use sitl_core::BodyState;
 use sitl_core::sensors::fields;
@@ -29,6 +30,19 @@ struct Flight {
 
 /// Flies `name` to `target_alt` m and hovers for `duration` s in total.
 fn fly(name: &str, use_pid: bool, seed: u64, duration: f64, target_alt: f64) -> Flight {
+    let mut p = FlightParams::default();
+    p.rate.controller = use_pid as u32;
+    fly_with(name, &p, seed, duration, target_alt)
+}
+
+/// Flies with a full parameter set.
+fn fly_with(
+    name: &str,
+    params: &FlightParams,
+    seed: u64,
+    duration: f64,
+    target_alt: f64,
+) -> Flight {
     let a = Airframe::load(
         &PathBuf::from(env!("CARGO_MANIFEST_DIR"))
             .join(format!("../../params/airframes/{name}.toml")),
@@ -43,7 +57,7 @@ fn fly(name: &str, use_pid: bool, seed: u64, duration: f64, target_alt: f64) -> 
         BodyState::default(),
     )
     .unwrap();
-    let mut core = FlightCore::new(&a, FlightCoreConfig::for_airframe(&a, use_pid)).unwrap();
+    let mut core = FlightCore::new(&a, FlightCoreConfig::from_params(params, &a)).unwrap();
     let n = a.rotors.len();
     let mut commands = [0.0; 16];
     let sp = PositionSetpoint {
@@ -164,4 +178,23 @@ fn same_seed_same_flight() {
     let b = fly("hexa_x", false, 9, 12.0, 3.0);
     assert_eq!(a.alt_rms_m.to_bits(), b.alt_rms_m.to_bits());
     assert_eq!(a.attitude_rms_deg.to_bits(), b.attitude_rms_deg.to_bits());
+}
+
+/// Lewis's tilt/yaw PD (4.19)–(4.21) as the attitude law (MC_ATT_LAW = 1) also flies.
+#[test]
+fn lewis_tilt_yaw_pd_flies_too() {
+    let mut p = FlightParams::default();
+    p.attitude_control.law = 1;
+    for name in ["quad_x", "dodeca"] {
+        let f = fly_with(name, &p, 1, 35.0, 5.0);
+        println!(
+            "{name:>7} Lewis PD: alt RMS {:.3} m, horizontal RMS {:.3} m, attitude RMS {:.2} deg, max tilt {:.1} deg",
+            f.alt_rms_m, f.horizontal_rms_m, f.attitude_rms_deg, f.max_tilt_deg
+        );
+        assert!(f.reached_s.is_some_and(|t| t < 7.0));
+        assert!(
+            f.alt_rms_m < 0.25 && f.horizontal_rms_m < 0.6 && f.max_tilt_deg < 5.0,
+            "{f:?}"
+        );
+    }
 }
