@@ -11,6 +11,7 @@ pub mod geo;
 pub mod mixer;
 pub mod params;
 pub mod quat;
+pub mod replay;
 
 /// Standard gravity (m/s²), along NED +z.
 pub const GRAVITY_M_S2: f64 = 9.806_65;

@@ -147,6 +147,13 @@ impl AttitudeEstimator {
         self.status.aligned = true;
     }
 
+    /// Sets the gyro-bias estimate (an alignment done elsewhere, e.g. a replay's pre-roll).
+    pub fn set_gyro_bias(&mut self, bias: Vector3<f64>) {
+        if let Some(o) = self.observer.as_mut() {
+            o.bias = bias;
+        }
+    }
+
     /// Forgets everything: the next samples align again.
     pub fn reset(&mut self) {
         *self = Self::new(&self.params);
