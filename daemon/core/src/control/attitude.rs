@@ -121,6 +121,30 @@ impl TiltYawPd {
     }
 }
 
+crate::params::param_group! {
+    /// Attitude loop (Castillo's kinematic law (63) or Lewis's tilt/yaw PD).
+    AttitudeControlGroup, "attitude_control", ATTITUDE_CONTROL_META {
+        /// 0: Castillo's kinematic law over the rate loop; 1: Lewis's tilt/yaw PD moments.
+        law: u32 = 0, "MC_ATT_LAW", "", [0.0, 1.0], "Attitude law: 0 Castillo kinematic (63) + rate loop, 1 Lewis tilt/yaw PD (4.19)-(4.21)";
+        /// Castillo's k_k.
+        k_k: f64 = 6.0, "MC_ATT_KK", "1/s", [0.1, 30.0], "Gain k_k of Castillo's kinematic law (63)";
+        /// Yaw weight relative to tilt.
+        yaw_weight: f64 = 0.4, "MC_YAW_WEIGHT", "", [0.0, 1.0], "Weight of the yaw error relative to tilt";
+        /// Roll/pitch rate limit.
+        max_tilt_rate_deg_s: f64 = 200.0, "MC_ROLLRATE_MAX", "deg/s", [10.0, 1800.0], "Largest roll and pitch rate reference";
+        /// Yaw rate limit.
+        max_yaw_rate_deg_s: f64 = 90.0, "MC_YAWRATE_MAX", "deg/s", [5.0, 1800.0], "Largest yaw rate reference";
+        /// Lewis K_PH per unit inertia.
+        pd_k_p_tilt: f64 = 36.0, "MC_PD_TILT_P", "1/s^2", [0.0, 500.0], "Lewis tilt proportional gain K_PH, per kg m^2 of inertia";
+        /// Lewis K_DH per unit inertia.
+        pd_k_d_tilt: f64 = 10.0, "MC_PD_TILT_D", "1/s", [0.0, 100.0], "Lewis tilt derivative gain K_DH, per kg m^2 of inertia";
+        /// Lewis K_Pz per unit inertia.
+        pd_k_p_yaw: f64 = 9.0, "MC_PD_YAW_P", "1/s^2", [0.0, 500.0], "Lewis yaw proportional gain K_Pz, per kg m^2 of inertia";
+        /// Lewis K_Dz per unit inertia.
+        pd_k_d_yaw: f64 = 5.0, "MC_PD_YAW_D", "1/s", [0.0, 100.0], "Lewis yaw derivative gain K_Dz, per kg m^2 of inertia";
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

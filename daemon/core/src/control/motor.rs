@@ -110,6 +110,22 @@ impl MotorSpeedLoop {
     }
 }
 
+crate::params::param_group! {
+    /// Rotor-speed loop (Lewis (4.40)-(4.41), (6.13)) when ESCs report rpm.
+    MotorGroup, "motor", MOTOR_META {
+        /// Speed PI proportional gain.
+        k_p: f64 = 2e-4, "MOT_SPD_P", "1/(rad/s)", [0.0, 0.01], "Rotor-speed PI proportional gain (4.41)";
+        /// Speed PI integral gain.
+        k_i: f64 = 2e-3, "MOT_SPD_I", "1/rad", [0.0, 0.1], "Rotor-speed PI integral gain (4.40)-(4.41)";
+        /// Gain-estimation rate.
+        k_g: f64 = 2.0, "MOT_GAIN_KG", "1/s", [0.0, 20.0], "Motor-gain estimation rate K_g (6.13)";
+        /// Integral bound.
+        i_limit: f64 = 0.2, "MOT_SPD_IMAX", "", [0.0, 1.0], "Bound on the speed-loop integral (command)";
+        /// Gain correction range.
+        gain_range: f64 = 0.3, "MOT_GAIN_RANGE", "", [0.0, 0.9], "Largest relative correction of the motor gain";
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

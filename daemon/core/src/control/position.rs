@@ -251,6 +251,38 @@ impl AltitudeController {
     }
 }
 
+crate::params::param_group! {
+    /// Position, velocity and altitude loops.
+    PositionGroup, "position", POSITION_META {
+        /// Horizontal position gain.
+        k_pos_xy: f64 = 0.95, "MPC_XY_P", "1/s", [0.0, 5.0], "Horizontal position gain";
+        /// Vertical position gain.
+        k_pos_z: f64 = 1.0, "MPC_Z_P", "1/s", [0.0, 5.0], "Vertical position gain";
+        /// Horizontal velocity gain.
+        k_vel_xy: f64 = 1.8, "MPC_XY_VEL_P_ACC", "1/s", [0.0, 10.0], "Horizontal velocity proportional gain";
+        /// Horizontal velocity integral gain.
+        k_vel_i_xy: f64 = 0.4, "MPC_XY_VEL_I_ACC", "1/s^2", [0.0, 10.0], "Horizontal velocity integral gain";
+        /// Vertical velocity gain.
+        k_vel_z: f64 = 4.0, "MPC_Z_VEL_P_ACC", "1/s", [0.0, 20.0], "Vertical velocity proportional gain";
+        /// Vertical velocity integral gain.
+        k_vel_i_z: f64 = 2.0, "MPC_Z_VEL_I_ACC", "1/s^2", [0.0, 20.0], "Vertical velocity integral gain";
+        /// Horizontal speed limit.
+        max_speed_h: f64 = 5.0, "MPC_XY_VEL_MAX", "m/s", [0.5, 30.0], "Largest horizontal speed";
+        /// Climb rate limit.
+        max_speed_up: f64 = 3.0, "MPC_Z_VEL_MAX_UP", "m/s", [0.3, 10.0], "Largest climb rate";
+        /// Descent rate limit.
+        max_speed_down: f64 = 1.0, "MPC_Z_VEL_MAX_DN", "m/s", [0.3, 10.0], "Largest descent rate";
+        /// Horizontal acceleration limit.
+        max_accel_h: f64 = 4.0, "MPC_ACC_HOR_MAX", "m/s^2", [0.5, 15.0], "Largest horizontal acceleration";
+        /// Vertical acceleration limit.
+        max_accel_v: f64 = 4.0, "MPC_ACC_UP_MAX", "m/s^2", [0.5, 15.0], "Largest vertical acceleration";
+        /// Tilt limit.
+        max_tilt_deg: f64 = 35.0, "MPC_TILTMAX_AIR", "deg", [5.0, 80.0], "Largest tilt in position and altitude modes";
+        /// Integral bound.
+        i_limit: f64 = 3.0, "MPC_I_MAX", "m/s^2", [0.0, 10.0], "Bound on the velocity integral";
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -181,5 +181,35 @@ impl PidAxis {
     }
 }
 
+crate::params::param_group! {
+    /// Rate loop: LADRC (Castillo (69)-(73)) or PID.
+    RateGroup, "rate", RATE_META {
+        /// 0: LADRC; 1: PID.
+        controller: u32 = 0, "MC_RATE_CTRL", "", [0.0, 1.0], "Rate controller: 0 LADRC (Castillo), 1 PID";
+        /// LADRC feedback gain, roll and pitch.
+        adrc_kd_rp: f64 = 12.0, "ADRC_RP_KD", "1/s", [0.5, 100.0], "LADRC feedback gain k_d (71)-(72), roll and pitch";
+        /// LADRC feedback gain, yaw.
+        adrc_kd_y: f64 = 6.0, "ADRC_Y_KD", "1/s", [0.5, 100.0], "LADRC feedback gain k_d, yaw";
+        /// ESO bandwidth.
+        adrc_beta: f64 = 60.0, "ADRC_BETA", "1/s", [5.0, 1000.0], "LADRC observer bandwidth beta (70); keep beta x sample time below ~1";
+        /// TD slope limit (0: no TD).
+        adrc_td_limit: f64 = 0.0, "ADRC_TD_R", "rad/s^2", [0.0, 10000.0], "Tracking-differentiator slope limit r (73); 0 turns the TD off";
+        /// b̄ as a fraction of 1/I.
+        adrc_b_scale: f64 = 1.0, "ADRC_B_SCALE", "", [0.1, 10.0], "LADRC input-gain estimate b-bar as a multiple of 1/I";
+        /// PID proportional gain, roll and pitch (per unit inertia).
+        pid_p_rp: f64 = 12.0, "MC_RP_RATE_P", "1/s", [0.0, 200.0], "PID proportional gain, roll and pitch, per kg m^2 of inertia";
+        /// PID integral gain, roll and pitch.
+        pid_i_rp: f64 = 20.0, "MC_RP_RATE_I", "1/s^2", [0.0, 500.0], "PID integral gain, roll and pitch, per kg m^2 of inertia";
+        /// PID derivative gain, roll and pitch.
+        pid_d_rp: f64 = 0.0, "MC_RP_RATE_D", "", [0.0, 5.0], "PID derivative gain (on the measurement), roll and pitch, per kg m^2";
+        /// PID proportional gain, yaw.
+        pid_p_y: f64 = 6.0, "MC_YAWRATE_P", "1/s", [0.0, 200.0], "PID proportional gain, yaw, per kg m^2 of inertia";
+        /// PID integral gain, yaw.
+        pid_i_y: f64 = 4.0, "MC_YAWRATE_I", "1/s^2", [0.0, 500.0], "PID integral gain, yaw, per kg m^2 of inertia";
+        /// PID derivative low-pass cut-off.
+        pid_d_cutoff_hz: f64 = 30.0, "MC_DTERM_CUTOFF", "Hz", [1.0, 500.0], "PID derivative low-pass cut-off";
+    }
+}
+
 #[cfg(test)]
 mod tests;

@@ -302,6 +302,28 @@ impl TranslationEstimator {
     }
 }
 
+crate::params::param_group! {
+    /// Translation estimator (position and velocity from accelerometer, GPS and barometer).
+    TranslationGroup, "translation", TRANSLATION_META {
+        /// Horizontal time constant.
+        tau_xy_s: f64 = 2.5, "EST_XY_TAU", "s", [0.2, 30.0], "Horizontal complementary-filter time constant: larger trusts the accelerometer longer";
+        /// Vertical time constant.
+        tau_z_s: f64 = 1.0, "EST_Z_TAU", "s", [0.2, 30.0], "Vertical (barometer) complementary-filter time constant";
+        /// GPS velocity correction time constant.
+        tau_vel_s: f64 = 0.5, "EST_VEL_TAU", "s", [0.05, 30.0], "GPS velocity correction time constant";
+        /// GPS latency.
+        gps_delay_s: f64 = 0.1, "EST_GPS_DELAY", "s", [0.0, 0.5], "Age of a GPS solution when it arrives";
+        /// Worst GPS accuracy accepted.
+        gps_max_h_acc_m: f64 = 5.0, "EST_GPS_MAX_ACC", "m", [0.1, 100.0], "Worst horizontal accuracy accepted from the GPS";
+        /// GPS timeout.
+        gps_timeout_s: f64 = 1.0, "EST_GPS_TOUT", "s", [0.1, 10.0], "Local position is invalid after this long without GPS";
+        /// Barometer timeout.
+        baro_timeout_s: f64 = 0.5, "EST_BARO_TOUT", "s", [0.05, 10.0], "Altitude is invalid after this long without the barometer";
+        /// Accelerometer bias bound.
+        accel_bias_limit: f64 = 1.0, "EST_ACC_B_MAX", "m/s^2", [0.0, 5.0], "Bound on the accelerometer bias estimate";
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
