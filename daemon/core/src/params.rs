@@ -1,7 +1,7 @@
 //! Parameters of the flight core.
 //!
 //! Each module declares its own group next to its code (`AttitudeParams` in
-//! `estimator/attitude.rs`, the others through [`param_group!`]): a serde struct with defaults
+//! `estimator/attitude.rs`, the others through the `param_group!` macro): a serde struct with defaults
 //! (`deny_unknown_fields`), a metadata table (MAVLink name of at most 16 characters, unit, range,
 //! description) for the ground-station parameter protocol and the generated reference, and
 //! `validate()` returning every violation. This module holds the shared pieces and
