@@ -5,7 +5,7 @@
 //!
 //! The file gives rotor properties once in `[rotor_defaults]` and each rotor's position and spin in
 //! `[[rotors]]`; a rotor may override any default (a bent prop, a different motor). Parsing
-//! resolves every rotor to a complete [`RotorSpec`] and [`Airframe::validate`] checks physics
+//! resolves every rotor to a complete [`RotorSpec`] and loading validates the physics
 //! (positive mass, a symmetric positive-definite inertia tensor that a real body can have, 1–16
 //! rotors, an allocation of rank 4) before anything flies.
 
