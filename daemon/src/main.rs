@@ -32,7 +32,7 @@ enum Command {
         /// Output CSV.
         #[arg(long, short)]
         output: PathBuf,
-        /// Parameter file whose `[attitude]` table sets the gains and magnetometer calibration
+        /// Parameter file whose attitude table sets the gains and magnetometer calibration
         /// [default: the built-in defaults, as in params/flight.toml].
         #[arg(long)]
         params: Option<PathBuf>,

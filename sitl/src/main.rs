@@ -35,7 +35,7 @@ pub struct Cli {
     /// open-loop script. Without one: the airframe rests at home, typical sensors, no wind.
     #[arg(long, value_name = "FILE")]
     pub scenario: Option<PathBuf>,
-    /// Airframe: a name in `<params-dir>/airframes/` (quad_x, quad_plus, hexa_x, octa_x, dodeca) or a
+    /// Airframe: a name in PARAMS_DIR/airframes/ (quad_x, quad_plus, hexa_x, octa_x, dodeca) or a
     /// path to a .toml file. Overrides the scenario's.
     #[arg(long, value_name = "NAME|FILE")]
     pub airframe: Option<String>,
