@@ -17,6 +17,8 @@ pub struct ParamMeta {
     pub name: &'static str,
     /// Key in the TOML group.
     pub key: &'static str,
+    /// Value type on the MAVLink parameter protocol.
+    pub kind: ParamKind,
     /// Unit.
     pub unit: &'static str,
     /// Default value.
@@ -27,6 +29,29 @@ pub struct ParamMeta {
     pub max: f64,
     /// What it does.
     pub description: &'static str,
+}
+
+/// How a parameter travels on the MAVLink parameter protocol.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ParamKind {
+    /// `MAV_PARAM_TYPE_REAL32`.
+    Real32,
+    /// `MAV_PARAM_TYPE_INT32` (byte-wise encoded).
+    Int32,
+}
+
+/// The MAVLink type of a parameter field's Rust type.
+pub trait ParamValue {
+    /// Its kind.
+    const KIND: ParamKind;
+}
+
+impl ParamValue for f64 {
+    const KIND: ParamKind = ParamKind::Real32;
+}
+
+impl ParamValue for u32 {
+    const KIND: ParamKind = ParamKind::Int32;
 }
 
 /// A rejected parameter value.
@@ -87,7 +112,7 @@ macro_rules! param_group_impl {
 
         /// Metadata of this group.
         pub const $meta: &[$crate::params::ParamMeta] = &[
-            $( $crate::params::ParamMeta { name: $mav, key: stringify!($field), unit: $unit, default: $default as f64, min: $min, max: $max, description: $desc }, )*
+            $( $crate::params::ParamMeta { name: $mav, key: stringify!($field), kind: <$ty as $crate::params::ParamValue>::KIND, unit: $unit, default: $default as f64, min: $min, max: $max, description: $desc }, )*
         ];
 
         impl $name {
@@ -217,6 +242,11 @@ mod tests {
             count += 1;
         }
         assert!(count >= 40, "{count}");
+        let ints: Vec<&str> = FlightParams::metadata()
+            .filter(|(_, m)| m.kind == ParamKind::Int32)
+            .map(|(_, m)| m.name)
+            .collect();
+        assert_eq!(ints, ["ATT_ALIGN_N", "MC_ATT_LAW", "MC_RATE_CTRL"]);
         assert!(FlightParams::default().validate().is_empty());
     }
 

@@ -10,7 +10,7 @@
 use super::observer::AttitudeObserver;
 use super::wahba::{ObservationError, VectorObservation, quest};
 use crate::GRAVITY_M_S2;
-use crate::params::{ParamMeta, ParamViolation, check};
+use crate::params::{ParamKind, ParamMeta, ParamViolation, check};
 use nalgebra::Rotation3;
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use serde::Deserialize;
@@ -375,6 +375,7 @@ pub const ATTITUDE_META: &[ParamMeta] = &[
     ParamMeta {
         name: "ATT_OBS_K",
         key: "observer_gain",
+        kind: ParamKind::Real32,
         unit: "1/s",
         default: 4.0,
         min: 0.05,
@@ -384,6 +385,7 @@ pub const ATTITUDE_META: &[ParamMeta] = &[
     ParamMeta {
         name: "ATT_BIAS_K",
         key: "bias_gain",
+        kind: ParamKind::Real32,
         unit: "1/s",
         default: 0.5,
         min: 0.0,
@@ -393,6 +395,7 @@ pub const ATTITUDE_META: &[ParamMeta] = &[
     ParamMeta {
         name: "ATT_BIAS_MAX",
         key: "bias_limit_rad_s",
+        kind: ParamKind::Real32,
         unit: "rad/s",
         default: 0.1,
         min: 0.001,
@@ -402,6 +405,7 @@ pub const ATTITUDE_META: &[ParamMeta] = &[
     ParamMeta {
         name: "ATT_W_ACC",
         key: "accel_weight",
+        kind: ParamKind::Real32,
         unit: "",
         default: 1.0,
         min: 0.001,
@@ -411,6 +415,7 @@ pub const ATTITUDE_META: &[ParamMeta] = &[
     ParamMeta {
         name: "ATT_W_MAG",
         key: "mag_weight",
+        kind: ParamKind::Real32,
         unit: "",
         default: 0.1,
         min: 0.001,
@@ -420,6 +425,7 @@ pub const ATTITUDE_META: &[ParamMeta] = &[
     ParamMeta {
         name: "ATT_ACC_SOFT",
         key: "accel_deweight_g",
+        kind: ParamKind::Real32,
         unit: "g",
         default: 0.05,
         min: 0.0,
@@ -429,6 +435,7 @@ pub const ATTITUDE_META: &[ParamMeta] = &[
     ParamMeta {
         name: "ATT_ACC_GATE",
         key: "accel_gate_g",
+        kind: ParamKind::Real32,
         unit: "g",
         default: 0.3,
         min: 0.01,
@@ -438,6 +445,7 @@ pub const ATTITUDE_META: &[ParamMeta] = &[
     ParamMeta {
         name: "ATT_ALIGN_N",
         key: "align_samples",
+        kind: ParamKind::Int32,
         unit: "samples",
         default: 250.0,
         min: 1.0,
@@ -447,6 +455,7 @@ pub const ATTITUDE_META: &[ParamMeta] = &[
     ParamMeta {
         name: "ATT_MAX_DR_T",
         key: "max_uncorrected_s",
+        kind: ParamKind::Real32,
         unit: "s",
         default: 0.5,
         min: 0.01,
@@ -456,6 +465,7 @@ pub const ATTITUDE_META: &[ParamMeta] = &[
     ParamMeta {
         name: "ATT_MAG_INC",
         key: "mag_inclination_deg",
+        kind: ParamKind::Real32,
         unit: "deg",
         default: 63.3,
         min: -90.0,
@@ -465,6 +475,7 @@ pub const ATTITUDE_META: &[ParamMeta] = &[
     ParamMeta {
         name: "ATT_MAG_DEC",
         key: "mag_declination_deg",
+        kind: ParamKind::Real32,
         unit: "deg",
         default: 3.0,
         min: -180.0,

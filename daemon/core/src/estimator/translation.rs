@@ -73,7 +73,8 @@ pub struct TranslationEstimate {
     pub vel_ned_m_s: Vector3<f64>,
     /// Acceleration NED (m/s²), the attitude estimator's hint.
     pub accel_ned_m_s2: Vector3<f64>,
-    /// Horizontal position is usable (origin set, GPS fresh).
+    /// Horizontal position is usable: origin set and GPS fresh. The local frame is anchored at the
+    /// GPS origin, so local and global position are valid together.
     pub horizontal_valid: bool,
     /// Altitude is usable (barometer fresh).
     pub vertical_valid: bool,
