@@ -5,18 +5,15 @@
 
 use airframe::Airframe;
 use flight_core::control::position::PositionSetpoint;
-use flight_core::core::{FlightCore, FlightCoreConfig, SensorSample};
-use flight_core::estimator::translation::GpsMeasurement;
-use flight_core::geo::LatLonAlt;
+use flight_core::core::{FlightCore, FlightCoreConfig};
 use flight_core::params::FlightParams;
 use nalgebra::Vector3;
 use sitl_core::BodyState;
-use sitl_core::sensors::fields;
 use sitl_core::sim::{SimConfig, Simulator};
 use std::path::PathBuf;
 
-/// Physics steps per control step: 1 kHz physics, 250 Hz control (as the HIL link).
-const DECIMATION: usize = 4;
+mod common;
+use common::DECIMATION;
 
 /// Flight-quality figures of one flight.
 #[derive(Debug)]
@@ -70,46 +67,8 @@ fn fly_with(
     let mut reached = None;
     let steps = (duration * 1000.0) as usize / DECIMATION;
     for _ in 0..steps {
-        let (mut gyro, mut accel) = (Vector3::zeros(), Vector3::zeros());
-        let (mut mag, mut baro, mut gps, mut rpm) = (None, None, None, None);
-        for _ in 0..DECIMATION {
-            sim.step(&commands[..n]);
-            let f = sim.sample_sensors();
-            gyro += f.gyro_frd_rad_s / DECIMATION as f64;
-            accel += f.accel_frd_m_s2 / DECIMATION as f64;
-            if f.fields_updated & fields::MAG != 0 {
-                mag = Some(f.mag_frd_gauss);
-            }
-            if f.fields_updated & fields::PRESSURE_ALT != 0 {
-                baro = Some(f.pressure_alt_m);
-            }
-            if let Some(r) = f.rotor_rpm {
-                rpm = Some(r.map(|x| x * std::f64::consts::TAU / 60.0));
-            }
-            if let Some(g) = f.gps {
-                gps = Some(GpsMeasurement {
-                    fix_type: g.fix_type,
-                    position: LatLonAlt {
-                        lat_deg: g.position.lat_deg,
-                        lon_deg: g.position.lon_deg,
-                        alt_m: g.position.alt_m,
-                    },
-                    vel_ned_m_s: g.vel_ned_m_s,
-                    h_acc_m: g.h_acc_m,
-                });
-            }
-        }
+        let sample = common::control_interval(&mut sim, &commands[..n]);
         let truth = sim.truth();
-        let sample = SensorSample {
-            t_usec: sim.time_usec(),
-            gyro,
-            accel,
-            mag,
-            baro_alt_m: baro,
-            gps,
-            battery_v: truth.battery_voltage_v,
-            rotor_speed_rad_s: rpm,
-        };
         let t = sim.time_s();
         let armed = t > 3.0; // after the initial alignment and the first fixes
         let out = core.step(&sample, &sp, armed);

@@ -1,0 +1,56 @@
+//! What the HIL link does, in-process: one control interval of simulator physics turned into the
+//! flight core's sensor sample (IMU averaged, slower sensors forwarded when fresh). Shared by the
+//! closed-loop tests and the tick benchmark.
+
+use flight_core::core::SensorSample;
+use flight_core::estimator::translation::GpsMeasurement;
+use flight_core::geo::LatLonAlt;
+use nalgebra::Vector3;
+use sitl_core::sensors::fields;
+use sitl_core::sim::Simulator;
+
+/// Physics steps per control step: 1 kHz physics, 250 Hz control (as the HIL link).
+pub const DECIMATION: usize = 4;
+
+/// Advances `sim` one control interval under `commands` and returns the sensor sample.
+pub fn control_interval(sim: &mut Simulator, commands: &[f64]) -> SensorSample {
+    let (mut gyro, mut accel) = (Vector3::zeros(), Vector3::zeros());
+    let (mut mag, mut baro, mut gps, mut rpm) = (None, None, None, None);
+    for _ in 0..DECIMATION {
+        sim.step(commands);
+        let f = sim.sample_sensors();
+        gyro += f.gyro_frd_rad_s / DECIMATION as f64;
+        accel += f.accel_frd_m_s2 / DECIMATION as f64;
+        if f.fields_updated & fields::MAG != 0 {
+            mag = Some(f.mag_frd_gauss);
+        }
+        if f.fields_updated & fields::PRESSURE_ALT != 0 {
+            baro = Some(f.pressure_alt_m);
+        }
+        if let Some(r) = f.rotor_rpm {
+            rpm = Some(r.map(|x| x * std::f64::consts::TAU / 60.0));
+        }
+        if let Some(g) = f.gps {
+            gps = Some(GpsMeasurement {
+                fix_type: g.fix_type,
+                position: LatLonAlt {
+                    lat_deg: g.position.lat_deg,
+                    lon_deg: g.position.lon_deg,
+                    alt_m: g.position.alt_m,
+                },
+                vel_ned_m_s: g.vel_ned_m_s,
+                h_acc_m: g.h_acc_m,
+            });
+        }
+    }
+    SensorSample {
+        t_usec: sim.time_usec(),
+        gyro,
+        accel,
+        mag,
+        baro_alt_m: baro,
+        gps,
+        battery_v: sim.truth().battery_voltage_v,
+        rotor_speed_rad_s: rpm,
+    }
+}
