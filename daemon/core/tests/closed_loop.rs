@@ -157,3 +157,107 @@ fn lewis_tilt_yaw_pd_flies_too() {
         );
     }
 }
+
+/// The flight sequence end to end: arm when the estimator is ready, take off to 5 m, hover 10 s,
+/// land, detect the touchdown and disarm. Touchdown speed from the simulator's truth.
+#[test]
+fn takeoff_hover_land_and_disarm() {
+    use flight_core::sequence::{FlightSequence, Phase, SequenceInput, SequenceParams};
+    for name in ["quad_x", "hexa_x", "octa_x", "dodeca"] {
+        let a = Airframe::load(
+            &PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+                .join(format!("../../params/airframes/{name}.toml")),
+        )
+        .unwrap();
+        let mut sim = Simulator::new(
+            &a,
+            SimConfig {
+                seed: 5,
+                ..SimConfig::default()
+            },
+            BodyState::default(),
+        )
+        .unwrap();
+        let mut core = FlightCore::new(&a, FlightCoreConfig::for_airframe(&a, false)).unwrap();
+        let mut seq = FlightSequence::new(SequenceParams {
+            takeoff_alt_m: 5.0,
+            hover_s: 10.0,
+            spool_s: 1.0,
+            land_speed_m_s: 0.7,
+            final_speed_m_s: 0.3,
+            final_height_m: 2.0,
+        });
+        let n = a.rotors.len();
+        let mut commands = [0.0; 16];
+        let mut last = None;
+        let mut max_alt = 0.0f64;
+        let mut approach = 0.0f64;
+        let mut rebound = 0.0f64;
+        for _ in 0..(60 * 250) {
+            let sample = common::control_interval(&mut sim, &commands[..n]);
+            let est = last.unwrap_or_else(|| {
+                core.step(
+                    &sample,
+                    &flight_core::control::position::PositionSetpoint {
+                        pos_ned_m: Vector3::zeros(),
+                        vel_ned_m_s: Vector3::zeros(),
+                        yaw_rad: 0.0,
+                    },
+                    false,
+                )
+            });
+            let ready = est.attitude.is_some_and(|e| e.valid)
+                && est.translation.horizontal_valid
+                && est.translation.vertical_valid;
+            let (sp, armed) = seq.update(&SequenceInput {
+                t_s: sim.time_s(),
+                ready,
+                pos_ned_m: est.translation.pos_ned_m,
+                vel_ned_m_s: est.translation.vel_ned_m_s,
+            });
+            let out = core.step(&sample, &sp, armed);
+            commands = out.commands;
+            last = Some(out);
+            max_alt = max_alt.max(-sim.truth().body.pos_ned_m.z);
+            let tr = sim.truth();
+            if sim.stats().touchdowns == 0 && -tr.body.pos_ned_m.z < 0.3 && max_alt > 1.0 {
+                approach = approach.max(tr.body.vel_ned_m_s.z); // the speed at first contact
+            }
+            if sim.stats().touchdowns > 0 {
+                rebound = rebound.max(-tr.body.pos_ned_m.z);
+            }
+            if seq.phase() == Phase::Done {
+                break;
+            }
+        }
+        println!(
+            "{name:>7}: sequence done at {:.1} s, max altitude {max_alt:.2} m, first contact at {approach:.2} m/s, highest rebound {:.3} m",
+            sim.time_s(),
+            rebound
+        );
+        assert_eq!(seq.phase(), Phase::Done, "{name}: disarmed at the end");
+        // Motors off after the disarm: the vehicle is on the ground two seconds later and stays.
+        for _ in 0..500 {
+            common::control_interval(&mut sim, &[0.0; 16][..n]);
+        }
+        let end = sim.truth();
+        assert!(
+            end.landed && end.body.pos_ned_m.xy().norm() < 1.0,
+            "{name}: landed {} at {:?}",
+            end.landed,
+            end.body.pos_ned_m
+        );
+        assert!(
+            (4.5..6.0).contains(&max_alt),
+            "{name}: max altitude {max_alt}"
+        );
+        // Motors lag: the thrust that was decelerating the descent is still there at contact, so a
+        // millimetre hop is physical; a bounce is not.
+        assert!(approach <= 0.5, "{name}: touchdown at {approach} m/s");
+        assert!(rebound < 0.05, "{name}: bounced {rebound} m");
+        assert!(
+            commands.iter().all(|c| *c == 0.0),
+            "motors off after disarming"
+        );
+    }
+}

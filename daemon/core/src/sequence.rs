@@ -1,0 +1,241 @@
+//! The minimal flight sequence: disarmed → armed (spool-up) → take-off → hover → land →
+//! touchdown → disarmed. A pure state machine of time and the estimate; the daemon drives it
+//! from the command line until MAVLink commands arrive.
+
+use crate::control::position::PositionSetpoint;
+use nalgebra::Vector3;
+
+/// Where in the sequence the vehicle is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Phase {
+    /// Motors off, waiting for the estimator.
+    Disarmed,
+    /// Armed on the ground, motors spooling up.
+    Armed,
+    /// Climbing to the take-off altitude.
+    Takeoff,
+    /// Holding position.
+    Hover,
+    /// Descending to the ground.
+    Land,
+    /// Touched down and disarmed: the sequence is over.
+    Done,
+}
+
+/// What to fly.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SequenceParams {
+    /// Take-off altitude above the start (m).
+    pub takeoff_alt_m: f64,
+    /// Time to hover before landing (s); infinite hovers until told to land.
+    pub hover_s: f64,
+    /// Spool-up time on the ground after arming (s).
+    pub spool_s: f64,
+    /// Descent speed while landing (m/s).
+    pub land_speed_m_s: f64,
+    /// Descent speed for the last part of the landing (m/s), as PX4's two-stage landing.
+    pub final_speed_m_s: f64,
+    /// Height above home where the final, slower descent begins (m).
+    pub final_height_m: f64,
+}
+
+/// The estimate the sequence watches.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SequenceInput {
+    /// Time (s).
+    pub t_s: f64,
+    /// The estimator can be flown on (attitude and position valid).
+    pub ready: bool,
+    /// Estimated position NED (m).
+    pub pos_ned_m: Vector3<f64>,
+    /// Estimated velocity NED (m/s).
+    pub vel_ned_m_s: Vector3<f64>,
+}
+
+/// The flight sequence.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FlightSequence {
+    params: SequenceParams,
+    phase: Phase,
+    since_s: f64,
+    home: Vector3<f64>,
+    land_sp_down: f64,
+    still_since_s: Option<f64>,
+    land_requested: bool,
+    last_t_s: Option<f64>,
+}
+
+impl FlightSequence {
+    /// A sequence waiting to arm.
+    pub fn new(params: SequenceParams) -> Self {
+        Self {
+            params,
+            phase: Phase::Disarmed,
+            since_s: 0.0,
+            home: Vector3::zeros(),
+            land_sp_down: 0.0,
+            still_since_s: None,
+            land_requested: false,
+            last_t_s: None,
+        }
+    }
+
+    /// The current phase.
+    pub fn phase(&self) -> Phase {
+        self.phase
+    }
+
+    /// Asks to land now (e.g. Ctrl-C, a failsafe).
+    pub fn request_land(&mut self) {
+        self.land_requested = true;
+    }
+
+    fn enter(&mut self, phase: Phase, t: f64) {
+        self.phase = phase;
+        self.since_s = t;
+        self.still_since_s = None;
+    }
+
+    /// Advances the sequence; returns the set-point and whether the motors are armed.
+    pub fn update(&mut self, i: &SequenceInput) -> (PositionSetpoint, bool) {
+        let p = self.params;
+        let t = i.t_s;
+        let dt = self.last_t_s.map_or(0.0, |last| (t - last).max(0.0));
+        self.last_t_s = Some(t);
+        let in_phase = t - self.since_s;
+        let hold = |pos: Vector3<f64>| PositionSetpoint {
+            pos_ned_m: pos,
+            vel_ned_m_s: Vector3::zeros(),
+            yaw_rad: 0.0,
+        };
+        let cruise = self.home - Vector3::new(0.0, 0.0, p.takeoff_alt_m);
+        if self.land_requested && matches!(self.phase, Phase::Armed | Phase::Takeoff | Phase::Hover)
+        {
+            self.land_sp_down = i.pos_ned_m.z;
+            self.enter(Phase::Land, t);
+        }
+        match self.phase {
+            Phase::Disarmed => {
+                if i.ready && !self.land_requested {
+                    self.home = i.pos_ned_m;
+                    self.enter(Phase::Armed, t);
+                    return (hold(self.home + Vector3::new(0.0, 0.0, 0.5)), true);
+                }
+                (hold(i.pos_ned_m), false)
+            }
+            Phase::Armed => {
+                if in_phase >= p.spool_s {
+                    self.enter(Phase::Takeoff, t);
+                }
+                // Spool-up: a set-point just below the ground keeps thrust low until take-off.
+                (hold(self.home + Vector3::new(0.0, 0.0, 0.5)), true)
+            }
+            Phase::Takeoff => {
+                if -(i.pos_ned_m.z - self.home.z) >= 0.95 * p.takeoff_alt_m {
+                    self.enter(Phase::Hover, t);
+                }
+                (hold(cruise), true)
+            }
+            Phase::Hover => {
+                if in_phase >= p.hover_s {
+                    self.land_sp_down = i.pos_ned_m.z;
+                    self.enter(Phase::Land, t);
+                }
+                (hold(cruise), true)
+            }
+            Phase::Land => {
+                // The set-point descends steadily; touchdown when the vehicle has stopped moving
+                // down for a second while the set-point is well below it (it cannot go lower).
+                let height = self.home.z - i.pos_ned_m.z;
+                let speed = if height > p.final_height_m {
+                    p.land_speed_m_s
+                } else {
+                    p.final_speed_m_s
+                };
+                self.land_sp_down = (self.land_sp_down + speed * dt).min(i.pos_ned_m.z + 1.0);
+                let stopped =
+                    i.vel_ned_m_s.z.abs() < 0.15 && self.land_sp_down - i.pos_ned_m.z > 0.5;
+                match (stopped, self.still_since_s) {
+                    (true, None) => self.still_since_s = Some(t),
+                    (true, Some(s)) if t - s >= 1.0 => self.enter(Phase::Done, t),
+                    (false, _) => self.still_since_s = None,
+                    _ => {}
+                }
+                let sp = PositionSetpoint {
+                    pos_ned_m: Vector3::new(self.home.x, self.home.y, self.land_sp_down),
+                    vel_ned_m_s: Vector3::new(0.0, 0.0, speed),
+                    yaw_rad: 0.0,
+                };
+                (sp, self.phase != Phase::Done)
+            }
+            Phase::Done => (hold(i.pos_ned_m), false),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn input(t: f64, down: f64, vd: f64) -> SequenceInput {
+        SequenceInput {
+            t_s: t,
+            ready: true,
+            pos_ned_m: Vector3::new(0.0, 0.0, down),
+            vel_ned_m_s: Vector3::new(0.0, 0.0, vd),
+        }
+    }
+
+    fn params() -> SequenceParams {
+        SequenceParams {
+            takeoff_alt_m: 5.0,
+            hover_s: 3.0,
+            spool_s: 1.0,
+            land_speed_m_s: 0.7,
+            final_speed_m_s: 0.7,
+            final_height_m: 0.0,
+        }
+    }
+
+    /// The sequence as a table: (time, estimated down, vertical speed) → expected phase after.
+    #[test]
+    fn phases_follow_the_flight() {
+        let mut s = FlightSequence::new(params());
+        let table = [
+            (0.0, 0.0, 0.0, Phase::Armed),
+            (0.5, 0.0, 0.0, Phase::Armed),
+            (1.0, 0.0, 0.0, Phase::Takeoff),
+            (3.0, -4.0, -1.0, Phase::Takeoff),
+            (4.0, -4.8, -0.2, Phase::Hover),
+            (6.0, -5.0, 0.0, Phase::Hover),
+            (7.0, -5.0, 0.0, Phase::Land),
+            (12.0, -1.5, 0.7, Phase::Land), // descending at 0.7 m/s
+            (14.5, 0.0, 0.0, Phase::Land),  // on the ground; the set-point is not yet below it
+            (15.0, 0.0, 0.0, Phase::Land),  // set-point 0.6 m below: still for...
+            (15.5, 0.0, 0.0, Phase::Land),
+            (16.1, 0.0, 0.0, Phase::Done), // ...a second: touchdown, disarmed
+        ];
+        for (t, d, vd, expected) in table {
+            let (_, armed) = s.update(&input(t, d, vd));
+            assert_eq!(s.phase(), expected, "at t = {t}");
+            assert_eq!(armed, !matches!(expected, Phase::Disarmed | Phase::Done));
+        }
+    }
+
+    #[test]
+    fn waits_for_the_estimator_and_lands_on_request() {
+        let mut s = FlightSequence::new(params());
+        let (_, armed) = s.update(&SequenceInput {
+            ready: false,
+            ..input(0.0, 0.0, 0.0)
+        });
+        assert!(!armed && s.phase() == Phase::Disarmed);
+        s.update(&input(1.0, 0.0, 0.0));
+        s.update(&input(2.5, -2.0, -1.0));
+        assert_eq!(s.phase(), Phase::Takeoff);
+        s.request_land();
+        let (sp, armed) = s.update(&input(2.6, -2.1, -1.0));
+        assert!(armed && s.phase() == Phase::Land);
+        assert!(sp.vel_ned_m_s.z > 0.0, "descending");
+    }
+}
