@@ -5,7 +5,6 @@
 //! port and steps physics on its `HIL_ACTUATOR_CONTROLS`, in lockstep (default) or real time. With
 //! `--open-loop` it flies the scenario's actuator script with no autopilot at all.
 
-mod hil;
 mod run;
 mod truth_csv;
 

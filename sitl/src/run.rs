@@ -1,13 +1,13 @@
 //! The simulation loops: open-loop script, and the HIL link in lockstep or real time.
 
-use crate::hil::{self, ActuatorCommand, Encoder};
 use crate::truth_csv::TruthCsv;
 use crate::{Cli, Mode};
 use anyhow::{Context, Result, bail};
+use hil::{Accumulator, ActuatorCommand, Encoder};
 use mavlink::dialects::common::MavMessage;
 use sitl_core::airframe::MAX_ROTORS;
 use sitl_core::scenario::{OpenLoopCommand, Scenario};
-use sitl_core::sensors::{SensorFrame, fields};
+use sitl_core::sensors::SensorFrame;
 use sitl_core::sim::Simulator;
 use std::fmt;
 use std::net::{SocketAddr, UdpSocket};
@@ -226,55 +226,6 @@ pub fn open_loop(
     Ok(finish(&sim, started, Summary::default()))
 }
 
-/// Accumulates the sensor frames of one exchange interval: IMU averaged (as a flight board's
-/// driver integrates), slower sensors forwarded when fresh.
-struct Accumulator {
-    frame: SensorFrame,
-    n: u32,
-}
-
-impl Accumulator {
-    fn new(first: &SensorFrame) -> Self {
-        Self {
-            frame: first.clone(),
-            n: 0,
-        }
-    }
-
-    fn start(&mut self) {
-        self.n = 0;
-        self.frame.fields_updated = 0;
-        self.frame.gps = None;
-        self.frame.rotor_rpm = None;
-    }
-
-    fn add(&mut self, f: &SensorFrame) {
-        let a = &mut self.frame;
-        if f.fields_updated & fields::ACCEL != 0 {
-            let k = self.n as f64;
-            a.accel_frd_m_s2 = (a.accel_frd_m_s2 * k + f.accel_frd_m_s2) / (k + 1.0);
-            a.gyro_frd_rad_s = (a.gyro_frd_rad_s * k + f.gyro_frd_rad_s) / (k + 1.0);
-            self.n += 1;
-        }
-        if f.fields_updated & fields::MAG != 0 {
-            a.mag_frd_gauss = f.mag_frd_gauss;
-        }
-        if f.fields_updated & fields::BARO != 0 {
-            a.abs_pressure_hpa = f.abs_pressure_hpa;
-            a.pressure_alt_m = f.pressure_alt_m;
-            a.temperature_c = f.temperature_c;
-        }
-        a.fields_updated |= f.fields_updated;
-        if f.gps.is_some() {
-            a.gps = f.gps;
-        }
-        if f.rotor_rpm.is_some() {
-            a.rotor_rpm = f.rotor_rpm;
-        }
-        a.time_usec = f.time_usec;
-    }
-}
-
 /// Runs behind the HIL link.
 pub fn hil(
     scenario: &Scenario,
@@ -316,7 +267,7 @@ pub fn hil(
     let mut last_timeout_log: Option<Instant> = None;
     while sim.time_s() < scenario.duration_s - 1e-9 && !stop.load(Ordering::Relaxed) {
         status.maybe_print(&sim, started);
-        let frame = &acc.frame;
+        let frame = &acc.frame();
         let send_state = frame.time_usec >= next_state_usec;
         if send_state {
             next_state_usec = frame.time_usec + 20_000; // ground truth at 50 Hz
@@ -424,25 +375,14 @@ impl Link {
         send_state: bool,
     ) -> Result<()> {
         self.out.clear();
-        self.encoder.push(&mut self.out, &hil::hil_sensor(f));
-        if let Some(fix) = &f.gps {
-            self.encoder
-                .push(&mut self.out, &hil::hil_gps(f.time_usec, fix));
-        }
-        if let Some(rpm) = &f.rotor_rpm {
-            for m in hil::esc_status(
-                f.time_usec,
-                &rpm[..self.rotors],
-                truth.battery_voltage_v,
-                truth.battery_current_a,
-            ) {
-                self.encoder.push(&mut self.out, &m);
-            }
-        }
-        if send_state {
-            self.encoder
-                .push(&mut self.out, &hil::hil_state_quaternion(truth));
-        }
+        hil::encode_exchange(
+            &mut self.encoder,
+            &mut self.out,
+            f,
+            truth,
+            self.rotors,
+            send_state,
+        );
         match self.socket.send_to(&self.out, self.target) {
             Ok(_) => Ok(()),
             // Nobody listening yet (ICMP port unreachable): keep going, the autopilot may start later.

@@ -1,4 +1,5 @@
-//! The HIL wire protocol of ARCHITECTURE.md: MAVLink 2 messages between simulator and autopilot.
+//! The HIL wire protocol of ARCHITECTURE.md: MAVLink 2 messages between simulator and autopilot,
+//! shared by the `sitl` process, the autopilot's sensor links and its embedded simulator.
 //!
 //! Encoding turns a [`SensorFrame`] and the truth into `HIL_SENSOR`, `HIL_GPS`, `ESC_STATUS` and
 //! `HIL_STATE_QUATERNION`; decoding splits a datagram into frames, counting every malformed one.
@@ -6,8 +7,11 @@
 use mavlink::MavHeader;
 use mavlink::dialects::common::{
     ESC_STATUS_DATA, HIL_ACTUATOR_CONTROLS_DATA, HIL_GPS_DATA, HIL_SENSOR_DATA,
-    HIL_STATE_QUATERNION_DATA, HilSensorUpdatedFlags, MavMessage, MavModeFlag,
+    HIL_STATE_QUATERNION_DATA, HilActuatorControlsFlags, HilSensorUpdatedFlags, MavMessage,
+    MavModeFlag,
 };
+use nalgebra::Vector3;
+use sitl_core::sensors::fields;
 use sitl_core::sensors::{GpsFix, SensorFrame};
 use sitl_core::sim::TruthState;
 
@@ -236,10 +240,206 @@ pub fn decode(datagram: &[u8]) -> Decoded {
     out
 }
 
+/// Accumulates the sensor frames of one exchange interval: IMU averaged (as a flight board's
+/// driver integrates), slower sensors forwarded when fresh.
+pub struct Accumulator {
+    frame: SensorFrame,
+    n: u32,
+}
+
+impl Accumulator {
+    /// Starts from a first frame (before any exchange).
+    pub fn new(first: &SensorFrame) -> Self {
+        Self {
+            frame: first.clone(),
+            n: 0,
+        }
+    }
+
+    /// Begins a new exchange interval.
+    pub fn start(&mut self) {
+        self.n = 0;
+        self.frame.fields_updated = 0;
+        self.frame.gps = None;
+        self.frame.rotor_rpm = None;
+    }
+
+    /// Adds one physics step's sensor frame.
+    pub fn add(&mut self, f: &SensorFrame) {
+        let a = &mut self.frame;
+        if f.fields_updated & fields::ACCEL != 0 {
+            let k = self.n as f64;
+            a.accel_frd_m_s2 = (a.accel_frd_m_s2 * k + f.accel_frd_m_s2) / (k + 1.0);
+            a.gyro_frd_rad_s = (a.gyro_frd_rad_s * k + f.gyro_frd_rad_s) / (k + 1.0);
+            self.n += 1;
+        }
+        if f.fields_updated & fields::MAG != 0 {
+            a.mag_frd_gauss = f.mag_frd_gauss;
+        }
+        if f.fields_updated & fields::BARO != 0 {
+            a.abs_pressure_hpa = f.abs_pressure_hpa;
+            a.pressure_alt_m = f.pressure_alt_m;
+            a.temperature_c = f.temperature_c;
+        }
+        a.fields_updated |= f.fields_updated;
+        if f.gps.is_some() {
+            a.gps = f.gps;
+        }
+        if f.rotor_rpm.is_some() {
+            a.rotor_rpm = f.rotor_rpm;
+        }
+        a.time_usec = f.time_usec;
+    }
+
+    /// The frame of the interval so far.
+    pub fn frame(&self) -> &SensorFrame {
+        &self.frame
+    }
+}
+
+/// Encodes one exchange: `HIL_SENSOR`, then `HIL_GPS` and `ESC_STATUS` when fresh, then
+/// `HIL_STATE_QUATERNION` when `send_state` (ground truth at its own rate).
+pub fn encode_exchange(
+    encoder: &mut Encoder,
+    out: &mut Vec<u8>,
+    f: &SensorFrame,
+    truth: &TruthState,
+    rotors: usize,
+    send_state: bool,
+) {
+    encoder.push(out, &hil_sensor(f));
+    if let Some(fix) = &f.gps {
+        encoder.push(out, &hil_gps(f.time_usec, fix));
+    }
+    if let Some(rpm) = &f.rotor_rpm {
+        for m in esc_status(
+            f.time_usec,
+            &rpm[..rotors.min(rpm.len())],
+            truth.battery_voltage_v,
+            truth.battery_current_a,
+        ) {
+            encoder.push(out, &m);
+        }
+    }
+    if send_state {
+        encoder.push(out, &hil_state_quaternion(truth));
+    }
+}
+
+/// `HIL_ACTUATOR_CONTROLS` answering the sensor frame of `time_usec` (the autopilot's side).
+pub fn actuator_controls(time_usec: u64, controls: &[f64], armed: bool) -> MavMessage {
+    let mut c = [0f32; 16];
+    for (o, x) in c.iter_mut().zip(controls) {
+        *o = *x as f32;
+    }
+    MavMessage::HIL_ACTUATOR_CONTROLS(HIL_ACTUATOR_CONTROLS_DATA {
+        time_usec,
+        flags: HilActuatorControlsFlags::HIL_ACTUATOR_CONTROLS_FLAGS_LOCKSTEP,
+        controls: c,
+        mode: if armed {
+            MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED
+        } else {
+            MavModeFlag::empty()
+        },
+    })
+}
+
+/// A GPS solution as the autopilot reads it from `HIL_GPS`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GpsReport {
+    /// Fix type.
+    pub fix_type: u8,
+    /// Latitude (deg).
+    pub lat_deg: f64,
+    /// Longitude (deg).
+    pub lon_deg: f64,
+    /// Altitude (m AMSL).
+    pub alt_m: f64,
+    /// Velocity NED (m/s).
+    pub vel_ned_m_s: Vector3<f64>,
+    /// Horizontal accuracy (m): this link sends `eph` as the accuracy in cm.
+    pub h_acc_m: f64,
+}
+
+/// What the autopilot has taken from the simulator's messages since the last sensor frame.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SensorUpdate {
+    /// The sensor frame's time (µs): the autopilot's clock in SITL.
+    pub time_usec: Option<u64>,
+    /// Gyro, FRD (rad/s), when fresh.
+    pub gyro_frd: Option<Vector3<f64>>,
+    /// Specific force, FRD (m/s²), when fresh.
+    pub accel_frd: Option<Vector3<f64>>,
+    /// Magnetometer, FRD (gauss), when fresh.
+    pub mag_frd: Option<Vector3<f64>>,
+    /// Pressure altitude (m), when fresh.
+    pub pressure_alt_m: Option<f64>,
+    /// A GPS solution, when one arrived.
+    pub gps: Option<GpsReport>,
+    /// Rotor speeds (rad/s) by rotor, when reported.
+    pub rotor_speed_rad_s: Option<[f64; 16]>,
+    /// Battery voltage (V), from `ESC_STATUS`.
+    pub battery_v: Option<f64>,
+    /// Ground truth from `HIL_STATE_QUATERNION` (for logs and scoring, never the estimator).
+    pub truth_q: Option<nalgebra::UnitQuaternion<f64>>,
+}
+
+impl SensorUpdate {
+    /// Folds one message in; returns true for `HIL_SENSOR` (a new sensor frame).
+    pub fn absorb(&mut self, msg: &MavMessage) -> bool {
+        match msg {
+            MavMessage::HIL_SENSOR(s) => {
+                let f = s.fields_updated.bits();
+                self.time_usec = Some(s.time_usec);
+                let v = |x: f32, y: f32, z: f32| Vector3::new(x as f64, y as f64, z as f64);
+                if f & fields::ACCEL != 0 {
+                    self.accel_frd = Some(v(s.xacc, s.yacc, s.zacc));
+                    self.gyro_frd = Some(v(s.xgyro, s.ygyro, s.zgyro));
+                }
+                if f & fields::MAG != 0 {
+                    self.mag_frd = Some(v(s.xmag, s.ymag, s.zmag));
+                }
+                if f & fields::PRESSURE_ALT != 0 {
+                    self.pressure_alt_m = Some(s.pressure_alt as f64);
+                }
+                true
+            }
+            MavMessage::HIL_GPS(g) => {
+                self.gps = Some(GpsReport {
+                    fix_type: g.fix_type,
+                    lat_deg: g.lat as f64 * 1e-7,
+                    lon_deg: g.lon as f64 * 1e-7,
+                    alt_m: g.alt as f64 * 1e-3,
+                    vel_ned_m_s: Vector3::new(g.vn as f64, g.ve as f64, g.vd as f64) * 0.01,
+                    h_acc_m: g.eph as f64 * 0.01,
+                });
+                false
+            }
+            MavMessage::ESC_STATUS(e) => {
+                let speeds = self.rotor_speed_rad_s.get_or_insert([0.0; 16]);
+                for (k, rpm) in e.rpm.iter().enumerate() {
+                    if let Some(slot) = speeds.get_mut(e.index as usize + k) {
+                        *slot = *rpm as f64 * std::f64::consts::TAU / 60.0;
+                    }
+                }
+                self.battery_v = Some(e.voltage[0] as f64);
+                false
+            }
+            MavMessage::HIL_STATE_QUATERNION(q) => {
+                let a = q.attitude_quaternion;
+                self.truth_q = Some(nalgebra::UnitQuaternion::new_normalize(
+                    nalgebra::Quaternion::new(a[0] as f64, a[1] as f64, a[2] as f64, a[3] as f64),
+                ));
+                false
+            }
+            _ => false,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use mavlink::dialects::common::HilActuatorControlsFlags;
 
     fn actuators(t: u64) -> MavMessage {
         MavMessage::HIL_ACTUATOR_CONTROLS(HIL_ACTUATOR_CONTROLS_DATA {
