@@ -6,6 +6,7 @@
 
 mod replay;
 mod sim;
+mod vehicle;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};

@@ -6,16 +6,12 @@
 //! `HIL_ACTUATOR_CONTROLS` bytes. Physics runs at the airframe scenario's rate (1 kHz), the
 //! exchange at 250 Hz; the simulation clock is the autopilot's clock.
 
-use anyhow::{Context, Result};
-use flight_core::control::position::PositionSetpoint;
-use flight_core::core::{FlightCore, FlightCoreConfig, SensorSample};
-use flight_core::estimator::translation::GpsMeasurement;
-use flight_core::geo::LatLonAlt;
+use crate::vehicle::Vehicle;
+use anyhow::Result;
 use flight_core::params::FlightParams;
-use flight_core::sequence::{FlightSequence, Phase, SequenceInput, SequenceParams};
-use hil::{Accumulator, Encoder, SensorUpdate};
+use flight_core::sequence::Phase;
+use hil::{Accumulator, Encoder};
 use mavlink::dialects::common::MavMessage;
-use nalgebra::Vector3;
 use sitl_core::sim::{SimConfig, Simulator};
 use sitl_core::{Airframe, BodyState};
 use std::io::{IsTerminal, Write};
@@ -84,27 +80,13 @@ pub fn run(o: &SimOptions, interrupts: &AtomicU8) -> Result<FlightReport> {
         },
         BodyState::default(),
     )?;
-    let mut core = FlightCore::new(
-        &airframe,
-        FlightCoreConfig::from_params(&o.params, &airframe),
-    )
-    .context("building the mixer")?;
-    let mut seq = FlightSequence::new(SequenceParams {
-        takeoff_alt_m: o.takeoff_m,
-        hover_s: o.hover_s,
-        spool_s: 1.0,
-        land_speed_m_s: 0.7,
-        final_speed_m_s: 0.3,
-        final_height_m: 2.0,
-    });
+    let mut vehicle = Vehicle::new(&airframe, &o.params, o.takeoff_m, o.hover_s)?;
     let started = Instant::now();
     let mut report = FlightReport::default();
     let (mut to_autopilot, mut to_sim) = (Encoder::default(), Encoder::default());
     let mut bytes = Vec::with_capacity(512);
     let mut acc = Accumulator::new(sim.sample_sensors());
-    let mut update = SensorUpdate::default();
     let mut controls = [0.0f64; 16];
-    let mut last_estimate = None;
     let mut next_state_usec = 0;
     let mut next_status = Duration::ZERO;
     let tty = std::io::stdout().is_terminal();
@@ -114,7 +96,7 @@ pub fn run(o: &SimOptions, interrupts: &AtomicU8) -> Result<FlightReport> {
             break;
         }
         if interrupts.load(Ordering::Relaxed) == 1 {
-            seq.request_land();
+            vehicle.request_land();
         }
         // Simulator side: physics, then one exchange's messages as bytes.
         acc.start();
@@ -137,71 +119,19 @@ pub fn run(o: &SimOptions, interrupts: &AtomicU8) -> Result<FlightReport> {
             send_state,
         );
 
-        // Autopilot side: decode, estimate, sequence, control.
+        // Autopilot side: decode, and a flight-core step for the sensor frame.
         let decoded = hil::decode(&bytes);
         report.malformed += decoded.malformed;
-        let mut frame = false;
-        for (_, msg) in &decoded.messages {
-            frame |= update.absorb(msg);
-        }
-        if !frame {
-            continue;
-        }
-        let (Some(t_usec), Some(gyro), Some(accel)) =
-            (update.time_usec, update.gyro_frd, update.accel_frd)
+        let Some(step) = decoded
+            .messages
+            .iter()
+            .find_map(|(_, msg)| vehicle.on_message(msg))
         else {
             continue;
         };
-        let sample = SensorSample {
-            t_usec,
-            gyro,
-            accel,
-            mag: update.mag_frd.take(),
-            baro_alt_m: update.pressure_alt_m.take(),
-            gps: update.gps.take().map(|g| GpsMeasurement {
-                fix_type: g.fix_type,
-                position: LatLonAlt {
-                    lat_deg: g.lat_deg,
-                    lon_deg: g.lon_deg,
-                    alt_m: g.alt_m,
-                },
-                vel_ned_m_s: g.vel_ned_m_s,
-                h_acc_m: g.h_acc_m,
-            }),
-            battery_v: update
-                .battery_v
-                .unwrap_or(3.8 * airframe.battery.cells as f64),
-            rotor_speed_rad_s: update.rotor_speed_rad_s.take(),
-        };
-        let t_s = t_usec as f64 * 1e-6;
-        let (setpoint, armed) = match &last_estimate {
-            Some(e) => {
-                let e: &flight_core::core::StepOutput = e;
-                let ready = e.attitude.is_some_and(|a| a.valid)
-                    && e.translation.horizontal_valid
-                    && e.translation.vertical_valid;
-                seq.update(&SequenceInput {
-                    t_s,
-                    ready,
-                    pos_ned_m: e.translation.pos_ned_m,
-                    vel_ned_m_s: e.translation.vel_ned_m_s,
-                })
-            }
-            None => (
-                PositionSetpoint {
-                    pos_ned_m: Vector3::zeros(),
-                    vel_ned_m_s: Vector3::zeros(),
-                    yaw_rad: 0.0,
-                },
-                false,
-            ),
-        };
-        let out = core.step(&sample, &setpoint, armed);
+        let (out, t_s) = (step.output, step.t_s);
         bytes.clear();
-        to_sim.push(
-            &mut bytes,
-            &hil::actuator_controls(t_usec, &out.commands[..n], armed),
-        );
+        to_sim.push(&mut bytes, &step.message);
 
         // Simulator side again: the command as it arrives.
         for (_, msg) in hil::decode(&bytes).messages {
@@ -218,10 +148,9 @@ pub fn run(o: &SimOptions, interrupts: &AtomicU8) -> Result<FlightReport> {
         let elapsed = started.elapsed();
         if elapsed >= next_status {
             next_status = elapsed + Duration::from_millis(250);
-            status(&out, &seq, t_s, elapsed.as_secs_f64(), tty);
+            status(&out, vehicle.phase(), t_s, elapsed.as_secs_f64(), tty);
         }
-        last_estimate = Some(out);
-        if seq.phase() == Phase::Done {
+        if vehicle.phase() == Phase::Done {
             // A second on the ground after disarming, then stop.
             let t = *done_at.get_or_insert(t_s);
             if t_s - t > 1.0 {
@@ -242,21 +171,15 @@ pub fn run(o: &SimOptions, interrupts: &AtomicU8) -> Result<FlightReport> {
     report.sim_time_s = sim.time_s();
     report.wall_time_s = started.elapsed().as_secs_f64();
     report.landed = truth.landed;
-    report.disarmed = seq.phase() == Phase::Done;
+    report.disarmed = vehicle.phase() == Phase::Done;
     Ok(report)
 }
 
-fn status(
-    out: &flight_core::core::StepOutput,
-    seq: &FlightSequence,
-    t_s: f64,
-    wall_s: f64,
-    tty: bool,
-) {
+pub fn status(out: &flight_core::core::StepOutput, phase: Phase, t_s: f64, wall_s: f64, tty: bool) {
     let (roll, pitch, yaw) = out.attitude.map_or((0.0, 0.0, 0.0), |a| a.q.euler_angles());
     let line = format!(
         "t {t_s:6.1} s  {:<8} alt {:6.2} m  vz {:5.2} m/s  roll {:5.1}  pitch {:5.1}  yaw {:6.1} deg  x{:.0} real time",
-        format!("{:?}", seq.phase()),
+        format!("{phase:?}"),
         -out.translation.pos_ned_m.z,
         -out.translation.vel_ned_m_s.z,
         roll.to_degrees(),

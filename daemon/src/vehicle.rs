@@ -1,0 +1,128 @@
+//! The autopilot's side of the HIL link: messages in, a flight-core step per sensor frame, the
+//! `HIL_ACTUATOR_CONTROLS` answer out. The same for the embedded simulator and the UDP link.
+
+use anyhow::{Context, Result};
+use flight_core::control::position::PositionSetpoint;
+use flight_core::core::{FlightCore, FlightCoreConfig, SensorSample, StepOutput};
+use flight_core::estimator::translation::GpsMeasurement;
+use flight_core::geo::LatLonAlt;
+use flight_core::params::FlightParams;
+use flight_core::sequence::{FlightSequence, Phase, SequenceInput, SequenceParams};
+use hil::SensorUpdate;
+use mavlink::dialects::common::MavMessage;
+use nalgebra::Vector3;
+use sitl_core::Airframe;
+
+/// The vehicle: flight core, flight sequence and what has arrived since the last frame.
+pub struct Vehicle {
+    core: FlightCore,
+    sequence: FlightSequence,
+    update: SensorUpdate,
+    last: Option<StepOutput>,
+    rotors: usize,
+    nominal_v: f64,
+}
+
+/// One step's result.
+pub struct Step {
+    /// The answer to send.
+    pub message: MavMessage,
+    /// The flight core's output.
+    pub output: StepOutput,
+    /// Time of the frame (s).
+    pub t_s: f64,
+}
+
+impl Vehicle {
+    /// A vehicle of `airframe` flying the sequence to `takeoff_m`, hovering `hover_s`.
+    pub fn new(
+        airframe: &Airframe,
+        params: &FlightParams,
+        takeoff_m: f64,
+        hover_s: f64,
+    ) -> Result<Self> {
+        Ok(Self {
+            core: FlightCore::new(airframe, FlightCoreConfig::from_params(params, airframe))
+                .context("building the mixer")?,
+            sequence: FlightSequence::new(SequenceParams {
+                takeoff_alt_m: takeoff_m,
+                hover_s,
+                spool_s: 1.0,
+                land_speed_m_s: 0.7,
+                final_speed_m_s: 0.3,
+                final_height_m: 2.0,
+            }),
+            update: SensorUpdate::default(),
+            last: None,
+            rotors: airframe.rotors.len(),
+            nominal_v: 3.8 * airframe.battery.cells as f64,
+        })
+    }
+
+    /// The sequence's phase.
+    pub fn phase(&self) -> Phase {
+        self.sequence.phase()
+    }
+
+    /// Lands now.
+    pub fn request_land(&mut self) {
+        self.sequence.request_land();
+    }
+
+    /// Folds one message in; a complete sensor frame runs a step and returns the answer.
+    pub fn on_message(&mut self, msg: &MavMessage) -> Option<Step> {
+        if !self.update.absorb(msg) {
+            return None;
+        }
+        let u = &mut self.update;
+        let (t_usec, gyro, accel) = (u.time_usec?, u.gyro_frd?, u.accel_frd?);
+        let sample = SensorSample {
+            t_usec,
+            gyro,
+            accel,
+            mag: u.mag_frd.take(),
+            baro_alt_m: u.pressure_alt_m.take(),
+            gps: u.gps.take().map(|g| GpsMeasurement {
+                fix_type: g.fix_type,
+                position: LatLonAlt {
+                    lat_deg: g.lat_deg,
+                    lon_deg: g.lon_deg,
+                    alt_m: g.alt_m,
+                },
+                vel_ned_m_s: g.vel_ned_m_s,
+                h_acc_m: g.h_acc_m,
+            }),
+            battery_v: u.battery_v.unwrap_or(self.nominal_v),
+            rotor_speed_rad_s: u.rotor_speed_rad_s.take(),
+        };
+        let t_s = t_usec as f64 * 1e-6;
+        let (setpoint, armed) = match &self.last {
+            Some(e) => {
+                let ready = e.attitude.is_some_and(|a| a.valid)
+                    && e.translation.horizontal_valid
+                    && e.translation.vertical_valid;
+                self.sequence.update(&SequenceInput {
+                    t_s,
+                    ready,
+                    pos_ned_m: e.translation.pos_ned_m,
+                    vel_ned_m_s: e.translation.vel_ned_m_s,
+                })
+            }
+            None => (
+                PositionSetpoint {
+                    pos_ned_m: Vector3::zeros(),
+                    vel_ned_m_s: Vector3::zeros(),
+                    yaw_rad: 0.0,
+                },
+                false,
+            ),
+        };
+        let output = self.core.step(&sample, &setpoint, armed);
+        self.last = Some(output);
+        Some(Step {
+            message: hil::actuator_controls(t_usec, &output.commands[..self.rotors], armed),
+            output,
+            t_s,
+        })
+    }
+}
