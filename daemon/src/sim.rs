@@ -7,7 +7,7 @@
 //! exchange at 250 Hz; the simulation clock is the autopilot's clock.
 
 use crate::vehicle::Vehicle;
-use anyhow::Result;
+use anyhow::{Result, bail};
 use flight_core::params::FlightParams;
 use flight_core::sequence::Phase;
 use hil::{Accumulator, Encoder};
@@ -67,6 +67,10 @@ impl std::fmt::Display for FlightReport {
 
 const EXCHANGE_STEPS: usize = 4;
 
+/// The estimator converges in a few seconds at rest; a sequence still waiting after this long
+/// never will, and the flight stops with the reason instead of waiting forever.
+const READY_TIMEOUT_S: f64 = 60.0;
+
 /// Flies the sequence in the embedded simulator. `interrupts` counts Ctrl-C presses: the first
 /// lands, the second stops at once.
 pub fn run(o: &SimOptions, interrupts: &AtomicU8) -> Result<FlightReport> {
@@ -122,11 +126,11 @@ pub fn run(o: &SimOptions, interrupts: &AtomicU8) -> Result<FlightReport> {
         // Autopilot side: decode, and a flight-core step for the sensor frame.
         let decoded = hil::decode(&bytes);
         report.malformed += decoded.malformed;
-        let Some(step) = decoded
-            .messages
-            .iter()
-            .find_map(|(_, msg)| vehicle.on_message(msg))
-        else {
+        let mut step = None;
+        for (_, msg) in &decoded.messages {
+            step = vehicle.on_message(msg).or(step);
+        }
+        let Some(step) = step else {
             continue;
         };
         let (out, t_s) = (step.output, step.t_s);
@@ -149,6 +153,14 @@ pub fn run(o: &SimOptions, interrupts: &AtomicU8) -> Result<FlightReport> {
         if elapsed >= next_status {
             next_status = elapsed + Duration::from_millis(250);
             status(&out, vehicle.phase(), t_s, elapsed.as_secs_f64(), tty);
+        }
+        if vehicle.phase() == Phase::Disarmed && t_s > READY_TIMEOUT_S {
+            bail!(
+                "not ready to arm after {READY_TIMEOUT_S} s of simulation: attitude valid {}, horizontal position valid {}, vertical valid {}",
+                out.attitude.is_some_and(|a| a.valid),
+                out.translation.horizontal_valid,
+                out.translation.vertical_valid
+            );
         }
         if vehicle.phase() == Phase::Done {
             // A second on the ground after disarming, then stop.

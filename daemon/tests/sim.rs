@@ -4,14 +4,37 @@
 #![allow(clippy::unwrap_used)]
 
 use std::collections::HashMap;
-use std::process::Command;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
 
+/// Runs the autopilot to its end; a run still going after two minutes is killed and fails the
+/// test (a hang must fail here, not stall CI).
 fn autopilot(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_autopilot"))
+    let mut child = Command::new(env!("CARGO_BIN_EXE_autopilot"))
         .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
         .args(args)
-        .output()
-        .unwrap()
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let deadline = Instant::now() + Duration::from_secs(120);
+    while child.try_wait().unwrap().is_none() {
+        if Instant::now() > deadline {
+            child.kill().unwrap();
+            let out = child.wait_with_output().unwrap();
+            panic!(
+                "autopilot {args:?} still running after 120 s:\n{}",
+                String::from_utf8_lossy(&out.stdout)
+                    .lines()
+                    .rev()
+                    .take(5)
+                    .collect::<Vec<_>>()
+                    .join("\n")
+            );
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child.wait_with_output().unwrap()
 }
 
 fn summary(out: &std::process::Output) -> HashMap<String, String> {

@@ -297,8 +297,9 @@ impl Accumulator {
     }
 }
 
-/// Encodes one exchange: `HIL_SENSOR`, then `HIL_GPS` and `ESC_STATUS` when fresh, then
-/// `HIL_STATE_QUATERNION` when `send_state` (ground truth at its own rate).
+/// Encodes one exchange: `HIL_GPS` and `ESC_STATUS` when fresh, `HIL_STATE_QUATERNION` when
+/// `send_state` (ground truth at its own rate), and `HIL_SENSOR` last. `HIL_SENSOR` closes the
+/// frame: an autopilot reading the stream steps on it with everything that came before it.
 pub fn encode_exchange(
     encoder: &mut Encoder,
     out: &mut Vec<u8>,
@@ -307,7 +308,6 @@ pub fn encode_exchange(
     rotors: usize,
     send_state: bool,
 ) {
-    encoder.push(out, &hil_sensor(f));
     if let Some(fix) = &f.gps {
         encoder.push(out, &hil_gps(f.time_usec, fix));
     }
@@ -324,6 +324,7 @@ pub fn encode_exchange(
     if send_state {
         encoder.push(out, &hil_state_quaternion(truth));
     }
+    encoder.push(out, &hil_sensor(f));
 }
 
 /// `HIL_ACTUATOR_CONTROLS` answering the sensor frame of `time_usec` (the autopilot's side).
@@ -478,6 +479,51 @@ mod tests {
         let d = decode(&bad);
         assert_eq!(d.messages.len(), 1);
         assert_eq!(d.malformed, 3, "junk, bad CRC, truncation");
+    }
+
+    /// A reader of the stream that steps on `HIL_SENSOR` has the same exchange's GPS fix and
+    /// rotor speeds by then: `HIL_SENSOR` comes last.
+    #[test]
+    fn hil_sensor_closes_the_exchange() {
+        let airframe = sitl_core::Airframe::load(std::path::Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../params/airframes/quad_x.toml"
+        )))
+        .unwrap();
+        let mut sim = sitl_core::sim::Simulator::new(
+            &airframe,
+            sitl_core::sim::SimConfig::default(),
+            sitl_core::BodyState::default(),
+        )
+        .unwrap();
+        let frame = loop {
+            sim.step(&[0.0; 4]);
+            let f = sim.sample_sensors();
+            if f.gps.is_some() && f.rotor_rpm.is_some() {
+                break f.clone();
+            }
+        };
+        let mut bytes = Vec::new();
+        encode_exchange(
+            &mut Encoder::default(),
+            &mut bytes,
+            &frame,
+            &sim.truth(),
+            4,
+            true,
+        );
+        let d = decode(&bytes);
+        assert_eq!(d.malformed, 0);
+        assert!(matches!(
+            d.messages.last(),
+            Some((_, MavMessage::HIL_SENSOR(_)))
+        ));
+        let mut update = SensorUpdate::default();
+        let closed: Vec<bool> = d.messages.iter().map(|(_, m)| update.absorb(m)).collect();
+        assert_eq!(closed.iter().filter(|c| **c).count(), 1);
+        assert_eq!(update.time_usec, Some(frame.time_usec));
+        assert!(update.gps.is_some() && update.rotor_speed_rad_s.is_some());
+        assert!(update.truth_q.is_some());
     }
 
     #[test]
