@@ -1,19 +1,26 @@
 //! `autopilot`: the autopilot daemon.
 //!
 //! `autopilot --sim` flies the default vehicle in the embedded simulator: take-off, hover, land,
-//! with a live status line. The sensor links to an external simulator (UDP) and a flight board
-//! (serial) come next. `autopilot replay` runs the attitude estimator over logged sensor data.
+//! with a live status line; `--source udp://0.0.0.0:4560` flies a simulator process (`sitl`) the
+//! same way. `autopilot replay` runs the attitude estimator over logged sensor data.
 
+mod flight;
+mod link;
 mod replay;
+mod score;
 mod sim;
 mod vehicle;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use flight_core::params::FlightParams;
+use link::{Source, UdpLink};
+use sim::EmbeddedSim;
+use sitl_core::Airframe;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, Ordering};
+use vehicle::Vehicle;
 
 /// A MAVLink multirotor autopilot.
 #[derive(Debug, Parser)]
@@ -26,11 +33,20 @@ use std::sync::atomic::{AtomicU8, Ordering};
 )]
 struct Cli {
     /// Fly in the embedded simulator (the physics of `sitl`, in-process, behind the same HIL
-    /// messages as an external simulator).
-    #[arg(long)]
+    /// messages as an external simulator). Short for `--source sim`.
+    #[arg(long, conflicts_with = "source")]
     sim: bool,
+    /// Sensor source: `sim` (embedded simulator), `udp://0.0.0.0:4560` (a simulator process such
+    /// as `sitl`; the port is offset by --instance) or `serial:///dev/ttyUSB0?baud=921600` (a
+    /// flight board streaming HIL messages).
+    #[arg(long, value_name = "URL")]
+    source: Option<String>,
+    /// Instance number N: the UDP sensor port is offset by N (several vehicles on one machine)
+    /// and the vehicle speaks as MAVLink system N + 1.
+    #[arg(short = 'i', long, default_value_t = 0, value_parser = clap::value_parser!(u16).range(0..=250))]
+    instance: u16,
     /// Airframe: a name in PARAMS_DIR/airframes/ (quad_x, quad_plus, hexa_x, octa_x, dodeca) or a
-    /// path to a .toml file.
+    /// path to a .toml file. With an external simulator it must be the airframe it simulates.
     #[arg(long, default_value = "quad_x", value_name = "NAME|FILE")]
     airframe: String,
     /// Flight parameters file [default: PARAMS_DIR/flight.toml].
@@ -45,12 +61,17 @@ struct Cli {
     /// Hover time before landing (s).
     #[arg(long, default_value_t = 10.0, value_name = "S")]
     hover: f64,
-    /// Real-time factor of the embedded simulator: 1 (real time), 20, or "max".
+    /// Embedded simulator: real-time factor, 1 (real time), 20, or "max" (as fast as lockstep
+    /// allows).
     #[arg(long, default_value = "1", value_name = "FACTOR|max")]
     speed: String,
-    /// Seed of the simulated sensors.
+    /// Embedded simulator: seed of the simulated sensors.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Embedded simulator: write ground truth to this CSV file (100 rows per simulated second,
+    /// the same columns as `sitl --truth-csv`).
+    #[arg(long, value_name = "FILE")]
+    truth_csv: Option<PathBuf>,
     #[command(subcommand)]
     command: Option<Command>,
 }
@@ -88,9 +109,10 @@ fn params_dir(cli: &Cli) -> PathBuf {
     }
 }
 
-fn fly(cli: &Cli) -> Result<()> {
+fn fly(cli: &Cli, source: &str) -> Result<()> {
+    let source = Source::parse(source, cli.instance)?;
     let dir = params_dir(cli);
-    let airframe = if cli.airframe.ends_with(".toml") {
+    let airframe_path = if cli.airframe.ends_with(".toml") {
         PathBuf::from(&cli.airframe)
     } else {
         dir.join("airframes").join(format!("{}.toml", cli.airframe))
@@ -113,6 +135,13 @@ fn fly(cli: &Cli) -> Result<()> {
     if !(cli.hover.is_finite() && (0.0..=3600.0).contains(&cli.hover)) {
         bail!("--hover must be within [0, 3600] s, got {}", cli.hover);
     }
+    if source != Source::Embedded && cli.truth_csv.is_some() {
+        bail!(
+            "--truth-csv is for the embedded simulator; an external one writes its own (sitl --truth-csv)"
+        );
+    }
+    let airframe = Airframe::load(&airframe_path)?;
+    let mut vehicle = Vehicle::new(&airframe, &params, cli.takeoff, cli.hover)?;
     let interrupts = Arc::new(AtomicU8::new(0));
     {
         let i = interrupts.clone();
@@ -123,20 +152,36 @@ fn fly(cli: &Cli) -> Result<()> {
         })
         .context("installing the Ctrl-C handler")?;
     }
-    let options = sim::SimOptions {
-        airframe,
-        params,
-        takeoff_m: cli.takeoff,
-        hover_s: cli.hover,
-        speed,
-        seed: cli.seed,
+    let system_id = (cli.instance + 1) as u8;
+    let report = match source {
+        Source::Embedded => {
+            let mut link = EmbeddedSim::new(&airframe, cli.seed, speed, cli.truth_csv.as_deref())?;
+            let report = flight::fly(&mut link, &mut vehicle, system_id, &interrupts)?;
+            link.finish()?;
+            report
+        }
+        Source::Udp(addr) => {
+            let mut link = UdpLink::bind(addr)?;
+            tracing::info!(listening = %link.local_addr()?, airframe = %airframe.name, "waiting for a simulator");
+            flight::fly(&mut link, &mut vehicle, system_id, &interrupts)?
+        }
+        Source::Serial { path, .. } => bail!(
+            "{}: the serial link to a flight board is not built yet",
+            path.display()
+        ),
     };
-    let report = sim::run(&options, &interrupts)?;
     println!("{report}");
     Ok(())
 }
 
 fn main() -> std::process::ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+        )
+        .with_writer(std::io::stderr)
+        .init();
     let cli = Cli::parse();
     let result: Result<()> = match &cli.command {
         Some(Command::Replay {
@@ -144,10 +189,13 @@ fn main() -> std::process::ExitCode {
             output,
             params,
         }) => replay::run(input, output, params.as_deref()),
-        None if cli.sim => fly(&cli),
-        None => Err(anyhow::anyhow!(
-            "no sensor source: give --sim to fly the embedded simulator (links to an external simulator over UDP and to a flight board over serial are not implemented yet)"
-        )),
+        None if cli.sim => fly(&cli, "sim"),
+        None => match &cli.source {
+            Some(source) => fly(&cli, source),
+            None => Err(anyhow::anyhow!(
+                "no sensor source: give --sim to fly the embedded simulator, or --source udp://0.0.0.0:4560 for a simulator process"
+            )),
+        },
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -13,6 +13,8 @@ use mavlink::dialects::common::MavMessage;
 use nalgebra::Vector3;
 use sitl_core::Airframe;
 
+use crate::score::FlightScore;
+
 /// The vehicle: flight core, flight sequence and what has arrived since the last frame.
 pub struct Vehicle {
     core: FlightCore,
@@ -21,6 +23,7 @@ pub struct Vehicle {
     last: Option<StepOutput>,
     rotors: usize,
     nominal_v: f64,
+    score: FlightScore,
 }
 
 /// One step's result.
@@ -56,12 +59,18 @@ impl Vehicle {
             last: None,
             rotors: airframe.rotors.len(),
             nominal_v: 3.8 * airframe.battery.cells as f64,
+            score: FlightScore::new(takeoff_m),
         })
     }
 
     /// The sequence's phase.
     pub fn phase(&self) -> Phase {
         self.sequence.phase()
+    }
+
+    /// The flight's figures against the simulator's truth, where it sends one.
+    pub fn score(&self) -> &FlightScore {
+        &self.score
     }
 
     /// Lands now.
@@ -117,8 +126,14 @@ impl Vehicle {
                 false,
             ),
         };
+        let truth = self.update.truth.take();
         let output = self.core.step(&sample, &setpoint, armed);
         self.last = Some(output);
+        if let Some(truth) = truth {
+            let estimate = output.attitude.map(|a| a.q);
+            self.score
+                .add(&truth, estimate, self.sequence.phase(), armed);
+        }
         Some(Step {
             message: hil::actuator_controls(t_usec, &output.commands[..self.rotors], armed),
             output,

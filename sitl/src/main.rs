@@ -6,7 +6,6 @@
 //! `--open-loop` it flies the scenario's actuator script with no autopilot at all.
 
 mod run;
-mod truth_csv;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, ValueEnum};

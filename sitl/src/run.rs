@@ -1,14 +1,13 @@
 //! The simulation loops: open-loop script, and the HIL link in lockstep or real time.
 
-use crate::truth_csv::TruthCsv;
 use crate::{Cli, Mode};
 use anyhow::{Context, Result, bail};
-use hil::{Accumulator, ActuatorCommand, Encoder};
+use hil::{ActuatorCommand, SimulatorEnd};
 use mavlink::dialects::common::MavMessage;
 use sitl_core::airframe::MAX_ROTORS;
 use sitl_core::scenario::{OpenLoopCommand, Scenario};
-use sitl_core::sensors::SensorFrame;
 use sitl_core::sim::Simulator;
+use sitl_core::truth_csv::TruthCsv;
 use std::fmt;
 use std::net::{SocketAddr, UdpSocket};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -233,7 +232,7 @@ pub fn hil(
     speed: Option<f64>,
     stop: &AtomicBool,
 ) -> Result<Summary> {
-    let mut sim = build(scenario)?;
+    let sim = build(scenario)?;
     let mut truth = open_truth(cli, &sim)?;
     let socket = UdpSocket::bind(cli.bind).with_context(|| format!("binding {}", cli.bind))?;
     let mut target = cli.autopilot;
@@ -243,12 +242,10 @@ pub fn hil(
             .checked_add(cli.instance)
             .context("--instance pushes the autopilot port past 65535")?,
     );
-    let n = sim.airframe().rotors.len();
-    let rate_hz = 1.0 / sim.config().dt_s;
-    let steps_per_exchange = ((rate_hz / cli.hil_rate).round() as usize).max(1);
+    let mut end = SimulatorEnd::new(sim, cli.hil_rate);
     tracing::info!(
-        airframe = %sim.airframe().name, autopilot = %target, local = %socket.local_addr()?,
-        mode = ?cli.mode, physics_hz = rate_hz, exchange_hz = rate_hz / steps_per_exchange as f64,
+        airframe = %end.sim().airframe().name, autopilot = %target, local = %socket.local_addr()?,
+        mode = ?cli.mode, physics_hz = 1.0 / end.sim().config().dt_s, exchange_hz = end.exchange_hz(),
         "simulator ready"
     );
     let started = Instant::now();
@@ -258,25 +255,19 @@ pub fn hil(
     };
     let mut status = Status::new(cli.status_interval);
     let mut summary = Summary::default();
-    let mut link = Link::new(socket, target, n);
-    let mut acc = Accumulator::new(sim.sample_sensors());
-    let mut last_cmd: Option<ActuatorCommand> = None;
+    let mut link = Link::new(socket, target);
     let mut connected = false;
-    let mut next_state_usec = 0u64;
     let timeout = Duration::from_millis(cli.timeout_ms.max(1));
     let mut last_timeout_log: Option<Instant> = None;
-    while sim.time_s() < scenario.duration_s - 1e-9 && !stop.load(Ordering::Relaxed) {
-        status.maybe_print(&sim, started);
-        let frame = &acc.frame();
-        let send_state = frame.time_usec >= next_state_usec;
-        if send_state {
-            next_state_usec = frame.time_usec + 20_000; // ground truth at 50 Hz
-        }
-        link.send_frame(frame, &sim.truth(), send_state)?;
+    while end.sim().time_s() < scenario.duration_s - 1e-9 && !stop.load(Ordering::Relaxed) {
+        status.maybe_print(end.sim(), started);
+        link.out.clear();
+        let time_usec = end.encode_frame(&mut link.out);
+        link.send()?;
         summary.frames_sent += 1;
         let waited = match cli.mode {
             Mode::Lockstep => link.wait_for(
-                frame.time_usec,
+                time_usec,
                 if connected {
                     timeout
                 } else {
@@ -292,7 +283,7 @@ pub fn hil(
                     tracing::info!("autopilot answered: lockstep running");
                 }
                 connected = true;
-                last_cmd = Some(cmd);
+                end.apply(&cmd);
             }
             None if cli.mode == Mode::Lockstep && !connected => {
                 let waited_s = started.elapsed().as_secs_f64();
@@ -313,76 +304,48 @@ pub fn hil(
                 if last_timeout_log.is_none_or(|t| t.elapsed() > Duration::from_secs(1)) {
                     tracing::warn!(
                         total = summary.lockstep_timeouts,
-                        "lockstep timeout: no HIL_ACTUATOR_CONTROLS for t = {} us within {:?}; stepping with the last command",
-                        frame.time_usec,
-                        timeout
+                        "lockstep timeout: no HIL_ACTUATOR_CONTROLS for t = {time_usec} us within {timeout:?}; stepping with the last command",
                     );
                     last_timeout_log = Some(Instant::now());
                 }
             }
             None => {}
         }
-        let mut u = [0.0; MAX_ROTORS];
-        if let Some(cmd) = last_cmd.filter(|c| c.armed) {
-            u = cmd.controls;
-        }
-        acc.start();
-        for _ in 0..steps_per_exchange {
-            sim.step(&u[..n]);
-            acc.add(sim.sample_sensors());
-            if let Some(csv) = truth.as_mut() {
-                csv.record(&sim.truth(), sim.rotor_speeds())?;
-            }
-        }
+        end.advance(|sim| match truth.as_mut() {
+            Some(csv) => csv.record(&sim.truth(), sim.rotor_speeds()),
+            None => Ok(()),
+        })?;
         if cli.mode == Mode::Realtime {
-            pacer.wait_until(sim.time_s());
+            pacer.wait_until(end.sim().time_s());
         }
     }
-    status.maybe_print(&sim, started);
+    status.maybe_print(end.sim(), started);
     if let Some(mut csv) = truth {
         csv.flush()?;
     }
-    Ok(finish(&sim, started, summary))
+    Ok(finish(end.sim(), started, summary))
 }
 
 /// The UDP side of the HIL link.
 struct Link {
     socket: UdpSocket,
-    rotors: usize,
     target: SocketAddr,
-    encoder: Encoder,
     out: Vec<u8>,
     rx: Vec<u8>,
 }
 
 impl Link {
-    fn new(socket: UdpSocket, target: SocketAddr, rotors: usize) -> Self {
+    fn new(socket: UdpSocket, target: SocketAddr) -> Self {
         Self {
             socket,
-            rotors,
             target,
-            encoder: Encoder::default(),
             out: Vec::with_capacity(1024),
             rx: vec![0; 65_536],
         }
     }
 
-    /// Sends one exchange's messages in one datagram; ground truth only when `send_state`.
-    fn send_frame(
-        &mut self,
-        f: &SensorFrame,
-        truth: &sitl_core::sim::TruthState,
-        send_state: bool,
-    ) -> Result<()> {
-        self.out.clear();
-        hil::encode_exchange(
-            &mut self.encoder,
-            &mut self.out,
-            f,
-            truth,
-            self.rotors,
-            send_state,
-        );
+    /// Sends `out` (one exchange's messages) as one datagram.
+    fn send(&mut self) -> Result<()> {
         match self.socket.send_to(&self.out, self.target) {
             Ok(_) => Ok(()),
             // Nobody listening yet (ICMP port unreachable): keep going, the autopilot may start later.

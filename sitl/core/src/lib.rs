@@ -20,6 +20,7 @@ pub mod scenario;
 pub mod sensors;
 pub mod sim;
 pub mod torque_free;
+pub mod truth_csv;
 
 /// Standard gravity (m/s²), along NED +z.
 pub const GRAVITY_M_S2: f64 = ::airframe::GRAVITY_M_S2;

@@ -4,6 +4,9 @@
 //! Encoding turns a [`SensorFrame`] and the truth into `HIL_SENSOR`, `HIL_GPS`, `ESC_STATUS` and
 //! `HIL_STATE_QUATERNION`; decoding splits a datagram into frames, counting every malformed one.
 
+mod simulator_end;
+pub use simulator_end::{STATE_INTERVAL_USEC, SimulatorEnd};
+
 use mavlink::MavHeader;
 use mavlink::dialects::common::{
     ESC_STATUS_DATA, HIL_ACTUATOR_CONTROLS_DATA, HIL_GPS_DATA, HIL_SENSOR_DATA,
@@ -21,17 +24,35 @@ pub const SIM_SYSTEM_ID: u8 = 1;
 pub const SIM_COMPONENT_ID: u8 = 25;
 
 /// Encodes messages as MAVLink 2 frames with a running sequence number.
-#[derive(Debug, Default)]
+#[derive(Debug)]
 pub struct Encoder {
+    system_id: u8,
+    component_id: u8,
     sequence: u8,
 }
 
+impl Default for Encoder {
+    /// The simulator's encoder.
+    fn default() -> Self {
+        Self::with_ids(SIM_SYSTEM_ID, SIM_COMPONENT_ID)
+    }
+}
+
 impl Encoder {
+    /// An encoder speaking as `system_id`/`component_id` (the autopilot: its system id, 1).
+    pub fn with_ids(system_id: u8, component_id: u8) -> Self {
+        Self {
+            system_id,
+            component_id,
+            sequence: 0,
+        }
+    }
+
     /// Appends `msg` as one MAVLink 2 frame to `out`.
     pub fn push(&mut self, out: &mut Vec<u8>, msg: &MavMessage) {
         let header = MavHeader {
-            system_id: SIM_SYSTEM_ID.into(),
-            component_id: SIM_COMPONENT_ID,
+            system_id: self.system_id.into(),
+            component_id: self.component_id,
             sequence: self.sequence,
         };
         self.sequence = self.sequence.wrapping_add(1);
@@ -240,6 +261,57 @@ pub fn decode(datagram: &[u8]) -> Decoded {
     out
 }
 
+/// Splits a byte stream (a serial line) into MAVLink frames, keeping a partial frame until the
+/// rest of it arrives. Each bad frame or run of junk counts once, as in [`decode`].
+#[derive(Debug, Default)]
+pub struct StreamDecoder {
+    buf: Vec<u8>,
+    in_junk: bool,
+}
+
+impl StreamDecoder {
+    /// Adds the bytes just read; appends every complete message to `out`.
+    pub fn push(&mut self, bytes: &[u8], out: &mut Decoded) {
+        self.buf.extend_from_slice(bytes);
+        let mut i = 0;
+        while i < self.buf.len() {
+            let rest = &self.buf[i..];
+            if rest[0] != STX_V1 && rest[0] != STX_V2 {
+                if !self.in_junk {
+                    out.malformed += 1;
+                    self.in_junk = true;
+                }
+                i += 1;
+                continue;
+            }
+            let Some(len) = frame_len(rest).filter(|len| *len <= rest.len()) else {
+                break; // the rest of the frame is still on its way
+            };
+            let mut reader = mavlink::MavlinkReader::new(&rest[..len]);
+            match reader.read_any_message::<MavMessage>() {
+                Ok(msg) => {
+                    out.messages.push(msg);
+                    self.in_junk = false;
+                    i += len;
+                }
+                Err(_) => {
+                    // A bad frame counts once; the bytes after its start byte are junk until
+                    // the next frame.
+                    out.malformed += 1;
+                    self.in_junk = true;
+                    i += 1;
+                }
+            }
+        }
+        self.buf.drain(..i);
+    }
+
+    /// Bytes held back waiting for the rest of a frame.
+    pub fn pending(&self) -> usize {
+        self.buf.len()
+    }
+}
+
 /// Accumulates the sensor frames of one exchange interval: IMU averaged (as a flight board's
 /// driver integrates), slower sensors forwarded when fresh.
 pub struct Accumulator {
@@ -382,7 +454,24 @@ pub struct SensorUpdate {
     /// Battery voltage (V), from `ESC_STATUS`.
     pub battery_v: Option<f64>,
     /// Ground truth from `HIL_STATE_QUATERNION` (for logs and scoring, never the estimator).
-    pub truth_q: Option<nalgebra::UnitQuaternion<f64>>,
+    pub truth: Option<TruthReport>,
+}
+
+/// The simulator's ground truth as `HIL_STATE_QUATERNION` carries it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TruthReport {
+    /// Time of the truth (µs).
+    pub time_usec: u64,
+    /// Attitude, `q_ned_from_frd`.
+    pub q: nalgebra::UnitQuaternion<f64>,
+    /// Latitude (deg).
+    pub lat_deg: f64,
+    /// Longitude (deg).
+    pub lon_deg: f64,
+    /// Altitude (m AMSL).
+    pub alt_m: f64,
+    /// Velocity NED (m/s).
+    pub vel_ned_m_s: Vector3<f64>,
 }
 
 impl SensorUpdate {
@@ -428,9 +517,19 @@ impl SensorUpdate {
             }
             MavMessage::HIL_STATE_QUATERNION(q) => {
                 let a = q.attitude_quaternion;
-                self.truth_q = Some(nalgebra::UnitQuaternion::new_normalize(
-                    nalgebra::Quaternion::new(a[0] as f64, a[1] as f64, a[2] as f64, a[3] as f64),
-                ));
+                self.truth = Some(TruthReport {
+                    time_usec: q.time_usec,
+                    q: nalgebra::UnitQuaternion::new_normalize(nalgebra::Quaternion::new(
+                        a[0] as f64,
+                        a[1] as f64,
+                        a[2] as f64,
+                        a[3] as f64,
+                    )),
+                    lat_deg: q.lat as f64 * 1e-7,
+                    lon_deg: q.lon as f64 * 1e-7,
+                    alt_m: q.alt as f64 * 1e-3,
+                    vel_ned_m_s: Vector3::new(q.vx as f64, q.vy as f64, q.vz as f64) * 0.01,
+                });
                 false
             }
             _ => false,
@@ -523,7 +622,42 @@ mod tests {
         assert_eq!(closed.iter().filter(|c| **c).count(), 1);
         assert_eq!(update.time_usec, Some(frame.time_usec));
         assert!(update.gps.is_some() && update.rotor_speed_rad_s.is_some());
-        assert!(update.truth_q.is_some());
+        assert!(update.truth.is_some());
+    }
+
+    /// Frames split anywhere across reads come out whole; junk and a bad CRC count once each
+    /// and never take the next good frame with them.
+    #[test]
+    fn a_stream_is_split_into_frames_wherever_the_reads_fall() {
+        let mut enc = Encoder::default();
+        let mut stream = Vec::new();
+        enc.push(&mut stream, &actuators(1));
+        stream.extend_from_slice(b"\x00\x13junk");
+        let mut corrupt = Vec::new();
+        enc.push(&mut corrupt, &actuators(2));
+        let n = corrupt.len();
+        corrupt[n - 2] ^= 0x55;
+        stream.extend_from_slice(&corrupt);
+        enc.push(&mut stream, &actuators(3));
+        enc.push(&mut stream, &actuators(4));
+        for chunk in [1, 3, 7, 64, stream.len()] {
+            let mut d = StreamDecoder::default();
+            let mut out = Decoded::default();
+            for piece in stream.chunks(chunk) {
+                d.push(piece, &mut out);
+            }
+            let times: Vec<u64> = out
+                .messages
+                .iter()
+                .filter_map(|(_, m)| match m {
+                    MavMessage::HIL_ACTUATOR_CONTROLS(c) => Some(c.time_usec),
+                    _ => None,
+                })
+                .collect();
+            assert_eq!(times, [1, 3, 4], "reads of {chunk} bytes");
+            assert_eq!(out.malformed, 2, "reads of {chunk} bytes");
+            assert_eq!(d.pending(), 0);
+        }
     }
 
     #[test]

@@ -1,6 +1,6 @@
 //! Ground-truth CSV: one row per sample, for plots and for scoring a flight.
 
-use sitl_core::sim::TruthState;
+use crate::sim::TruthState;
 use std::io::{BufWriter, Write};
 
 /// Writes truth rows at a fixed simulation-time interval.

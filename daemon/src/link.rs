@@ -1,0 +1,197 @@
+//! Sensor links: where the sensor frames come from and where the actuator commands go. The
+//! embedded simulator, a simulator process over UDP and a flight board on a serial line all carry
+//! the same HIL messages; the flight loop does not know which one it talks to.
+
+use anyhow::{Context, Result, bail};
+use hil::Decoded;
+use std::io;
+use std::net::{SocketAddr, UdpSocket};
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// A source of HIL sensor messages that takes `HIL_ACTUATOR_CONTROLS` back.
+pub trait SensorLink {
+    /// Waits up to `timeout` for messages and appends them (and the count of malformed frames)
+    /// to `into`. Returns false when nothing arrived in time.
+    fn receive(&mut self, timeout: Duration, into: &mut Decoded) -> io::Result<bool>;
+    /// Sends the answer (MAVLink frames) back to whoever sent the last sensor frame.
+    fn send(&mut self, bytes: &[u8]) -> io::Result<()>;
+    /// What the link is, for messages.
+    fn describe(&self) -> String;
+}
+
+/// Where the sensors come from, as given on the command line.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Source {
+    /// The embedded simulator.
+    Embedded,
+    /// A simulator process sending to this UDP address.
+    Udp(SocketAddr),
+    /// A flight board on a serial port.
+    Serial {
+        /// Device path.
+        path: PathBuf,
+        /// Baud rate.
+        baud: u32,
+    },
+}
+
+impl Source {
+    /// Parses `sim`, `udp://HOST:PORT` or `serial:///dev/ttyX?baud=N`; a UDP port is offset by
+    /// `instance`.
+    pub fn parse(url: &str, instance: u16) -> Result<Self> {
+        if url == "sim" {
+            return Ok(Self::Embedded);
+        }
+        if let Some(addr) = url.strip_prefix("udp://") {
+            let mut a: SocketAddr = addr.parse().with_context(|| {
+                format!("{url:?}: expected udp://ADDRESS:PORT, e.g. udp://0.0.0.0:4560")
+            })?;
+            a.set_port(a.port().checked_add(instance).with_context(|| {
+                format!("{url:?}: instance {instance} pushes the port past 65535")
+            })?);
+            return Ok(Self::Udp(a));
+        }
+        if let Some(rest) = url.strip_prefix("serial://") {
+            let (path, query) = rest.split_once('?').unwrap_or((rest, ""));
+            if path.is_empty() {
+                bail!("{url:?}: expected serial:///dev/ttyUSB0?baud=921600");
+            }
+            let mut baud = 921_600;
+            for kv in query.split('&').filter(|kv| !kv.is_empty()) {
+                match kv.split_once('=') {
+                    Some(("baud", v)) => {
+                        baud = v
+                            .parse()
+                            .ok()
+                            .filter(|b| (1200..=12_000_000).contains(b))
+                            .with_context(|| {
+                                format!("{url:?}: baud must be a rate within [1200, 12000000], got {v:?}")
+                            })?;
+                    }
+                    _ => bail!("{url:?}: unknown option {kv:?} (known: baud)"),
+                }
+            }
+            return Ok(Self::Serial {
+                path: PathBuf::from(path),
+                baud,
+            });
+        }
+        bail!(
+            "unknown sensor source {url:?}: give sim, udp://ADDRESS:PORT or serial:///dev/ttyX?baud=N"
+        )
+    }
+}
+
+/// A simulator process on UDP: binds the autopilot's port, answers whoever sent the last frame.
+pub struct UdpLink {
+    socket: UdpSocket,
+    peer: Option<SocketAddr>,
+    rx: Vec<u8>,
+}
+
+impl UdpLink {
+    /// Binds `addr`.
+    pub fn bind(addr: SocketAddr) -> Result<Self> {
+        let socket = UdpSocket::bind(addr).with_context(|| {
+            format!("binding the simulator port {addr} (is another autopilot using it? try -i N)")
+        })?;
+        Ok(Self {
+            socket,
+            peer: None,
+            rx: vec![0; 65_536],
+        })
+    }
+
+    /// The bound address.
+    pub fn local_addr(&self) -> io::Result<SocketAddr> {
+        self.socket.local_addr()
+    }
+}
+
+impl SensorLink for UdpLink {
+    fn receive(&mut self, timeout: Duration, into: &mut Decoded) -> io::Result<bool> {
+        self.socket
+            .set_read_timeout(Some(timeout.max(Duration::from_micros(1))))?;
+        match self.socket.recv_from(&mut self.rx) {
+            Ok((len, from)) => {
+                if self.peer != Some(from) {
+                    tracing::info!(simulator = %from, "sensor frames arriving");
+                    self.peer = Some(from);
+                }
+                let d = hil::decode(&self.rx[..len]);
+                into.messages.extend(d.messages);
+                into.malformed += d.malformed;
+                Ok(true)
+            }
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    io::ErrorKind::WouldBlock
+                        | io::ErrorKind::TimedOut
+                        | io::ErrorKind::ConnectionRefused
+                ) =>
+            {
+                Ok(false)
+            }
+            Err(e) => Err(e),
+        }
+    }
+
+    fn send(&mut self, bytes: &[u8]) -> io::Result<()> {
+        let Some(peer) = self.peer else {
+            return Ok(());
+        };
+        match self.socket.send_to(bytes, peer) {
+            // The simulator went away; it may come back.
+            Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => Ok(()),
+            r => r.map(|_| ()),
+        }
+    }
+
+    fn describe(&self) -> String {
+        match self.socket.local_addr() {
+            Ok(a) => format!("udp://{a}"),
+            Err(_) => "udp".into(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sources_parse_with_clear_errors() {
+        assert_eq!(Source::parse("sim", 3).unwrap(), Source::Embedded);
+        assert_eq!(
+            Source::parse("udp://0.0.0.0:4560", 2).unwrap(),
+            Source::Udp("0.0.0.0:4562".parse().unwrap())
+        );
+        assert_eq!(
+            Source::parse("serial:///dev/ttyUSB0?baud=57600", 0).unwrap(),
+            Source::Serial {
+                path: "/dev/ttyUSB0".into(),
+                baud: 57_600
+            }
+        );
+        assert_eq!(
+            Source::parse("serial:///dev/ttyACM0", 0).unwrap(),
+            Source::Serial {
+                path: "/dev/ttyACM0".into(),
+                baud: 921_600
+            }
+        );
+        for (bad, says) in [
+            ("udp://nowhere", "expected udp://ADDRESS:PORT"),
+            ("udp://0.0.0.0:65535", "past 65535"),
+            ("serial://?baud=9600", "expected serial:///dev/"),
+            ("serial:///dev/ttyS0?baud=fast", "baud must be"),
+            ("serial:///dev/ttyS0?parity=odd", "unknown option"),
+            ("tcp://1.2.3.4:5", "unknown sensor source"),
+        ] {
+            let e = format!("{:#}", Source::parse(bad, 1).unwrap_err());
+            assert!(e.contains(says), "{bad}: {e}");
+        }
+    }
+}

@@ -1,0 +1,149 @@
+//! How well a flight went, scored against the simulator's ground truth (`HIL_STATE_QUATERNION`,
+//! which reaches the autopilot for logs and scoring only, never the estimator).
+//!
+//! Positions are measured from where the vehicle truly stood when it armed: the altitude error is
+//! the true height above that spot minus the take-off altitude, the horizontal drift the true
+//! distance from above that spot. Both are what a person watching the flight would see, and both
+//! include what the estimator cannot know (barometer drift, correlated GPS error).
+
+use flight_core::sequence::Phase;
+use hil::TruthReport;
+use nalgebra::{UnitQuaternion, Vector3};
+
+/// Mean Earth radius (m): good to parts per million over a flight's few metres.
+const EARTH_RADIUS_M: f64 = 6_371_000.0;
+
+/// Running figures of one flight.
+#[derive(Debug, Clone, Default)]
+pub struct FlightScore {
+    takeoff_m: f64,
+    origin: Option<TruthReport>,
+    hover: Rms,
+    hover_h: Rms,
+    attitude: Rms,
+    height_m: f64,
+    /// Highest true height above the take-off spot (m).
+    pub max_height_m: f64,
+    /// Fastest true descent within 0.3 m of the ground while landing (m/s).
+    pub touchdown_m_s: f64,
+}
+
+#[derive(Debug, Clone, Copy, Default)]
+struct Rms {
+    sum_sq: f64,
+    n: u64,
+}
+
+impl Rms {
+    fn add(&mut self, x: f64) {
+        self.sum_sq += x * x;
+        self.n += 1;
+    }
+
+    fn value(&self) -> Option<f64> {
+        (self.n > 0).then(|| (self.sum_sq / self.n as f64).sqrt())
+    }
+}
+
+impl FlightScore {
+    /// A score for a flight to `takeoff_m`.
+    pub fn new(takeoff_m: f64) -> Self {
+        Self {
+            takeoff_m,
+            ..Self::default()
+        }
+    }
+
+    /// True position NED (m) of `t` relative to the take-off spot.
+    fn local(&self, t: &TruthReport) -> Option<Vector3<f64>> {
+        let o = self.origin?;
+        let k = EARTH_RADIUS_M * std::f64::consts::PI / 180.0;
+        Some(Vector3::new(
+            (t.lat_deg - o.lat_deg) * k,
+            (t.lon_deg - o.lon_deg) * k * o.lat_deg.to_radians().cos(),
+            o.alt_m - t.alt_m,
+        ))
+    }
+
+    /// Adds one frame's truth with the attitude estimate and the phase it flew in.
+    pub fn add(
+        &mut self,
+        truth: &TruthReport,
+        estimate: Option<UnitQuaternion<f64>>,
+        phase: Phase,
+        armed: bool,
+    ) {
+        if armed && self.origin.is_none() {
+            self.origin = Some(*truth);
+        }
+        let Some(p) = self.local(truth) else {
+            return;
+        };
+        let height = -p.z;
+        self.height_m = height;
+        self.max_height_m = self.max_height_m.max(height);
+        if phase == Phase::Hover {
+            self.hover.add(height - self.takeoff_m);
+            self.hover_h.add(p.xy().norm());
+        }
+        if armed && let Some(q) = estimate {
+            self.attitude.add(q.angle_to(&truth.q).to_degrees());
+        }
+        if phase == Phase::Land && height < 0.3 {
+            self.touchdown_m_s = self.touchdown_m_s.max(truth.vel_ned_m_s.z);
+        }
+    }
+
+    /// The last true height is within 0.2 m of the take-off spot's.
+    pub fn on_ground(&self) -> bool {
+        self.origin.is_some() && self.height_m < 0.2
+    }
+
+    /// Hover altitude RMS error (m).
+    pub fn hover_alt_rms_m(&self) -> Option<f64> {
+        self.hover.value()
+    }
+
+    /// Hover horizontal drift RMS (m).
+    pub fn hover_drift_rms_m(&self) -> Option<f64> {
+        self.hover_h.value()
+    }
+
+    /// Attitude estimate RMS error while armed (deg).
+    pub fn attitude_rms_deg(&self) -> Option<f64> {
+        self.attitude.value()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn truth(north_m: f64, east_m: f64, up_m: f64) -> TruthReport {
+        let k = EARTH_RADIUS_M * std::f64::consts::PI / 180.0;
+        let lat0: f64 = 47.0;
+        TruthReport {
+            time_usec: 0,
+            q: UnitQuaternion::identity(),
+            lat_deg: lat0 + north_m / k,
+            lon_deg: 8.0 + east_m / (k * lat0.to_radians().cos()),
+            alt_m: 400.0 + up_m,
+            vel_ned_m_s: Vector3::zeros(),
+        }
+    }
+
+    #[test]
+    fn figures_are_measured_from_the_takeoff_spot() {
+        let mut s = FlightScore::new(5.0);
+        // Before arming nothing counts.
+        s.add(&truth(9.0, 9.0, 9.0), None, Phase::Hover, false);
+        assert_eq!(s.hover_alt_rms_m(), None);
+        s.add(&truth(10.0, 0.0, 0.0), None, Phase::Armed, true);
+        s.add(&truth(10.3, 0.4, 5.1), None, Phase::Hover, true);
+        s.add(&truth(10.0, 0.0, 4.9), None, Phase::Hover, true);
+        assert!((s.hover_alt_rms_m().unwrap() - 0.1).abs() < 1e-6);
+        let drift = (0.5f64.powi(2) / 2.0).sqrt();
+        assert!((s.hover_drift_rms_m().unwrap() - drift).abs() < 1e-6);
+        assert!((s.max_height_m - 5.1).abs() < 1e-6);
+    }
+}

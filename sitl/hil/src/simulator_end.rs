@@ -1,0 +1,98 @@
+//! The simulator's end of the HIL exchange, shared by the `sitl` process and the autopilot's
+//! embedded simulator so that one seed gives the same bytes, and the same flight, on either.
+
+use crate::{Accumulator, ActuatorCommand, Encoder, encode_exchange};
+use sitl_core::airframe::MAX_ROTORS;
+use sitl_core::sensors::SensorFrame;
+use sitl_core::sim::Simulator;
+
+/// Interval of the ground truth (`HIL_STATE_QUATERNION`, 50 Hz).
+pub const STATE_INTERVAL_USEC: u64 = 20_000;
+
+/// One exchange after another: the sensor frame of time k goes out, the answer to it comes in,
+/// then physics steps over the exchange interval with that answer (ARCHITECTURE.md lockstep).
+pub struct SimulatorEnd {
+    sim: Simulator,
+    acc: Accumulator,
+    encoder: Encoder,
+    steps_per_exchange: usize,
+    next_state_usec: u64,
+    controls: [f64; MAX_ROTORS],
+}
+
+impl SimulatorEnd {
+    /// Wraps `sim`, exchanging at `exchange_hz` (rounded to a whole number of physics steps).
+    pub fn new(mut sim: Simulator, exchange_hz: f64) -> Self {
+        let physics_hz = 1.0 / sim.config().dt_s;
+        let steps = (physics_hz / exchange_hz.max(1e-3)).round().max(1.0) as usize;
+        let acc = Accumulator::new(sim.sample_sensors());
+        Self {
+            sim,
+            acc,
+            encoder: Encoder::default(),
+            steps_per_exchange: steps,
+            next_state_usec: 0,
+            controls: [0.0; MAX_ROTORS],
+        }
+    }
+
+    /// Appends the current exchange's messages to `out` (`HIL_SENSOR` last; the truth when due)
+    /// and returns the frame's time, which the answer must echo.
+    pub fn encode_frame(&mut self, out: &mut Vec<u8>) -> u64 {
+        let frame = self.acc.frame();
+        let send_state = frame.time_usec >= self.next_state_usec;
+        if send_state {
+            self.next_state_usec = frame.time_usec + STATE_INTERVAL_USEC;
+        }
+        let rotors = self.sim.airframe().rotors.len();
+        encode_exchange(
+            &mut self.encoder,
+            out,
+            frame,
+            &self.sim.truth(),
+            rotors,
+            send_state,
+        );
+        frame.time_usec
+    }
+
+    /// Takes an answer: an armed command's controls, all rotors off otherwise.
+    pub fn apply(&mut self, cmd: &ActuatorCommand) {
+        self.controls = if cmd.armed {
+            cmd.controls
+        } else {
+            [0.0; MAX_ROTORS]
+        };
+    }
+
+    /// Steps physics over one exchange interval with the current controls and starts the next
+    /// frame; `each_step` sees the simulator after every physics step (truth logs).
+    pub fn advance<E>(
+        &mut self,
+        mut each_step: impl FnMut(&Simulator) -> Result<(), E>,
+    ) -> Result<(), E> {
+        let n = self.sim.airframe().rotors.len();
+        self.acc.start();
+        for _ in 0..self.steps_per_exchange {
+            self.sim.step(&self.controls[..n]);
+            self.acc.add(self.sim.sample_sensors());
+            each_step(&self.sim)?;
+        }
+        Ok(())
+    }
+
+    /// The simulator.
+    pub fn sim(&self) -> &Simulator {
+        &self.sim
+    }
+
+    /// The frame that goes out next.
+    pub fn frame(&self) -> &SensorFrame {
+        self.acc.frame()
+    }
+
+    /// Exchange rate actually used (Hz).
+    pub fn exchange_hz(&self) -> f64 {
+        1.0 / (self.sim.config().dt_s * self.steps_per_exchange as f64)
+    }
+}
