@@ -129,6 +129,7 @@ impl SensorLink for UdpLink {
                     e.kind(),
                     io::ErrorKind::WouldBlock
                         | io::ErrorKind::TimedOut
+                        | io::ErrorKind::Interrupted
                         | io::ErrorKind::ConnectionRefused
                 ) =>
             {

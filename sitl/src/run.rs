@@ -409,6 +409,7 @@ impl Link {
                         e.kind(),
                         std::io::ErrorKind::WouldBlock
                             | std::io::ErrorKind::TimedOut
+                            | std::io::ErrorKind::Interrupted
                             | std::io::ErrorKind::ConnectionRefused
                     ) => {}
                 Err(e) => return Err(e).context("receiving HIL_ACTUATOR_CONTROLS"),
@@ -428,7 +429,9 @@ impl Link {
                 Err(e)
                     if matches!(
                         e.kind(),
-                        std::io::ErrorKind::WouldBlock | std::io::ErrorKind::ConnectionRefused
+                        std::io::ErrorKind::WouldBlock
+                            | std::io::ErrorKind::Interrupted
+                            | std::io::ErrorKind::ConnectionRefused
                     ) =>
                 {
                     break;
