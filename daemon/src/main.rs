@@ -5,6 +5,7 @@
 //! same way. `autopilot replay` runs the attitude estimator over logged sensor data.
 
 mod flight;
+mod flight_csv;
 mod link;
 mod replay;
 mod score;
@@ -14,9 +15,11 @@ mod vehicle;
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use flight_core::params::FlightParams;
+use flight_csv::FlightCsv;
 use link::{Source, UdpLink};
 use sim::EmbeddedSim;
 use sitl_core::Airframe;
+use sitl_core::sensors::SensorPreset;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, Ordering};
@@ -68,10 +71,17 @@ struct Cli {
     /// Embedded simulator: seed of the simulated sensors.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Embedded simulator: sensor quality, ideal, typical or noisy (as `sitl --sensors`).
+    #[arg(long, default_value = "typical", value_name = "PRESET")]
+    sensors: String,
     /// Embedded simulator: write ground truth to this CSV file (100 rows per simulated second,
     /// the same columns as `sitl --truth-csv`).
     #[arg(long, value_name = "FILE")]
     truth_csv: Option<PathBuf>,
+    /// Write the flight data (estimate, set-points, motor commands and, from a simulator, the
+    /// truth) to this CSV file, one row per sensor frame.
+    #[arg(long, value_name = "FILE")]
+    flight_csv: Option<PathBuf>,
     #[command(subcommand)]
     command: Option<Command>,
 }
@@ -142,6 +152,12 @@ fn fly(cli: &Cli, source: &str) -> Result<()> {
     }
     let airframe = Airframe::load(&airframe_path)?;
     let mut vehicle = Vehicle::new(&airframe, &params, cli.takeoff, cli.hover)?;
+    if let Some(path) = &cli.flight_csv {
+        vehicle.log_to(
+            FlightCsv::create(path, airframe.rotors.len())
+                .with_context(|| format!("creating {}", path.display()))?,
+        );
+    }
     let interrupts = Arc::new(AtomicU8::new(0));
     {
         let i = interrupts.clone();
@@ -155,7 +171,19 @@ fn fly(cli: &Cli, source: &str) -> Result<()> {
     let system_id = (cli.instance + 1) as u8;
     let report = match source {
         Source::Embedded => {
-            let mut link = EmbeddedSim::new(&airframe, cli.seed, speed, cli.truth_csv.as_deref())?;
+            let sensors = SensorPreset::from_name(&cli.sensors).with_context(|| {
+                format!(
+                    "--sensors must be ideal, typical or noisy, got {:?}",
+                    cli.sensors
+                )
+            })?;
+            let mut link = EmbeddedSim::new(
+                &airframe,
+                cli.seed,
+                sensors,
+                speed,
+                cli.truth_csv.as_deref(),
+            )?;
             let report = flight::fly(&mut link, &mut vehicle, system_id, &interrupts)?;
             link.finish()?;
             report
@@ -170,6 +198,7 @@ fn fly(cli: &Cli, source: &str) -> Result<()> {
             path.display()
         ),
     };
+    vehicle.finish_log()?;
     println!("{report}");
     Ok(())
 }

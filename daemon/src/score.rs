@@ -54,8 +54,8 @@ impl FlightScore {
         }
     }
 
-    /// True position NED (m) of `t` relative to the take-off spot.
-    fn local(&self, t: &TruthReport) -> Option<Vector3<f64>> {
+    /// True position NED (m) of `t` relative to the take-off spot (none before arming).
+    pub fn local(&self, t: &TruthReport) -> Option<Vector3<f64>> {
         let o = self.origin?;
         let k = EARTH_RADIUS_M * std::f64::consts::PI / 180.0;
         Some(Vector3::new(

@@ -8,6 +8,7 @@ use crate::link::SensorLink;
 use anyhow::{Context, Result};
 use hil::{Decoded, SimulatorEnd};
 use mavlink::dialects::common::MavMessage;
+use sitl_core::sensors::{SensorConfig, SensorPreset};
 use sitl_core::sim::{SimConfig, Simulator};
 use sitl_core::truth_csv::TruthCsv;
 use sitl_core::{Airframe, BodyState};
@@ -30,11 +31,12 @@ pub struct EmbeddedSim {
 }
 
 impl EmbeddedSim {
-    /// A simulator of `airframe` with sensors seeded by `seed`, paced at `speed` × real time
+    /// A simulator of `airframe` with `sensors` seeded by `seed`, paced at `speed` × real time
     /// (`None`: as fast as lockstep allows), writing ground truth to `truth_csv` at 100 Hz.
     pub fn new(
         airframe: &Airframe,
         seed: u64,
+        sensors: SensorPreset,
         speed: Option<f64>,
         truth_csv: Option<&Path>,
     ) -> Result<Self> {
@@ -42,6 +44,7 @@ impl EmbeddedSim {
             airframe,
             SimConfig {
                 seed,
+                sensors: SensorConfig::preset(sensors),
                 ..SimConfig::default()
             },
             BodyState::default(),

@@ -13,6 +13,7 @@ use mavlink::dialects::common::MavMessage;
 use nalgebra::Vector3;
 use sitl_core::Airframe;
 
+use crate::flight_csv::FlightCsv;
 use crate::score::FlightScore;
 
 /// The vehicle: flight core, flight sequence and what has arrived since the last frame.
@@ -24,6 +25,8 @@ pub struct Vehicle {
     rotors: usize,
     nominal_v: f64,
     score: FlightScore,
+    csv: Option<FlightCsv>,
+    csv_error: Option<std::io::Error>,
 }
 
 /// One step's result.
@@ -49,6 +52,7 @@ impl Vehicle {
                 .context("building the mixer")?,
             sequence: FlightSequence::new(SequenceParams {
                 takeoff_alt_m: takeoff_m,
+                takeoff_speed_m_s: 1.5,
                 hover_s,
                 spool_s: 1.0,
                 land_speed_m_s: 0.7,
@@ -60,7 +64,25 @@ impl Vehicle {
             rotors: airframe.rotors.len(),
             nominal_v: 3.8 * airframe.battery.cells as f64,
             score: FlightScore::new(takeoff_m),
+            csv: None,
+            csv_error: None,
         })
+    }
+
+    /// Writes a flight-data row per frame to `csv` from now on.
+    pub fn log_to(&mut self, csv: FlightCsv) {
+        self.csv = Some(csv);
+    }
+
+    /// Flushes the flight-data CSV, reporting the first write error of the flight.
+    pub fn finish_log(&mut self) -> Result<()> {
+        if let Some(e) = self.csv_error.take() {
+            return Err(e).context("writing the flight-data CSV");
+        }
+        if let Some(csv) = self.csv.as_mut() {
+            csv.flush().context("writing the flight-data CSV")?;
+        }
+        Ok(())
     }
 
     /// The sequence's phase.
@@ -121,18 +143,40 @@ impl Vehicle {
                 PositionSetpoint {
                     pos_ned_m: Vector3::zeros(),
                     vel_ned_m_s: Vector3::zeros(),
+                    accel_ned_m_s2: Vector3::zeros(),
                     yaw_rad: 0.0,
                 },
                 false,
             ),
         };
+        if self.sequence.phase() == Phase::Armed {
+            // Spooling up on the ground: the position loop starts fresh at take-off.
+            self.core.reset_position_loop();
+        }
         let truth = self.update.truth.take();
         let output = self.core.step(&sample, &setpoint, armed);
         self.last = Some(output);
-        if let Some(truth) = truth {
+        if let Some(truth) = &truth {
             let estimate = output.attitude.map(|a| a.q);
             self.score
-                .add(&truth, estimate, self.sequence.phase(), armed);
+                .add(truth, estimate, self.sequence.phase(), armed);
+        }
+        if let Some(csv) = self.csv.as_mut() {
+            let phase = self.sequence.phase();
+            if let Err(e) = csv.record(
+                t_s,
+                phase,
+                armed,
+                &setpoint,
+                &output,
+                truth.as_ref(),
+                &self.score,
+            ) {
+                // A full disk must not stop the flight: stop logging, report at the end.
+                tracing::error!("flight-data CSV: {e}; logging stopped");
+                self.csv = None;
+                self.csv_error = Some(e);
+            }
         }
         Some(Step {
             message: hil::actuator_controls(t_usec, &output.commands[..self.rotors], armed),

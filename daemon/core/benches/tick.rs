@@ -39,6 +39,7 @@ fn tick(c: &mut Criterion) {
             let sp = PositionSetpoint {
                 pos_ned_m: Vector3::new(0.0, 0.0, -5.0),
                 vel_ned_m_s: Vector3::zeros(),
+                accel_ned_m_s2: Vector3::zeros(),
                 yaw_rad: 0.0,
             };
             let mut commands = [0.0; 16];

@@ -256,6 +256,12 @@ impl FlightCore {
         &mut self.mixer
     }
 
+    /// Forgets the position loop's integrator and set-point history: on the ground before
+    /// take-off, so that the spool-up does not wind it against the ground.
+    pub fn reset_position_loop(&mut self) {
+        self.position.reset();
+    }
+
     fn reset_controllers(&mut self) {
         self.position.reset();
         self.rate = rate_axes(&self.config.rate);

@@ -22,11 +22,24 @@ pub enum Phase {
     Done,
 }
 
+/// Acceleration of the take-off set-point (m/s²).
+const TAKEOFF_ACCEL_M_S2: f64 = 1.0;
+
+/// The fastest speed from which a set-point stepping every `dt` still stops within `left` at
+/// deceleration `a`: v = √(2·a·d) in the limit, here with the half-step of the discrete motion,
+/// √(2·a·d + (a·dt/2)²) − a·dt/2.
+fn braking_speed(left: f64, a: f64, dt: f64) -> f64 {
+    let h = 0.5 * a * dt;
+    (2.0 * a * left + h * h).sqrt() - h
+}
+
 /// What to fly.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SequenceParams {
     /// Take-off altitude above the start (m).
     pub takeoff_alt_m: f64,
+    /// Climb speed of the take-off set-point (m/s), as PX4's `MPC_TKO_SPEED`.
+    pub takeoff_speed_m_s: f64,
     /// Time to hover before landing (s); infinite hovers until told to land.
     pub hover_s: f64,
     /// Spool-up time on the ground after arming (s).
@@ -60,6 +73,8 @@ pub struct FlightSequence {
     since_s: f64,
     home: Vector3<f64>,
     land_sp_down: f64,
+    takeoff_sp_up: f64,
+    takeoff_v: f64,
     still_since_s: Option<f64>,
     land_requested: bool,
     last_t_s: Option<f64>,
@@ -74,6 +89,8 @@ impl FlightSequence {
             since_s: 0.0,
             home: Vector3::zeros(),
             land_sp_down: 0.0,
+            takeoff_sp_up: 0.0,
+            takeoff_v: 0.0,
             still_since_s: None,
             land_requested: false,
             last_t_s: None,
@@ -106,6 +123,7 @@ impl FlightSequence {
         let hold = |pos: Vector3<f64>| PositionSetpoint {
             pos_ned_m: pos,
             vel_ned_m_s: Vector3::zeros(),
+            accel_ned_m_s2: Vector3::zeros(),
             yaw_rad: 0.0,
         };
         let cruise = self.home - Vector3::new(0.0, 0.0, p.takeoff_alt_m);
@@ -125,16 +143,42 @@ impl FlightSequence {
             }
             Phase::Armed => {
                 if in_phase >= p.spool_s {
+                    self.takeoff_sp_up = 0.0;
+                    self.takeoff_v = 0.0;
                     self.enter(Phase::Takeoff, t);
                 }
                 // Spool-up: a set-point just below the ground keeps thrust low until take-off.
                 (hold(self.home + Vector3::new(0.0, 0.0, 0.5)), true)
             }
             Phase::Takeoff => {
-                if -(i.pos_ned_m.z - self.home.z) >= 0.95 * p.takeoff_alt_m {
+                // The set-point climbs from the ground to the take-off altitude with limited
+                // speed and acceleration, slowing so that it stops at the altitude
+                // (v ≤ √(2·a·d)); the vehicle follows it with velocity and acceleration
+                // feed-forward and
+                // arrives without the overshoot or slow creep of a step.
+                let left = p.takeoff_alt_m - self.takeoff_sp_up;
+                let v = (self.takeoff_v + TAKEOFF_ACCEL_M_S2 * dt)
+                    .min(p.takeoff_speed_m_s)
+                    .min(braking_speed(left.max(0.0), TAKEOFF_ACCEL_M_S2, dt));
+                let climb_accel = if dt > 0.0 {
+                    (v - self.takeoff_v) / dt
+                } else {
+                    0.0
+                };
+                self.takeoff_v = v;
+                self.takeoff_sp_up = (self.takeoff_sp_up + v * dt).min(p.takeoff_alt_m);
+                let arrived = self.takeoff_sp_up >= p.takeoff_alt_m;
+                if arrived && -(i.pos_ned_m.z - self.home.z) >= 0.95 * p.takeoff_alt_m {
                     self.enter(Phase::Hover, t);
+                    return (hold(cruise), true);
                 }
-                (hold(cruise), true)
+                let sp = PositionSetpoint {
+                    pos_ned_m: self.home - Vector3::new(0.0, 0.0, self.takeoff_sp_up),
+                    vel_ned_m_s: Vector3::new(0.0, 0.0, if arrived { 0.0 } else { -v }),
+                    accel_ned_m_s2: Vector3::new(0.0, 0.0, -climb_accel),
+                    yaw_rad: 0.0,
+                };
+                (sp, true)
             }
             Phase::Hover => {
                 if in_phase >= p.hover_s {
@@ -164,6 +208,7 @@ impl FlightSequence {
                 let sp = PositionSetpoint {
                     pos_ned_m: Vector3::new(self.home.x, self.home.y, self.land_sp_down),
                     vel_ned_m_s: Vector3::new(0.0, 0.0, speed),
+                    accel_ned_m_s2: Vector3::zeros(),
                     yaw_rad: 0.0,
                 };
                 (sp, self.phase != Phase::Done)
@@ -189,6 +234,7 @@ mod tests {
     fn params() -> SequenceParams {
         SequenceParams {
             takeoff_alt_m: 5.0,
+            takeoff_speed_m_s: 1.5,
             hover_s: 3.0,
             spool_s: 1.0,
             land_speed_m_s: 0.7,
@@ -205,15 +251,16 @@ mod tests {
             (0.0, 0.0, 0.0, Phase::Armed),
             (0.5, 0.0, 0.0, Phase::Armed),
             (1.0, 0.0, 0.0, Phase::Takeoff),
-            (3.0, -4.0, -1.0, Phase::Takeoff),
-            (4.0, -4.8, -0.2, Phase::Hover),
-            (6.0, -5.0, 0.0, Phase::Hover),
-            (7.0, -5.0, 0.0, Phase::Land),
-            (12.0, -1.5, 0.7, Phase::Land), // descending at 0.7 m/s
-            (14.5, 0.0, 0.0, Phase::Land),  // on the ground; the set-point is not yet below it
-            (15.0, 0.0, 0.0, Phase::Land),  // set-point 0.6 m below: still for...
-            (15.5, 0.0, 0.0, Phase::Land),
-            (16.1, 0.0, 0.0, Phase::Done), // ...a second: touchdown, disarmed
+            (3.0, -2.0, -1.5, Phase::Takeoff),
+            (5.0, -4.6, -0.5, Phase::Takeoff), // the set-point has arrived, the vehicle not yet
+            (6.0, -4.9, -0.1, Phase::Hover),
+            (8.0, -5.0, 0.0, Phase::Hover),
+            (9.0, -5.0, 0.0, Phase::Land),
+            (14.0, -1.5, 0.7, Phase::Land), // descending at 0.7 m/s
+            (16.5, 0.0, 0.0, Phase::Land),  // on the ground; the set-point is not yet below it
+            (17.0, 0.0, 0.0, Phase::Land),  // set-point 0.6 m below: still for...
+            (17.5, 0.0, 0.0, Phase::Land),
+            (18.1, 0.0, 0.0, Phase::Done), // ...a second: touchdown, disarmed
         ];
         for (t, d, vd, expected) in table {
             let (_, armed) = s.update(&input(t, d, vd));
@@ -237,5 +284,37 @@ mod tests {
         let (sp, armed) = s.update(&input(2.6, -2.1, -1.0));
         assert!(armed && s.phase() == Phase::Land);
         assert!(sp.vel_ned_m_s.z > 0.0, "descending");
+    }
+
+    #[test]
+    fn the_takeoff_set_point_climbs_smoothly_and_stops_at_the_altitude() {
+        let mut s = FlightSequence::new(params());
+        s.update(&input(0.0, 0.0, 0.0));
+        let dt = 0.004;
+        s.update(&input(1.0, 0.0, 0.0));
+        assert_eq!(s.phase(), Phase::Takeoff);
+        let (mut t, mut last_up, mut last_v) = (1.0 + dt, 0.0f64, 0.0f64);
+        while t < 9.0 {
+            // The vehicle is where the set-point was a step ago.
+            let (sp, _) = s.update(&input(t, -last_up, -last_v));
+            if s.phase() == Phase::Hover {
+                break;
+            }
+            let (up, v) = (-sp.pos_ned_m.z, -sp.vel_ned_m_s.z);
+            assert!(
+                up >= last_up - 1e-12 && up <= 5.0 + 1e-12,
+                "monotonic, bounded"
+            );
+            assert!(v <= 1.5 + 1e-12, "climb speed limited: {v}");
+            assert!(
+                (v - last_v).abs() <= 1.02 * dt,
+                "acceleration limited at t = {t}: {last_v} → {v}"
+            );
+            (last_up, last_v) = (up, v);
+            t += dt;
+        }
+        assert_eq!(s.phase(), Phase::Hover);
+        // 5 m at 1.5 m/s with 1 m/s² ramps at both ends: 5/1.5 + 1.5 = 4.83 s after take-off.
+        assert!((t - 1.0 - 4.83).abs() < 0.05, "arrived after {} s", t - 1.0);
     }
 }

@@ -60,6 +60,7 @@ fn fly_with(
     let sp = PositionSetpoint {
         pos_ned_m: Vector3::new(0.0, 0.0, -target_alt),
         vel_ned_m_s: Vector3::zeros(),
+        accel_ned_m_s2: Vector3::zeros(),
         yaw_rad: 0.0,
     };
     let (mut sum_alt, mut sum_h, mut sum_att, mut count, mut max_tilt) =
@@ -181,6 +182,7 @@ fn takeoff_hover_land_and_disarm() {
         let mut core = FlightCore::new(&a, FlightCoreConfig::for_airframe(&a, false)).unwrap();
         let mut seq = FlightSequence::new(SequenceParams {
             takeoff_alt_m: 5.0,
+            takeoff_speed_m_s: 1.5,
             hover_s: 10.0,
             spool_s: 1.0,
             land_speed_m_s: 0.7,
@@ -201,6 +203,7 @@ fn takeoff_hover_land_and_disarm() {
                     &flight_core::control::position::PositionSetpoint {
                         pos_ned_m: Vector3::zeros(),
                         vel_ned_m_s: Vector3::zeros(),
+                        accel_ned_m_s2: Vector3::zeros(),
                         yaw_rad: 0.0,
                     },
                     false,

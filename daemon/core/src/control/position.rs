@@ -50,6 +50,8 @@ pub struct PositionSetpoint {
     pub pos_ned_m: Vector3<f64>,
     /// Velocity feed-forward NED (m/s).
     pub vel_ned_m_s: Vector3<f64>,
+    /// Acceleration feed-forward NED (m/s²), from a trajectory.
+    pub accel_ned_m_s2: Vector3<f64>,
     /// Heading (rad, from north, clockwise).
     pub yaw_rad: f64,
 }
@@ -142,7 +144,7 @@ impl PositionController {
         self.vel_sp = Some(v_sp);
         // Velocity PID → acceleration set-point.
         let e = v_sp - vel;
-        let mut a_sp = e.component_mul(&p.k_vel) + self.integral;
+        let mut a_sp = e.component_mul(&p.k_vel) + self.integral + sp.accel_ned_m_s2;
         let h = a_sp.xy().norm();
         let h_limited = h > p.max_accel_h;
         if h_limited {
@@ -320,6 +322,7 @@ mod tests {
         let sp = PositionSetpoint {
             pos_ned_m: Vector3::new(0.0, 0.0, -5.0),
             vel_ned_m_s: Vector3::zeros(),
+            accel_ned_m_s2: Vector3::zeros(),
             yaw_rad: 0.0,
         };
         let out = c.update(
@@ -339,6 +342,7 @@ mod tests {
         let sp = PositionSetpoint {
             pos_ned_m: Vector3::new(100.0, 0.0, 0.0),
             vel_ned_m_s: Vector3::zeros(),
+            accel_ned_m_s2: Vector3::zeros(),
             yaw_rad: 0.0,
         };
         let first = c.update(

@@ -1,0 +1,111 @@
+//! The flight-data CSV: one row per sensor frame with what the flight core estimated, what it was
+//! asked to do, what it commanded, and the simulator's truth where one reports it. For plots
+//! (any spreadsheet, pandas, gnuplot) and for finding where an error comes from.
+
+use crate::score::FlightScore;
+use flight_core::control::position::PositionSetpoint;
+use flight_core::core::StepOutput;
+use flight_core::sequence::Phase;
+use hil::TruthReport;
+use std::io::{BufWriter, Write};
+use std::path::Path;
+
+/// Writes flight-data rows.
+pub struct FlightCsv {
+    out: BufWriter<std::fs::File>,
+    rotors: usize,
+}
+
+/// Roll, pitch, yaw (deg) of an optional quaternion, or empty cells.
+fn euler_deg(q: Option<nalgebra::UnitQuaternion<f64>>) -> String {
+    q.map_or(",,".to_owned(), |q| {
+        let (r, p, y) = q.euler_angles();
+        format!(
+            "{:.3},{:.3},{:.3}",
+            r.to_degrees(),
+            p.to_degrees(),
+            y.to_degrees()
+        )
+    })
+}
+
+impl FlightCsv {
+    /// Creates `path` and writes the header for `rotors` motor columns.
+    pub fn create(path: &Path, rotors: usize) -> std::io::Result<Self> {
+        let mut out = BufWriter::new(std::fs::File::create(path)?);
+        write!(
+            out,
+            "t_s,phase,armed,n_m,e_m,d_m,vn_m_s,ve_m_s,vd_m_s,sp_n_m,sp_e_m,sp_d_m,\
+             roll_deg,pitch_deg,yaw_deg,sp_roll_deg,sp_pitch_deg,sp_yaw_deg,\
+             p_ref_rad_s,q_ref_rad_s,r_ref_rad_s,thrust_n,\
+             true_n_m,true_e_m,true_d_m,true_roll_deg,true_pitch_deg,true_yaw_deg"
+        )?;
+        for i in 1..=rotors {
+            write!(out, ",motor{i}")?;
+        }
+        writeln!(out)?;
+        Ok(Self { out, rotors })
+    }
+
+    /// Writes one frame's row. True positions are relative to the take-off spot (empty before
+    /// arming or without truth).
+    #[allow(clippy::too_many_arguments)]
+    pub fn record(
+        &mut self,
+        t_s: f64,
+        phase: Phase,
+        armed: bool,
+        setpoint: &PositionSetpoint,
+        out: &StepOutput,
+        truth: Option<&TruthReport>,
+        score: &FlightScore,
+    ) -> std::io::Result<()> {
+        let tr = &out.translation;
+        let (p, v, s) = (tr.pos_ned_m, tr.vel_ned_m_s, setpoint.pos_ned_m);
+        write!(
+            self.out,
+            "{t_s:.4},{phase:?},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{},",
+            armed as u8,
+            p.x,
+            p.y,
+            p.z,
+            v.x,
+            v.y,
+            v.z,
+            s.x,
+            s.y,
+            s.z,
+            euler_deg(out.attitude.map(|a| a.q)),
+        )?;
+        let sp = out.attitude_setpoint;
+        write!(
+            self.out,
+            "{},{:.5},{:.5},{:.5},{},",
+            euler_deg(sp.map(|a| a.q_d)),
+            out.rate_reference.x,
+            out.rate_reference.y,
+            out.rate_reference.z,
+            sp.map_or(String::new(), |a| format!("{:.3}", a.thrust_n)),
+        )?;
+        match truth.and_then(|t| score.local(t).map(|p| (p, t.q))) {
+            Some((p, q)) => write!(
+                self.out,
+                "{:.4},{:.4},{:.4},{}",
+                p.x,
+                p.y,
+                p.z,
+                euler_deg(Some(q))
+            )?,
+            None => write!(self.out, ",,,,,")?,
+        }
+        for c in &out.commands[..self.rotors] {
+            write!(self.out, ",{c:.4}")?;
+        }
+        writeln!(self.out)
+    }
+
+    /// Writes what is buffered.
+    pub fn flush(&mut self) -> std::io::Result<()> {
+        self.out.flush()
+    }
+}
