@@ -27,6 +27,7 @@ pub struct FlightReport {
     wall_time_s: f64,
     frames: u64,
     malformed: u64,
+    repeated: u64,
     score: FlightScore,
     disarmed: bool,
 }
@@ -36,7 +37,7 @@ impl std::fmt::Display for FlightReport {
         let opt = |x: Option<f64>| x.map_or("nan".to_owned(), |x| format!("{x:.3}"));
         write!(
             f,
-            "autopilot summary: source={} sim_time_s={:.2} wall_time_s={:.2} realtime_factor={:.1} frames={} frames_per_s={:.0} malformed={} max_alt_m={:.2} hover_alt_rms_m={} hover_drift_rms_m={} attitude_rms_deg={} touchdown_m_s={:.2} landed={} disarmed={}",
+            "autopilot summary: source={} sim_time_s={:.2} wall_time_s={:.2} realtime_factor={:.1} frames={} frames_per_s={:.0} malformed={} repeated={} max_alt_m={:.2} hover_alt_rms_m={} hover_drift_rms_m={} attitude_rms_deg={} touchdown_m_s={:.2} landed={} disarmed={}",
             self.source,
             self.sim_time_s,
             self.wall_time_s,
@@ -44,6 +45,7 @@ impl std::fmt::Display for FlightReport {
             self.frames,
             self.frames as f64 / self.wall_time_s.max(1e-9),
             self.malformed,
+            self.repeated,
             self.score.max_height_m,
             opt(self.score.hover_alt_rms_m()),
             opt(self.score.hover_drift_rms_m()),
@@ -149,6 +151,7 @@ pub fn fly(
     report.sim_time_s = t_s;
     report.wall_time_s = started.elapsed().as_secs_f64();
     report.score = vehicle.score().clone();
+    report.repeated = vehicle.repeated_frames();
     report.disarmed = vehicle.phase() == Phase::Done;
     Ok(report)
 }

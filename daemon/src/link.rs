@@ -3,11 +3,11 @@
 //! the same HIL messages; the flight loop does not know which one it talks to.
 
 use anyhow::{Context, Result, bail};
-use hil::Decoded;
+use hil::{Decoded, StreamDecoder};
 use std::io;
 use std::net::{SocketAddr, UdpSocket};
-use std::path::PathBuf;
-use std::time::Duration;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
 
 /// A source of HIL sensor messages that takes `HIL_ACTUATOR_CONTROLS` back.
 pub trait SensorLink {
@@ -155,6 +155,118 @@ impl SensorLink for UdpLink {
             Ok(a) => format!("udp://{a}"),
             Err(_) => "udp".into(),
         }
+    }
+}
+
+/// A flight board on a serial line: MAVLink frames in a byte stream. A port that is missing or
+/// vanishes is reopened with backoff (0.1 s doubling to 2 s); meanwhile the link reports
+/// silence, as for any sensor that stops.
+pub struct SerialLink {
+    path: PathBuf,
+    baud: u32,
+    port: Option<serialport::TTYPort>,
+    decoder: StreamDecoder,
+    rx: Vec<u8>,
+    retry_at: Instant,
+    backoff: Duration,
+}
+
+impl SerialLink {
+    /// Opens `path` at `baud`; a port that cannot be opened now is an error (a typo should stop
+    /// the daemon), one that vanishes later is retried.
+    pub fn open(path: PathBuf, baud: u32) -> Result<Self> {
+        let port = Self::open_port(&path, baud)
+            .with_context(|| format!("opening serial port {}", path.display()))?;
+        Ok(Self {
+            path,
+            baud,
+            port: Some(port),
+            decoder: StreamDecoder::default(),
+            rx: vec![0; 4096],
+            retry_at: Instant::now(),
+            backoff: Duration::from_millis(100),
+        })
+    }
+
+    fn open_port(path: &Path, baud: u32) -> serialport::Result<serialport::TTYPort> {
+        serialport::new(path.to_string_lossy(), baud)
+            .timeout(Duration::from_millis(10))
+            .open_native()
+    }
+
+    fn lost(&mut self, e: &dyn std::fmt::Display) {
+        tracing::error!(port = %self.path.display(), "serial link lost: {e}; reopening");
+        self.port = None;
+        self.decoder = StreamDecoder::default();
+        self.backoff = Duration::from_millis(100);
+        self.retry_at = Instant::now() + self.backoff;
+    }
+}
+
+impl SensorLink for SerialLink {
+    fn receive(&mut self, timeout: Duration, into: &mut Decoded) -> io::Result<bool> {
+        use std::io::Read;
+        let Some(port) = self.port.as_mut() else {
+            let now = Instant::now();
+            if now < self.retry_at {
+                std::thread::sleep(timeout.min(self.retry_at - now));
+                return Ok(false);
+            }
+            match Self::open_port(&self.path, self.baud) {
+                Ok(p) => {
+                    tracing::info!(port = %self.path.display(), "serial link back");
+                    self.port = Some(p);
+                }
+                Err(e) => {
+                    tracing::debug!(port = %self.path.display(), "still no serial port: {e}");
+                    self.backoff = (self.backoff * 2).min(Duration::from_secs(2));
+                    self.retry_at = now + self.backoff;
+                }
+            }
+            return Ok(false);
+        };
+        serialport::SerialPort::set_timeout(port, timeout)?;
+        let before = into.messages.len();
+        match port.read(&mut self.rx) {
+            // End of file: the other side closed (a pty whose simulator exited).
+            Ok(0) => {
+                self.lost(&"end of stream");
+                Ok(false)
+            }
+            Ok(n) => {
+                self.decoder.push(&self.rx[..n], into);
+                Ok(into.messages.len() > before)
+            }
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    io::ErrorKind::TimedOut
+                        | io::ErrorKind::WouldBlock
+                        | io::ErrorKind::Interrupted
+                ) =>
+            {
+                Ok(false)
+            }
+            Err(e) => {
+                self.lost(&e);
+                Ok(false)
+            }
+        }
+    }
+
+    fn send(&mut self, bytes: &[u8]) -> io::Result<()> {
+        use std::io::Write;
+        let Some(port) = self.port.as_mut() else {
+            return Ok(());
+        };
+        if let Err(e) = port.write_all(bytes) {
+            self.lost(&e);
+        }
+        Ok(())
+    }
+
+    fn describe(&self) -> String {
+        format!("serial://{}?baud={}", self.path.display(), self.baud)
     }
 }
 

@@ -16,7 +16,7 @@ use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use flight_core::params::FlightParams;
 use flight_csv::FlightCsv;
-use link::{Source, UdpLink};
+use link::{SensorLink, SerialLink, Source, UdpLink};
 use sim::EmbeddedSim;
 use sitl_core::Airframe;
 use sitl_core::sensors::SensorPreset;
@@ -193,10 +193,11 @@ fn fly(cli: &Cli, source: &str) -> Result<()> {
             tracing::info!(listening = %link.local_addr()?, airframe = %airframe.name, "waiting for a simulator");
             flight::fly(&mut link, &mut vehicle, system_id, &interrupts)?
         }
-        Source::Serial { path, .. } => bail!(
-            "{}: the serial link to a flight board is not built yet",
-            path.display()
-        ),
+        Source::Serial { path, baud } => {
+            let mut link = SerialLink::open(path, baud)?;
+            tracing::info!(port = %link.describe(), airframe = %airframe.name, "waiting for the flight board");
+            flight::fly(&mut link, &mut vehicle, system_id, &interrupts)?
+        }
     };
     vehicle.finish_log()?;
     println!("{report}");

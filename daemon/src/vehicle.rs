@@ -22,6 +22,8 @@ pub struct Vehicle {
     sequence: FlightSequence,
     update: SensorUpdate,
     last: Option<StepOutput>,
+    last_answer: Option<(u64, MavMessage)>,
+    repeated_frames: u64,
     rotors: usize,
     nominal_v: f64,
     score: FlightScore,
@@ -61,6 +63,8 @@ impl Vehicle {
             }),
             update: SensorUpdate::default(),
             last: None,
+            last_answer: None,
+            repeated_frames: 0,
             rotors: airframe.rotors.len(),
             nominal_v: 3.8 * airframe.battery.cells as f64,
             score: FlightScore::new(takeoff_m),
@@ -95,6 +99,11 @@ impl Vehicle {
         &self.score
     }
 
+    /// Sensor frames that repeated or went back in time, answered or dropped without a step.
+    pub fn repeated_frames(&self) -> u64 {
+        self.repeated_frames
+    }
+
     /// Lands now.
     pub fn request_land(&mut self) {
         self.sequence.request_land();
@@ -107,6 +116,24 @@ impl Vehicle {
         }
         let u = &mut self.update;
         let (t_usec, gyro, accel) = (u.time_usec?, u.gyro_frd?, u.accel_frd?);
+        if let (Some((t_last, answer)), Some(output)) = (&self.last_answer, self.last)
+            && t_usec <= *t_last
+        {
+            // A frame seen before (a lockstep simulator resends until it hears an answer; a
+            // serial line delivers what queued before the port was opened): answer it again
+            // without stepping; an older one is stale and dropped.
+            self.repeated_frames += 1;
+            u.mag_frd = None;
+            u.pressure_alt_m = None;
+            u.gps = None;
+            u.rotor_speed_rad_s = None;
+            u.truth = None;
+            return (t_usec == *t_last).then(|| Step {
+                message: answer.clone(),
+                output,
+                t_s: t_usec as f64 * 1e-6,
+            });
+        }
         let sample = SensorSample {
             t_usec,
             gyro,
@@ -178,8 +205,10 @@ impl Vehicle {
                 self.csv_error = Some(e);
             }
         }
+        let message = hil::actuator_controls(t_usec, &output.commands[..self.rotors], armed);
+        self.last_answer = Some((t_usec, message.clone()));
         Some(Step {
-            message: hil::actuator_controls(t_usec, &output.commands[..self.rotors], armed),
+            message,
             output,
             t_s,
         })

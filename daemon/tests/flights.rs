@@ -250,3 +250,95 @@ fn one_seed_one_flight_in_process_and_over_udp() {
             .unwrap_or(common)
     );
 }
+
+/// The same flight over a serial line: `sitl --serial pty` opens a pseudo-terminal pair and plays
+/// the flight board on one end, the autopilot opens the other as `serial:///dev/pts/N`. Frames
+/// that queued in the line before the autopilot opened it are answered, not flown twice, so the
+/// flight is the in-process one, byte for byte.
+#[test]
+fn the_same_flight_over_a_serial_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let (local, serial) = (dir.path().join("local.csv"), dir.path().join("serial.csv"));
+    let reference = embedded("quad_x", 5, Some(&local));
+    let mut sitl = spawn(
+        &sitl_exe(),
+        &[
+            "--serial",
+            "pty",
+            "--airframe",
+            "quad_x",
+            "--seed",
+            "5",
+            "--duration",
+            "300",
+            "--connect-timeout",
+            "30",
+            "--status-interval",
+            "0",
+            "--truth-csv",
+            serial.to_str().unwrap(),
+        ],
+    );
+    // The first line names the autopilot's end of the line; read it on a thread so that a
+    // simulator that never prints cannot hang the test.
+    let stdout = sitl.stdout.take().unwrap();
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        use std::io::BufRead;
+        let mut reader = std::io::BufReader::new(stdout);
+        let mut line = String::new();
+        let _ = reader.read_line(&mut line);
+        let _ = tx.send(line);
+        // Keep reading to the end: a closed pipe would fail sitl's summary.
+        let _ = std::io::copy(&mut reader, &mut std::io::sink());
+    });
+    let line = rx.recv_timeout(Duration::from_secs(30)).unwrap_or_default();
+    let Some(device) = line.trim().strip_prefix("sitl serial: ") else {
+        sitl.kill().unwrap();
+        panic!("sitl did not name its pseudo-terminal: {line:?}");
+    };
+    let source = format!("serial://{device}");
+    let mut args = vec!["--source", &source, "--airframe", "quad_x"];
+    args.extend(FLIGHT);
+    let over_serial = summary(&wait(
+        spawn(&autopilot_exe(), &args),
+        "autopilot --source serial",
+        Duration::from_secs(120),
+    ));
+    let status = Command::new("kill")
+        .args(["-INT", &sitl.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let sitl_out = wait(sitl, "sitl --serial", Duration::from_secs(30));
+    assert!(
+        sitl_out.status.success(),
+        "sitl: {}",
+        tail(&sitl_out.stderr)
+    );
+
+    assert_eq!(over_serial["malformed"], "0");
+    assert_eq!(over_serial["disarmed"], "true");
+    for key in [
+        "max_alt_m",
+        "hover_alt_rms_m",
+        "attitude_rms_deg",
+        "touchdown_m_s",
+    ] {
+        assert_eq!(
+            reference[key], over_serial[key],
+            "{key} in-process vs serial"
+        );
+    }
+    let (a, b) = (
+        std::fs::read(&local).unwrap(),
+        std::fs::read(&serial).unwrap(),
+    );
+    let common = a.len().min(b.len());
+    assert!(common > 100_000, "a whole flight of truth rows");
+    assert!(
+        a[..common] == b[..common],
+        "truth over serial differs from in-process at byte {}",
+        a.iter().zip(&b).position(|(x, y)| x != y).unwrap_or(common)
+    );
+}

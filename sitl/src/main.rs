@@ -12,6 +12,7 @@ use clap::{Parser, ValueEnum};
 use sitl_core::scenario::Scenario;
 use sitl_core::sensors::{SensorConfig, SensorPreset};
 use sitl_core::{Airframe, Integrator};
+use std::io::Write;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 
@@ -49,6 +50,14 @@ pub struct Cli {
     /// Instance number N: talks to autopilot port 4560 + N (several vehicles on one machine).
     #[arg(short = 'i', long, default_value_t = 0)]
     pub instance: u16,
+    /// Talk over a serial line instead of UDP, playing the flight board: a device such as
+    /// /dev/ttyUSB0, or `pty` to open a new pseudo-terminal pair and print the autopilot's end
+    /// (`sitl serial: /dev/pts/N`) for `autopilot --source serial:///dev/pts/N`.
+    #[arg(long, value_name = "DEVICE|pty")]
+    pub serial: Option<String>,
+    /// Baud rate of --serial (a pseudo-terminal ignores it).
+    #[arg(long, default_value_t = 921_600)]
+    pub baud: u32,
     /// Local UDP address to bind.
     #[arg(long, default_value = "127.0.0.1:0", value_name = "ADDR")]
     pub bind: SocketAddr,
@@ -207,6 +216,7 @@ fn try_main(cli: &Cli) -> Result<()> {
     } else {
         run::hil(&scenario, cli, speed, &stop)?
     };
-    println!("{summary}");
+    // A closed stdout (a reader that went away) is no reason to fail a finished run.
+    let _ = writeln!(std::io::stdout(), "{summary}");
     Ok(())
 }

@@ -2,7 +2,7 @@
 
 use crate::{Cli, Mode};
 use anyhow::{Context, Result, bail};
-use hil::{ActuatorCommand, SimulatorEnd};
+use hil::{ActuatorCommand, Decoded, SimulatorEnd, StreamDecoder};
 use mavlink::dialects::common::MavMessage;
 use sitl_core::airframe::MAX_ROTORS;
 use sitl_core::scenario::{OpenLoopCommand, Scenario};
@@ -234,17 +234,30 @@ pub fn hil(
 ) -> Result<Summary> {
     let sim = build(scenario)?;
     let mut truth = open_truth(cli, &sim)?;
-    let socket = UdpSocket::bind(cli.bind).with_context(|| format!("binding {}", cli.bind))?;
-    let mut target = cli.autopilot;
-    target.set_port(
-        target
-            .port()
-            .checked_add(cli.instance)
-            .context("--instance pushes the autopilot port past 65535")?,
-    );
     let mut end = SimulatorEnd::new(sim, cli.hil_rate);
+    let (transport, target): (Box<dyn Transport>, String) = match &cli.serial {
+        Some(path) => {
+            let t = SerialTransport::open(path, cli.baud)?;
+            let name = t.name().to_owned();
+            // Scripts read this line to learn the device of a new pseudo-terminal.
+            println!("sitl serial: {name}");
+            (Box::new(t), name)
+        }
+        None => {
+            let mut target = cli.autopilot;
+            target.set_port(
+                target
+                    .port()
+                    .checked_add(cli.instance)
+                    .context("--instance pushes the autopilot port past 65535")?,
+            );
+            let t = UdpTransport::new(cli.bind, target)?;
+            tracing::info!(local = %t.local_addr()?, "UDP bound");
+            (Box::new(t), target.to_string())
+        }
+    };
     tracing::info!(
-        airframe = %end.sim().airframe().name, autopilot = %target, local = %socket.local_addr()?,
+        airframe = %end.sim().airframe().name, autopilot = %target,
         mode = ?cli.mode, physics_hz = 1.0 / end.sim().config().dt_s, exchange_hz = end.exchange_hz(),
         "simulator ready"
     );
@@ -255,7 +268,7 @@ pub fn hil(
     };
     let mut status = Status::new(cli.status_interval);
     let mut summary = Summary::default();
-    let mut link = Link::new(socket, target);
+    let mut link = Link::new(transport);
     let mut connected = false;
     let timeout = Duration::from_millis(cli.timeout_ms.max(1));
     let mut last_timeout_log: Option<Instant> = None;
@@ -326,27 +339,52 @@ pub fn hil(
     Ok(finish(end.sim(), started, summary))
 }
 
-/// The UDP side of the HIL link.
-struct Link {
+/// How the HIL bytes travel: UDP datagrams, or a serial byte stream.
+pub trait Transport {
+    /// Sends one exchange's messages.
+    fn send(&mut self, bytes: &[u8]) -> Result<()>;
+    /// Waits up to `timeout` (zero: only what is already there) and appends what arrived to
+    /// `into`. Returns false when nothing did.
+    fn receive(&mut self, timeout: Duration, into: &mut Decoded) -> Result<bool>;
+}
+
+/// UDP to the autopilot's port.
+pub struct UdpTransport {
     socket: UdpSocket,
     target: SocketAddr,
-    out: Vec<u8>,
     rx: Vec<u8>,
 }
 
-impl Link {
-    fn new(socket: UdpSocket, target: SocketAddr) -> Self {
-        Self {
+impl UdpTransport {
+    /// Binds `bind`, talking to `target`.
+    pub fn new(bind: SocketAddr, target: SocketAddr) -> Result<Self> {
+        let socket = UdpSocket::bind(bind).with_context(|| format!("binding {bind}"))?;
+        Ok(Self {
             socket,
             target,
-            out: Vec::with_capacity(1024),
             rx: vec![0; 65_536],
-        }
+        })
     }
 
-    /// Sends `out` (one exchange's messages) as one datagram.
-    fn send(&mut self) -> Result<()> {
-        match self.socket.send_to(&self.out, self.target) {
+    /// Where the datagrams come from.
+    pub fn local_addr(&self) -> Result<SocketAddr> {
+        Ok(self.socket.local_addr()?)
+    }
+}
+
+fn quiet(e: &std::io::Error) -> bool {
+    matches!(
+        e.kind(),
+        std::io::ErrorKind::WouldBlock
+            | std::io::ErrorKind::TimedOut
+            | std::io::ErrorKind::Interrupted
+            | std::io::ErrorKind::ConnectionRefused
+    )
+}
+
+impl Transport for UdpTransport {
+    fn send(&mut self, bytes: &[u8]) -> Result<()> {
+        match self.socket.send_to(bytes, self.target) {
             Ok(_) => Ok(()),
             // Nobody listening yet (ICMP port unreachable): keep going, the autopilot may start later.
             Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => Ok(()),
@@ -354,17 +392,129 @@ impl Link {
         }
     }
 
+    fn receive(&mut self, timeout: Duration, into: &mut Decoded) -> Result<bool> {
+        if timeout.is_zero() {
+            self.socket.set_nonblocking(true)?;
+        } else {
+            self.socket.set_nonblocking(false)?;
+            self.socket.set_read_timeout(Some(timeout))?;
+        }
+        match self.socket.recv_from(&mut self.rx) {
+            Ok((len, _)) => {
+                let d = hil::decode(&self.rx[..len]);
+                into.messages.extend(d.messages);
+                into.malformed += d.malformed;
+                Ok(true)
+            }
+            Err(e) if quiet(&e) => Ok(false),
+            Err(e) => Err(e).context("receiving HIL_ACTUATOR_CONTROLS"),
+        }
+    }
+}
+
+/// A serial line (or one end of a pseudo-terminal pair): the simulator plays the flight board.
+pub struct SerialTransport {
+    port: serialport::TTYPort,
+    name: String,
+    decoder: StreamDecoder,
+    rx: Vec<u8>,
+    /// The other end of a pair this process opened, kept open so the line stays up until the
+    /// autopilot opens it by name.
+    _peer: Option<serialport::TTYPort>,
+}
+
+impl SerialTransport {
+    /// Opens `path` at `baud`, or, for `pty`, a new pseudo-terminal pair whose far end
+    /// ([`SerialTransport::name`]) is for the autopilot.
+    pub fn open(path: &str, baud: u32) -> Result<Self> {
+        let (port, name, peer) = if path == "pty" {
+            let (ours, theirs) =
+                serialport::TTYPort::pair().context("opening a pseudo-terminal pair")?;
+            let name =
+                serialport::SerialPort::name(&theirs).context("the pseudo-terminal has no name")?;
+            (ours, name, Some(theirs))
+        } else {
+            let port = serialport::new(path, baud)
+                .timeout(Duration::from_millis(10))
+                .open_native()
+                .with_context(|| format!("opening serial port {path}"))?;
+            (port, path.to_owned(), None)
+        };
+        Ok(Self {
+            port,
+            name,
+            decoder: StreamDecoder::default(),
+            rx: vec![0; 4096],
+            _peer: peer,
+        })
+    }
+
+    /// The device the autopilot opens.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+}
+
+impl Transport for SerialTransport {
+    fn send(&mut self, bytes: &[u8]) -> Result<()> {
+        use std::io::Write;
+        self.port
+            .write_all(bytes)
+            .with_context(|| format!("writing to {}", self.name))
+    }
+
+    fn receive(&mut self, timeout: Duration, into: &mut Decoded) -> Result<bool> {
+        use serialport::SerialPort;
+        use std::io::Read;
+        self.port.set_timeout(timeout)?;
+        let before = into.messages.len();
+        match self.port.read(&mut self.rx) {
+            Ok(n) => {
+                self.decoder.push(&self.rx[..n], into);
+                Ok(into.messages.len() > before)
+            }
+            Err(e) if quiet(&e) => Ok(false),
+            // No autopilot has the far end open yet (a pty's master reads EIO until then).
+            Err(e) if e.raw_os_error() == Some(5) => {
+                std::thread::sleep(timeout.min(Duration::from_millis(50)));
+                Ok(false)
+            }
+            Err(e) => Err(e).with_context(|| format!("reading {}", self.name)),
+        }
+    }
+}
+
+/// The simulator's side of the HIL link over a transport.
+struct Link {
+    transport: Box<dyn Transport>,
+    out: Vec<u8>,
+    decoded: Decoded,
+}
+
+impl Link {
+    fn new(transport: Box<dyn Transport>) -> Self {
+        Self {
+            transport,
+            out: Vec::with_capacity(1024),
+            decoded: Decoded::default(),
+        }
+    }
+
+    /// Sends `out` (one exchange's messages).
+    fn send(&mut self) -> Result<()> {
+        self.transport.send(&self.out)
+    }
+
+    /// Counts what arrived; keeps the newest command (answering `time_usec`, if given).
     fn handle(
         &mut self,
-        len: usize,
         time_usec: Option<u64>,
         s: &mut Summary,
         latest: &mut Option<ActuatorCommand>,
     ) -> bool {
-        let decoded = hil::decode(&self.rx[..len]);
-        s.malformed += decoded.malformed as u64;
+        s.malformed += self.decoded.malformed as u64;
         let mut matched = false;
-        for (_, msg) in decoded.messages {
+        for (_, msg) in self.decoded.messages.drain(..) {
             match msg {
                 MavMessage::HIL_ACTUATOR_CONTROLS(m) => {
                     s.actuator_messages += 1;
@@ -380,6 +530,7 @@ impl Link {
                 _ => s.other_messages += 1,
             }
         }
+        self.decoded.malformed = 0;
         matched
     }
 
@@ -397,49 +548,20 @@ impl Link {
             if now >= deadline {
                 return Ok(None);
             }
-            self.socket.set_read_timeout(Some(deadline - now))?;
-            match self.socket.recv_from(&mut self.rx) {
-                Ok((len, _)) => {
-                    if self.handle(len, Some(time_usec), s, &mut latest) {
-                        return Ok(latest);
-                    }
-                }
-                Err(e)
-                    if matches!(
-                        e.kind(),
-                        std::io::ErrorKind::WouldBlock
-                            | std::io::ErrorKind::TimedOut
-                            | std::io::ErrorKind::Interrupted
-                            | std::io::ErrorKind::ConnectionRefused
-                    ) => {}
-                Err(e) => return Err(e).context("receiving HIL_ACTUATOR_CONTROLS"),
+            self.transport.receive(deadline - now, &mut self.decoded)?;
+            if self.handle(Some(time_usec), s, &mut latest) {
+                return Ok(latest);
             }
         }
     }
 
     /// Real time: takes whatever arrived, keeping the newest command.
     fn drain(&mut self, s: &mut Summary) -> Result<Option<ActuatorCommand>> {
-        self.socket.set_nonblocking(true)?;
         let mut latest = None;
-        loop {
-            match self.socket.recv_from(&mut self.rx) {
-                Ok((len, _)) => {
-                    self.handle(len, None, s, &mut latest);
-                }
-                Err(e)
-                    if matches!(
-                        e.kind(),
-                        std::io::ErrorKind::WouldBlock
-                            | std::io::ErrorKind::Interrupted
-                            | std::io::ErrorKind::ConnectionRefused
-                    ) =>
-                {
-                    break;
-                }
-                Err(e) => return Err(e).context("receiving HIL_ACTUATOR_CONTROLS"),
-            }
+        while self.transport.receive(Duration::ZERO, &mut self.decoded)? {
+            self.handle(None, s, &mut latest);
         }
-        self.socket.set_nonblocking(false)?;
+        self.handle(None, s, &mut latest);
         Ok(latest)
     }
 }
