@@ -294,8 +294,15 @@ fn the_same_flight_over_a_serial_line() {
     });
     let line = rx.recv_timeout(Duration::from_secs(30)).unwrap_or_default();
     let Some(device) = line.trim().strip_prefix("sitl serial: ") else {
-        sitl.kill().unwrap();
-        panic!("sitl did not name its pseudo-terminal: {line:?}");
+        let _ = sitl.kill();
+        let out = sitl.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        if err.contains("opening a pseudo-terminal pair") {
+            // A machine without /dev/ptmx cannot run this test at all; say so loudly.
+            eprintln!("SKIPPED the serial flight: this machine has no pseudo-terminals: {err}");
+            return;
+        }
+        panic!("sitl did not name its pseudo-terminal: {line:?}\n{err}");
     };
     let source = format!("serial://{device}");
     let mut args = vec!["--source", &source, "--airframe", "quad_x"];
