@@ -1,5 +1,6 @@
-//! End to end: the `autopilot` binary flies take-off, hover and landing in lockstep, in the
-//! embedded simulator and against a `sitl` process over UDP, and one seed flies one flight.
+//! End to end: the `autopilot` binary as a user runs it. It flies take-off, hover and landing in
+//! lockstep in the embedded simulator, against a `sitl` process over UDP and over a serial line
+//! (one seed, one flight), and refuses what it cannot fly.
 
 // Test code: a failed unwrap is a failed test.
 #![allow(clippy::unwrap_used)]
@@ -79,6 +80,19 @@ fn summary(out: &Output) -> HashMap<String, String> {
         .filter_map(|kv| kv.split_once('='))
         .map(|(k, v)| (k.to_owned(), v.to_owned()))
         .collect()
+}
+
+/// The flight is over: Ctrl-C the simulator as a person would, so that it writes its truth and
+/// summary and exits cleanly.
+fn interrupt(sitl: Child) -> Output {
+    let status = Command::new("kill")
+        .args(["-INT", &sitl.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let out = wait(sitl, "sitl", Duration::from_secs(30));
+    assert!(out.status.success(), "sitl: {}", tail(&out.stderr));
+    out
 }
 
 fn figure(s: &HashMap<String, String>, key: &str) -> f64 {
@@ -212,24 +226,12 @@ fn one_seed_one_flight_in_process_and_over_udp() {
             udp.to_str().unwrap(),
         ],
     );
-    let sitl_pid = sitl.id();
     let over_udp = summary(&wait(
         autopilot,
         "autopilot --source udp",
         Duration::from_secs(120),
     ));
-    // The flight is over; Ctrl-C the simulator as a person would, so it writes its summary.
-    let status = Command::new("kill")
-        .args(["-INT", &sitl_pid.to_string()])
-        .status()
-        .unwrap();
-    assert!(status.success());
-    let sitl_out = wait(sitl, "sitl", Duration::from_secs(30));
-    assert!(
-        sitl_out.status.success(),
-        "sitl: {}",
-        tail(&sitl_out.stderr)
-    );
+    let sitl_out = interrupt(sitl);
     let sitl_summary = String::from_utf8_lossy(&sitl_out.stdout);
     assert!(sitl_summary.contains("malformed=0"), "{sitl_summary}");
 
@@ -312,17 +314,7 @@ fn the_same_flight_over_a_serial_line() {
         "autopilot --source serial",
         Duration::from_secs(120),
     ));
-    let status = Command::new("kill")
-        .args(["-INT", &sitl.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(status.success());
-    let sitl_out = wait(sitl, "sitl --serial", Duration::from_secs(30));
-    assert!(
-        sitl_out.status.success(),
-        "sitl: {}",
-        tail(&sitl_out.stderr)
-    );
+    interrupt(sitl);
 
     assert_eq!(over_serial["malformed"], "0");
     assert_eq!(over_serial["disarmed"], "true");
@@ -347,5 +339,34 @@ fn the_same_flight_over_a_serial_line() {
         a[..common] == b[..common],
         "truth over serial differs from in-process at byte {}",
         a.iter().zip(&b).position(|(x, y)| x != y).unwrap_or(common)
+    );
+}
+
+/// Bad command lines and parameter files stop the daemon with a message that names the problem.
+#[test]
+fn refuses_what_it_cannot_fly() {
+    let autopilot = |args: &[&str]| {
+        wait(
+            spawn(&autopilot_exe(), args),
+            "autopilot",
+            Duration::from_secs(60),
+        )
+    };
+    let o = autopilot(&[]);
+    assert!(!o.status.success(), "no arguments: help, not a flight");
+    let o = autopilot(&["--takeoff", "5"]);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("no sensor source: give --sim"));
+    let o = autopilot(&["--sim", "--speed", "0"]);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--speed must be a positive factor"));
+    let o = autopilot(&["--sim", "--airframe", "tricopter"]);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("tricopter.toml: cannot read"));
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(&bad, "[position]\nmax_tilt_deg = 120.0\n").unwrap();
+    let o = autopilot(&["--sim", "--params", bad.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("`position.max_tilt_deg`: must be within [5, 80] deg, got 120"),
+        "{err}"
     );
 }
