@@ -83,6 +83,15 @@ impl Source {
     }
 }
 
+/// A read that ended without data and without a fault: timed out, would block, or interrupted
+/// by a signal (Ctrl-C).
+fn nothing_yet(e: &io::Error) -> bool {
+    matches!(
+        e.kind(),
+        io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut | io::ErrorKind::Interrupted
+    )
+}
+
 /// A simulator process on UDP: binds the autopilot's port, answers whoever sent the last frame.
 pub struct UdpLink {
     socket: UdpSocket,
@@ -124,17 +133,8 @@ impl SensorLink for UdpLink {
                 into.malformed += d.malformed;
                 Ok(true)
             }
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    io::ErrorKind::WouldBlock
-                        | io::ErrorKind::TimedOut
-                        | io::ErrorKind::Interrupted
-                        | io::ErrorKind::ConnectionRefused
-                ) =>
-            {
-                Ok(false)
-            }
+            // Connection refused: an ICMP answer to an earlier send; the simulator may come back.
+            Err(e) if nothing_yet(&e) || e.kind() == io::ErrorKind::ConnectionRefused => Ok(false),
             Err(e) => Err(e),
         }
     }
@@ -237,16 +237,7 @@ impl SensorLink for SerialLink {
                 self.decoder.push(&self.rx[..n], into);
                 Ok(into.messages.len() > before)
             }
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    io::ErrorKind::TimedOut
-                        | io::ErrorKind::WouldBlock
-                        | io::ErrorKind::Interrupted
-                ) =>
-            {
-                Ok(false)
-            }
+            Err(e) if nothing_yet(&e) => Ok(false),
             Err(e) => {
                 self.lost(&e);
                 Ok(false)

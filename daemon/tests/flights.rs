@@ -82,6 +82,28 @@ fn summary(out: &Output) -> HashMap<String, String> {
         .collect()
 }
 
+/// `sitl` on `link` (its link flags), simulating `airframe` with `seed`, writing its truth to
+/// `truth_csv`; it waits up to 30 s for the autopilot and runs until interrupted.
+fn spawn_sitl(link: &[&str], airframe: &str, seed: u64, truth_csv: &Path) -> Child {
+    let seed = seed.to_string();
+    let mut args = link.to_vec();
+    args.extend([
+        "--airframe",
+        airframe,
+        "--seed",
+        &seed,
+        "--duration",
+        "300",
+        "--connect-timeout",
+        "30",
+        "--status-interval",
+        "0",
+        "--truth-csv",
+        truth_csv.to_str().unwrap(),
+    ]);
+    spawn(&sitl_exe(), &args)
+}
+
 /// The flight is over: Ctrl-C the simulator as a person would, so that it writes its truth and
 /// summary and exits cleanly.
 fn interrupt(sitl: Child) -> Output {
@@ -207,25 +229,7 @@ fn one_seed_one_flight_in_process_and_over_udp() {
     args.extend(FLIGHT);
     let autopilot = spawn(&autopilot_exe(), &args);
     let target = format!("127.0.0.1:{port}");
-    let sitl = spawn(
-        &sitl_exe(),
-        &[
-            "--autopilot",
-            &target,
-            "--airframe",
-            "hexa_x",
-            "--seed",
-            "7",
-            "--duration",
-            "300",
-            "--connect-timeout",
-            "30",
-            "--status-interval",
-            "0",
-            "--truth-csv",
-            udp.to_str().unwrap(),
-        ],
-    );
+    let sitl = spawn_sitl(&["--autopilot", &target], "hexa_x", 7, &udp);
     let over_udp = summary(&wait(
         autopilot,
         "autopilot --source udp",
@@ -262,25 +266,7 @@ fn the_same_flight_over_a_serial_line() {
     let dir = tempfile::tempdir().unwrap();
     let (local, serial) = (dir.path().join("local.csv"), dir.path().join("serial.csv"));
     let reference = embedded("quad_x", 5, Some(&local));
-    let mut sitl = spawn(
-        &sitl_exe(),
-        &[
-            "--serial",
-            "pty",
-            "--airframe",
-            "quad_x",
-            "--seed",
-            "5",
-            "--duration",
-            "300",
-            "--connect-timeout",
-            "30",
-            "--status-interval",
-            "0",
-            "--truth-csv",
-            serial.to_str().unwrap(),
-        ],
-    );
+    let mut sitl = spawn_sitl(&["--serial", "pty"], "quad_x", 5, &serial);
     // The first line names the autopilot's end of the line; read it on a thread so that a
     // simulator that never prints cannot hang the test.
     let stdout = sitl.stdout.take().unwrap();
