@@ -16,8 +16,16 @@ use std::time::{Duration, Instant};
 /// never will, and the flight stops with the reason instead of waiting forever.
 const READY_TIMEOUT_S: f64 = 60.0;
 
-/// Wall-clock time without any sensor frame before the loop says so.
+/// Wall-clock time without any sensor frame before the loop says so (before the first frame,
+/// or from a lockstep simulator, whose world waits).
 const SILENCE_WARNING: Duration = Duration::from_secs(2);
+
+/// Silence of the sensor frames, on the link's clock, after which the estimate is invalid and
+/// the vehicle reacts (s). With the loop's poll period below, the reaction starts within 0.1 s.
+pub const SENSOR_TIMEOUT_S: f64 = 0.08;
+
+/// How long one wait for frames lasts: the watchdog's resolution.
+const POLL: Duration = Duration::from_millis(10);
 
 /// What happened, printed as one `key=value` line at the end.
 #[derive(Debug, Default)]
@@ -30,6 +38,7 @@ pub struct FlightReport {
     repeated: u64,
     score: FlightScore,
     disarmed: bool,
+    sensor_timeouts: u64,
 }
 
 impl std::fmt::Display for FlightReport {
@@ -37,7 +46,7 @@ impl std::fmt::Display for FlightReport {
         let opt = |x: Option<f64>| x.map_or("nan".to_owned(), |x| format!("{x:.3}"));
         write!(
             f,
-            "autopilot summary: source={} sim_time_s={:.2} wall_time_s={:.2} realtime_factor={:.1} frames={} frames_per_s={:.0} malformed={} repeated={} max_alt_m={:.2} hover_alt_rms_m={} hover_drift_rms_m={} attitude_rms_deg={} touchdown_m_s={:.2} landed={} disarmed={}",
+            "autopilot summary: source={} sim_time_s={:.2} wall_time_s={:.2} realtime_factor={:.1} frames={} frames_per_s={:.0} malformed={} repeated={} sensor_timeouts={} max_alt_m={:.2} hover_alt_rms_m={} hover_drift_rms_m={} attitude_rms_deg={} touchdown_m_s={:.2} landed={} disarmed={}",
             self.source,
             self.sim_time_s,
             self.wall_time_s,
@@ -46,6 +55,7 @@ impl std::fmt::Display for FlightReport {
             self.frames as f64 / self.wall_time_s.max(1e-9),
             self.malformed,
             self.repeated,
+            self.sensor_timeouts,
             self.score.max_height_m,
             opt(self.score.hover_alt_rms_m()),
             opt(self.score.hover_drift_rms_m()),
@@ -79,6 +89,10 @@ pub fn fly(
     let mut silence_logged = false;
     let mut done_at = None;
     let mut t_s = 0.0;
+    // The watchdog: the link-clock time of the last frame, and whether the vehicle has reacted.
+    let mut last_frame_clock: Option<f64> = None;
+    let mut silent = false;
+    let mut silent_done_at = None;
     'flight: loop {
         match interrupts.load(Ordering::Relaxed) {
             0 => {}
@@ -88,9 +102,29 @@ pub fn fly(
         decoded.messages.clear();
         decoded.malformed = 0;
         let arrived = link
-            .receive(Duration::from_millis(100), &mut decoded)
+            .receive(POLL, &mut decoded)
             .with_context(|| format!("reading {}", link.describe()))?;
         report.malformed += decoded.malformed as u64;
+        if let (Some(now), Some(last)) = (link.silence_clock_s(), last_frame_clock)
+            && now - last >= SENSOR_TIMEOUT_S
+        {
+            if !silent {
+                silent = true;
+                report.sensor_timeouts += 1;
+                vehicle.sensors_stopped();
+            }
+            // Keep the motors on the failsafe's command (a board wants a steady stream).
+            answer.clear();
+            encoder.push(&mut answer, &vehicle.silent_answer(now - last));
+            link.send(&answer)
+                .with_context(|| format!("answering on {}", link.describe()))?;
+            if vehicle.phase() == Phase::Done {
+                // Disarmed by the failsafe: a second more of motors-off, then stop.
+                if now - *silent_done_at.get_or_insert(now) > 1.0 {
+                    break 'flight;
+                }
+            }
+        }
         if !arrived {
             if !silence_logged && last_frame.elapsed() > SILENCE_WARNING {
                 tracing::warn!(
@@ -109,6 +143,12 @@ pub fn fly(
             };
             last_frame = Instant::now();
             silence_logged = false;
+            last_frame_clock = link.silence_clock_s();
+            if silent {
+                silent = false;
+                silent_done_at = None;
+                vehicle.sensors_resumed();
+            }
             report.frames += 1;
             t_s = step.t_s;
             answer.clear();
@@ -175,5 +215,291 @@ fn status(out: &StepOutput, phase: Phase, t_s: f64, wall_s: f64, tty: bool) {
         let _ = stdout.flush();
     } else {
         let _ = writeln!(stdout, "{line}");
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    //! Sensors that stop, flown in the embedded simulator: the link below loses frames or
+    //! messages on cue while the world goes on, and keeps its own clock (the simulation time),
+    //! so every run is the same run.
+    #![allow(clippy::unwrap_used)]
+
+    use super::*;
+    use crate::sim::{EXCHANGE_HZ, EmbeddedSim};
+    use flight_core::params::FlightParams;
+    use mavlink::dialects::common::MavMessage;
+    use nalgebra::Vector3;
+    use sitl_core::Airframe;
+    use sitl_core::sensors::SensorPreset;
+    use std::io;
+    use std::path::PathBuf;
+
+    /// What stops, and when.
+    #[derive(Clone, Copy)]
+    enum Fault {
+        /// All frames, `after_s` after take-off (0: at once), for `for_s` seconds.
+        Frames { after_s: f64, for_s: f64 },
+        /// All frames, half a second after arming, on the ground, for good.
+        FramesOnGround,
+        /// The GPS messages, two seconds into the hover, for good.
+        Gps,
+    }
+
+    struct FaultyLink {
+        sim: EmbeddedSim,
+        fault: Fault,
+        /// Simulation time the fault began, once it has.
+        began_s: Option<f64>,
+        lost_until_s: f64,
+        armed_at_s: Option<f64>,
+        hover_from_s: Option<f64>,
+        last_frame_s: f64,
+        silent_waits: u32,
+        reaction_s: Option<f64>,
+        last_answer_armed: bool,
+        max_tilt_after_deg: f64,
+        touchdown_m_s: f64,
+        max_height_m: f64,
+        horizontal_at_fault: Vector3<f64>,
+        max_drift_after_m: f64,
+    }
+
+    impl FaultyLink {
+        fn new(fault: Fault) -> Self {
+            let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../params");
+            let airframe = Airframe::load(&dir.join("airframes/quad_x.toml")).unwrap();
+            Self {
+                sim: EmbeddedSim::new(&airframe, 3, SensorPreset::Typical, None, None).unwrap(),
+                fault,
+                began_s: None,
+                lost_until_s: 0.0,
+                armed_at_s: None,
+                hover_from_s: None,
+                last_frame_s: 0.0,
+                silent_waits: 0,
+                reaction_s: None,
+                last_answer_armed: false,
+                max_tilt_after_deg: 0.0,
+                touchdown_m_s: 0.0,
+                max_height_m: 0.0,
+                horizontal_at_fault: Vector3::zeros(),
+                max_drift_after_m: 0.0,
+            }
+        }
+
+        fn now_s(&self) -> f64 {
+            self.sim.truth().time_usec as f64 * 1e-6
+        }
+
+        /// Watches the truth after every exchange.
+        fn observe(&mut self) {
+            let truth = self.sim.truth();
+            let t = self.now_s();
+            let height = -truth.body.pos_ned_m.z;
+            self.max_height_m = self.max_height_m.max(height);
+            if height > 4.9 && self.hover_from_s.is_none() {
+                self.hover_from_s = Some(t);
+            }
+            let start = match self.fault {
+                Fault::Frames { after_s, for_s } => {
+                    self.lost_until_s = f64::INFINITY;
+                    self.hover_from_s.map(|h| {
+                        self.lost_until_s = h + after_s + for_s;
+                        h + after_s
+                    })
+                }
+                Fault::FramesOnGround => {
+                    self.lost_until_s = f64::INFINITY;
+                    self.armed_at_s.map(|a| a + 0.5)
+                }
+                Fault::Gps => self.hover_from_s.map(|h| h + 2.0),
+            };
+            if self.began_s.is_none() && start.is_some_and(|s| t >= s) {
+                self.began_s = Some(t);
+                self.horizontal_at_fault = truth.body.pos_ned_m;
+            }
+            if self.began_s.is_some() {
+                let up = Vector3::new(0.0, 0.0, -1.0);
+                let tilt = (truth.body.q_ned_from_frd * up).angle(&up).to_degrees();
+                self.max_tilt_after_deg = self.max_tilt_after_deg.max(tilt);
+                let drift = (truth.body.pos_ned_m - self.horizontal_at_fault)
+                    .xy()
+                    .norm();
+                self.max_drift_after_m = self.max_drift_after_m.max(drift);
+            }
+            if height < 0.3 && !truth.landed {
+                self.touchdown_m_s = self.touchdown_m_s.max(truth.body.vel_ned_m_s.z);
+            }
+        }
+
+        fn frames_lost(&self) -> bool {
+            matches!(self.fault, Fault::Frames { .. } | Fault::FramesOnGround)
+                && self
+                    .began_s
+                    .is_some_and(|_| self.now_s() < self.lost_until_s)
+        }
+    }
+
+    impl SensorLink for FaultyLink {
+        fn receive(&mut self, timeout: Duration, into: &mut Decoded) -> io::Result<bool> {
+            if self.now_s() > 300.0 {
+                return Err(io::Error::other("the flight did not end within 300 s"));
+            }
+            if self.frames_lost() {
+                // The world goes on for the wait; no frame reaches the autopilot.
+                let n = (timeout.as_secs_f64() * EXCHANGE_HZ).round().max(1.0) as usize;
+                self.sim.advance_silently(n);
+                self.observe();
+                self.silent_waits += 1;
+                return Ok(false);
+            }
+            let before = into.messages.len();
+            self.sim.receive(timeout, into)?;
+            self.observe();
+            if matches!(self.fault, Fault::Gps) && self.began_s.is_some() {
+                let mut i = before;
+                while i < into.messages.len() {
+                    if matches!(into.messages[i].1, MavMessage::HIL_GPS(_)) {
+                        into.messages.remove(i);
+                    } else {
+                        i += 1;
+                    }
+                }
+            }
+            self.last_frame_s = self.now_s();
+            Ok(true)
+        }
+
+        fn send(&mut self, bytes: &[u8]) -> io::Result<()> {
+            for (_, msg) in hil::decode(bytes).messages {
+                if let MavMessage::HIL_ACTUATOR_CONTROLS(m) = msg {
+                    let armed = hil::actuator_command(&m).armed;
+                    if armed && self.armed_at_s.is_none() {
+                        self.armed_at_s = Some(self.now_s());
+                    }
+                    // The first answer sent into the silence (not the one to the last frame).
+                    if self.silent_waits > 0 && self.reaction_s.is_none() {
+                        self.reaction_s = Some(self.now_s() - self.last_frame_s);
+                    }
+                    self.last_answer_armed = armed;
+                }
+            }
+            self.sim.send(bytes)
+        }
+
+        fn describe(&self) -> String {
+            "faulty sim".into()
+        }
+
+        fn silence_clock_s(&self) -> Option<f64> {
+            Some(self.now_s())
+        }
+    }
+
+    fn fly_with(fault: Fault) -> (FaultyLink, FlightReport, Vehicle) {
+        let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../params");
+        let airframe = Airframe::load(&dir.join("airframes/quad_x.toml")).unwrap();
+        let params = FlightParams::load(&dir.join("flight.toml")).unwrap();
+        let mut vehicle = Vehicle::new(&airframe, &params, 5.0, 30.0).unwrap();
+        let mut link = FaultyLink::new(fault);
+        let report = fly(&mut link, &mut vehicle, 1, &AtomicU8::new(0)).unwrap();
+        eprintln!(
+            "fault began at {:?} s: reaction {:?} s, tilt after ≤ {:.1}°, drift after ≤ {:.2} m, touchdown {:.2} m/s, ended at {:.1} s\n{report}",
+            link.began_s,
+            link.reaction_s,
+            link.max_tilt_after_deg,
+            link.max_drift_after_m,
+            link.touchdown_m_s,
+            link.now_s()
+        );
+        (link, report, vehicle)
+    }
+
+    #[test]
+    fn frames_that_stop_in_the_air_start_a_level_blind_descent_to_the_ground() {
+        let (link, report, vehicle) = fly_with(Fault::Frames {
+            after_s: 2.0,
+            for_s: f64::INFINITY,
+        });
+        let reaction = link.reaction_s.expect("a failsafe answer while silent");
+        assert!(
+            reaction <= 0.1,
+            "reacted {reaction:.3} s after the last frame"
+        );
+        assert_eq!(report.sensor_timeouts, 1);
+        assert!(link.max_height_m > 4.9, "was flying");
+        let truth = link.sim.truth();
+        assert!(truth.landed, "on the ground at the end");
+        assert!(!link.last_answer_armed, "motors stopped at the end");
+        assert_eq!(vehicle.phase(), Phase::Done);
+        assert!(
+            link.touchdown_m_s <= 1.5,
+            "touchdown at {:.2} m/s",
+            link.touchdown_m_s
+        );
+        assert!(
+            link.max_tilt_after_deg <= 8.0,
+            "level: tilt up to {:.1}°",
+            link.max_tilt_after_deg
+        );
+    }
+
+    #[test]
+    fn frames_that_stop_on_the_ground_disarm_at_once() {
+        let (link, report, vehicle) = fly_with(Fault::FramesOnGround);
+        let reaction = link.reaction_s.expect("a failsafe answer while silent");
+        assert!(
+            reaction <= 0.1,
+            "reacted {reaction:.3} s after the last frame"
+        );
+        assert!(!link.last_answer_armed && vehicle.phase() == Phase::Done);
+        assert!(report.disarmed);
+        assert!(link.max_height_m < 0.1, "never left the ground");
+    }
+
+    #[test]
+    fn frames_that_come_back_hand_the_descent_back_to_the_loops() {
+        let (link, report, vehicle) = fly_with(Fault::Frames {
+            after_s: 2.0,
+            for_s: 1.5,
+        });
+        assert!(link.reaction_s.is_some_and(|r| r <= 0.1));
+        assert_eq!(report.sensor_timeouts, 1);
+        assert!(
+            link.now_s() < link.began_s.unwrap() + 20.0,
+            "descended instead of hovering"
+        );
+        assert!(link.sim.truth().landed && vehicle.phase() == Phase::Done);
+        assert!(
+            link.touchdown_m_s <= 1.0,
+            "touchdown at {:.2} m/s",
+            link.touchdown_m_s
+        );
+        assert!(link.max_tilt_after_deg <= 5.0);
+    }
+
+    #[test]
+    fn gps_that_stops_in_the_air_levels_and_descends_on_the_barometer() {
+        let (link, report, vehicle) = fly_with(Fault::Gps);
+        let began = link.began_s.unwrap();
+        assert!(
+            link.now_s() < began + 20.0,
+            "descended instead of hovering 30 s"
+        );
+        assert_eq!(report.sensor_timeouts, 0, "the frames kept coming");
+        assert!(link.sim.truth().landed && vehicle.phase() == Phase::Done);
+        assert!(report.disarmed);
+        assert!(
+            link.touchdown_m_s <= 1.0,
+            "touchdown at {:.2} m/s",
+            link.touchdown_m_s
+        );
+        assert!(link.max_tilt_after_deg <= 5.0);
+        assert!(
+            link.max_drift_after_m <= 1.5,
+            "drifted {:.2} m",
+            link.max_drift_after_m
+        );
     }
 }

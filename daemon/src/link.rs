@@ -18,6 +18,16 @@ pub trait SensorLink {
     fn send(&mut self, bytes: &[u8]) -> io::Result<()>;
     /// What the link is, for messages.
     fn describe(&self) -> String;
+    /// The clock that measures sensor silence (s): wall-clock time for a flight board in the
+    /// real world. `None` for a simulator in lockstep, whose world (and so the vehicle's clock)
+    /// stands still while its frames stop: nothing is overdue.
+    fn silence_clock_s(&self) -> Option<f64>;
+}
+
+/// Monotonic wall-clock seconds since the first call.
+pub fn wall_clock_s() -> f64 {
+    static EPOCH: std::sync::OnceLock<Instant> = std::sync::OnceLock::new();
+    EPOCH.get_or_init(Instant::now).elapsed().as_secs_f64()
 }
 
 /// Where the sensors come from, as given on the command line.
@@ -26,55 +36,110 @@ pub enum Source {
     /// The embedded simulator.
     Embedded,
     /// A simulator process sending to this UDP address.
-    Udp(SocketAddr),
+    Udp {
+        /// Address to bind.
+        addr: SocketAddr,
+        /// The simulator waits for each answer (default): silence is a paused world.
+        lockstep: bool,
+    },
     /// A flight board on a serial port.
     Serial {
         /// Device path.
         path: PathBuf,
         /// Baud rate.
         baud: u32,
+        /// The other end is a simulator in lockstep, not a board in the real world (default
+        /// false): silence is a paused world, not a sensor failure.
+        lockstep: bool,
     },
 }
 
+/// Parses `key=value&…` options of a source URL with `apply`.
+fn parse_options(
+    url: &str,
+    query: &str,
+    mut apply: impl FnMut(&str, &str) -> Result<bool>,
+    known: &str,
+) -> Result<()> {
+    for kv in query.split('&').filter(|kv| !kv.is_empty()) {
+        let Some((k, v)) = kv.split_once('=') else {
+            bail!("{url:?}: option {kv:?} needs a value (known: {known})");
+        };
+        if !apply(k, v)? {
+            bail!("{url:?}: unknown option {kv:?} (known: {known})");
+        }
+    }
+    Ok(())
+}
+
+fn parse_bool(url: &str, key: &str, v: &str) -> Result<bool> {
+    match v {
+        "true" | "1" => Ok(true),
+        "false" | "0" => Ok(false),
+        _ => bail!("{url:?}: {key} must be true or false, got {v:?}"),
+    }
+}
+
 impl Source {
-    /// Parses `sim`, `udp://HOST:PORT` or `serial:///dev/ttyX?baud=N`; a UDP port is offset by
-    /// `instance`.
+    /// Parses `sim`, `udp://HOST:PORT[?lockstep=false]` or
+    /// `serial:///dev/ttyX[?baud=N&lockstep=true]`; a UDP port is offset by `instance`.
     pub fn parse(url: &str, instance: u16) -> Result<Self> {
         if url == "sim" {
             return Ok(Self::Embedded);
         }
-        if let Some(addr) = url.strip_prefix("udp://") {
+        if let Some(rest) = url.strip_prefix("udp://") {
+            let (addr, query) = rest.split_once('?').unwrap_or((rest, ""));
             let mut a: SocketAddr = addr.parse().with_context(|| {
                 format!("{url:?}: expected udp://ADDRESS:PORT, e.g. udp://0.0.0.0:4560")
             })?;
             a.set_port(a.port().checked_add(instance).with_context(|| {
                 format!("{url:?}: instance {instance} pushes the port past 65535")
             })?);
-            return Ok(Self::Udp(a));
+            let mut lockstep = true;
+            parse_options(
+                url,
+                query,
+                |k, v| {
+                    Ok(k == "lockstep" && {
+                        lockstep = parse_bool(url, k, v)?;
+                        true
+                    })
+                },
+                "lockstep",
+            )?;
+            return Ok(Self::Udp { addr: a, lockstep });
         }
         if let Some(rest) = url.strip_prefix("serial://") {
             let (path, query) = rest.split_once('?').unwrap_or((rest, ""));
             if path.is_empty() {
                 bail!("{url:?}: expected serial:///dev/ttyUSB0?baud=921600");
             }
-            let mut baud = 921_600;
-            for kv in query.split('&').filter(|kv| !kv.is_empty()) {
-                match kv.split_once('=') {
-                    Some(("baud", v)) => {
-                        baud = v
-                            .parse()
-                            .ok()
-                            .filter(|b| (1200..=12_000_000).contains(b))
-                            .with_context(|| {
-                                format!("{url:?}: baud must be a rate within [1200, 12000000], got {v:?}")
-                            })?;
+            let (mut baud, mut lockstep) = (921_600, false);
+            parse_options(
+                url,
+                query,
+                |k, v| {
+                    match k {
+                        "baud" => {
+                            baud = v
+                                .parse()
+                                .ok()
+                                .filter(|b| (1200..=12_000_000).contains(b))
+                                .with_context(|| {
+                                    format!("{url:?}: baud must be a rate within [1200, 12000000], got {v:?}")
+                                })?
+                        }
+                        "lockstep" => lockstep = parse_bool(url, k, v)?,
+                        _ => return Ok(false),
                     }
-                    _ => bail!("{url:?}: unknown option {kv:?} (known: baud)"),
-                }
-            }
+                    Ok(true)
+                },
+                "baud, lockstep",
+            )?;
             return Ok(Self::Serial {
                 path: PathBuf::from(path),
                 baud,
+                lockstep,
             });
         }
         bail!(
@@ -97,11 +162,12 @@ pub struct UdpLink {
     socket: UdpSocket,
     peer: Option<SocketAddr>,
     rx: Vec<u8>,
+    lockstep: bool,
 }
 
 impl UdpLink {
-    /// Binds `addr`.
-    pub fn bind(addr: SocketAddr) -> Result<Self> {
+    /// Binds `addr`; `lockstep`: the simulator waits for each answer.
+    pub fn bind(addr: SocketAddr, lockstep: bool) -> Result<Self> {
         let socket = UdpSocket::bind(addr).with_context(|| {
             format!("binding the simulator port {addr} (is another autopilot using it? try -i N)")
         })?;
@@ -109,6 +175,7 @@ impl UdpLink {
             socket,
             peer: None,
             rx: vec![0; 65_536],
+            lockstep,
         })
     }
 
@@ -156,6 +223,10 @@ impl SensorLink for UdpLink {
             Err(_) => "udp".into(),
         }
     }
+
+    fn silence_clock_s(&self) -> Option<f64> {
+        (!self.lockstep).then(wall_clock_s)
+    }
 }
 
 /// A flight board on a serial line: MAVLink frames in a byte stream. A port that is missing or
@@ -169,12 +240,14 @@ pub struct SerialLink {
     rx: Vec<u8>,
     retry_at: Instant,
     backoff: Duration,
+    lockstep: bool,
 }
 
 impl SerialLink {
     /// Opens `path` at `baud`; a port that cannot be opened now is an error (a typo should stop
-    /// the daemon), one that vanishes later is retried.
-    pub fn open(path: PathBuf, baud: u32) -> Result<Self> {
+    /// the daemon), one that vanishes later is retried. `lockstep`: the other end is a
+    /// simulator that waits for each answer.
+    pub fn open(path: PathBuf, baud: u32, lockstep: bool) -> Result<Self> {
         let port = Self::open_port(&path, baud)
             .with_context(|| format!("opening serial port {}", path.display()))?;
         Ok(Self {
@@ -185,6 +258,7 @@ impl SerialLink {
             rx: vec![0; 4096],
             retry_at: Instant::now(),
             backoff: Duration::from_millis(100),
+            lockstep,
         })
     }
 
@@ -259,6 +333,10 @@ impl SensorLink for SerialLink {
     fn describe(&self) -> String {
         format!("serial://{}?baud={}", self.path.display(), self.baud)
     }
+
+    fn silence_clock_s(&self) -> Option<f64> {
+        (!self.lockstep).then(wall_clock_s)
+    }
 }
 
 #[cfg(test)]
@@ -270,20 +348,32 @@ mod tests {
         assert_eq!(Source::parse("sim", 3).unwrap(), Source::Embedded);
         assert_eq!(
             Source::parse("udp://0.0.0.0:4560", 2).unwrap(),
-            Source::Udp("0.0.0.0:4562".parse().unwrap())
+            Source::Udp {
+                addr: "0.0.0.0:4562".parse().unwrap(),
+                lockstep: true
+            }
+        );
+        assert_eq!(
+            Source::parse("udp://127.0.0.1:4560?lockstep=false", 0).unwrap(),
+            Source::Udp {
+                addr: "127.0.0.1:4560".parse().unwrap(),
+                lockstep: false
+            }
         );
         assert_eq!(
             Source::parse("serial:///dev/ttyUSB0?baud=57600", 0).unwrap(),
             Source::Serial {
                 path: "/dev/ttyUSB0".into(),
-                baud: 57_600
+                baud: 57_600,
+                lockstep: false
             }
         );
         assert_eq!(
-            Source::parse("serial:///dev/ttyACM0", 0).unwrap(),
+            Source::parse("serial:///dev/ttyACM0?lockstep=1", 0).unwrap(),
             Source::Serial {
                 path: "/dev/ttyACM0".into(),
-                baud: 921_600
+                baud: 921_600,
+                lockstep: true
             }
         );
         for (bad, says) in [
@@ -292,6 +382,8 @@ mod tests {
             ("serial://?baud=9600", "expected serial:///dev/"),
             ("serial:///dev/ttyS0?baud=fast", "baud must be"),
             ("serial:///dev/ttyS0?parity=odd", "unknown option"),
+            ("serial:///dev/ttyS0?lockstep", "needs a value"),
+            ("udp://0.0.0.0:4560?lockstep=maybe", "true or false"),
             ("tcp://1.2.3.4:5", "unknown sensor source"),
         ] {
             let e = format!("{:#}", Source::parse(bad, 1).unwrap_err());

@@ -188,13 +188,17 @@ fn fly(cli: &Cli, source: &str) -> Result<()> {
             link.finish()?;
             report
         }
-        Source::Udp(addr) => {
-            let mut link = UdpLink::bind(addr)?;
+        Source::Udp { addr, lockstep } => {
+            let mut link = UdpLink::bind(addr, lockstep)?;
             tracing::info!(listening = %link.local_addr()?, airframe = %airframe.name, "waiting for a simulator");
             flight::fly(&mut link, &mut vehicle, system_id, &interrupts)?
         }
-        Source::Serial { path, baud } => {
-            let mut link = SerialLink::open(path, baud)?;
+        Source::Serial {
+            path,
+            baud,
+            lockstep,
+        } => {
+            let mut link = SerialLink::open(path, baud, lockstep)?;
             tracing::info!(port = %link.describe(), airframe = %airframe.name, "waiting for the flight board");
             flight::fly(&mut link, &mut vehicle, system_id, &interrupts)?
         }

@@ -66,6 +66,35 @@ impl EmbeddedSim {
         })
     }
 
+    /// Steps physics over one exchange with the last command, without a frame.
+    fn advance_world(&mut self) {
+        let truth = &mut self.truth;
+        let result = self.end.advance(|sim| match truth.as_mut() {
+            Some(csv) => csv.record(&sim.truth(), sim.rotor_speeds()),
+            None => Ok(()),
+        });
+        if let Err(e) = result {
+            // Keep flying; the error is reported at the end.
+            self.truth_error.get_or_insert(e);
+            self.truth = None;
+        }
+    }
+
+    /// The world goes on while its sensor frames are lost: physics over `exchanges` exchange
+    /// intervals with the last command (sensor-loss tests).
+    #[cfg(test)]
+    pub fn advance_silently(&mut self, exchanges: usize) {
+        for _ in 0..exchanges {
+            self.advance_world();
+        }
+    }
+
+    /// The simulator's truth now.
+    #[cfg(test)]
+    pub fn truth(&self) -> sitl_core::sim::TruthState {
+        self.end.sim().truth()
+    }
+
     /// Writes the rest of the truth CSV.
     pub fn finish(&mut self) -> Result<()> {
         if let Some(e) = self.truth_error.take() {
@@ -83,16 +112,7 @@ impl SensorLink for EmbeddedSim {
     /// command if none came, as `sitl` does on a timeout) and hands over the next frame.
     fn receive(&mut self, _timeout: Duration, into: &mut Decoded) -> io::Result<bool> {
         if !self.first {
-            let truth = &mut self.truth;
-            let result = self.end.advance(|sim| match truth.as_mut() {
-                Some(csv) => csv.record(&sim.truth(), sim.rotor_speeds()),
-                None => Ok(()),
-            });
-            if let Err(e) = result {
-                // Keep flying; the error is reported at the end.
-                self.truth_error.get_or_insert(e);
-                self.truth = None;
-            }
+            self.advance_world();
         }
         self.first = false;
         let started = *self.started.get_or_insert_with(Instant::now);
@@ -121,5 +141,9 @@ impl SensorLink for EmbeddedSim {
 
     fn describe(&self) -> String {
         "sim".into()
+    }
+
+    fn silence_clock_s(&self) -> Option<f64> {
+        None
     }
 }

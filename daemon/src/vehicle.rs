@@ -5,6 +5,7 @@ use anyhow::{Context, Result};
 use flight_core::control::position::PositionSetpoint;
 use flight_core::core::{FlightCore, FlightCoreConfig, SensorSample, StepOutput};
 use flight_core::estimator::translation::GpsMeasurement;
+use flight_core::failsafe::{BlindDescent, HoverCommands};
 use flight_core::geo::LatLonAlt;
 use flight_core::params::FlightParams;
 use flight_core::sequence::{FlightSequence, Phase, SequenceInput, SequenceParams};
@@ -29,6 +30,9 @@ pub struct Vehicle {
     score: FlightScore,
     csv: Option<FlightCsv>,
     csv_error: Option<std::io::Error>,
+    hover: HoverCommands,
+    blind: Option<BlindDescent>,
+    last_t_usec: u64,
 }
 
 /// One step's result.
@@ -70,6 +74,9 @@ impl Vehicle {
             score: FlightScore::new(takeoff_m),
             csv: None,
             csv_error: None,
+            hover: HoverCommands::new(2.0),
+            blind: None,
+            last_t_usec: 0,
         })
     }
 
@@ -107,6 +114,51 @@ impl Vehicle {
     /// Lands now.
     pub fn request_land(&mut self) {
         self.sequence.request_land();
+    }
+
+    /// The sensor frames stopped: the estimate is invalid from now on. On the ground the motors
+    /// stop; in the air an open-loop descent begins on the recent hover commands. Returns
+    /// whether the vehicle is in the air.
+    pub fn sensors_stopped(&mut self) -> bool {
+        let in_air = self.sequence.sensors_stopped();
+        if in_air {
+            let (height, down) = self.last.map_or((0.0, 0.0), |o| {
+                let t = &o.translation;
+                (self.sequence.home().z - t.pos_ned_m.z, t.vel_ned_m_s.z)
+            });
+            let d = BlindDescent::new(self.hover.get(), height, down);
+            tracing::error!(
+                height_m = format!("{height:.1}"),
+                "sensor frames stopped in the air: estimator invalid; descending open-loop on the hover commands, motors stop in {:.1} s",
+                d.stop_after_s()
+            );
+            self.blind = Some(d);
+        } else if self.sequence.phase() == Phase::Done {
+            tracing::error!("sensor frames stopped on the ground: estimator invalid; disarmed");
+        }
+        in_air
+    }
+
+    /// The answer to send while the frames are silent, `silence_s` after the last one: the
+    /// blind descent's commands, else motors off.
+    pub fn silent_answer(&mut self, silence_s: f64) -> MavMessage {
+        let t_usec = self.last_t_usec + (silence_s * 1e6) as u64;
+        if let Some(d) = &self.blind {
+            if let Some(c) = d.commands(silence_s) {
+                return hil::actuator_controls(t_usec, &c[..self.rotors], true);
+            }
+            tracing::error!("blind descent over: motors stopped");
+            self.blind = None;
+            self.sequence.disarmed();
+        }
+        hil::actuator_controls(t_usec, &[0.0; airframe::MAX_ROTORS][..self.rotors], false)
+    }
+
+    /// The sensor frames are back: the loops fly again (the sequence keeps descending).
+    pub fn sensors_resumed(&mut self) {
+        if self.blind.take().is_some() {
+            tracing::warn!("sensor frames back: descending closed-loop");
+        }
     }
 
     /// Folds one message in; a complete sensor frame runs a step and returns the answer.
@@ -182,6 +234,13 @@ impl Vehicle {
         }
         let truth = self.update.truth.take();
         let output = self.core.step(&sample, &setpoint, armed);
+        if armed {
+            let dt = t_usec.saturating_sub(self.last_t_usec) as f64 * 1e-6;
+            self.hover.update(&output.commands, dt);
+        } else {
+            self.hover.reset();
+        }
+        self.last_t_usec = t_usec;
         self.last = Some(output);
         if let Some(truth) = &truth {
             let estimate = output.attitude.map(|a| a.q);

@@ -317,7 +317,10 @@ impl FlightCore {
             rate_reference: Vector3::zeros(),
             mixer: None,
         };
-        let Some(a) = att.filter(|a| a.valid && armed) else {
+        // Armed, the loops fly on any aligned attitude: one flagged invalid (no correction for
+        // a while) is still the gyro's best, far better than stopping the motors in the air.
+        // Whether to keep flying on it is the sequence's call (it descends).
+        let Some(a) = att.filter(|_| armed) else {
             if self.flying {
                 self.reset_controllers();
             }

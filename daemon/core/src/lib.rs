@@ -7,6 +7,7 @@
 pub mod control;
 pub mod core;
 pub mod estimator;
+pub mod failsafe;
 pub mod geo;
 pub mod mixer;
 pub mod params;

@@ -1,6 +1,10 @@
 //! The minimal flight sequence: disarmed → armed (spool-up) → take-off → hover → land →
 //! touchdown → disarmed. A pure state machine of time and the estimate; the daemon drives it
 //! from the command line until MAVLink commands arrive.
+//!
+//! Failsafe: when the estimate stops being fit to fly on (a sensor stopped), an armed vehicle
+//! on the ground disarms and one in the air levels and descends at the landing speed on what
+//! estimate is left (PX4's "Descend"), until touchdown.
 
 use crate::control::position::PositionSetpoint;
 use nalgebra::Vector3;
@@ -18,6 +22,8 @@ pub enum Phase {
     Hover,
     /// Descending to the ground.
     Land,
+    /// Failsafe: level and descend on the vertical estimate alone, until touchdown.
+    Descend,
     /// Touched down and disarmed: the sequence is over.
     Done,
 }
@@ -107,6 +113,36 @@ impl FlightSequence {
         self.land_requested = true;
     }
 
+    /// The sensors stopped (the estimate cannot be updated): on the ground the motors stop
+    /// (disarm); in the air the vehicle descends (what flies it until they return is the
+    /// caller's: see [`crate::failsafe::BlindDescent`]). Returns whether it is in the air.
+    pub fn sensors_stopped(&mut self) -> bool {
+        let t = self.last_t_s.unwrap_or(0.0);
+        match self.phase {
+            Phase::Armed => {
+                self.enter(Phase::Done, t);
+                false
+            }
+            Phase::Takeoff | Phase::Hover | Phase::Land => {
+                self.enter(Phase::Descend, t);
+                true
+            }
+            Phase::Descend => true,
+            Phase::Disarmed | Phase::Done => false,
+        }
+    }
+
+    /// The motors stopped without the sequence (the end of a blind descent): over.
+    pub fn disarmed(&mut self) {
+        let t = self.last_t_s.unwrap_or(0.0);
+        self.enter(Phase::Done, t);
+    }
+
+    /// The take-off spot, NED (m).
+    pub fn home(&self) -> Vector3<f64> {
+        self.home
+    }
+
     fn enter(&mut self, phase: Phase, t: f64) {
         self.phase = phase;
         self.since_s = t;
@@ -131,6 +167,13 @@ impl FlightSequence {
         {
             self.land_sp_down = i.pos_ned_m.z;
             self.enter(Phase::Land, t);
+        }
+        if !i.ready {
+            match self.phase {
+                Phase::Armed => self.enter(Phase::Done, t),
+                Phase::Takeoff | Phase::Hover | Phase::Land => self.enter(Phase::Descend, t),
+                _ => {}
+            }
         }
         match self.phase {
             Phase::Disarmed => {
@@ -213,6 +256,24 @@ impl FlightSequence {
                 };
                 (sp, self.phase != Phase::Done)
             }
+            Phase::Descend => {
+                // Level (horizontal position and velocity uncontrolled) and descend; touchdown
+                // when the vertical speed has stayed near zero for a second.
+                let stopped = in_phase > 1.0 && i.vel_ned_m_s.z.abs() < 0.15;
+                match (stopped, self.still_since_s) {
+                    (true, None) => self.still_since_s = Some(t),
+                    (true, Some(s)) if t - s >= 1.0 => self.enter(Phase::Done, t),
+                    (false, _) => self.still_since_s = None,
+                    _ => {}
+                }
+                let sp = PositionSetpoint {
+                    pos_ned_m: Vector3::repeat(f64::NAN),
+                    vel_ned_m_s: Vector3::new(f64::NAN, f64::NAN, p.land_speed_m_s),
+                    accel_ned_m_s2: Vector3::zeros(),
+                    yaw_rad: 0.0,
+                };
+                (sp, self.phase != Phase::Done)
+            }
             Phase::Done => (hold(i.pos_ned_m), false),
         }
     }
@@ -284,6 +345,48 @@ mod tests {
         let (sp, armed) = s.update(&input(2.6, -2.1, -1.0));
         assert!(armed && s.phase() == Phase::Land);
         assert!(sp.vel_ned_m_s.z > 0.0, "descending");
+    }
+
+    #[test]
+    fn losing_the_estimate_disarms_on_the_ground_and_descends_level_in_the_air() {
+        let lost = |t, down, vd| SequenceInput {
+            ready: false,
+            ..input(t, down, vd)
+        };
+        // Spooling up on the ground: disarm at once.
+        let mut s = FlightSequence::new(params());
+        s.update(&input(0.0, 0.0, 0.0));
+        assert_eq!(s.phase(), Phase::Armed);
+        let (_, armed) = s.update(&lost(0.5, 0.0, 0.0));
+        assert!(!armed && s.phase() == Phase::Done);
+
+        // Hovering: level and descend, touchdown after a second standing still, and no way back.
+        let mut s = FlightSequence::new(params());
+        for (t, d, vd) in [(0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (3.0, -2.0, -1.5)] {
+            s.update(&input(t, d, vd));
+        }
+        let (sp, armed) = s.update(&lost(3.1, -2.1, -1.4));
+        assert!(armed && s.phase() == Phase::Descend);
+        assert!(
+            sp.pos_ned_m.iter().all(|p| p.is_nan()),
+            "no position control"
+        );
+        assert!(
+            sp.vel_ned_m_s.x.is_nan() && sp.vel_ned_m_s.y.is_nan(),
+            "level"
+        );
+        assert!((sp.vel_ned_m_s.z - 0.7).abs() < 1e-12 && sp.accel_ned_m_s2 == Vector3::zeros());
+        s.update(&input(3.5, -2.2, 0.0)); // valid again: still descending
+        assert_eq!(s.phase(), Phase::Descend);
+        s.update(&lost(4.0, -2.0, 0.05)); // passing through zero speed is not touchdown
+        s.update(&lost(4.5, -1.7, 0.7));
+        assert_eq!(s.phase(), Phase::Descend);
+        for t in [7.0, 7.5, 7.9] {
+            s.update(&lost(t, 0.0, 0.02));
+            assert_eq!(s.phase(), Phase::Descend, "at {t}");
+        }
+        let (_, armed) = s.update(&lost(8.05, 0.0, 0.0));
+        assert!(!armed && s.phase() == Phase::Done);
     }
 
     #[test]

@@ -43,12 +43,14 @@ pub struct PositionParams {
     pub i_limit: f64,
 }
 
-/// What to fly to.
+/// What to fly to. As PX4's trajectory set-points, a NaN component leaves that axis uncontrolled
+/// at that level: a NaN position flies the velocity alone; NaN position and velocity fly the
+/// acceleration feed-forward alone (horizontally: level, when it is zero).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PositionSetpoint {
-    /// Position NED (m).
+    /// Position NED (m); NaN per axis: velocity control on that axis.
     pub pos_ned_m: Vector3<f64>,
-    /// Velocity feed-forward NED (m/s).
+    /// Velocity feed-forward NED (m/s); NaN per axis (with a NaN position): no velocity control.
     pub vel_ned_m_s: Vector3<f64>,
     /// Acceleration feed-forward NED (m/s²), from a trajectory.
     pub accel_ned_m_s2: Vector3<f64>,
@@ -120,8 +122,12 @@ impl PositionController {
         dt: f64,
     ) -> AttitudeSetpoint {
         let p = &self.params;
+        let zero_nan = |x: f64| if x.is_nan() { 0.0 } else { x };
+        // Axes with neither position nor velocity set: acceleration feed-forward alone.
+        let free = Vector3::from_fn(|i, _| sp.pos_ned_m[i].is_nan() && sp.vel_ned_m_s[i].is_nan());
         // Position P → velocity set-point, limited.
-        let mut v_sp = (sp.pos_ned_m - pos).component_mul(&p.k_pos) + sp.vel_ned_m_s;
+        let mut v_sp = (sp.pos_ned_m - pos).map(zero_nan).component_mul(&p.k_pos)
+            + sp.vel_ned_m_s.map(zero_nan);
         let h = v_sp.xy().norm();
         if h > p.max_speed_h {
             v_sp.x *= p.max_speed_h / h;
@@ -140,6 +146,12 @@ impl PositionController {
             }
             dv.z = dv.z.clamp(-p.max_accel_v * dt, p.max_accel_v * dt);
             v_sp = prev + dv;
+        }
+        for i in 0..3 {
+            if free[i] {
+                v_sp[i] = vel[i];
+                self.integral[i] = 0.0;
+            }
         }
         self.vel_sp = Some(v_sp);
         // Velocity PID → acceleration set-point.
@@ -166,7 +178,7 @@ impl PositionController {
         // Anti-windup: integrate unless that axis is being limited.
         let freeze_h = h_limited || tilt_limited;
         for i in 0..3 {
-            let frozen = if i < 2 { freeze_h } else { z_limited };
+            let frozen = free[i] || if i < 2 { freeze_h } else { z_limited };
             if !frozen {
                 self.integral[i] =
                     (self.integral[i] + p.k_vel_i[i] * e[i] * dt).clamp(-p.i_limit, p.i_limit);
@@ -376,6 +388,45 @@ mod tests {
         );
         // Going north means pitching nose down.
         assert!(out.q_d.euler_angles().1 < 0.0);
+    }
+
+    #[test]
+    fn nan_axes_fly_level_and_track_the_vertical_speed() {
+        let mut c = PositionController::new(params());
+        // Wound up toward the north-east first, far from the set-point, moving fast.
+        let sp = PositionSetpoint {
+            pos_ned_m: Vector3::new(30.0, 30.0, -5.0),
+            vel_ned_m_s: Vector3::zeros(),
+            accel_ned_m_s2: Vector3::zeros(),
+            yaw_rad: 0.3,
+        };
+        let (pos, vel) = (Vector3::new(0.0, 0.0, -5.0), Vector3::new(3.0, -2.0, 0.0));
+        for _ in 0..300 {
+            c.update(&sp, &pos, &vel, &UnitQuaternion::identity(), 0.01);
+        }
+        // Level and descend: horizontal position and velocity uncontrolled, 0.7 m/s down.
+        let descend = PositionSetpoint {
+            pos_ned_m: Vector3::new(f64::NAN, f64::NAN, f64::NAN),
+            vel_ned_m_s: Vector3::new(f64::NAN, f64::NAN, 0.7),
+            accel_ned_m_s2: Vector3::zeros(),
+            yaw_rad: 0.3,
+        };
+        let mut out = c.update(&descend, &pos, &vel, &UnitQuaternion::identity(), 0.01);
+        let up = Vector3::new(0.0, 0.0, -1.0);
+        assert!(
+            (out.q_d * up).angle(&up) < 1e-12,
+            "level at once, whatever the position error, velocity or integral"
+        );
+        assert!(
+            (out.q_d.euler_angles().2 - 0.3).abs() < 1e-12,
+            "heading kept"
+        );
+        for _ in 0..300 {
+            out = c.update(&descend, &pos, &vel, &UnitQuaternion::identity(), 0.01);
+        }
+        assert!((out.vel_ned_m_s.z - 0.7).abs() < 1e-9, "descent speed set");
+        assert!(out.accel_ned_m_s2.z > 0.0, "accelerating down from rest");
+        assert!(out.accel_ned_m_s2.xy().norm() < 1e-12);
     }
 
     #[test]
