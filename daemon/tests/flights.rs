@@ -343,7 +343,11 @@ fn refuses_what_it_cannot_fly() {
     let o = autopilot(&["--takeoff", "5"]);
     assert!(String::from_utf8_lossy(&o.stderr).contains("no sensor source: give --sim"));
     let o = autopilot(&["--sim", "--speed", "0"]);
-    assert!(String::from_utf8_lossy(&o.stderr).contains("--speed must be a positive factor"));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--speed: 0 is out of range"));
+    let o = autopilot(&["--sim", "--takeoff", "500"]);
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("--takeoff: 500 is out of range [1, 100] m")
+    );
     let o = autopilot(&["--sim", "--airframe", "tricopter"]);
     assert!(String::from_utf8_lossy(&o.stderr).contains("tricopter.toml: cannot read"));
     let dir = tempfile::tempdir().unwrap();
@@ -355,4 +359,28 @@ fn refuses_what_it_cannot_fly() {
         err.contains("`position.max_tilt_deg`: must be within [5, 80] deg, got 120"),
         "{err}"
     );
+    // The settings file: missing, an unknown key, a value out of range.
+    let missing = dir.path().join("missing.toml");
+    let o = autopilot(&["--config", missing.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("missing.toml: cannot read"), "{err}");
+    let config = dir.path().join("autopilot.toml");
+    for (text, says) in [
+        (
+            "source = \"sim\"\ntakeof_m = 5\n",
+            "unknown field `takeof_m`",
+        ),
+        (
+            "source = \"sim\"\nhover_s = 7200\n",
+            "`hover_s`: 7200 is out of range [0, 3600] s",
+        ),
+    ] {
+        std::fs::write(&config, text).unwrap();
+        let o = autopilot(&["--config", config.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success() && err.contains("autopilot.toml") && err.contains(says),
+            "{err}"
+        );
+    }
 }
