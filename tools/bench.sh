@@ -7,3 +7,37 @@ for bench in "sitl-core physics" "flight-core tick"; do
     cargo bench -p "$1" --bench "$2" -- --warm-up-time 1 --measurement-time 3 2>&1 |
         awk '/^(physics|flight)/ {name=$1} /time:/ {sub(/.*time: *\[/, ""); split($0, v, " "); printf "%-50s %s %s\n", name, v[3], v[4]}'
 done
+
+# Flight speed, release build: a 60 s hover flown in the embedded simulator as fast as lockstep
+# allows; the same flight with `sitl` and `autopilot` as two processes over loopback UDP; and the
+# ceiling of that exchange, two processes bouncing datagrams of the same sizes, in the same run.
+cargo build --release --quiet -p autopilot -p sitl --bins --examples
+bin=${CARGO_TARGET_DIR:-target}/release
+field() { tr ' ' '\n' | sed -n "s/^$1=//p" | head -1; }
+flight=(--takeoff 5 --hover 60 --params-dir params)
+
+embedded=$("$bin/autopilot" --sim --speed max "${flight[@]}" 2>/dev/null | grep 'autopilot summary')
+printf '%-50s %s x real time (%s frames/s)\n' "flight: embedded, 60 s hover" \
+    "$(echo "$embedded" | field realtime_factor)" "$(echo "$embedded" | field frames_per_s)"
+
+port=$(python3 -c 'import socket; s=socket.socket(socket.AF_INET, socket.SOCK_DGRAM); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
+"$bin/autopilot" --source "udp://127.0.0.1:$port" "${flight[@]}" >/tmp/bench-autopilot.$$ 2>/dev/null &
+ap=$!
+timeout 300 "$bin/sitl" --autopilot "127.0.0.1:$port" --duration 300 --connect-timeout 30 \
+    --status-interval 0 >/dev/null 2>&1 &
+sim=$!
+wait $ap
+kill -INT $sim 2>/dev/null || true
+wait $sim 2>/dev/null || true
+udp=$(grep 'autopilot summary' /tmp/bench-autopilot.$$)
+rm -f /tmp/bench-autopilot.$$
+udp_fps=$(echo "$udp" | field frames_per_s)
+printf '%-50s %s x real time (%s frames/s)\n' "flight: sitl + autopilot over UDP, 60 s hover" \
+    "$(echo "$udp" | field realtime_factor)" "$udp_fps"
+
+timeout 30 "$bin/examples/udp_pingpong" echo "127.0.0.1:$port" &
+echo_pid=$!
+ceiling=$("$bin/examples/udp_pingpong" ping "127.0.0.1:$port" 5 | field round_trips_per_s)
+wait $echo_pid 2>/dev/null || true
+printf '%-50s %s round trips/s\n' "ceiling: bare UDP ping-pong, two processes" "$ceiling"
+printf '%-50s %s %%\n' "UDP flight / ceiling" "$(python3 -c "print(round(100 * $udp_fps / $ceiling))")"

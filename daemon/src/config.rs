@@ -186,7 +186,12 @@ mod tests {
         let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../params/autopilot.toml");
         let c = ConfigFile::load(&p).unwrap();
         assert_eq!(c.source.as_deref(), Some("sim"));
-        assert!(c.params_dir.unwrap().join("airframes/quad_x.toml").is_file());
+        assert!(
+            c.params_dir
+                .unwrap()
+                .join("airframes/quad_x.toml")
+                .is_file()
+        );
     }
 
     #[test]

@@ -163,6 +163,9 @@ pub struct UdpLink {
     peer: Option<SocketAddr>,
     rx: Vec<u8>,
     lockstep: bool,
+    /// The read timeout as last set: set again only when it changes (a system call per frame
+    /// otherwise).
+    read_timeout: Option<Duration>,
 }
 
 impl UdpLink {
@@ -176,6 +179,7 @@ impl UdpLink {
             peer: None,
             rx: vec![0; 65_536],
             lockstep,
+            read_timeout: None,
         })
     }
 
@@ -187,8 +191,11 @@ impl UdpLink {
 
 impl SensorLink for UdpLink {
     fn receive(&mut self, timeout: Duration, into: &mut Decoded) -> io::Result<bool> {
-        self.socket
-            .set_read_timeout(Some(timeout.max(Duration::from_micros(1))))?;
+        let timeout = timeout.max(Duration::from_micros(1));
+        if self.read_timeout != Some(timeout) {
+            self.socket.set_read_timeout(Some(timeout))?;
+            self.read_timeout = Some(timeout);
+        }
         match self.socket.recv_from(&mut self.rx) {
             Ok((len, from)) => {
                 if self.peer != Some(from) {

@@ -353,6 +353,9 @@ pub struct UdpTransport {
     socket: UdpSocket,
     target: SocketAddr,
     rx: Vec<u8>,
+    /// The socket's read mode as last set (zero: non-blocking), so that a lockstep exchange
+    /// does not pay two extra system calls per receive.
+    read_timeout: Option<Duration>,
 }
 
 impl UdpTransport {
@@ -363,6 +366,7 @@ impl UdpTransport {
             socket,
             target,
             rx: vec![0; 65_536],
+            read_timeout: None,
         })
     }
 
@@ -393,11 +397,21 @@ impl Transport for UdpTransport {
     }
 
     fn receive(&mut self, timeout: Duration, into: &mut Decoded) -> Result<bool> {
-        if timeout.is_zero() {
-            self.socket.set_nonblocking(true)?;
-        } else {
-            self.socket.set_nonblocking(false)?;
-            self.socket.set_read_timeout(Some(timeout))?;
+        // A wait a little shorter than asked is fine (callers loop to their deadline): keep the
+        // set timeout while it is within [timeout / 2, timeout].
+        let keep = match self.read_timeout {
+            Some(t) if timeout.is_zero() => t.is_zero(),
+            Some(t) => !t.is_zero() && t <= timeout && t * 2 >= timeout,
+            None => false,
+        };
+        if !keep {
+            if timeout.is_zero() {
+                self.socket.set_nonblocking(true)?;
+            } else {
+                self.socket.set_nonblocking(false)?;
+                self.socket.set_read_timeout(Some(timeout))?;
+            }
+            self.read_timeout = Some(timeout);
         }
         match self.socket.recv_from(&mut self.rx) {
             Ok((len, _)) => {
