@@ -134,3 +134,17 @@ pub fn parse_toml<T: serde::de::DeserializeOwned>(
         reason: e.to_string().trim_end().replace('\n', " | "),
     })
 }
+
+/// The parameter directory: `given`, else `./params` when it holds `airframes/`, else the source
+/// tree's `params/` (so the binaries run from anywhere in a checkout).
+pub fn params_dir(given: Option<&std::path::Path>) -> std::path::PathBuf {
+    if let Some(d) = given {
+        return d.to_path_buf();
+    }
+    let local = std::path::PathBuf::from("params");
+    if local.join("airframes").is_dir() {
+        local
+    } else {
+        std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../params")
+    }
+}

@@ -193,15 +193,7 @@ impl Settings {
     }
 
     fn params_dir(&self) -> PathBuf {
-        if let Some(d) = &self.params_dir {
-            return d.clone();
-        }
-        let local = PathBuf::from("params");
-        if local.join("airframes").is_dir() {
-            local
-        } else {
-            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../params")
-        }
+        airframe::config::params_dir(self.params_dir.as_deref())
     }
 }
 

@@ -105,15 +105,7 @@ pub struct Cli {
 }
 
 fn params_dir(cli: &Cli) -> PathBuf {
-    if let Some(d) = &cli.params_dir {
-        return d.clone();
-    }
-    let local = PathBuf::from("params");
-    if local.join("airframes").is_dir() {
-        local
-    } else {
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../params")
-    }
+    sitl_core::airframe::config::params_dir(cli.params_dir.as_deref())
 }
 
 /// The scenario after command-line overrides.

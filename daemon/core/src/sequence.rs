@@ -143,6 +143,16 @@ impl FlightSequence {
         self.home
     }
 
+    /// Touchdown when the vehicle has been `stopped` for a second: disarm.
+    fn touchdown_check(&mut self, stopped: bool, t: f64) {
+        match (stopped, self.still_since_s) {
+            (true, None) => self.still_since_s = Some(t),
+            (true, Some(s)) if t - s >= 1.0 => self.enter(Phase::Done, t),
+            (false, _) => self.still_since_s = None,
+            _ => {}
+        }
+    }
+
     fn enter(&mut self, phase: Phase, t: f64) {
         self.phase = phase;
         self.since_s = t;
@@ -242,12 +252,7 @@ impl FlightSequence {
                 self.land_sp_down = (self.land_sp_down + speed * dt).min(i.pos_ned_m.z + 1.0);
                 let stopped =
                     i.vel_ned_m_s.z.abs() < 0.15 && self.land_sp_down - i.pos_ned_m.z > 0.5;
-                match (stopped, self.still_since_s) {
-                    (true, None) => self.still_since_s = Some(t),
-                    (true, Some(s)) if t - s >= 1.0 => self.enter(Phase::Done, t),
-                    (false, _) => self.still_since_s = None,
-                    _ => {}
-                }
+                self.touchdown_check(stopped, t);
                 let sp = PositionSetpoint {
                     pos_ned_m: Vector3::new(self.home.x, self.home.y, self.land_sp_down),
                     vel_ned_m_s: Vector3::new(0.0, 0.0, speed),
@@ -260,12 +265,7 @@ impl FlightSequence {
                 // Level (horizontal position and velocity uncontrolled) and descend; touchdown
                 // when the vertical speed has stayed near zero for a second.
                 let stopped = in_phase > 1.0 && i.vel_ned_m_s.z.abs() < 0.15;
-                match (stopped, self.still_since_s) {
-                    (true, None) => self.still_since_s = Some(t),
-                    (true, Some(s)) if t - s >= 1.0 => self.enter(Phase::Done, t),
-                    (false, _) => self.still_since_s = None,
-                    _ => {}
-                }
+                self.touchdown_check(stopped, t);
                 let sp = PositionSetpoint {
                     pos_ned_m: Vector3::repeat(f64::NAN),
                     vel_ned_m_s: Vector3::new(f64::NAN, f64::NAN, p.land_speed_m_s),
