@@ -114,10 +114,8 @@ pub fn fly(
                 vehicle.sensors_stopped();
             }
             // Keep the motors on the failsafe's command (a board wants a steady stream).
-            answer.clear();
-            encoder.push(&mut answer, &vehicle.silent_answer(now - last));
-            link.send(&answer)
-                .with_context(|| format!("answering on {}", link.describe()))?;
+            let message = vehicle.silent_answer(now - last);
+            send(link, &mut encoder, &mut answer, &message)?;
             if vehicle.phase() == Phase::Done {
                 // Disarmed by the failsafe: a second more of motors-off, then stop.
                 if now - *silent_done_at.get_or_insert(now) > 1.0 {
@@ -151,10 +149,7 @@ pub fn fly(
             }
             report.frames += 1;
             t_s = step.t_s;
-            answer.clear();
-            encoder.push(&mut answer, &step.message);
-            link.send(&answer)
-                .with_context(|| format!("answering on {}", link.describe()))?;
+            send(link, &mut encoder, &mut answer, &step.message)?;
 
             let elapsed = started.elapsed();
             if elapsed >= next_status {
@@ -194,6 +189,19 @@ pub fn fly(
     report.repeated = vehicle.repeated_frames();
     report.disarmed = vehicle.phase() == Phase::Done;
     Ok(report)
+}
+
+/// Encodes `message` into `buf` and sends it on `link`.
+fn send(
+    link: &mut dyn SensorLink,
+    encoder: &mut Encoder,
+    buf: &mut Vec<u8>,
+    message: &mavlink::dialects::common::MavMessage,
+) -> Result<()> {
+    buf.clear();
+    encoder.push(buf, message);
+    link.send(buf)
+        .with_context(|| format!("answering on {}", link.describe()))
 }
 
 /// The live one-line status: on a terminal it rewrites itself, otherwise one line each time.

@@ -100,10 +100,11 @@ impl Source {
                 url,
                 query,
                 |k, v| {
-                    Ok(k == "lockstep" && {
-                        lockstep = parse_bool(url, k, v)?;
-                        true
-                    })
+                    match k {
+                        "lockstep" => lockstep = parse_bool(url, k, v)?,
+                        _ => return Ok(false),
+                    }
+                    Ok(true)
                 },
                 "lockstep",
             )?;

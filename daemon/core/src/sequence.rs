@@ -113,7 +113,7 @@ impl FlightSequence {
         self.land_requested = true;
     }
 
-    /// The sensors stopped (the estimate cannot be updated): on the ground the motors stop
+    /// The estimate is lost (sensors stopped, or it is unfit to fly on): on the ground the motors stop
     /// (disarm); in the air the vehicle descends (what flies it until they return is the
     /// caller's: see [`crate::failsafe::BlindDescent`]). Returns whether it is in the air.
     pub fn sensors_stopped(&mut self) -> bool {
@@ -179,11 +179,8 @@ impl FlightSequence {
             self.enter(Phase::Land, t);
         }
         if !i.ready {
-            match self.phase {
-                Phase::Armed => self.enter(Phase::Done, t),
-                Phase::Takeoff | Phase::Hover | Phase::Land => self.enter(Phase::Descend, t),
-                _ => {}
-            }
+            // The same reaction as to silent sensors, at this update's time.
+            self.sensors_stopped();
         }
         match self.phase {
             Phase::Disarmed => {
