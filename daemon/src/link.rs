@@ -203,9 +203,7 @@ impl SensorLink for UdpLink {
                     tracing::info!(simulator = %from, "sensor frames arriving");
                     self.peer = Some(from);
                 }
-                let d = hil::decode(&self.rx[..len]);
-                into.messages.extend(d.messages);
-                into.malformed += d.malformed;
+                hil::decode_into(&self.rx[..len], into);
                 Ok(true)
             }
             // Connection refused: an ICMP answer to an earlier send; the simulator may come back.

@@ -23,6 +23,8 @@ pub const EXCHANGE_HZ: f64 = 250.0;
 pub struct EmbeddedSim {
     end: SimulatorEnd,
     bytes: Vec<u8>,
+    /// The autopilot's answers, decoded (kept to reuse its allocation).
+    answers: Decoded,
     started: Option<Instant>,
     speed: Option<f64>,
     truth: Option<TruthCsv>,
@@ -58,6 +60,7 @@ impl EmbeddedSim {
         Ok(Self {
             end: SimulatorEnd::new(sim, EXCHANGE_HZ),
             bytes: Vec::with_capacity(512),
+            answers: Decoded::default(),
             started: None,
             speed,
             truth,
@@ -124,16 +127,16 @@ impl SensorLink for EmbeddedSim {
         }
         self.bytes.clear();
         self.end.encode_frame(&mut self.bytes);
-        let d = hil::decode(&self.bytes);
-        into.messages.extend(d.messages);
-        into.malformed += d.malformed;
+        hil::decode_into(&self.bytes, into);
         Ok(true)
     }
 
     fn send(&mut self, bytes: &[u8]) -> io::Result<()> {
-        for (_, msg) in hil::decode(bytes).messages {
+        self.answers.messages.clear();
+        hil::decode_into(bytes, &mut self.answers);
+        for (_, msg) in &self.answers.messages {
             if let MavMessage::HIL_ACTUATOR_CONTROLS(m) = msg {
-                self.end.apply(&hil::actuator_command(&m));
+                self.end.apply(&hil::actuator_command(m));
             }
         }
         Ok(())

@@ -415,9 +415,7 @@ impl Transport for UdpTransport {
         }
         match self.socket.recv_from(&mut self.rx) {
             Ok((len, _)) => {
-                let d = hil::decode(&self.rx[..len]);
-                into.messages.extend(d.messages);
-                into.malformed += d.malformed;
+                hil::decode_into(&self.rx[..len], into);
                 Ok(true)
             }
             Err(e) if quiet(&e) => Ok(false),

@@ -493,6 +493,12 @@ impl SensorSuite {
         self.gyro_bias
     }
 
+    /// The GPS's current position error (m, NED): its correlated wander, which an autopilot
+    /// holding position on GPS follows (tests separate it from the autopilot's own error).
+    pub fn gps_error_ned(&self) -> Vector3<f64> {
+        self.gps_error_ned
+    }
+
     /// The true accelerometer bias (m/s²).
     pub fn accel_bias(&self) -> Vector3<f64> {
         self.accel_bias

@@ -6,8 +6,9 @@
 
 mod simulator_end;
 pub use simulator_end::{STATE_INTERVAL_USEC, SimulatorEnd};
+mod wire;
+pub use wire::{Decoded, Encoder, MAX_FRAME, StreamDecoder, checksum, decode, decode_into};
 
-use mavlink::MavHeader;
 use mavlink::dialects::common::{
     ESC_STATUS_DATA, HIL_ACTUATOR_CONTROLS_DATA, HIL_GPS_DATA, HIL_SENSOR_DATA,
     HIL_STATE_QUATERNION_DATA, HilActuatorControlsFlags, HilSensorUpdatedFlags, MavMessage,
@@ -22,44 +23,6 @@ use sitl_core::sim::TruthState;
 pub const SIM_SYSTEM_ID: u8 = 1;
 /// Component id of the simulator: MAV_COMP_ID_USER1 (0 is the broadcast address, 1 the autopilot).
 pub const SIM_COMPONENT_ID: u8 = 25;
-
-/// Encodes messages as MAVLink 2 frames with a running sequence number.
-#[derive(Debug)]
-pub struct Encoder {
-    system_id: u8,
-    component_id: u8,
-    sequence: u8,
-}
-
-impl Default for Encoder {
-    /// The simulator's encoder.
-    fn default() -> Self {
-        Self::with_ids(SIM_SYSTEM_ID, SIM_COMPONENT_ID)
-    }
-}
-
-impl Encoder {
-    /// An encoder speaking as `system_id`/`component_id` (the autopilot: its system id, 1).
-    pub fn with_ids(system_id: u8, component_id: u8) -> Self {
-        Self {
-            system_id,
-            component_id,
-            sequence: 0,
-        }
-    }
-
-    /// Appends `msg` as one MAVLink 2 frame to `out`.
-    pub fn push(&mut self, out: &mut Vec<u8>, msg: &MavMessage) {
-        let header = MavHeader {
-            system_id: self.system_id.into(),
-            component_id: self.component_id,
-            sequence: self.sequence,
-        };
-        self.sequence = self.sequence.wrapping_add(1);
-        // Writing into a Vec cannot fail.
-        let _ = mavlink::write_v2_msg(out, header, msg);
-    }
-}
 
 /// `HIL_SENSOR` from a sensor frame (SI units; pressure in hPa as the message defines).
 pub fn hil_sensor(f: &SensorFrame) -> MavMessage {
@@ -195,120 +158,6 @@ pub fn actuator_command(m: &HIL_ACTUATOR_CONTROLS_DATA) -> ActuatorCommand {
         time_usec: m.time_usec,
         controls,
         armed: m.mode.contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED),
-    }
-}
-
-/// What one datagram held.
-#[derive(Debug, Default, PartialEq)]
-pub struct Decoded {
-    /// Well-formed messages with their headers.
-    pub messages: Vec<(MavHeader, MavMessage)>,
-    /// Frames or runs of bytes that were not a valid message (bad CRC, truncated, unknown id,
-    /// garbage between frames).
-    pub malformed: u32,
-}
-
-const STX_V1: u8 = 0xFE;
-const STX_V2: u8 = 0xFD;
-
-/// Length of the frame starting at `b[0]`, if the header is complete.
-fn frame_len(b: &[u8]) -> Option<usize> {
-    match *b.first()? {
-        STX_V1 => Some(6 + *b.get(1)? as usize + 2),
-        STX_V2 => {
-            let len = *b.get(1)? as usize;
-            let signed = (*b.get(2)? & 0x01) != 0;
-            Some(10 + len + 2 + if signed { 13 } else { 0 })
-        }
-        _ => None,
-    }
-}
-
-/// Splits a datagram into MAVLink 1/2 frames; each bad frame or run of junk counts once.
-pub fn decode(datagram: &[u8]) -> Decoded {
-    let mut out = Decoded::default();
-    let mut i = 0;
-    let mut in_junk = false;
-    while i < datagram.len() {
-        let rest = &datagram[i..];
-        let Some(len) = frame_len(rest) else {
-            if !in_junk {
-                out.malformed += 1;
-                in_junk = true;
-            }
-            i += 1;
-            continue;
-        };
-        in_junk = false;
-        if len > rest.len() {
-            out.malformed += 1; // truncated
-            break;
-        }
-        let mut reader = mavlink::MavlinkReader::new(&rest[..len]);
-        match reader.read_any_message::<MavMessage>() {
-            Ok(msg) => {
-                out.messages.push(msg);
-                i += len;
-            }
-            Err(_) => {
-                out.malformed += 1;
-                // Resynchronise on the next start byte.
-                i += 1;
-                in_junk = true;
-            }
-        }
-    }
-    out
-}
-
-/// Splits a byte stream (a serial line) into MAVLink frames, keeping a partial frame until the
-/// rest of it arrives. Each bad frame or run of junk counts once, as in [`decode`].
-#[derive(Debug, Default)]
-pub struct StreamDecoder {
-    buf: Vec<u8>,
-    in_junk: bool,
-}
-
-impl StreamDecoder {
-    /// Adds the bytes just read; appends every complete message to `out`.
-    pub fn push(&mut self, bytes: &[u8], out: &mut Decoded) {
-        self.buf.extend_from_slice(bytes);
-        let mut i = 0;
-        while i < self.buf.len() {
-            let rest = &self.buf[i..];
-            if rest[0] != STX_V1 && rest[0] != STX_V2 {
-                if !self.in_junk {
-                    out.malformed += 1;
-                    self.in_junk = true;
-                }
-                i += 1;
-                continue;
-            }
-            let Some(len) = frame_len(rest).filter(|len| *len <= rest.len()) else {
-                break; // the rest of the frame is still on its way
-            };
-            let mut reader = mavlink::MavlinkReader::new(&rest[..len]);
-            match reader.read_any_message::<MavMessage>() {
-                Ok(msg) => {
-                    out.messages.push(msg);
-                    self.in_junk = false;
-                    i += len;
-                }
-                Err(_) => {
-                    // A bad frame counts once; the bytes after its start byte are junk until
-                    // the next frame.
-                    out.malformed += 1;
-                    self.in_junk = true;
-                    i += 1;
-                }
-            }
-        }
-        self.buf.drain(..i);
-    }
-
-    /// Bytes held back waiting for the rest of a frame.
-    pub fn pending(&self) -> usize {
-        self.buf.len()
     }
 }
 
