@@ -214,6 +214,7 @@ impl Vehicle {
                 self.sequence.update(&SequenceInput {
                     t_s,
                     ready,
+                    horizontal_valid: e.translation.horizontal_valid,
                     pos_ned_m: e.translation.pos_ned_m,
                     vel_ned_m_s: e.translation.vel_ned_m_s,
                 })

@@ -149,11 +149,11 @@ fn embedded(airframe: &str, seed: u64, truth_csv: Option<&Path>) -> HashMap<Stri
 
 /// Every multirotor in lockstep, take-off to 5 m, 20 s hover, landing, over four seeds with the
 /// typical sensors. Each flight must land softly and disarm. The hover figures are RMS over the
-/// four flights (one flight's figure is mostly its seed's barometer drift and GPS wander, the
-/// same for every airframe); the targets are 0.15 m, 0.3 m and 1°. The altitude target
-/// is met; horizontal drift (GPS wander) and the attitude estimate (slow tilt and yaw wander of
-/// the GPS-aided estimator on some seeds) are held to what the estimator achieves today, 0.35 m
-/// and 1.5°, until the estimator work closes the gap.
+/// four flights; the targets are 0.15 m, 0.3 m and 1°. Altitude and attitude are held to
+/// them. The horizontal drift from the take-off spot is the GPS's own wander (0.3 m σ per axis,
+/// 60 s correlation: ≈ 0.28 m expected over this hover, and four seeds scatter by ±25 %), which
+/// no estimator can see; it is held to 0.45 m here, and the autopilot's own part (holding where
+/// the GPS says) to 0.2 m per flight in `daemon/core/tests/closed_loop.rs`.
 #[test]
 fn every_airframe_takes_off_hovers_and_lands_in_lockstep() {
     for airframe in ["quad_x", "hexa_x", "octa_x", "dodeca"] {
@@ -194,10 +194,10 @@ fn every_airframe_takes_off_hovers_and_lands_in_lockstep() {
         );
         assert!(alt <= 0.15, "{airframe}: hover altitude RMS {alt:.3} m");
         assert!(
-            drift <= 0.35,
+            drift <= 0.45,
             "{airframe}: horizontal drift RMS {drift:.3} m"
         );
-        assert!(att <= 1.5, "{airframe}: attitude estimate RMS {att:.2} deg");
+        assert!(att <= 1.0, "{airframe}: attitude estimate RMS {att:.2} deg");
     }
 }
 

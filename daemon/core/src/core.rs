@@ -290,6 +290,8 @@ impl FlightCore {
         // acceleration reads as tilt (a/g) and couples into the position loop.
         let before = self.translation.estimate();
         let hint = before.horizontal_valid.then_some(before.accel_ned_m_s2);
+        // The raw interval: the attitude estimator clamps it itself and takes a long one as a
+        // gap in the samples.
         let att = self.attitude.update(
             &AttitudeInput {
                 gyro: s.gyro,
@@ -297,7 +299,7 @@ impl FlightCore {
                 mag: s.mag,
                 accel_ned_hint: hint,
             },
-            dt,
+            raw_dt,
         );
         if let Some(a) = &att {
             self.translation.predict(s.t_usec, &s.accel, &a.q, dt);

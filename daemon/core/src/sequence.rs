@@ -65,6 +65,9 @@ pub struct SequenceInput {
     pub t_s: f64,
     /// The estimator can be flown on (attitude and position valid).
     pub ready: bool,
+    /// The horizontal estimate is valid (GPS fresh): a descent without a full estimate then
+    /// brakes to a stop over the ground instead of only levelling.
+    pub horizontal_valid: bool,
     /// Estimated position NED (m).
     pub pos_ned_m: Vector3<f64>,
     /// Estimated velocity NED (m/s).
@@ -259,13 +262,15 @@ impl FlightSequence {
                 (sp, self.phase != Phase::Done)
             }
             Phase::Descend => {
-                // Level (horizontal position and velocity uncontrolled) and descend; touchdown
-                // when the vertical speed has stayed near zero for a second.
+                // Descend: braking to zero ground speed while the horizontal estimate holds,
+                // else level (horizontal velocity uncontrolled); touchdown when the vertical
+                // speed has stayed near zero for a second.
                 let stopped = in_phase > 1.0 && i.vel_ned_m_s.z.abs() < 0.15;
                 self.touchdown_check(stopped, t);
+                let h = if i.horizontal_valid { 0.0 } else { f64::NAN };
                 let sp = PositionSetpoint {
                     pos_ned_m: Vector3::repeat(f64::NAN),
-                    vel_ned_m_s: Vector3::new(f64::NAN, f64::NAN, p.land_speed_m_s),
+                    vel_ned_m_s: Vector3::new(h, h, p.land_speed_m_s),
                     accel_ned_m_s2: Vector3::zeros(),
                     yaw_rad: 0.0,
                 };
@@ -284,6 +289,7 @@ mod tests {
         SequenceInput {
             t_s: t,
             ready: true,
+            horizontal_valid: true,
             pos_ned_m: Vector3::new(0.0, 0.0, down),
             vel_ned_m_s: Vector3::new(0.0, 0.0, vd),
         }
@@ -348,6 +354,7 @@ mod tests {
     fn losing_the_estimate_disarms_on_the_ground_and_descends_level_in_the_air() {
         let lost = |t, down, vd| SequenceInput {
             ready: false,
+            horizontal_valid: false,
             ..input(t, down, vd)
         };
         // Spooling up on the ground: disarm at once.
@@ -373,6 +380,13 @@ mod tests {
             "level"
         );
         assert!((sp.vel_ned_m_s.z - 0.7).abs() < 1e-12 && sp.accel_ned_m_s2 == Vector3::zeros());
+        // The barometer lost but the GPS still there: brake over the ground while descending.
+        let baro_lost = SequenceInput {
+            ready: false,
+            ..input(3.2, -2.1, 0.5)
+        };
+        let (sp, _) = s.update(&baro_lost);
+        assert!(sp.vel_ned_m_s.xy() == nalgebra::Vector2::zeros() && sp.pos_ned_m.x.is_nan());
         s.update(&input(3.5, -2.2, 0.0)); // valid again: still descending
         assert_eq!(s.phase(), Phase::Descend);
         s.update(&lost(4.0, -2.0, 0.05)); // passing through zero speed is not touchdown

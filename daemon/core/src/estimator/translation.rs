@@ -8,12 +8,15 @@
 //! are old when they arrive (the receiver's latency): each is compared with the estimate of its
 //! own time from a short history, and the correction is applied now.
 //!
-//! The origin (and home) is the first good fix; the barometer's reference is its first sample,
-//! so altitude is relative to where the vehicle started.
+//! The origin (and home) is the first good fix; the barometer's reference is the mean of its
+//! first second of samples, so altitude is relative to where the vehicle started.
 
 use crate::geo::{LatLonAlt, LocalFrame};
 use nalgebra::{UnitQuaternion, Vector3};
 use std::collections::VecDeque;
+
+/// Barometer samples averaged for the reference level (one second at 50 Hz).
+pub const BARO_REF_SAMPLES: u32 = 50;
 
 /// Parameters of the translation filter.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -40,7 +43,7 @@ impl Default for TranslationParams {
     fn default() -> Self {
         Self {
             tau_xy_s: 2.5,
-            tau_z_s: 1.0,
+            tau_z_s: 2.0, // 1 s: landings up to 0.63 m/s from baro noise in the vertical speed; 2 s: ≤ 0.44 m/s
             tau_vel_s: 0.5,
             gps_delay_s: 0.1,
             gps_max_h_acc_m: 5.0,
@@ -118,7 +121,10 @@ pub struct TranslationEstimator {
     bias: Vector3<f64>,
     accel: Vector3<f64>,
     history: VecDeque<Snapshot>,
-    baro_ref_m: Option<f64>,
+    /// The barometer's reference level: the mean of its first [`BARO_REF_SAMPLES`] samples
+    /// (sum, count), as ArduPilot's ground-pressure calibration averages at start-up: one
+    /// sample's noise (0.25 m here) would offset every altitude of the flight.
+    baro_ref: (f64, u32),
     last_gps_usec: Option<u64>,
     last_baro_usec: Option<u64>,
     now_usec: u64,
@@ -136,7 +142,7 @@ impl TranslationEstimator {
             bias: Vector3::zeros(),
             accel: Vector3::zeros(),
             history: VecDeque::with_capacity(HISTORY),
-            baro_ref_m: None,
+            baro_ref: (0.0, 0),
             last_gps_usec: None,
             last_baro_usec: None,
             now_usec: 0,
@@ -278,7 +284,12 @@ impl TranslationEstimator {
             .last_baro_usec
             .map_or(0.02, |t| t_usec.saturating_sub(t) as f64 * 1e-6);
         self.last_baro_usec = Some(t_usec);
-        let reference = *self.baro_ref_m.get_or_insert(pressure_alt_m + self.pos.z);
+        let (sum, n) = &mut self.baro_ref;
+        if *n < BARO_REF_SAMPLES {
+            *sum += pressure_alt_m + self.pos.z;
+            *n += 1;
+        }
+        let reference = *sum / *n as f64;
         let measured_down = -(pressure_alt_m - reference);
         let e = Vector3::new(0.0, 0.0, measured_down - self.pos.z);
         self.status.baro_innovation_m = e.z;
@@ -297,7 +308,8 @@ impl TranslationEstimator {
             accel_ned_m_s2: self.accel,
             horizontal_valid: self.frame.is_some()
                 && fresh(self.last_gps_usec, self.params.gps_timeout_s),
-            vertical_valid: fresh(self.last_baro_usec, self.params.baro_timeout_s),
+            vertical_valid: fresh(self.last_baro_usec, self.params.baro_timeout_s)
+                && self.baro_ref.1 >= BARO_REF_SAMPLES,
             origin: self.frame.map(|f| f.origin()),
         }
     }
@@ -309,7 +321,7 @@ crate::params::param_group! {
         /// Horizontal time constant.
         tau_xy_s: f64 = 2.5, "EST_XY_TAU", "s", [0.2, 30.0], "Horizontal complementary-filter time constant: larger trusts the accelerometer longer";
         /// Vertical time constant.
-        tau_z_s: f64 = 1.0, "EST_Z_TAU", "s", [0.2, 30.0], "Vertical (barometer) complementary-filter time constant";
+        tau_z_s: f64 = 2.0, "EST_Z_TAU", "s", [0.2, 30.0], "Vertical (barometer) complementary-filter time constant";
         /// GPS velocity correction time constant.
         tau_vel_s: f64 = 0.5, "EST_VEL_TAU", "s", [0.05, 30.0], "GPS velocity correction time constant";
         /// GPS latency.

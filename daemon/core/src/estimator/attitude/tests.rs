@@ -220,15 +220,28 @@ fn yaw_spins() {
     assert!(r.roll_pitch_rms_deg <= 0.3 && r.yaw_rms_deg <= 1.5);
 }
 
-/// Castillo 4.3.2: from an initial error of 173.12° the observer converges (k = 4).
+/// Castillo 4.3.2: from an initial error of 173.12° the observer converges, with the paper's
+/// gains (k = 4, bias gain ½) within 3 s; with the flight defaults (k = 1, chosen for noise, see
+/// [`AttitudeParams::default`]) the same recovery takes four times as long.
 #[test]
 fn recovers_from_a_173_degree_initial_error() {
+    let paper = AttitudeParams {
+        observer_gain: 4.0,
+        bias_gain: 0.5,
+        ..AttitudeParams::default()
+    };
+    for (params, within_s) in [(paper, 3.0), (AttitudeParams::default(), 12.0)] {
+        recovers_from_173_degrees(&params, within_s);
+    }
+}
+
+fn recovers_from_173_degrees(params: &AttitudeParams, within_s: f64) {
     let q_true = UnitQuaternion::from_euler_angles(0.05, -0.03, 0.8);
     let q_wrong = UnitQuaternion::new_normalize(Quaternion::new(0.06, 0.48, 0.84, -0.24)); // Castillo's q_b(0)
     let start = q_true * q_wrong;
     let initial_error: f64 = q_true.angle_to(&start);
     assert!((initial_error.to_degrees() - 173.12).abs() < 0.01);
-    let mut est = AttitudeEstimator::new(&AttitudeParams::default());
+    let mut est = AttitudeEstimator::new(params);
     est.start_at(start);
     let field = AttitudeParams::default().earth_field_ned();
     let input = AttitudeInput {
@@ -238,7 +251,7 @@ fn recovers_from_a_173_degree_initial_error() {
         accel_ned_hint: None,
     };
     let mut converged_at = None;
-    for k in 1..=2500 {
+    for k in 1..=(within_s * 250.0) as usize + 2500 {
         let e = est.update(&input, 0.004).unwrap();
         if converged_at.is_none() && e.q.angle_to(&q_true) < 1f64.to_radians() {
             converged_at = Some(k as f64 * 0.004);
@@ -247,10 +260,11 @@ fn recovers_from_a_173_degree_initial_error() {
     let t = converged_at.expect("must converge");
     let final_err = est.estimate(&Vector3::zeros()).unwrap().q.angle_to(&q_true);
     println!(
-        "173.12 deg initial error: within 1 deg after {t:.2} s, {:.1e} deg after 10 s",
+        "k = {}: 173.12 deg initial error: within 1 deg after {t:.2} s, {:.1e} deg at the end",
+        params.observer_gain,
         final_err.to_degrees()
     );
-    assert!(t < 3.0);
+    assert!(t < within_s, "k = {}: {t:.2} s", params.observer_gain);
     assert!(final_err.to_degrees() < 0.5);
 }
 
@@ -327,4 +341,37 @@ fn bad_samples_are_counted_not_flown() {
         est.update(&AttitudeInput { mag: None, ..good }, 0.004);
     }
     assert!(!est.estimate(&Vector3::zeros()).unwrap().valid);
+}
+
+/// After a gap in the samples longer than `max_uncorrected_s` (a silent link) the gyros know
+/// nothing of what happened meanwhile: the next measurement is taken as it is, the bias kept.
+/// Without a gap the same innovation is only filtered in.
+#[test]
+fn a_gap_in_the_samples_takes_the_next_measurement_as_it_is() {
+    let field = AttitudeParams::default().earth_field_ned();
+    let tilted = UnitQuaternion::from_euler_angles(0.17, -0.1, 0.3);
+    let sample = |q: &UnitQuaternion<f64>| AttitudeInput {
+        gyro: Vector3::zeros(),
+        accel: q.inverse() * Vector3::new(0.0, 0.0, -G),
+        mag: Some(q.inverse() * field),
+        accel_ned_hint: None,
+    };
+    for (dt, realigned) in [(0.004, false), (1.5, true)] {
+        let mut est = AttitudeEstimator::new(&AttitudeParams::default());
+        est.start_at(UnitQuaternion::identity());
+        est.set_gyro_bias(Vector3::new(0.001, 0.0, 0.0));
+        est.update(&sample(&UnitQuaternion::identity()), 0.004);
+        let e = est.update(&sample(&tilted), dt).unwrap();
+        let error = e.q.angle_to(&tilted).to_degrees();
+        assert_eq!(est.status().realigned, u64::from(realigned));
+        if realigned {
+            assert!(error < 0.01, "{error}°");
+        } else {
+            assert!(error > 10.0, "{error}°: filtered, not jumped");
+        }
+        assert!(
+            (e.gyro_bias - Vector3::new(0.001, 0.0, 0.0)).norm() < 1e-6,
+            "bias kept"
+        );
+    }
 }
