@@ -47,6 +47,12 @@ pub struct ConfigFile {
     pub truth_csv: Option<PathBuf>,
     /// Flight-data CSV.
     pub flight_csv: Option<PathBuf>,
+    /// Rate of the deadline-paced loop (Hz).
+    pub loop_hz: Option<f64>,
+    /// Spin before each deadline (µs).
+    pub loop_spin_us: Option<f64>,
+    /// CPU the control loop is pinned to.
+    pub loop_cpu: Option<usize>,
 }
 
 /// Allowed take-off altitudes (m).
@@ -55,6 +61,10 @@ pub const TAKEOFF_RANGE_M: RangeInclusive<f64> = 1.0..=100.0;
 pub const HOVER_RANGE_S: RangeInclusive<f64> = 0.0..=3600.0;
 /// Allowed instance numbers.
 pub const INSTANCE_RANGE: RangeInclusive<u16> = 0..=250;
+/// Allowed rates of the deadline-paced loop (Hz).
+pub const LOOP_HZ_RANGE: RangeInclusive<f64> = 50.0..=2000.0;
+/// Allowed spins before a deadline (µs).
+pub const LOOP_SPIN_RANGE_US: RangeInclusive<f64> = 0.0..=1000.0;
 /// Allowed real-time factors.
 pub const SPEED_RANGE: RangeInclusive<f64> = 0.01..=10_000.0;
 
@@ -79,6 +89,16 @@ impl ConfigFile {
             && let Err(e) = in_range(x, &HOVER_RANGE_S, "s")
         {
             bad("hover_s", e);
+        }
+        if let Some(x) = c.loop_hz
+            && let Err(e) = in_range(x, &LOOP_HZ_RANGE, "Hz")
+        {
+            bad("loop_hz", e);
+        }
+        if let Some(x) = c.loop_spin_us
+            && let Err(e) = in_range(x, &LOOP_SPIN_RANGE_US, "µs")
+        {
+            bad("loop_spin_us", e);
         }
         if let Some(i) = c.instance
             && !INSTANCE_RANGE.contains(&i)
@@ -226,6 +246,16 @@ mod tests {
                 "`speed`: \"fast\" is neither",
             ),
             ("zero.toml", "speed = 0\n", "`speed`: 0 is out of range"),
+            (
+                "loop.toml",
+                "loop_hz = 5000\n",
+                "`loop_hz`: 5000 is out of range [50, 2000] Hz",
+            ),
+            (
+                "spin.toml",
+                "loop_spin_us = -3\n",
+                "`loop_spin_us`: -3 is out of range [0, 1000] µs",
+            ),
             (
                 "sensors.toml",
                 "sensors = \"perfect\"\n",

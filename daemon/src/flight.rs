@@ -1,6 +1,13 @@
-//! The flight loop in lockstep: every sensor frame is a tick, its time the clock. Messages come
-//! from a [`SensorLink`], the [`Vehicle`] steps on each `HIL_SENSOR`, the answer goes back.
+//! The control loop. It owns the [`Vehicle`] (the flight core and its sequence) and its sensor
+//! link; other tasks reach it only through [`Ports`]: a bounded channel of [`Command`]s in, the
+//! latest [`Telemetry`] out.
+//!
+//! Two pacings ([`Pacing`]): in lockstep every sensor frame is a tick and its time the clock (a
+//! simulator that waits for each answer); with a flight board in the real world the loop wakes
+//! at absolute deadlines, reads whatever the link holds without waiting, steps on every complete
+//! frame, and counts its lateness and overruns ([`crate::deadline`]).
 
+use crate::deadline::{Deadlines, LoopStats, LoopSummary, sleep_until};
 use crate::link::SensorLink;
 use crate::score::FlightScore;
 use crate::vehicle::Vehicle;
@@ -8,9 +15,8 @@ use anyhow::{Context, Result, bail};
 use flight_core::core::StepOutput;
 use flight_core::sequence::Phase;
 use hil::{Decoded, Encoder};
-use std::io::{IsTerminal, Write};
-use std::sync::atomic::{AtomicU8, Ordering};
 use std::time::{Duration, Instant};
+use tokio::sync::{mpsc, watch};
 
 /// The estimator converges in a few seconds at rest; a sequence still waiting after this long
 /// never will, and the flight stops with the reason instead of waiting forever.
@@ -24,8 +30,81 @@ const SILENCE_WARNING: Duration = Duration::from_secs(2);
 /// the vehicle reacts (s). With the loop's poll period below, the reaction starts within 0.1 s.
 pub const SENSOR_TIMEOUT_S: f64 = 0.08;
 
-/// How long one wait for frames lasts: the watchdog's resolution.
+/// How long one wait for frames lasts in lockstep: the watchdog's resolution.
 const POLL: Duration = Duration::from_millis(10);
+
+/// Reads per deadline tick at most: a link flooded with datagrams cannot hold the loop.
+const MAX_READS_PER_TICK: usize = 32;
+
+/// How often the deadline loop logs its timing.
+const STATS_INTERVAL: Duration = Duration::from_secs(10);
+
+/// What other tasks ask of the control loop.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Command {
+    /// Land now (the first Ctrl-C).
+    Land,
+    /// Stop the loop at once (the second Ctrl-C).
+    Stop,
+}
+
+/// What the control loop publishes after every step: the latest value, for the status line
+/// and (later) the ground-station telemetry.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Telemetry {
+    /// Time of the last sensor frame (s).
+    pub t_s: f64,
+    /// The sequence's phase.
+    pub phase: Option<Phase>,
+    /// The last step's output.
+    pub output: Option<StepOutput>,
+    /// Sensor frames stepped.
+    pub frames: u64,
+    /// The deadline loop's timing over the last interval (none in lockstep).
+    pub loop_stats: Option<LoopSummary>,
+    /// The loop has ended.
+    pub finished: bool,
+}
+
+/// The control loop's side of its channels.
+pub struct Ports {
+    /// Commands from other tasks (bounded; drained before each step).
+    pub commands: mpsc::Receiver<Command>,
+    /// The latest telemetry.
+    pub telemetry: watch::Sender<Telemetry>,
+}
+
+impl Ports {
+    /// Channels whose other ends are returned: a command sender (capacity `capacity`) and a
+    /// telemetry receiver.
+    pub fn new(capacity: usize) -> (Self, mpsc::Sender<Command>, watch::Receiver<Telemetry>) {
+        let (tx, commands) = mpsc::channel(capacity);
+        let (telemetry, rx) = watch::channel(Telemetry::default());
+        (
+            Self {
+                commands,
+                telemetry,
+            },
+            tx,
+            rx,
+        )
+    }
+}
+
+/// How the loop is paced.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Pacing {
+    /// Every sensor frame is a tick: the loop waits for it.
+    Lockstep,
+    /// Ticks at absolute deadlines every `period`; the last `spin` before each is spent
+    /// spinning on the clock rather than sleeping (see [`sleep_until`]).
+    Deadlines {
+        /// The tick period.
+        period: Duration,
+        /// Spin before each deadline.
+        spin: Duration,
+    },
+}
 
 /// What happened, printed as one `key=value` line at the end.
 #[derive(Debug, Default)]
@@ -39,6 +118,8 @@ pub struct FlightReport {
     score: FlightScore,
     disarmed: bool,
     sensor_timeouts: u64,
+    /// The deadline loop's rate and timing over the whole run.
+    deadline_loop: Option<(f64, LoopSummary)>,
 }
 
 impl std::fmt::Display for FlightReport {
@@ -63,106 +144,172 @@ impl std::fmt::Display for FlightReport {
             self.score.touchdown_m_s,
             self.score.on_ground(),
             self.disarmed
-        )
+        )?;
+        match &self.deadline_loop {
+            None => write!(f, " pacing=lockstep"),
+            Some((hz, s)) => write!(
+                f,
+                " pacing=deadlines loop_hz={hz:.0} ticks={} jitter_p50_us={} jitter_p99_us={} jitter_max_us={} work_max_us={} overruns={}",
+                s.ticks,
+                s.jitter_p50_us,
+                s.jitter_p99_us,
+                s.jitter_max_us,
+                s.work_max_us,
+                s.overruns
+            ),
+        }
     }
 }
 
-/// Flies the vehicle's sequence over `link` until it has landed and disarmed. `interrupts`
-/// counts Ctrl-C presses: the first lands, the second stops at once.
-pub fn fly(
-    link: &mut dyn SensorLink,
-    vehicle: &mut Vehicle,
-    system_id: u8,
-    interrupts: &AtomicU8,
-) -> Result<FlightReport> {
-    let started = Instant::now();
-    let mut report = FlightReport {
-        source: link.describe(),
-        ..FlightReport::default()
-    };
-    let mut encoder = Encoder::with_ids(system_id, 1);
-    let mut decoded = Decoded::default();
-    let mut answer = Vec::with_capacity(128);
-    let tty = std::io::stdout().is_terminal();
-    let mut next_status = Duration::ZERO;
-    let mut last_frame = Instant::now();
-    let mut silence_logged = false;
-    let mut done_at = None;
-    let mut t_s = 0.0;
-    // The watchdog: the link-clock time of the last frame, and whether the vehicle has reacted.
-    let mut last_frame_clock: Option<f64> = None;
-    let mut silent = false;
-    let mut silent_done_at = None;
-    'flight: loop {
-        match interrupts.load(Ordering::Relaxed) {
-            0 => {}
-            1 => vehicle.request_land(),
-            _ => break,
+/// Whether the loop goes on.
+#[derive(Debug, PartialEq, Eq)]
+enum Flow {
+    Continue,
+    Stop,
+}
+
+/// The loop's state between ticks, whatever paces it.
+struct ControlLoop<'a> {
+    link: &'a mut dyn SensorLink,
+    vehicle: &'a mut Vehicle,
+    ports: &'a mut Ports,
+    report: FlightReport,
+    encoder: Encoder,
+    decoded: Decoded,
+    answer: Vec<u8>,
+    last_frame: Instant,
+    silence_logged: bool,
+    done_at: Option<f64>,
+    t_s: f64,
+    /// The watchdog: the link-clock time of the last frame, and whether the vehicle reacted.
+    last_frame_clock: Option<f64>,
+    silent: bool,
+    silent_done_at: Option<f64>,
+    loop_stats: Option<LoopSummary>,
+}
+
+impl<'a> ControlLoop<'a> {
+    fn new(
+        link: &'a mut dyn SensorLink,
+        vehicle: &'a mut Vehicle,
+        ports: &'a mut Ports,
+        system_id: u8,
+    ) -> Self {
+        Self {
+            report: FlightReport {
+                source: link.describe(),
+                ..FlightReport::default()
+            },
+            link,
+            vehicle,
+            ports,
+            encoder: Encoder::with_ids(system_id, 1),
+            decoded: Decoded::default(),
+            answer: Vec::with_capacity(128),
+            last_frame: Instant::now(),
+            silence_logged: false,
+            done_at: None,
+            t_s: 0.0,
+            last_frame_clock: None,
+            silent: false,
+            silent_done_at: None,
+            loop_stats: None,
         }
-        decoded.messages.clear();
-        decoded.malformed = 0;
-        let arrived = link
-            .receive(POLL, &mut decoded)
-            .with_context(|| format!("reading {}", link.describe()))?;
-        report.malformed += decoded.malformed as u64;
-        if let (Some(now), Some(last)) = (link.silence_clock_s(), last_frame_clock)
-            && now - last >= SENSOR_TIMEOUT_S
-        {
-            if !silent {
-                silent = true;
-                report.sensor_timeouts += 1;
-                vehicle.sensors_stopped();
+    }
+
+    /// Drains the commands.
+    fn commands(&mut self) -> Flow {
+        while let Ok(c) = self.ports.commands.try_recv() {
+            match c {
+                Command::Land => self.vehicle.request_land(),
+                Command::Stop => return Flow::Stop,
             }
-            // Keep the motors on the failsafe's command (a board wants a steady stream).
-            let message = vehicle.silent_answer(now - last);
-            send(link, &mut encoder, &mut answer, &message)?;
-            if vehicle.phase() == Phase::Done {
-                // Disarmed by the failsafe: a second more of motors-off, then stop.
-                if now - *silent_done_at.get_or_insert(now) > 1.0 {
-                    break 'flight;
+        }
+        Flow::Continue
+    }
+
+    /// Reads the link: waits up to `timeout`, then (`drain`) takes what else is there.
+    fn read(&mut self, timeout: Duration, drain: bool) -> Result<bool> {
+        self.decoded.messages.clear();
+        self.decoded.malformed = 0;
+        let mut arrived = self
+            .link
+            .receive(timeout, &mut self.decoded)
+            .with_context(|| format!("reading {}", self.link.describe()))?;
+        if drain && arrived {
+            for _ in 1..MAX_READS_PER_TICK {
+                if !self.link.receive(Duration::ZERO, &mut self.decoded)? {
+                    break;
                 }
             }
+            arrived = true;
         }
-        if !arrived {
-            if !silence_logged && last_frame.elapsed() > SILENCE_WARNING {
-                tracing::warn!(
-                    link = %link.describe(),
-                    phase = ?vehicle.phase(),
-                    "no sensor frames for {:.0?}: waiting",
-                    last_frame.elapsed()
-                );
-                silence_logged = true;
+        self.report.malformed += self.decoded.malformed as u64;
+        if !arrived && !self.silence_logged && self.last_frame.elapsed() > SILENCE_WARNING {
+            tracing::warn!(
+                link = %self.link.describe(),
+                phase = ?self.vehicle.phase(),
+                "no sensor frames for {:.0?}: waiting",
+                self.last_frame.elapsed()
+            );
+            self.silence_logged = true;
+        }
+        Ok(arrived)
+    }
+
+    /// The sensor watchdog: on the link's clock, frames silent for [`SENSOR_TIMEOUT_S`] make
+    /// the estimate invalid and the vehicle react; its commands keep going out meanwhile.
+    fn watchdog(&mut self) -> Result<Flow> {
+        let (Some(now), Some(last)) = (self.link.silence_clock_s(), self.last_frame_clock) else {
+            return Ok(Flow::Continue);
+        };
+        if now - last < SENSOR_TIMEOUT_S {
+            return Ok(Flow::Continue);
+        }
+        if !self.silent {
+            self.silent = true;
+            self.report.sensor_timeouts += 1;
+            self.vehicle.sensors_stopped();
+        }
+        // Keep the motors on the failsafe's command (a board wants a steady stream).
+        let message = self.vehicle.silent_answer(now - last);
+        self.send(&message)?;
+        if self.vehicle.phase() == Phase::Done {
+            // Disarmed by the failsafe: a second more of motors-off, then stop.
+            if now - *self.silent_done_at.get_or_insert(now) > 1.0 {
+                return Ok(Flow::Stop);
             }
-            continue;
         }
-        for (_, msg) in &decoded.messages {
-            let Some(step) = vehicle.on_message(msg) else {
+        Ok(Flow::Continue)
+    }
+
+    /// Steps the vehicle on every complete sensor frame read, and answers each.
+    fn frames(&mut self) -> Result<Flow> {
+        for i in 0..self.decoded.messages.len() {
+            let Some(step) = self.vehicle.on_message(&self.decoded.messages[i].1) else {
                 continue;
             };
-            last_frame = Instant::now();
-            silence_logged = false;
-            last_frame_clock = link.silence_clock_s();
-            if silent {
-                silent = false;
-                silent_done_at = None;
-                vehicle.sensors_resumed();
+            self.last_frame = Instant::now();
+            self.silence_logged = false;
+            self.last_frame_clock = self.link.silence_clock_s();
+            if self.silent {
+                self.silent = false;
+                self.silent_done_at = None;
+                self.vehicle.sensors_resumed();
             }
-            report.frames += 1;
-            t_s = step.t_s;
-            send(link, &mut encoder, &mut answer, &step.message)?;
-
-            let elapsed = started.elapsed();
-            if elapsed >= next_status {
-                next_status = elapsed + Duration::from_millis(250);
-                status(
-                    &step.output,
-                    vehicle.phase(),
-                    t_s,
-                    elapsed.as_secs_f64(),
-                    tty,
-                );
-            }
-            if vehicle.phase() == Phase::Disarmed && t_s > READY_TIMEOUT_S {
+            self.report.frames += 1;
+            self.t_s = step.t_s;
+            self.send(&step.message)?;
+            let phase = self.vehicle.phase();
+            self.ports.telemetry.send_replace(Telemetry {
+                t_s: step.t_s,
+                phase: Some(phase),
+                output: Some(step.output),
+                frames: self.report.frames,
+                loop_stats: self.loop_stats,
+                finished: false,
+            });
+            if phase == Phase::Disarmed && self.t_s > READY_TIMEOUT_S {
                 let out = &step.output;
                 bail!(
                     "not ready to arm after {READY_TIMEOUT_S} s of sensor time: attitude valid {}, horizontal position valid {}, vertical valid {}",
@@ -171,59 +318,110 @@ pub fn fly(
                     out.translation.vertical_valid
                 );
             }
-            if vehicle.phase() == Phase::Done {
+            if phase == Phase::Done {
                 // A second on the ground after disarming, then stop.
-                let t = *done_at.get_or_insert(t_s);
-                if t_s - t > 1.0 {
-                    break 'flight;
+                let t = *self.done_at.get_or_insert(self.t_s);
+                if self.t_s - t > 1.0 {
+                    return Ok(Flow::Stop);
                 }
             }
         }
+        Ok(Flow::Continue)
     }
-    if tty {
-        println!();
+
+    /// Encodes `message` and sends it on the link.
+    fn send(&mut self, message: &mavlink::dialects::common::MavMessage) -> Result<()> {
+        self.answer.clear();
+        self.encoder.push(&mut self.answer, message);
+        self.link
+            .send(&self.answer)
+            .with_context(|| format!("answering on {}", self.link.describe()))
     }
-    report.sim_time_s = t_s;
-    report.wall_time_s = started.elapsed().as_secs_f64();
-    report.score = vehicle.score().clone();
-    report.repeated = vehicle.repeated_frames();
-    report.disarmed = vehicle.phase() == Phase::Done;
-    Ok(report)
+
+    /// One tick: commands, the link, the watchdog, the frames.
+    fn tick(&mut self, timeout: Duration, drain: bool) -> Result<Flow> {
+        if self.commands() == Flow::Stop {
+            return Ok(Flow::Stop);
+        }
+        let arrived = self.read(timeout, drain)?;
+        if self.watchdog()? == Flow::Stop || (arrived && self.frames()? == Flow::Stop) {
+            return Ok(Flow::Stop);
+        }
+        Ok(Flow::Continue)
+    }
+
+    /// Lockstep: every frame is a tick.
+    fn run_lockstep(&mut self) -> Result<()> {
+        while self.tick(POLL, false)? == Flow::Continue {}
+        Ok(())
+    }
+
+    /// Ticks at absolute deadlines, never waiting on the link.
+    fn run_deadlines(&mut self, period: Duration, spin: Duration) -> Result<()> {
+        let start = Instant::now();
+        let mut deadlines = Deadlines::new(start, period);
+        let (mut interval, mut whole) = (LoopStats::default(), LoopStats::default());
+        let mut report_at = start + STATS_INTERVAL;
+        loop {
+            let due = deadlines.next();
+            sleep_until(due, spin);
+            let woke = Instant::now();
+            let flow = self.tick(Duration::ZERO, true)?;
+            let end = Instant::now();
+            let missed = deadlines.advance(end);
+            interval.record(woke - due, end - woke, missed);
+            if end >= report_at || flow == Flow::Stop {
+                let s = interval.summary();
+                let elapsed = (end - report_at + STATS_INTERVAL).as_secs_f64();
+                tracing::info!(
+                    rate_hz = format!("{:.0}", s.ticks as f64 / elapsed),
+                    jitter_p50_us = s.jitter_p50_us,
+                    jitter_p99_us = s.jitter_p99_us,
+                    jitter_max_us = s.jitter_max_us,
+                    work_max_us = s.work_max_us,
+                    overruns = s.overruns,
+                    "control loop"
+                );
+                self.loop_stats = Some(s);
+                whole.merge(&interval);
+                interval.clear();
+                report_at = end + STATS_INTERVAL;
+            }
+            if flow == Flow::Stop {
+                break;
+            }
+        }
+        let wall = start.elapsed().as_secs_f64();
+        let s = whole.summary();
+        self.report.deadline_loop = Some((s.ticks as f64 / wall.max(1e-9), s));
+        Ok(())
+    }
 }
 
-/// Encodes `message` into `buf` and sends it on `link`.
-fn send(
+/// Flies the vehicle's sequence over `link` until it has landed and disarmed, or a
+/// [`Command::Stop`] arrives.
+pub fn fly(
     link: &mut dyn SensorLink,
-    encoder: &mut Encoder,
-    buf: &mut Vec<u8>,
-    message: &mavlink::dialects::common::MavMessage,
-) -> Result<()> {
-    buf.clear();
-    encoder.push(buf, message);
-    link.send(buf)
-        .with_context(|| format!("answering on {}", link.describe()))
-}
-
-/// The live one-line status: on a terminal it rewrites itself, otherwise one line each time.
-fn status(out: &StepOutput, phase: Phase, t_s: f64, wall_s: f64, tty: bool) {
-    let (roll, pitch, yaw) = out.attitude.map_or((0.0, 0.0, 0.0), |a| a.q.euler_angles());
-    let line = format!(
-        "t {t_s:6.1} s  {:<8} alt {:6.2} m  vz {:5.2} m/s  roll {:5.1}  pitch {:5.1}  yaw {:6.1} deg  x{:.0} real time",
-        format!("{phase:?}"),
-        -out.translation.pos_ned_m.z,
-        -out.translation.vel_ned_m_s.z,
-        roll.to_degrees(),
-        pitch.to_degrees(),
-        yaw.to_degrees(),
-        t_s / wall_s.max(1e-9)
-    );
-    let mut stdout = std::io::stdout();
-    if tty {
-        let _ = write!(stdout, "\r{line}");
-        let _ = stdout.flush();
-    } else {
-        let _ = writeln!(stdout, "{line}");
-    }
+    vehicle: &mut Vehicle,
+    system_id: u8,
+    ports: &mut Ports,
+    pacing: Pacing,
+) -> Result<FlightReport> {
+    let started = Instant::now();
+    let mut l = ControlLoop::new(link, vehicle, ports, system_id);
+    let result = match pacing {
+        Pacing::Lockstep => l.run_lockstep(),
+        Pacing::Deadlines { period, spin } => l.run_deadlines(period, spin),
+    };
+    l.ports.telemetry.send_modify(|t| t.finished = true);
+    result?;
+    let mut report = l.report;
+    report.sim_time_s = l.t_s;
+    report.wall_time_s = started.elapsed().as_secs_f64();
+    report.score = l.vehicle.score().clone();
+    report.repeated = l.vehicle.repeated_frames();
+    report.disarmed = l.vehicle.phase() == Phase::Done;
+    Ok(report)
 }
 
 #[cfg(test)]
@@ -421,7 +619,8 @@ mod tests {
         let params = FlightParams::load(&dir.join("flight.toml")).unwrap();
         let mut vehicle = Vehicle::new(&airframe, &params, 5.0, 30.0).unwrap();
         let mut link = FaultyLink::new(fault, seed);
-        let report = fly(&mut link, &mut vehicle, 1, &AtomicU8::new(0)).unwrap();
+        let (mut ports, _commands, _telemetry) = Ports::new(4);
+        let report = fly(&mut link, &mut vehicle, 1, &mut ports, Pacing::Lockstep).unwrap();
         eprintln!(
             "fault began at {:?} s: reaction {:?} s, tilt after ≤ {:.1}°, drift after ≤ {:.2} m, touchdown {:.2} m/s, ended at {:.1} s\n{report}",
             link.began_s,

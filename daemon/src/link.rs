@@ -164,9 +164,11 @@ pub struct UdpLink {
     peer: Option<SocketAddr>,
     rx: Vec<u8>,
     lockstep: bool,
-    /// The read timeout as last set: set again only when it changes (a system call per frame
-    /// otherwise).
+    /// The read timeout as last set (`Some(ZERO)`: non-blocking): set again only when it
+    /// changes (a system call per frame otherwise).
     read_timeout: Option<Duration>,
+    /// Answers dropped because the socket's buffer was full (non-blocking).
+    dropped: u64,
 }
 
 impl UdpLink {
@@ -181,6 +183,7 @@ impl UdpLink {
             rx: vec![0; 65_536],
             lockstep,
             read_timeout: None,
+            dropped: 0,
         })
     }
 
@@ -192,9 +195,12 @@ impl UdpLink {
 
 impl SensorLink for UdpLink {
     fn receive(&mut self, timeout: Duration, into: &mut Decoded) -> io::Result<bool> {
-        let timeout = timeout.max(Duration::from_micros(1));
         if self.read_timeout != Some(timeout) {
-            self.socket.set_read_timeout(Some(timeout))?;
+            // A zero timeout reads without waiting (the deadline-paced loop).
+            self.socket.set_nonblocking(timeout.is_zero())?;
+            if !timeout.is_zero() {
+                self.socket.set_read_timeout(Some(timeout))?;
+            }
             self.read_timeout = Some(timeout);
         }
         match self.socket.recv_from(&mut self.rx) {
@@ -219,6 +225,17 @@ impl SensorLink for UdpLink {
         match self.socket.send_to(bytes, peer) {
             // The simulator went away; it may come back.
             Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => Ok(()),
+            // Non-blocking and the buffer is full: this answer is lost, the next one goes.
+            Err(e) if e.kind() == io::ErrorKind::WouldBlock => {
+                self.dropped += 1;
+                if self.dropped.is_power_of_two() {
+                    tracing::warn!(
+                        dropped = self.dropped,
+                        "UDP send buffer full: answers dropped"
+                    );
+                }
+                Ok(())
+            }
             r => r.map(|_| ()),
         }
     }
@@ -247,6 +264,8 @@ pub struct SerialLink {
     retry_at: Instant,
     backoff: Duration,
     lockstep: bool,
+    /// Answers dropped because the output buffer was full.
+    dropped: u64,
 }
 
 impl SerialLink {
@@ -265,6 +284,7 @@ impl SerialLink {
             retry_at: Instant::now(),
             backoff: Duration::from_millis(100),
             lockstep,
+            dropped: 0,
         })
     }
 
@@ -330,8 +350,17 @@ impl SensorLink for SerialLink {
         let Some(port) = self.port.as_mut() else {
             return Ok(());
         };
-        if let Err(e) = port.write_all(bytes) {
-            self.lost(&e);
+        match port.write_all(bytes) {
+            Ok(()) => {}
+            // The deadline-paced loop writes without waiting: a full output buffer loses this
+            // answer (the board's parser skips a partial frame), not the port.
+            Err(e) if nothing_yet(&e) => {
+                self.dropped += 1;
+                if self.dropped.is_power_of_two() {
+                    tracing::warn!(port = %self.path.display(), dropped = self.dropped, "serial output full: answers dropped");
+                }
+            }
+            Err(e) => self.lost(&e),
         }
         Ok(())
     }

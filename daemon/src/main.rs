@@ -5,6 +5,7 @@
 //! same way. `autopilot replay` runs the attitude estimator over logged sensor data.
 
 mod config;
+mod deadline;
 mod flight;
 mod flight_csv;
 mod link;
@@ -15,15 +16,17 @@ mod vehicle;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
+use flight::{Command as LoopCommand, FlightReport, Pacing, Ports, Telemetry};
 use flight_core::params::FlightParams;
 use flight_csv::FlightCsv;
 use link::{SensorLink, SerialLink, Source, UdpLink};
 use sim::EmbeddedSim;
 use sitl_core::Airframe;
 use sitl_core::sensors::SensorPreset;
+use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicU8, Ordering};
+use std::time::{Duration, Instant};
+use tokio::sync::{mpsc, watch};
 use vehicle::Vehicle;
 
 /// A MAVLink multirotor autopilot.
@@ -37,7 +40,8 @@ use vehicle::Vehicle;
 )]
 struct Cli {
     /// Settings file (TOML): every key mirrors a flag below (source, instance, airframe,
-    /// params, params_dir, takeoff_m, hover_s, speed, seed, sensors, truth_csv, flight_csv);
+    /// params, params_dir, takeoff_m, hover_s, speed, seed, sensors, truth_csv, flight_csv,
+    /// loop_hz, loop_spin_us, loop_cpu);
     /// flags given here win. Paths in it are relative to its directory.
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
@@ -90,6 +94,19 @@ struct Cli {
     /// truth) to this CSV file, one row per sensor frame.
     #[arg(long, value_name = "FILE")]
     flight_csv: Option<PathBuf>,
+    /// With a source that does not wait for answers (a flight board, or `?lockstep=false`):
+    /// the control loop's rate, 50 to 2000 Hz. It wakes at absolute deadlines, steps on every
+    /// sensor frame that arrived, and logs its jitter and overruns [default: 1000].
+    #[arg(long, value_name = "HZ")]
+    loop_hz: Option<f64>,
+    /// The part of each loop period before the deadline spent spinning on the clock rather
+    /// than sleeping (µs, 0 to 1000): a sleep alone wakes ~60 µs late on Linux [default: 150].
+    #[arg(long, value_name = "US")]
+    loop_spin_us: Option<f64>,
+    /// Pin the control loop's thread to this CPU (Linux), away from CPUs that serve periodic
+    /// interrupts [default: not pinned].
+    #[arg(long, value_name = "N")]
+    loop_cpu: Option<usize>,
     #[command(subcommand)]
     command: Option<Command>,
 }
@@ -129,6 +146,9 @@ struct Settings {
     sensors: String,
     truth_csv: Option<PathBuf>,
     flight_csv: Option<PathBuf>,
+    loop_hz: f64,
+    loop_spin_us: f64,
+    loop_cpu: Option<usize>,
 }
 
 impl Settings {
@@ -167,6 +187,14 @@ impl Settings {
                 None => Some(1.0),
             },
         };
+        let loop_hz = match cli.loop_hz {
+            Some(x) => flag("loop-hz", x, &config::LOOP_HZ_RANGE, "Hz")?,
+            None => file.loop_hz.unwrap_or(1000.0),
+        };
+        let loop_spin_us = match cli.loop_spin_us {
+            Some(x) => flag("loop-spin-us", x, &config::LOOP_SPIN_RANGE_US, "µs")?,
+            None => file.loop_spin_us.unwrap_or(150.0),
+        };
         let sensors = cli
             .sensors
             .clone()
@@ -189,6 +217,9 @@ impl Settings {
             sensors,
             truth_csv: cli.truth_csv.clone().or(file.truth_csv),
             flight_csv: cli.flight_csv.clone().or(file.flight_csv),
+            loop_hz,
+            loop_spin_us,
+            loop_cpu: cli.loop_cpu.or(file.loop_cpu),
         })
     }
 
@@ -224,54 +255,145 @@ fn fly(cli: &Cli) -> Result<()> {
                 .with_context(|| format!("creating {}", path.display()))?,
         );
     }
-    let interrupts = Arc::new(AtomicU8::new(0));
-    {
-        let i = interrupts.clone();
-        ctrlc::set_handler(move || {
-            if i.fetch_add(1, Ordering::SeqCst) == 0 {
-                eprintln!("\nautopilot: landing (Ctrl-C again to stop at once)");
+    let system_id = (cfg.instance + 1) as u8;
+    let deadlines = Pacing::Deadlines {
+        period: Duration::from_secs_f64(1.0 / cfg.loop_hz),
+        spin: Duration::from_secs_f64(cfg.loop_spin_us * 1e-6),
+    };
+    let (mut ports, commands, telemetry) = Ports::new(16);
+    // The control loop on its own thread owns the vehicle and the sensor link; this thread runs
+    // the tasks that talk to it (status line, Ctrl-C; the ground stations later).
+    let control = std::thread::Builder::new()
+        .name("control-loop".into())
+        .spawn(move || -> Result<FlightReport> {
+            let ports = &mut ports;
+            if let Some(cpu) = cfg.loop_cpu {
+                deadline::pin_to_cpu(cpu).map_err(anyhow::Error::msg)?;
+                tracing::info!(cpu, "control loop pinned");
+            }
+            match source {
+                Source::Embedded => {
+                    let sensors = SensorPreset::from_name(&cfg.sensors).with_context(|| {
+                        format!(
+                            "--sensors must be ideal, typical or noisy, got {:?}",
+                            cfg.sensors
+                        )
+                    })?;
+                    let mut link = EmbeddedSim::new(
+                        &airframe,
+                        cfg.seed,
+                        sensors,
+                        cfg.speed,
+                        cfg.truth_csv.as_deref(),
+                    )?;
+                    let report =
+                        flight::fly(&mut link, &mut vehicle, system_id, ports, Pacing::Lockstep)?;
+                    link.finish()?;
+                    finish(vehicle, report)
+                }
+                Source::Udp { addr, lockstep } => {
+                    let mut link = UdpLink::bind(addr, lockstep)?;
+                    tracing::info!(listening = %link.local_addr()?, airframe = %airframe.name, "waiting for a simulator");
+                    let pacing = if lockstep { Pacing::Lockstep } else { deadlines };
+                    let report = flight::fly(&mut link, &mut vehicle, system_id, ports, pacing)?;
+                    finish(vehicle, report)
+                }
+                Source::Serial {
+                    path,
+                    baud,
+                    lockstep,
+                } => {
+                    let mut link = SerialLink::open(path, baud, lockstep)?;
+                    tracing::info!(port = %link.describe(), airframe = %airframe.name, "waiting for the flight board");
+                    let pacing = if lockstep { Pacing::Lockstep } else { deadlines };
+                    let report = flight::fly(&mut link, &mut vehicle, system_id, ports, pacing)?;
+                    finish(vehicle, report)
+                }
             }
         })
-        .context("installing the Ctrl-C handler")?;
-    }
-    let system_id = (cfg.instance + 1) as u8;
-    let report = match source {
-        Source::Embedded => {
-            let sensors = SensorPreset::from_name(&cfg.sensors).with_context(|| {
-                format!(
-                    "--sensors must be ideal, typical or noisy, got {:?}",
-                    cfg.sensors
-                )
-            })?;
-            let mut link = EmbeddedSim::new(
-                &airframe,
-                cfg.seed,
-                sensors,
-                cfg.speed,
-                cfg.truth_csv.as_deref(),
-            )?;
-            let report = flight::fly(&mut link, &mut vehicle, system_id, &interrupts)?;
-            link.finish()?;
-            report
-        }
-        Source::Udp { addr, lockstep } => {
-            let mut link = UdpLink::bind(addr, lockstep)?;
-            tracing::info!(listening = %link.local_addr()?, airframe = %airframe.name, "waiting for a simulator");
-            flight::fly(&mut link, &mut vehicle, system_id, &interrupts)?
-        }
-        Source::Serial {
-            path,
-            baud,
-            lockstep,
-        } => {
-            let mut link = SerialLink::open(path, baud, lockstep)?;
-            tracing::info!(port = %link.describe(), airframe = %airframe.name, "waiting for the flight board");
-            flight::fly(&mut link, &mut vehicle, system_id, &interrupts)?
-        }
-    };
-    vehicle.finish_log()?;
+        .context("starting the control loop")?;
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .context("starting the async runtime")?;
+    runtime.block_on(async move {
+        tokio::spawn(interrupts(commands));
+        status_line(telemetry).await;
+    });
+    let report = control
+        .join()
+        .map_err(|_| anyhow::anyhow!("the control loop panicked"))??;
     println!("{report}");
     Ok(())
+}
+
+/// Flushes the vehicle's log and hands the report on.
+fn finish(mut vehicle: Vehicle, report: FlightReport) -> Result<FlightReport> {
+    vehicle.finish_log()?;
+    Ok(report)
+}
+
+/// Ctrl-C: the first lands, the second stops the loop at once.
+async fn interrupts(commands: mpsc::Sender<LoopCommand>) {
+    if tokio::signal::ctrl_c().await.is_err() {
+        return;
+    }
+    eprintln!("\nautopilot: landing (Ctrl-C again to stop at once)");
+    if commands.send(LoopCommand::Land).await.is_err() {
+        return;
+    }
+    if tokio::signal::ctrl_c().await.is_ok() {
+        let _ = commands.send(LoopCommand::Stop).await;
+    }
+}
+
+/// The live one-line status, four times a second from the latest telemetry, until the loop
+/// ends: on a terminal it rewrites itself, otherwise one line each time.
+async fn status_line(mut telemetry: watch::Receiver<Telemetry>) {
+    let tty = std::io::stdout().is_terminal();
+    let started = Instant::now();
+    let mut tick = tokio::time::interval(Duration::from_millis(250));
+    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    loop {
+        // Polled, not awaited on every change: the loop publishes at its own rate, and waking
+        // this thread that often would take CPU time from it.
+        tick.tick().await;
+        let t = *telemetry.borrow_and_update();
+        // The loop ended, or its thread did (an error before it started).
+        if t.finished || telemetry.has_changed().is_err() {
+            break;
+        }
+        let (Some(out), Some(phase)) = (t.output, t.phase) else {
+            continue;
+        };
+        let (roll, pitch, yaw) = out.attitude.map_or((0.0, 0.0, 0.0), |a| a.q.euler_angles());
+        let wall = started.elapsed().as_secs_f64();
+        let mut line = format!(
+            "t {:6.1} s  {:<8} alt {:6.2} m  vz {:5.2} m/s  roll {:5.1}  pitch {:5.1}  yaw {:6.1} deg  {:.0} frames/s x{:.0} real time",
+            t.t_s,
+            format!("{phase:?}"),
+            -out.translation.pos_ned_m.z,
+            -out.translation.vel_ned_m_s.z,
+            roll.to_degrees(),
+            pitch.to_degrees(),
+            yaw.to_degrees(),
+            t.frames as f64 / wall.max(1e-9),
+            t.t_s / wall.max(1e-9)
+        );
+        if let Some(s) = t.loop_stats {
+            line += &format!("  loop p99 {} us, {} overruns", s.jitter_p99_us, s.overruns);
+        }
+        let mut stdout = std::io::stdout();
+        if tty {
+            let _ = write!(stdout, "\r{line}");
+            let _ = stdout.flush();
+        } else {
+            let _ = writeln!(stdout, "{line}");
+        }
+    }
+    if tty {
+        println!();
+    }
 }
 
 fn main() -> std::process::ExitCode {

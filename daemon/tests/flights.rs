@@ -257,18 +257,12 @@ fn one_seed_one_flight_in_process_and_over_udp() {
     );
 }
 
-/// The same flight over a serial line: `sitl --serial pty` opens a pseudo-terminal pair and plays
-/// the flight board on one end, the autopilot opens the other as `serial:///dev/pts/N`. Frames
-/// that queued in the line before the autopilot opened it are answered, not flown twice, so the
-/// flight is the in-process one, byte for byte.
-#[test]
-fn the_same_flight_over_a_serial_line() {
-    let dir = tempfile::tempdir().unwrap();
-    let (local, serial) = (dir.path().join("local.csv"), dir.path().join("serial.csv"));
-    let reference = embedded("quad_x", 5, Some(&local));
-    let mut sitl = spawn_sitl(&["--serial", "pty"], "quad_x", 5, &serial);
-    // The first line names the autopilot's end of the line; read it on a thread so that a
-    // simulator that never prints cannot hang the test.
+/// `sitl` with `link` (which opens a pseudo-terminal) flying quad_x with `seed`: the child and
+/// the autopilot's end of the line, which sitl prints first. `None` (said loudly) on a machine
+/// without pseudo-terminals.
+fn sitl_on_a_pty(link: &[&str], seed: u64, truth_csv: &Path) -> Option<(Child, String)> {
+    let mut sitl = spawn_sitl(link, "quad_x", seed, truth_csv);
+    // Read on a thread, so that a simulator that never prints cannot hang the test.
     let stdout = sitl.stdout.take().unwrap();
     let (tx, rx) = std::sync::mpsc::channel();
     std::thread::spawn(move || {
@@ -286,11 +280,25 @@ fn the_same_flight_over_a_serial_line() {
         let out = sitl.wait_with_output().unwrap();
         let err = String::from_utf8_lossy(&out.stderr);
         if err.contains("opening a pseudo-terminal pair") {
-            // A machine without /dev/ptmx cannot run this test at all; say so loudly.
-            eprintln!("SKIPPED the serial flight: this machine has no pseudo-terminals: {err}");
-            return;
+            eprintln!("SKIPPED a serial flight: this machine has no pseudo-terminals: {err}");
+            return None;
         }
         panic!("sitl did not name its pseudo-terminal: {line:?}\n{err}");
+    };
+    Some((sitl, device.to_owned()))
+}
+
+/// The same flight over a serial line: `sitl --serial pty` opens a pseudo-terminal pair and plays
+/// the flight board on one end, the autopilot opens the other as `serial:///dev/pts/N`. Frames
+/// that queued in the line before the autopilot opened it are answered, not flown twice, so the
+/// flight is the in-process one, byte for byte.
+#[test]
+fn the_same_flight_over_a_serial_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let (local, serial) = (dir.path().join("local.csv"), dir.path().join("serial.csv"));
+    let reference = embedded("quad_x", 5, Some(&local));
+    let Some((sitl, device)) = sitl_on_a_pty(&["--serial", "pty"], 5, &serial) else {
+        return;
     };
     // sitl over a pty is a simulator in lockstep, not a board in the real world: its pauses
     // (a loaded machine) are no sensor failure.
@@ -328,6 +336,62 @@ fn the_same_flight_over_a_serial_line() {
         "truth over serial differs from in-process at byte {}",
         a.iter().zip(&b).position(|(x, y)| x != y).unwrap_or(common)
     );
+}
+
+/// A flight board in the real world: `sitl` in real time on a serial line streams its frames
+/// without waiting for answers, and the autopilot's loop runs on absolute deadlines at 1 kHz,
+/// stepping on each frame as it arrives. Timing figures belong to the benchmark (tools/bench.sh);
+/// this asserts that the loop kept its rate and flew the sequence to the ground.
+#[test]
+fn a_board_in_real_time_flies_the_deadline_paced_loop() {
+    let dir = tempfile::tempdir().unwrap();
+    let truth = dir.path().join("truth.csv");
+    let Some((sitl, device)) = sitl_on_a_pty(&["--serial", "pty", "--mode", "realtime"], 3, &truth)
+    else {
+        return;
+    };
+    let source = format!("serial://{device}");
+    let args = [
+        "--source",
+        &source,
+        "--loop-hz",
+        "1000",
+        "--takeoff",
+        "2",
+        "--hover",
+        "2",
+        "--params-dir",
+        "params",
+    ];
+    let s = summary(&wait(
+        spawn(&autopilot_exe(), &args),
+        "autopilot --source serial (real time)",
+        Duration::from_secs(90),
+    ));
+    interrupt(sitl);
+    assert_eq!(s["pacing"], "deadlines");
+    let (hz, wall) = (figure(&s, "loop_hz"), figure(&s, "wall_time_s"));
+    assert!((950.0..=1001.0).contains(&hz), "loop at {hz} Hz");
+    assert!(
+        figure(&s, "ticks") >= 0.95 * 1000.0 * wall,
+        "{} ticks in {wall} s",
+        s["ticks"]
+    );
+    // The board's 250 frames/s, each stepped once (real time: the flight's sensor time is its
+    // wall time, less the start-up before the first frame).
+    let fps = figure(&s, "frames") / figure(&s, "sim_time_s");
+    assert!(
+        (240.0..=251.0).contains(&fps),
+        "{fps} frames per sensor second"
+    );
+    assert!(
+        figure(&s, "sim_time_s") <= wall + 0.1,
+        "real time, not faster"
+    );
+    assert_eq!(s["malformed"], "0");
+    assert!(figure(&s, "max_alt_m") > 1.5, "took off");
+    assert_eq!(s["landed"], "true");
+    assert_eq!(s["disarmed"], "true");
 }
 
 /// Bad command lines and parameter files stop the daemon with a message that names the problem.

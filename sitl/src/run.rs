@@ -288,7 +288,8 @@ pub fn hil(
                 },
                 &mut summary,
             )?,
-            Mode::Realtime => link.drain(&mut summary)?,
+            // Answers are taken between the physics steps below, as they arrive.
+            Mode::Realtime => None,
         };
         match waited {
             Some(cmd) => {
@@ -324,12 +325,30 @@ pub fn hil(
             }
             None => {}
         }
-        end.advance(|sim| match truth.as_mut() {
-            Some(csv) => csv.record(&sim.truth(), sim.rotor_speeds()),
-            None => Ok(()),
-        })?;
-        if cli.mode == Mode::Realtime {
-            pacer.wait_until(end.sim().time_s());
+        let record = |sim: &Simulator| -> Result<()> {
+            match truth.as_mut() {
+                Some(csv) => Ok(csv.record(&sim.truth(), sim.rotor_speeds())?),
+                None => Ok(()),
+            }
+        };
+        match cli.mode {
+            Mode::Lockstep => end.advance(record)?,
+            Mode::Realtime => {
+                // Each physics step at its own wall time, with the newest answer there is.
+                end.advance_live(
+                    |t_s| {
+                        pacer.wait_until(t_s);
+                        let latest = link.drain(&mut summary)?;
+                        if latest.is_some() && !connected {
+                            tracing::info!("autopilot answering");
+                            connected = true;
+                        }
+                        Ok(latest)
+                    },
+                    record,
+                )?;
+                pacer.wait_until(end.sim().time_s());
+            }
         }
     }
     status.maybe_print(end.sim(), started);

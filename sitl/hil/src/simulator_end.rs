@@ -81,6 +81,28 @@ impl SimulatorEnd {
         Ok(())
     }
 
+    /// Real time: steps physics over one exchange interval one step at a time. Before each step
+    /// `before_step` gets the step's start time (s), waits for it on its own clock, and returns
+    /// the newest answer that has arrived, which takes effect from that step on: a command acts
+    /// as soon as it is there, as on a real vehicle, not an exchange later.
+    pub fn advance_live<E>(
+        &mut self,
+        mut before_step: impl FnMut(f64) -> Result<Option<ActuatorCommand>, E>,
+        mut each_step: impl FnMut(&Simulator) -> Result<(), E>,
+    ) -> Result<(), E> {
+        let n = self.sim.airframe().rotors.len();
+        self.acc.start();
+        for _ in 0..self.steps_per_exchange {
+            if let Some(cmd) = before_step(self.sim.time_s())? {
+                self.apply(&cmd);
+            }
+            self.sim.step(&self.controls[..n]);
+            self.acc.add(self.sim.sample_sensors());
+            each_step(&self.sim)?;
+        }
+        Ok(())
+    }
+
     /// The simulator.
     pub fn sim(&self) -> &Simulator {
         &self.sim

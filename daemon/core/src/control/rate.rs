@@ -191,7 +191,7 @@ crate::params::param_group! {
         /// LADRC feedback gain, yaw.
         adrc_kd_y: f64 = 6.0, "ADRC_Y_KD", "1/s", [0.5, 100.0], "LADRC feedback gain k_d, yaw";
         /// ESO bandwidth.
-        adrc_beta: f64 = 60.0, "ADRC_BETA", "1/s", [5.0, 1000.0], "LADRC observer bandwidth beta (70); keep beta x sample time below ~1";
+        adrc_beta: f64 = 30.0, "ADRC_BETA", "1/s", [5.0, 1000.0], "LADRC observer bandwidth beta (70); 60 flies lockstep as well but loses the loop to one 4 ms exchange of actuator delay, 30 keeps a margin";
         /// TD slope limit (0: no TD).
         adrc_td_limit: f64 = 0.0, "ADRC_TD_R", "rad/s^2", [0.0, 10000.0], "Tracking-differentiator slope limit r (73); 0 turns the TD off";
         /// b̄ as a fraction of 1/I.
