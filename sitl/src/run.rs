@@ -381,6 +381,10 @@ impl UdpTransport {
     /// Binds `bind`, talking to `target`.
     pub fn new(bind: SocketAddr, target: SocketAddr) -> Result<Self> {
         let socket = UdpSocket::bind(bind).with_context(|| format!("binding {bind}"))?;
+        // Connected: the kernel keeps the route, and only the autopilot's datagrams come in.
+        socket
+            .connect(target)
+            .with_context(|| format!("setting {target} as the autopilot's address"))?;
         Ok(Self {
             socket,
             target,
@@ -407,7 +411,7 @@ fn quiet(e: &std::io::Error) -> bool {
 
 impl Transport for UdpTransport {
     fn send(&mut self, bytes: &[u8]) -> Result<()> {
-        match self.socket.send_to(bytes, self.target) {
+        match self.socket.send(bytes) {
             Ok(_) => Ok(()),
             // Nobody listening yet (ICMP port unreachable): keep going, the autopilot may start later.
             Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => Ok(()),
@@ -432,8 +436,8 @@ impl Transport for UdpTransport {
             }
             self.read_timeout = Some(timeout);
         }
-        match self.socket.recv_from(&mut self.rx) {
-            Ok((len, _)) => {
+        match self.socket.recv(&mut self.rx) {
+            Ok(len) => {
                 hil::decode_into(&self.rx[..len], into);
                 Ok(true)
             }

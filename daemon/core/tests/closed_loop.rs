@@ -281,3 +281,54 @@ fn takeoff_hover_land_and_disarm() {
         );
     }
 }
+
+/// The position loop runs at `MPC_LOOP_HZ` (its attitude set-point changes only when it runs)
+/// while the attitude and rate loops run on every 250 Hz sample; both rates fly.
+#[test]
+fn the_position_loop_runs_at_its_own_rate() {
+    let a = Airframe::load(
+        &PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../params/airframes/quad_x.toml"),
+    )
+    .unwrap();
+    for (loop_hz, runs_per_s) in [(50.0, 50), (250.0, 250), (100.0, 100)] {
+        let mut p = FlightParams::default();
+        p.position.loop_hz = loop_hz;
+        let mut sim = Simulator::new(&a, SimConfig::default(), BodyState::default()).unwrap();
+        let mut core = FlightCore::new(&a, FlightCoreConfig::from_params(&p, &a)).unwrap();
+        let sp = PositionSetpoint {
+            pos_ned_m: Vector3::new(0.0, 0.0, -3.0),
+            vel_ned_m_s: Vector3::zeros(),
+            accel_ned_m_s2: Vector3::zeros(),
+            yaw_rad: 0.0,
+        };
+        let mut commands = [0.0; 16];
+        let (mut last, mut changes, mut rate_changes) = (None, 0, 0);
+        let mut last_rate_reference = Vector3::zeros();
+        for _ in 0..(12_000 / DECIMATION) {
+            let sample = common::control_interval(&mut sim, &commands[..4]);
+            let t = sim.time_s();
+            let out = core.step(&sample, &sp, t > 3.0);
+            commands = out.commands;
+            // Count over one second of flight, from 10 s.
+            if (10.0..11.0).contains(&t) {
+                changes += (out.attitude_setpoint != last) as u32;
+                rate_changes += (out.rate_reference != last_rate_reference) as u32;
+            }
+            last = out.attitude_setpoint;
+            last_rate_reference = out.rate_reference;
+        }
+        assert!(
+            changes.abs_diff(runs_per_s) <= 1,
+            "MPC_LOOP_HZ {loop_hz}: the position loop ran {changes} times in a second"
+        );
+        assert!(
+            rate_changes >= 249,
+            "the attitude law runs on every sample: {rate_changes}"
+        );
+        let alt = -sim.truth().body.pos_ned_m.z;
+        assert!(
+            (alt - 3.0).abs() < 0.3,
+            "MPC_LOOP_HZ {loop_hz}: at {alt:.2} m"
+        );
+    }
+}

@@ -294,6 +294,8 @@ crate::params::param_group! {
         max_tilt_deg: f64 = 35.0, "MPC_TILTMAX_AIR", "deg", [5.0, 80.0], "Largest tilt in position and altitude modes";
         /// Integral bound.
         i_limit: f64 = 3.0, "MPC_I_MAX", "m/s^2", [0.0, 10.0], "Bound on the velocity integral";
+        /// Rate of the position loop.
+        loop_hz: f64 = 50.0, "MPC_LOOP_HZ", "Hz", [10.0, 1000.0], "Rate of the position and velocity loop (the attitude and rate loops run on every sensor sample)";
     }
 }
 
