@@ -41,6 +41,15 @@ ceiling=$("$bin/examples/udp_pingpong" ping "127.0.0.1:$port" 5 | field round_tr
 wait $echo_pid 2>/dev/null || true
 printf '%-50s %s round trips/s\n' "ceiling: bare UDP ping-pong, two processes" "$ceiling"
 printf '%-50s %s %%\n' "UDP flight / ceiling" "$(python3 -c "print(round(100 * $udp_fps / $ceiling))")"
+# The same ceiling carrying the flight's own compute: each side spins half of what one embedded
+# exchange costs (physics, sensors, flight core, framing) between receiving and sending.
+work_us=$(python3 -c "print(round(0.5e6 / $(echo "$embedded" | field frames_per_s), 2))")
+timeout 30 "$bin/examples/udp_pingpong" echo "127.0.0.1:$port" "$work_us" &
+echo_pid=$!
+loaded=$("$bin/examples/udp_pingpong" ping "127.0.0.1:$port" 5 "$work_us" | field round_trips_per_s)
+wait $echo_pid 2>/dev/null || true
+printf '%-50s %s round trips/s (%s us of work per side)\n' "ceiling with the flight's compute" "$loaded" "$work_us"
+printf '%-50s %s %%\n' "UDP flight / ceiling with compute" "$(python3 -c "print(round(100 * $udp_fps / $loaded))")"
 
 echo "wall-clock flight (about 80 s of real time)..." >&2
 # Wall-clock mode: `sitl` in real time plays a flight board over UDP (it does not wait for the

@@ -6,6 +6,10 @@
 //! udp_pingpong echo 127.0.0.1:14999          # one process: answers every datagram
 //! udp_pingpong ping 127.0.0.1:14999 5        # the other: round trips for 5 s, prints the rate
 //! ```
+//!
+//! A last argument `WORK_US` makes each side spin that long between receiving and sending, as
+//! the simulator (physics) and the autopilot (a flight-core step) compute between theirs: the
+//! ceiling of an exchange that carries that much work.
 
 use std::net::UdpSocket;
 use std::time::{Duration, Instant};
@@ -17,13 +21,28 @@ const ANSWER_BYTES: usize = 96;
 fn main() -> std::io::Result<()> {
     let args: Vec<String> = std::env::args().collect();
     let usage = || {
-        eprintln!("usage: udp_pingpong echo ADDR | udp_pingpong ping ADDR SECONDS");
+        eprintln!(
+            "usage: udp_pingpong echo ADDR [WORK_US] | udp_pingpong ping ADDR SECONDS [WORK_US]"
+        );
         std::process::exit(2)
     };
     let (Some(mode), Some(addr)) = (args.get(1), args.get(2)) else {
         usage()
     };
     let mut buf = [0u8; 2048];
+    let work_arg = if mode == "echo" { 3 } else { 4 };
+    let work = Duration::from_secs_f64(
+        args.get(work_arg)
+            .and_then(|s| s.parse::<f64>().ok())
+            .unwrap_or(0.0)
+            * 1e-6,
+    );
+    let spin = |d: Duration| {
+        let t = Instant::now();
+        while t.elapsed() < d {
+            std::hint::spin_loop();
+        }
+    };
     match mode.as_str() {
         "echo" => {
             let socket = UdpSocket::bind(addr)?;
@@ -31,6 +50,7 @@ fn main() -> std::io::Result<()> {
             socket.set_read_timeout(Some(Duration::from_secs(3)))?;
             let answer = [0u8; ANSWER_BYTES];
             while let Ok((_, from)) = socket.recv_from(&mut buf) {
+                spin(work);
                 socket.send_to(&answer, from)?;
             }
             Ok(())
@@ -59,6 +79,7 @@ fn main() -> std::io::Result<()> {
             while started.elapsed().as_secs_f64() < seconds {
                 socket.send(&frame)?;
                 socket.recv(&mut buf)?;
+                spin(work);
                 trips += 1;
             }
             let rate = trips as f64 / started.elapsed().as_secs_f64();

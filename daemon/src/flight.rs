@@ -36,6 +36,10 @@ const POLL: Duration = Duration::from_millis(10);
 /// Reads per deadline tick at most: a link flooded with datagrams cannot hold the loop.
 const MAX_READS_PER_TICK: usize = 32;
 
+/// Shortest wall-clock interval between two telemetry publications: every step in real time,
+/// about a thousand a second when lockstep runs faster (each wakes nobody but costs a notify).
+const TELEMETRY_INTERVAL: Duration = Duration::from_millis(1);
+
 /// How often the deadline loop logs its timing.
 const STATS_INTERVAL: Duration = Duration::from_secs(10);
 
@@ -186,6 +190,8 @@ struct ControlLoop<'a> {
     silent: bool,
     silent_done_at: Option<f64>,
     loop_stats: Option<LoopSummary>,
+    /// When telemetry was last published, and in which phase.
+    published: (Instant, Option<Phase>),
 }
 
 impl<'a> ControlLoop<'a> {
@@ -214,6 +220,7 @@ impl<'a> ControlLoop<'a> {
             silent: false,
             silent_done_at: None,
             loop_stats: None,
+            published: (Instant::now(), None),
         }
     }
 
@@ -301,14 +308,18 @@ impl<'a> ControlLoop<'a> {
             self.t_s = step.t_s;
             self.send(&step.message)?;
             let phase = self.vehicle.phase();
-            self.ports.telemetry.send_replace(Telemetry {
-                t_s: step.t_s,
-                phase: Some(phase),
-                output: Some(step.output),
-                frames: self.report.frames,
-                loop_stats: self.loop_stats,
-                finished: false,
-            });
+            let now = self.last_frame;
+            if now >= self.published.0 + TELEMETRY_INTERVAL || self.published.1 != Some(phase) {
+                self.published = (now, Some(phase));
+                self.ports.telemetry.send_replace(Telemetry {
+                    t_s: step.t_s,
+                    phase: Some(phase),
+                    output: Some(step.output),
+                    frames: self.report.frames,
+                    loop_stats: self.loop_stats,
+                    finished: false,
+                });
+            }
             if phase == Phase::Disarmed && self.t_s > READY_TIMEOUT_S {
                 let out = &step.output;
                 bail!(
@@ -361,7 +372,7 @@ impl<'a> ControlLoop<'a> {
         let start = Instant::now();
         let mut deadlines = Deadlines::new(start, period);
         let (mut interval, mut whole) = (LoopStats::default(), LoopStats::default());
-        let mut report_at = start + STATS_INTERVAL;
+        let mut interval_start = start;
         loop {
             let due = deadlines.next();
             sleep_until(due, spin);
@@ -370,9 +381,9 @@ impl<'a> ControlLoop<'a> {
             let end = Instant::now();
             let missed = deadlines.advance(end);
             interval.record(woke - due, end - woke, missed);
-            if end >= report_at || flow == Flow::Stop {
+            if end >= interval_start + STATS_INTERVAL || flow == Flow::Stop {
                 let s = interval.summary();
-                let elapsed = (end - report_at + STATS_INTERVAL).as_secs_f64();
+                let elapsed = (end - interval_start).as_secs_f64();
                 tracing::info!(
                     rate_hz = format!("{:.0}", s.ticks as f64 / elapsed),
                     jitter_p50_us = s.jitter_p50_us,
@@ -385,7 +396,7 @@ impl<'a> ControlLoop<'a> {
                 self.loop_stats = Some(s);
                 whole.merge(&interval);
                 interval.clear();
-                report_at = end + STATS_INTERVAL;
+                interval_start = end;
             }
             if flow == Flow::Stop {
                 break;

@@ -227,6 +227,8 @@ pub struct FlightCore {
     position_output: Option<AttitudeSetpoint>,
     since_position_s: f64,
     position_phase_s: f64,
+    /// Air density from the last barometer sample (kg/m³).
+    air_density_kg_m3: f64,
     /// Time steps clamped into the accepted range.
     pub dt_clamped: u64,
 }
@@ -259,6 +261,7 @@ impl FlightCore {
             position_output: None,
             since_position_s: 0.0,
             position_phase_s: 0.0,
+            air_density_kg_m3: air_density(0.0),
             dt_clamped: 0,
             config,
         })
@@ -393,7 +396,13 @@ impl FlightCore {
                 TiltYawPd { params }.update(&a.q, &sp.q_d, &a.rate),
             ),
         };
-        let rho = air_density(s.baro_alt_m.unwrap_or(0.0));
+        // The density of the last barometer sample, held between samples (the barometer is
+        // fresh at 50 Hz: falling back to sea level in between made the thrust jump by the
+        // density ratio, 5 % at 500 m, four samples in five).
+        if let Some(b) = s.baro_alt_m {
+            self.air_density_kg_m3 = air_density(b);
+        }
+        let rho = self.air_density_kg_m3;
         let m = self.mixer.mix(&MixerInput {
             request: WrenchRequest {
                 thrust_n: sp.thrust_n,
