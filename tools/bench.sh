@@ -20,17 +20,29 @@ embedded=$("$bin/autopilot" --sim --speed max "${flight[@]}" 2>/dev/null | grep 
 printf '%-50s %s x real time (%s frames/s)\n' "flight: embedded, 60 s hover" \
     "$(echo "$embedded" | field realtime_factor)" "$(echo "$embedded" | field frames_per_s)"
 
-port=$(python3 -c 'import socket; s=socket.socket(socket.AF_INET, socket.SOCK_DGRAM); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
-"$bin/autopilot" --source "udp://127.0.0.1:$port" "${flight[@]}" >/tmp/bench-autopilot.$$ 2>/dev/null &
-ap=$!
-timeout 300 "$bin/sitl" --autopilot "127.0.0.1:$port" --duration 300 --connect-timeout 30 \
-    --status-interval 0 >/dev/null 2>&1 &
-sim=$!
-wait $ap
-kill -INT $sim 2>/dev/null || true
-wait $sim 2>/dev/null || true
-udp=$(grep 'autopilot summary' /tmp/bench-autopilot.$$)
-rm -f /tmp/bench-autopilot.$$
+free_port() {
+    python3 -c 'import socket; s=socket.socket(socket.AF_INET, socket.SOCK_DGRAM); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])'
+}
+# udp_flight PORT QUERY SITL_MODE [PREFIX...]: the 60 s hover with `sitl` over UDP on PORT (the
+# autopilot's source gets ?QUERY, PREFIX runs it, e.g. under chrt); prints its summary line.
+udp_flight() {
+    local port=$1 query=$2 mode=$3
+    shift 3
+    "$@" "$bin/autopilot" --source "udp://127.0.0.1:$port$query" "${flight[@]}" \
+        >/tmp/bench-autopilot.$$ 2>/dev/null &
+    local ap=$!
+    timeout 300 "$bin/sitl" --autopilot "127.0.0.1:$port" --mode "$mode" --duration 300 \
+        --connect-timeout 30 --status-interval 0 >/dev/null 2>&1 &
+    local sim=$!
+    wait $ap
+    kill -INT $sim 2>/dev/null || true
+    wait $sim 2>/dev/null || true
+    grep 'autopilot summary' /tmp/bench-autopilot.$$
+    rm -f /tmp/bench-autopilot.$$
+}
+
+port=$(free_port)
+udp=$(udp_flight "$port" "" lockstep)
 udp_fps=$(echo "$udp" | field frames_per_s)
 printf '%-50s %s x real time (%s frames/s)\n' "flight: sitl + autopilot over UDP, 60 s hover" \
     "$(echo "$udp" | field realtime_factor)" "$udp_fps"
@@ -59,18 +71,8 @@ echo "wall-clock flight (about 80 s of real time)..." >&2
 # (chrt), as a flight board's loop would.
 rt=()
 if chrt -f 50 true 2>/dev/null; then rt=(chrt -f 50); fi
-port=$(python3 -c 'import socket; s=socket.socket(socket.AF_INET, socket.SOCK_DGRAM); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
-"${rt[@]}" "$bin/autopilot" --source "udp://127.0.0.1:$port?lockstep=false" --loop-hz 1000 --loop-cpu 0 \
-    "${flight[@]}" >/tmp/bench-autopilot.$$ 2>/dev/null &
-ap=$!
-timeout 200 "$bin/sitl" --autopilot "127.0.0.1:$port" --mode realtime --duration 150 \
-    --status-interval 0 >/dev/null 2>&1 &
-sim=$!
-wait $ap
-kill -INT $sim 2>/dev/null || true
-wait $sim 2>/dev/null || true
-wall=$(grep 'autopilot summary' /tmp/bench-autopilot.$$)
-rm -f /tmp/bench-autopilot.$$
+flight+=(--loop-hz 1000 --loop-cpu 0)
+wall=$(udp_flight "$(free_port)" "?lockstep=false" realtime "${rt[@]}")
 printf '%-50s %s Hz, jitter p50 %s us, p99 %s us, max %s us, overruns %s in %s s (%s)\n' \
     "wall clock: 1 kHz loop, 60 s hover, sitl real time" "$(echo "$wall" | field loop_hz)" \
     "$(echo "$wall" | field jitter_p50_us)" "$(echo "$wall" | field jitter_p99_us)" \

@@ -80,25 +80,17 @@ impl ConfigFile {
                 reason,
             })
         };
-        if let Some(x) = c.takeoff_m
-            && let Err(e) = in_range(x, &TAKEOFF_RANGE_M, "m")
-        {
-            bad("takeoff_m", e);
-        }
-        if let Some(x) = c.hover_s
-            && let Err(e) = in_range(x, &HOVER_RANGE_S, "s")
-        {
-            bad("hover_s", e);
-        }
-        if let Some(x) = c.loop_hz
-            && let Err(e) = in_range(x, &LOOP_HZ_RANGE, "Hz")
-        {
-            bad("loop_hz", e);
-        }
-        if let Some(x) = c.loop_spin_us
-            && let Err(e) = in_range(x, &LOOP_SPIN_RANGE_US, "µs")
-        {
-            bad("loop_spin_us", e);
+        for (key, value, range, unit) in [
+            ("takeoff_m", c.takeoff_m, &TAKEOFF_RANGE_M, "m"),
+            ("hover_s", c.hover_s, &HOVER_RANGE_S, "s"),
+            ("loop_hz", c.loop_hz, &LOOP_HZ_RANGE, "Hz"),
+            ("loop_spin_us", c.loop_spin_us, &LOOP_SPIN_RANGE_US, "µs"),
+        ] {
+            if let Some(x) = value
+                && let Err(e) = in_range(x, range, unit)
+            {
+                bad(key, e);
+            }
         }
         if let Some(i) = c.instance
             && !INSTANCE_RANGE.contains(&i)

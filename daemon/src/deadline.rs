@@ -72,6 +72,30 @@ pub fn pin_to_cpu(cpu: usize) -> Result<(), String> {
         .map_err(|e| format!("pinning the control loop to CPU {cpu}: {e}"))
 }
 
+/// Keeps the calling thread off CPU `cpu` (the other threads of a process whose control loop
+/// is pinned there: they inherit its real-time priority under `chrt`, and one of them running
+/// on the loop's CPU delays the loop's wake-up until it blocks). No-op on a one-CPU machine.
+#[cfg(target_os = "linux")]
+pub fn keep_off_cpu(cpu: usize) -> Result<(), String> {
+    use nix::sched::{sched_getaffinity, sched_setaffinity};
+    let me = nix::unistd::Pid::from_raw(0);
+    let mut set = sched_getaffinity(me).map_err(|e| format!("reading the CPU affinity: {e}"))?;
+    let others = (0..nix::sched::CpuSet::count())
+        .filter(|&c| c != cpu && set.is_set(c).unwrap_or(false))
+        .count();
+    if others == 0 {
+        return Ok(());
+    }
+    set.unset(cpu).map_err(|e| format!("CPU {cpu}: {e}"))?;
+    sched_setaffinity(me, &set).map_err(|e| format!("keeping off CPU {cpu}: {e}"))
+}
+
+/// Keeps the calling thread off a CPU: not available here (nothing to do).
+#[cfg(not(target_os = "linux"))]
+pub fn keep_off_cpu(_cpu: usize) -> Result<(), String> {
+    Ok(())
+}
+
 /// Pins the calling thread to a CPU: not available here.
 #[cfg(not(target_os = "linux"))]
 pub fn pin_to_cpu(cpu: usize) -> Result<(), String> {

@@ -167,17 +167,30 @@ impl Settings {
                 "no sensor source: give --sim to fly the embedded simulator, or --source udp://0.0.0.0:4560 for a simulator process (or source = ... in a --config file)"
             );
         };
-        let flag = |name: &str, x: f64, range, unit| {
-            config::in_range(x, range, unit).map_err(|e| anyhow::anyhow!("--{name}: {e}"))
-        };
-        let takeoff_m = match cli.takeoff {
-            Some(x) => flag("takeoff", x, &config::TAKEOFF_RANGE_M, "m")?,
-            None => file.takeoff_m.unwrap_or(5.0),
-        };
-        let hover_s = match cli.hover {
-            Some(x) => flag("hover", x, &config::HOVER_RANGE_S, "s")?,
-            None => file.hover_s.unwrap_or(10.0),
-        };
+        // A number from the flag (checked here) or from the file (checked when it was read).
+        let number =
+            |flag: Option<f64>, name: &str, range, unit, file: Option<f64>, default| match flag {
+                Some(x) => {
+                    config::in_range(x, range, unit).map_err(|e| anyhow::anyhow!("--{name}: {e}"))
+                }
+                None => Ok(file.unwrap_or(default)),
+            };
+        let takeoff_m = number(
+            cli.takeoff,
+            "takeoff",
+            &config::TAKEOFF_RANGE_M,
+            "m",
+            file.takeoff_m,
+            5.0,
+        )?;
+        let hover_s = number(
+            cli.hover,
+            "hover",
+            &config::HOVER_RANGE_S,
+            "s",
+            file.hover_s,
+            10.0,
+        )?;
         let speed = match &cli.speed {
             Some(s) => config::parse_speed(&config::SpeedSetting::Name(s.clone()))
                 .map_err(|e| anyhow::anyhow!("--speed: {e}"))?,
@@ -187,14 +200,22 @@ impl Settings {
                 None => Some(1.0),
             },
         };
-        let loop_hz = match cli.loop_hz {
-            Some(x) => flag("loop-hz", x, &config::LOOP_HZ_RANGE, "Hz")?,
-            None => file.loop_hz.unwrap_or(1000.0),
-        };
-        let loop_spin_us = match cli.loop_spin_us {
-            Some(x) => flag("loop-spin-us", x, &config::LOOP_SPIN_RANGE_US, "µs")?,
-            None => file.loop_spin_us.unwrap_or(150.0),
-        };
+        let loop_hz = number(
+            cli.loop_hz,
+            "loop-hz",
+            &config::LOOP_HZ_RANGE,
+            "Hz",
+            file.loop_hz,
+            1000.0,
+        )?;
+        let loop_spin_us = number(
+            cli.loop_spin_us,
+            "loop-spin-us",
+            &config::LOOP_SPIN_RANGE_US,
+            "µs",
+            file.loop_spin_us,
+            150.0,
+        )?;
         let sensors = cli
             .sensors
             .clone()
@@ -261,6 +282,7 @@ fn fly(cli: &Cli) -> Result<()> {
         spin: Duration::from_secs_f64(cfg.loop_spin_us * 1e-6),
     };
     let (mut ports, commands, telemetry) = Ports::new(16);
+    let loop_cpu = cfg.loop_cpu;
     // The control loop on its own thread owns the vehicle and the sensor link; this thread runs
     // the tasks that talk to it (status line, Ctrl-C; the ground stations later).
     let control = std::thread::Builder::new()
@@ -312,6 +334,10 @@ fn fly(cli: &Cli) -> Result<()> {
             }
         })
         .context("starting the control loop")?;
+    if let Some(cpu) = loop_cpu {
+        // This thread runs the tasks around the loop: not on the loop's CPU.
+        deadline::keep_off_cpu(cpu).map_err(anyhow::Error::msg)?;
+    }
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
