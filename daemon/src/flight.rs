@@ -11,12 +11,13 @@ use crate::deadline::{Deadlines, LoopStats, LoopSummary, sleep_until};
 use crate::link::SensorLink;
 use crate::score::FlightScore;
 use crate::vehicle::Vehicle;
+use crate::vehicle::VehicleCommand;
 use anyhow::{Context, Result, bail};
+use flight_core::commander::{CommanderStatus, Denial};
 use flight_core::core::StepOutput;
-use flight_core::sequence::Phase;
 use hil::{Decoded, Encoder};
 use std::time::{Duration, Instant};
-use tokio::sync::{mpsc, watch};
+use tokio::sync::{mpsc, oneshot, watch};
 
 /// The estimator converges in a few seconds at rest; a sequence still waiting after this long
 /// never will, and the flight stops with the reason instead of waiting forever.
@@ -44,12 +45,14 @@ const TELEMETRY_INTERVAL: Duration = Duration::from_millis(1);
 const STATS_INTERVAL: Duration = Duration::from_secs(10);
 
 /// What other tasks ask of the control loop.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug)]
 pub enum Command {
-    /// Land now (the first Ctrl-C).
+    /// End the run: land if in the air, then stop (the first Ctrl-C).
     Land,
     /// Stop the loop at once (the second Ctrl-C).
     Stop,
+    /// A vehicle command; the answer goes back on the channel given (if any).
+    Vehicle(VehicleCommand, Option<oneshot::Sender<Result<(), Denial>>>),
 }
 
 /// What the control loop publishes after every step: the latest value, for the status line
@@ -58,8 +61,8 @@ pub enum Command {
 pub struct Telemetry {
     /// Time of the last sensor frame (s).
     pub t_s: f64,
-    /// The sequence's phase.
-    pub phase: Option<Phase>,
+    /// The commander's state.
+    pub status: Option<CommanderStatus>,
     /// The last step's output.
     pub output: Option<StepOutput>,
     /// Sensor frames stepped.
@@ -190,8 +193,8 @@ struct ControlLoop<'a> {
     silent: bool,
     silent_done_at: Option<f64>,
     loop_stats: Option<LoopSummary>,
-    /// When telemetry was last published, and in which phase.
-    published: (Instant, Option<Phase>),
+    /// When telemetry was last published.
+    published: Instant,
 }
 
 impl<'a> ControlLoop<'a> {
@@ -220,7 +223,7 @@ impl<'a> ControlLoop<'a> {
             silent: false,
             silent_done_at: None,
             loop_stats: None,
-            published: (Instant::now(), None),
+            published: Instant::now(),
         }
     }
 
@@ -230,6 +233,17 @@ impl<'a> ControlLoop<'a> {
             match c {
                 Command::Land => self.vehicle.request_land(),
                 Command::Stop => return Flow::Stop,
+                Command::Vehicle(c, reply) => {
+                    let result = self.vehicle.command(c);
+                    match &result {
+                        Ok(()) => tracing::info!(command = ?c, "accepted"),
+                        Err(e) => tracing::warn!(command = ?c, "{e}"),
+                    }
+                    if let Some(reply) = reply {
+                        // The asker may have given up waiting: nothing to do then.
+                        let _ = reply.send(result);
+                    }
+                }
             }
         }
         Flow::Continue
@@ -255,7 +269,7 @@ impl<'a> ControlLoop<'a> {
         if !arrived && !self.silence_logged && self.last_frame.elapsed() > SILENCE_WARNING {
             tracing::warn!(
                 link = %self.link.describe(),
-                phase = ?self.vehicle.phase(),
+                mode = self.vehicle.status().mode.name(),
                 "no sensor frames for {:.0?}: waiting",
                 self.last_frame.elapsed()
             );
@@ -281,8 +295,9 @@ impl<'a> ControlLoop<'a> {
         // Keep the motors on the failsafe's command (a board wants a steady stream).
         let message = self.vehicle.silent_answer(now - last);
         self.send(&message)?;
-        if self.vehicle.phase() == Phase::Done {
-            // Disarmed by the failsafe: a second more of motors-off, then stop.
+        if self.vehicle.finished() {
+            // Disarmed by the failsafe at the end of the run: a second more of motors-off,
+            // then stop.
             if now - *self.silent_done_at.get_or_insert(now) > 1.0 {
                 return Ok(Flow::Stop);
             }
@@ -307,20 +322,21 @@ impl<'a> ControlLoop<'a> {
             self.report.frames += 1;
             self.t_s = step.t_s;
             self.send(&step.message)?;
-            let phase = self.vehicle.phase();
+            let status = self.vehicle.status();
+            let changed = self.vehicle.take_changed();
             let now = self.last_frame;
-            if now >= self.published.0 + TELEMETRY_INTERVAL || self.published.1 != Some(phase) {
-                self.published = (now, Some(phase));
+            if now >= self.published + TELEMETRY_INTERVAL || changed {
+                self.published = now;
                 self.ports.telemetry.send_replace(Telemetry {
                     t_s: step.t_s,
-                    phase: Some(phase),
+                    status: Some(status),
                     output: Some(step.output),
                     frames: self.report.frames,
                     loop_stats: self.loop_stats,
                     finished: false,
                 });
             }
-            if phase == Phase::Disarmed && self.t_s > READY_TIMEOUT_S {
+            if self.vehicle.awaiting_takeoff() && self.t_s > READY_TIMEOUT_S {
                 let out = &step.output;
                 bail!(
                     "not ready to arm after {READY_TIMEOUT_S} s of sensor time: attitude valid {}, horizontal position valid {}, vertical valid {}",
@@ -329,8 +345,8 @@ impl<'a> ControlLoop<'a> {
                     out.translation.vertical_valid
                 );
             }
-            if phase == Phase::Done {
-                // A second on the ground after disarming, then stop.
+            if self.vehicle.finished() {
+                // A second on the ground after the run ended, then stop.
                 let t = *self.done_at.get_or_insert(self.t_s);
                 if self.t_s - t > 1.0 {
                     return Ok(Flow::Stop);
@@ -431,7 +447,7 @@ pub fn fly(
     report.wall_time_s = started.elapsed().as_secs_f64();
     report.score = l.vehicle.score().clone();
     report.repeated = l.vehicle.repeated_frames();
-    report.disarmed = l.vehicle.phase() == Phase::Done;
+    report.disarmed = !l.vehicle.status().armed;
     Ok(report)
 }
 
@@ -628,7 +644,11 @@ mod tests {
         let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../params");
         let airframe = Airframe::load(&dir.join("airframes/quad_x.toml")).unwrap();
         let params = FlightParams::load(&dir.join("flight.toml")).unwrap();
-        let mut vehicle = Vehicle::new(&airframe, &params, 5.0, 30.0).unwrap();
+        let auto = crate::vehicle::AutoFlight {
+            takeoff_m: 5.0,
+            hover_s: 30.0,
+        };
+        let mut vehicle = Vehicle::new(&airframe, &params, Some(auto)).unwrap();
         let mut link = FaultyLink::new(fault, seed);
         let (mut ports, _commands, _telemetry) = Ports::new(4);
         let report = fly(&mut link, &mut vehicle, 1, &mut ports, Pacing::Lockstep).unwrap();
@@ -669,7 +689,7 @@ mod tests {
             let truth = link.sim.truth();
             assert!(truth.landed, "seed {seed}: on the ground at the end");
             assert!(!link.last_answer_armed, "motors stopped at the end");
-            assert_eq!(vehicle.phase(), Phase::Done);
+            assert!(vehicle.finished() && !vehicle.status().armed);
             assert!(
                 link.touchdown_m_s <= 3.0,
                 "seed {seed}: touchdown at {:.2} m/s",
@@ -691,7 +711,7 @@ mod tests {
             reaction <= 0.1,
             "reacted {reaction:.3} s after the last frame"
         );
-        assert!(!link.last_answer_armed && vehicle.phase() == Phase::Done);
+        assert!(!link.last_answer_armed && vehicle.finished());
         assert!(report.disarmed);
         assert!(link.max_height_m < 0.1, "never left the ground");
     }
@@ -708,7 +728,7 @@ mod tests {
             link.now_s() < link.began_s.unwrap() + 20.0,
             "descended instead of hovering"
         );
-        assert!(link.sim.truth().landed && vehicle.phase() == Phase::Done);
+        assert!(link.sim.truth().landed && vehicle.finished());
         assert!(
             link.touchdown_m_s <= 1.0,
             "touchdown at {:.2} m/s",
@@ -730,7 +750,7 @@ mod tests {
             "descended instead of hovering 30 s"
         );
         assert_eq!(report.sensor_timeouts, 0, "the frames kept coming");
-        assert!(link.sim.truth().landed && vehicle.phase() == Phase::Done);
+        assert!(link.sim.truth().landed && vehicle.finished());
         assert!(report.disarmed);
         assert!(
             link.touchdown_m_s <= 1.0,

@@ -3,9 +3,9 @@
 //! (any spreadsheet, pandas, gnuplot) and for finding where an error comes from.
 
 use crate::score::FlightScore;
+use flight_core::commander::CommanderStatus;
 use flight_core::control::position::PositionSetpoint;
 use flight_core::core::StepOutput;
-use flight_core::sequence::Phase;
 use hil::TruthReport;
 use std::io::{BufWriter, Write};
 use std::path::Path;
@@ -35,7 +35,7 @@ impl FlightCsv {
         let mut out = BufWriter::new(std::fs::File::create(path)?);
         write!(
             out,
-            "t_s,phase,armed,n_m,e_m,d_m,vn_m_s,ve_m_s,vd_m_s,sp_n_m,sp_e_m,sp_d_m,\
+            "t_s,mode,landed,armed,n_m,e_m,d_m,vn_m_s,ve_m_s,vd_m_s,sp_n_m,sp_e_m,sp_d_m,\
              roll_deg,pitch_deg,yaw_deg,sp_roll_deg,sp_pitch_deg,sp_yaw_deg,\
              p_ref_rad_s,q_ref_rad_s,r_ref_rad_s,thrust_n,\
              true_n_m,true_e_m,true_d_m,true_roll_deg,true_pitch_deg,true_yaw_deg"
@@ -53,7 +53,7 @@ impl FlightCsv {
     pub fn record(
         &mut self,
         t_s: f64,
-        phase: Phase,
+        status: &CommanderStatus,
         armed: bool,
         setpoint: &PositionSetpoint,
         out: &StepOutput,
@@ -64,7 +64,9 @@ impl FlightCsv {
         let (p, v, s) = (tr.pos_ned_m, tr.vel_ned_m_s, setpoint.pos_ned_m);
         write!(
             self.out,
-            "{t_s:.4},{phase:?},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{},",
+            "{t_s:.4},{},{:?},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{},",
+            status.mode.name(),
+            status.landed,
             armed as u8,
             p.x,
             p.y,

@@ -27,7 +27,7 @@ use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 use tokio::sync::{mpsc, watch};
-use vehicle::Vehicle;
+use vehicle::{AutoFlight, Vehicle};
 
 /// A MAVLink multirotor autopilot.
 #[derive(Debug, Parser)]
@@ -69,10 +69,12 @@ struct Cli {
     /// Directory holding airframes/ and flight.toml [default: ./params, else the source tree's].
     #[arg(long, value_name = "DIR")]
     params_dir: Option<PathBuf>,
-    /// Take-off altitude (m above the start, 1 to 100) [default: 5].
+    /// Fly on its own, without a ground station: arm as soon as the estimator is ready, take
+    /// off to this altitude (m above the start, 1 to 100), hover --hover seconds, land, and end
+    /// the run once disarmed [default: wait for ground-station commands].
     #[arg(long, value_name = "M")]
     takeoff: Option<f64>,
-    /// Hover time before landing (s, 0 to 3600) [default: 10].
+    /// With --takeoff: hover time before landing (s, 0 to 3600) [default: 10].
     #[arg(long, value_name = "S")]
     hover: Option<f64>,
     /// Embedded simulator: real-time factor, 1 (real time), 20, or "max" (as fast as lockstep
@@ -139,7 +141,7 @@ struct Settings {
     airframe: String,
     params: Option<PathBuf>,
     params_dir: Option<PathBuf>,
-    takeoff_m: f64,
+    takeoff_m: Option<f64>,
     hover_s: f64,
     speed: Option<f64>,
     seed: u64,
@@ -175,14 +177,13 @@ impl Settings {
                 }
                 None => Ok(file.unwrap_or(default)),
             };
-        let takeoff_m = number(
-            cli.takeoff,
-            "takeoff",
-            &config::TAKEOFF_RANGE_M,
-            "m",
-            file.takeoff_m,
-            5.0,
-        )?;
+        let takeoff_m = match cli.takeoff {
+            Some(x) => Some(
+                config::in_range(x, &config::TAKEOFF_RANGE_M, "m")
+                    .map_err(|e| anyhow::anyhow!("--takeoff: {e}"))?,
+            ),
+            None => file.takeoff_m,
+        };
         let hover_s = number(
             cli.hover,
             "hover",
@@ -269,7 +270,11 @@ fn fly(cli: &Cli) -> Result<()> {
         );
     }
     let airframe = Airframe::load(&airframe_path)?;
-    let mut vehicle = Vehicle::new(&airframe, &params, cfg.takeoff_m, cfg.hover_s)?;
+    let auto = cfg.takeoff_m.map(|takeoff_m| AutoFlight {
+        takeoff_m,
+        hover_s: cfg.hover_s,
+    });
+    let mut vehicle = Vehicle::new(&airframe, &params, auto)?;
     if let Some(path) = &cfg.flight_csv {
         vehicle.log_to(
             FlightCsv::create(path, airframe.rotors.len())
@@ -389,15 +394,16 @@ async fn status_line(mut telemetry: watch::Receiver<Telemetry>) {
         if t.finished || telemetry.has_changed().is_err() {
             break;
         }
-        let (Some(out), Some(phase)) = (t.output, t.phase) else {
+        let (Some(out), Some(status)) = (t.output, t.status) else {
             continue;
         };
         let (roll, pitch, yaw) = out.attitude.map_or((0.0, 0.0, 0.0), |a| a.q.euler_angles());
         let wall = started.elapsed().as_secs_f64();
         let mut line = format!(
-            "t {:6.1} s  {:<8} alt {:6.2} m  vz {:5.2} m/s  roll {:5.1}  pitch {:5.1}  yaw {:6.1} deg  {:.0} frames/s x{:.0} real time",
+            "t {:6.1} s  {:<8} {:<8} alt {:6.2} m  vz {:5.2} m/s  roll {:5.1}  pitch {:5.1}  yaw {:6.1} deg  {:.0} frames/s x{:.0} real time",
             t.t_s,
-            format!("{phase:?}"),
+            if status.armed { "armed" } else { "disarmed" },
+            status.mode.name(),
             -out.translation.pos_ned_m.z,
             -out.translation.vel_ned_m_s.z,
             roll.to_degrees(),
@@ -473,7 +479,7 @@ mod tests {
         ]);
         let s = Settings::resolve(&cli).unwrap();
         assert_eq!(s.source, "udp://127.0.0.1:4560");
-        assert_eq!((s.takeoff_m, s.hover_s, s.speed), (3.0, 3.0, None));
+        assert_eq!((s.takeoff_m, s.hover_s, s.speed), (Some(3.0), 3.0, None));
         assert_eq!((s.seed, s.instance, s.airframe.as_str()), (1, 0, "quad_x"));
         let cli = Cli::parse_from(["autopilot", "--config", file.to_str().unwrap(), "--sim"]);
         assert_eq!(Settings::resolve(&cli).unwrap().source, "sim");

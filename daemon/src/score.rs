@@ -6,7 +6,7 @@
 //! distance from above that spot. Both are what a person watching the flight would see, and both
 //! include what the estimator cannot know (barometer drift, correlated GPS error).
 
-use flight_core::sequence::Phase;
+use flight_core::commander::{CommanderStatus, FlightMode, LandedState};
 use hil::TruthReport;
 use nalgebra::{UnitQuaternion, Vector3};
 
@@ -65,12 +65,13 @@ impl FlightScore {
         ))
     }
 
-    /// Adds one frame's truth with the attitude estimate and the phase it flew in.
+    /// Adds one frame's truth with the attitude estimate and the commander's state: the hover
+    /// figures come from holds in the air, the touchdown speed from landings.
     pub fn add(
         &mut self,
         truth: &TruthReport,
         estimate: Option<UnitQuaternion<f64>>,
-        phase: Phase,
+        status: &CommanderStatus,
         armed: bool,
     ) {
         if armed && self.origin.is_none() {
@@ -82,14 +83,14 @@ impl FlightScore {
         let height = -p.z;
         self.height_m = height;
         self.max_height_m = self.max_height_m.max(height);
-        if phase == Phase::Hover {
+        if status.mode == FlightMode::Loiter && status.landed == LandedState::InAir {
             self.hover.add(height - self.takeoff_m);
             self.hover_h.add(p.xy().norm());
         }
         if armed && let Some(q) = estimate {
             self.attitude.add(q.angle_to(&truth.q).to_degrees());
         }
-        if phase == Phase::Land && height < 0.3 {
+        if status.landed == LandedState::Landing && height < 0.3 {
             self.touchdown_m_s = self.touchdown_m_s.max(truth.vel_ned_m_s.z);
         }
     }
@@ -134,13 +135,28 @@ mod tests {
 
     #[test]
     fn figures_are_measured_from_the_takeoff_spot() {
+        let status = |mode, landed| CommanderStatus {
+            armed: true,
+            mode,
+            landed,
+            home: None,
+            failsafe: false,
+            ready: true,
+            in_mode_s: 0.0,
+        };
+        let hold = status(FlightMode::Loiter, LandedState::InAir);
         let mut s = FlightScore::new(5.0);
         // Before arming nothing counts.
-        s.add(&truth(9.0, 9.0, 9.0), None, Phase::Hover, false);
+        s.add(&truth(9.0, 9.0, 9.0), None, &hold, false);
         assert_eq!(s.hover_alt_rms_m(), None);
-        s.add(&truth(10.0, 0.0, 0.0), None, Phase::Armed, true);
-        s.add(&truth(10.3, 0.4, 5.1), None, Phase::Hover, true);
-        s.add(&truth(10.0, 0.0, 4.9), None, Phase::Hover, true);
+        s.add(
+            &truth(10.0, 0.0, 0.0),
+            None,
+            &status(FlightMode::Takeoff, LandedState::OnGround),
+            true,
+        );
+        s.add(&truth(10.3, 0.4, 5.1), None, &hold, true);
+        s.add(&truth(10.0, 0.0, 4.9), None, &hold, true);
         assert!((s.hover_alt_rms_m().unwrap() - 0.1).abs() < 1e-6);
         let drift = (0.5f64.powi(2) / 2.0).sqrt();
         assert!((s.hover_drift_rms_m().unwrap() - drift).abs() < 1e-6);

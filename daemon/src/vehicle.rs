@@ -2,13 +2,15 @@
 //! `HIL_ACTUATOR_CONTROLS` answer out. The same for the embedded simulator and the UDP link.
 
 use anyhow::{Context, Result};
+use flight_core::commander::{
+    Commander, CommanderInput, CommanderParams, CommanderStatus, Denial, FlightMode, LandedState,
+};
 use flight_core::control::position::PositionSetpoint;
 use flight_core::core::{FlightCore, FlightCoreConfig, SensorSample, StepOutput};
 use flight_core::estimator::translation::GpsMeasurement;
 use flight_core::failsafe::{BlindDescent, HoverCommands};
 use flight_core::geo::LatLonAlt;
 use flight_core::params::FlightParams;
-use flight_core::sequence::{FlightSequence, Phase, SequenceInput, SequenceParams};
 use hil::SensorUpdate;
 use mavlink::dialects::common::MavMessage;
 use nalgebra::Vector3;
@@ -17,10 +19,45 @@ use sitl_core::Airframe;
 use crate::flight_csv::FlightCsv;
 use crate::score::FlightScore;
 
-/// The vehicle: flight core, flight sequence and what has arrived since the last frame.
+/// A flight flown without a ground station (the command line's `--takeoff`): arm and take off
+/// as soon as the estimator is ready, hold for `hover_s`, land; the daemon ends once disarmed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AutoFlight {
+    /// Take-off altitude above home (m).
+    pub takeoff_m: f64,
+    /// Time to hold before landing (s); infinite holds until told otherwise.
+    pub hover_s: f64,
+}
+
+/// What other tasks ask the vehicle (ground-station commands, Ctrl-C).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum VehicleCommand {
+    /// Arm; `force` skips the estimator check.
+    Arm {
+        /// Skip what may be skipped.
+        force: bool,
+    },
+    /// Disarm; `force` also in the air.
+    Disarm {
+        /// Also in the air.
+        force: bool,
+    },
+    /// Switch flight mode.
+    SetMode(FlightMode),
+    /// Take off to this altitude above home (m), or the parameter's.
+    Takeoff(Option<f64>),
+    /// Set home here (NED, m), or at the current position.
+    SetHome(Option<Vector3<f64>>),
+}
+
+/// The vehicle: flight core, commander and what has arrived since the last frame.
 pub struct Vehicle {
     core: FlightCore,
-    sequence: FlightSequence,
+    commander: Commander,
+    auto: Option<AutoFlight>,
+    /// The auto flight has armed, or an operator asked to end: the run ends once disarmed.
+    end_when_disarmed: bool,
+    ended: bool,
     update: SensorUpdate,
     last: Option<StepOutput>,
     last_answer: Option<(u64, MavMessage)>,
@@ -46,32 +83,30 @@ pub struct Step {
 }
 
 impl Vehicle {
-    /// A vehicle of `airframe` flying the sequence to `takeoff_m`, hovering `hover_s`.
+    /// A vehicle of `airframe`, flying `auto` on its own if given, else waiting for commands.
     pub fn new(
         airframe: &Airframe,
         params: &FlightParams,
-        takeoff_m: f64,
-        hover_s: f64,
+        auto: Option<AutoFlight>,
     ) -> Result<Self> {
+        let mut commander_params = CommanderParams::default();
+        if let Some(a) = auto {
+            commander_params.takeoff_alt_m = a.takeoff_m;
+        }
         Ok(Self {
             core: FlightCore::new(airframe, FlightCoreConfig::from_params(params, airframe))
                 .context("building the mixer")?,
-            sequence: FlightSequence::new(SequenceParams {
-                takeoff_alt_m: takeoff_m,
-                takeoff_speed_m_s: 1.5,
-                hover_s,
-                spool_s: 1.0,
-                land_speed_m_s: 0.7,
-                final_speed_m_s: 0.3,
-                final_height_m: 2.0,
-            }),
+            commander: Commander::new(commander_params),
+            auto,
+            end_when_disarmed: false,
+            ended: false,
             update: SensorUpdate::default(),
             last: None,
             last_answer: None,
             repeated_frames: 0,
             rotors: airframe.rotors.len(),
             nominal_v: 3.8 * airframe.battery.cells as f64,
-            score: FlightScore::new(takeoff_m),
+            score: FlightScore::new(commander_params.takeoff_alt_m),
             csv: None,
             csv_error: None,
             hover: HoverCommands::new(2.0),
@@ -96,9 +131,37 @@ impl Vehicle {
         Ok(())
     }
 
-    /// The sequence's phase.
-    pub fn phase(&self) -> Phase {
-        self.sequence.phase()
+    /// The commander's state.
+    pub fn status(&self) -> CommanderStatus {
+        self.commander.status()
+    }
+
+    /// Whether the run is over: the auto flight has landed and disarmed, or an operator asked
+    /// to end and the vehicle is disarmed.
+    pub fn finished(&self) -> bool {
+        self.ended
+    }
+
+    /// The auto flight is waiting for the estimator before it takes off.
+    pub fn awaiting_takeoff(&self) -> bool {
+        self.auto.is_some() && !self.end_when_disarmed
+    }
+
+    /// Whether the armed state or the mode changed since the last call.
+    pub fn take_changed(&mut self) -> bool {
+        self.commander.take_changed()
+    }
+
+    /// Carries out a command, or says why not.
+    pub fn command(&mut self, c: VehicleCommand) -> Result<(), Denial> {
+        let c_ = &mut self.commander;
+        match c {
+            VehicleCommand::Arm { force } => c_.arm(force),
+            VehicleCommand::Disarm { force } => c_.disarm(force),
+            VehicleCommand::SetMode(m) => c_.set_mode(m),
+            VehicleCommand::Takeoff(alt) => c_.takeoff(alt),
+            VehicleCommand::SetHome(p) => c_.set_home(p),
+        }
     }
 
     /// The flight's figures against the simulator's truth, where it sends one.
@@ -111,20 +174,29 @@ impl Vehicle {
         self.repeated_frames
     }
 
-    /// Lands now.
+    /// Ends the run (Ctrl-C): lands first if in the air.
     pub fn request_land(&mut self) {
-        self.sequence.request_land();
+        self.end_when_disarmed = true;
+        self.auto = None;
+        if self.commander.armed() {
+            if let Err(e) = self.commander.set_mode(FlightMode::Land) {
+                tracing::warn!("landing: {e}");
+            }
+        } else {
+            self.ended = true;
+        }
     }
 
     /// The sensor frames stopped: the estimate is invalid from now on. On the ground the motors
     /// stop; in the air an open-loop descent begins on the recent hover commands. Returns
     /// whether the vehicle is in the air.
     pub fn sensors_stopped(&mut self) -> bool {
-        let in_air = self.sequence.sensors_stopped();
+        let in_air = self.commander.sensors_stopped();
         if in_air {
+            let home_down = self.commander.home().map_or(0.0, |h| h.z);
             let (height, down) = self.last.map_or((0.0, 0.0), |o| {
                 let t = &o.translation;
-                (self.sequence.home().z - t.pos_ned_m.z, t.vel_ned_m_s.z)
+                (home_down - t.pos_ned_m.z, t.vel_ned_m_s.z)
             });
             let d = BlindDescent::new(self.hover.get(), height, down);
             tracing::error!(
@@ -133,8 +205,9 @@ impl Vehicle {
                 d.stop_after_s()
             );
             self.blind = Some(d);
-        } else if self.sequence.phase() == Phase::Done {
+        } else if !self.commander.armed() {
             tracing::error!("sensor frames stopped on the ground: estimator invalid; disarmed");
+            self.check_end();
         }
         in_air
     }
@@ -149,12 +222,47 @@ impl Vehicle {
             }
             tracing::error!("blind descent over: motors stopped");
             self.blind = None;
-            self.sequence.disarmed();
+            self.commander.disarmed();
+            self.check_end();
         }
         hil::actuator_controls(t_usec, &[0.0; airframe::MAX_ROTORS][..self.rotors], false)
     }
 
-    /// The sensor frames are back: the loops fly again (the sequence keeps descending).
+    /// The run ends when disarmed after the auto flight (or an operator's Ctrl-C).
+    fn check_end(&mut self) {
+        if self.end_when_disarmed && !self.commander.armed() {
+            self.ended = true;
+        }
+    }
+
+    /// The auto flight: take off when ready, land after the hold.
+    fn fly_auto(&mut self) {
+        let Some(a) = self.auto else {
+            return;
+        };
+        let c = &mut self.commander;
+        let s = c.status();
+        if !self.end_when_disarmed {
+            if s.ready && !s.armed {
+                if let Err(e) = c.takeoff(Some(a.takeoff_m)).and_then(|()| c.arm(false)) {
+                    tracing::warn!("auto flight: {e}");
+                    return;
+                }
+                tracing::info!(takeoff_m = a.takeoff_m, "auto flight: armed, taking off");
+                self.end_when_disarmed = true;
+            }
+        } else if s.mode == FlightMode::Loiter
+            && s.landed == LandedState::InAir
+            && s.in_mode_s >= a.hover_s
+        {
+            tracing::info!("auto flight: landing");
+            if let Err(e) = c.set_mode(FlightMode::Land) {
+                tracing::warn!("auto flight: {e}");
+            }
+        }
+    }
+
+    /// The sensor frames are back: the loops fly again (the commander keeps descending).
     pub fn sensors_resumed(&mut self) {
         if self.blind.take().is_some() {
             tracing::warn!("sensor frames back: descending closed-loop");
@@ -206,18 +314,22 @@ impl Vehicle {
             rotor_speed_rad_s: u.rotor_speed_rad_s.take(),
         };
         let t_s = t_usec as f64 * 1e-6;
-        let (setpoint, armed) = match &self.last {
+        let (setpoint, armed) = match self.last {
             Some(e) => {
                 let ready = e.attitude.is_some_and(|a| a.valid)
                     && e.translation.horizontal_valid
                     && e.translation.vertical_valid;
-                self.sequence.update(&SequenceInput {
+                self.fly_auto();
+                let out = self.commander.update(&CommanderInput {
                     t_s,
                     ready,
                     horizontal_valid: e.translation.horizontal_valid,
                     pos_ned_m: e.translation.pos_ned_m,
                     vel_ned_m_s: e.translation.vel_ned_m_s,
-                })
+                    yaw_rad: e.attitude.map_or(0.0, |a| a.q.euler_angles().2),
+                });
+                self.check_end();
+                out
             }
             None => (
                 PositionSetpoint {
@@ -229,7 +341,8 @@ impl Vehicle {
                 false,
             ),
         };
-        if self.sequence.phase() == Phase::Armed {
+        let status = self.commander.status();
+        if status.armed && status.landed == LandedState::OnGround {
             // Spooling up on the ground: the position loop starts fresh at take-off.
             self.core.reset_position_loop();
         }
@@ -245,14 +358,12 @@ impl Vehicle {
         self.last = Some(output);
         if let Some(truth) = &truth {
             let estimate = output.attitude.map(|a| a.q);
-            self.score
-                .add(truth, estimate, self.sequence.phase(), armed);
+            self.score.add(truth, estimate, &status, armed);
         }
         if let Some(csv) = self.csv.as_mut() {
-            let phase = self.sequence.phase();
             if let Err(e) = csv.record(
                 t_s,
-                phase,
+                &status,
                 armed,
                 &setpoint,
                 &output,

@@ -4,6 +4,7 @@
 //! function of its inputs and the sample time. Conventions (NED/FRD, Hamilton quaternions
 //! `q_ned_from_frd`, SI units) are those of `ARCHITECTURE.md`.
 
+pub mod commander;
 pub mod control;
 pub mod core;
 pub mod estimator;
@@ -13,7 +14,6 @@ pub mod mixer;
 pub mod params;
 pub mod quat;
 pub mod replay;
-pub mod sequence;
 
 /// Standard gravity (m/s²), along NED +z.
 pub const GRAVITY_M_S2: f64 = 9.806_65;

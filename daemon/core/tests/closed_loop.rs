@@ -179,7 +179,9 @@ fn lewis_tilt_yaw_pd_flies_too() {
 /// land, detect the touchdown and disarm. Touchdown speed from the simulator's truth.
 #[test]
 fn takeoff_hover_land_and_disarm() {
-    use flight_core::sequence::{FlightSequence, Phase, SequenceInput, SequenceParams};
+    use flight_core::commander::{
+        Commander, CommanderInput, CommanderParams, FlightMode, LandedState,
+    };
     for name in ["quad_x", "hexa_x", "octa_x", "dodeca"] {
         let a = Airframe::load(
             &PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -196,15 +198,11 @@ fn takeoff_hover_land_and_disarm() {
         )
         .unwrap();
         let mut core = FlightCore::new(&a, FlightCoreConfig::for_airframe(&a, false)).unwrap();
-        let mut seq = FlightSequence::new(SequenceParams {
+        let mut cmd = Commander::new(CommanderParams {
             takeoff_alt_m: 5.0,
-            takeoff_speed_m_s: 1.5,
-            hover_s: 10.0,
-            spool_s: 1.0,
-            land_speed_m_s: 0.7,
-            final_speed_m_s: 0.3,
-            final_height_m: 2.0,
+            ..CommanderParams::default()
         });
+        let mut landing = false;
         let n = a.rotors.len();
         let mut commands = [0.0; 16];
         let mut last = None;
@@ -228,12 +226,26 @@ fn takeoff_hover_land_and_disarm() {
             let ready = est.attitude.is_some_and(|e| e.valid)
                 && est.translation.horizontal_valid
                 && est.translation.vertical_valid;
-            let (sp, armed) = seq.update(&SequenceInput {
-                t_s: sim.time_s(),
+            let t = sim.time_s();
+            // Take off as soon as the estimator is ready, land after 10 s of hold.
+            if cmd.status().ready && !cmd.armed() && !landing {
+                cmd.takeoff(None).unwrap();
+                cmd.arm(false).unwrap();
+            }
+            if cmd.mode() == FlightMode::Loiter
+                && cmd.landed() == LandedState::InAir
+                && cmd.status().in_mode_s >= 10.0
+            {
+                cmd.set_mode(FlightMode::Land).unwrap();
+                landing = true;
+            }
+            let (sp, armed) = cmd.update(&CommanderInput {
+                t_s: t,
                 ready,
                 horizontal_valid: est.translation.horizontal_valid,
                 pos_ned_m: est.translation.pos_ned_m,
                 vel_ned_m_s: est.translation.vel_ned_m_s,
+                yaw_rad: est.attitude.map_or(0.0, |a| a.q.euler_angles().2),
             });
             let out = core.step(&sample, &sp, armed);
             commands = out.commands;
@@ -246,7 +258,7 @@ fn takeoff_hover_land_and_disarm() {
             if sim.stats().touchdowns > 0 {
                 rebound = rebound.max(-tr.body.pos_ned_m.z);
             }
-            if seq.phase() == Phase::Done {
+            if landing && !cmd.armed() {
                 break;
             }
         }
@@ -255,7 +267,7 @@ fn takeoff_hover_land_and_disarm() {
             sim.time_s(),
             rebound
         );
-        assert_eq!(seq.phase(), Phase::Done, "{name}: disarmed at the end");
+        assert!(landing && !cmd.armed(), "{name}: disarmed at the end");
         // Motors off after the disarm: the vehicle is on the ground two seconds later and stays.
         for _ in 0..500 {
             common::control_interval(&mut sim, &[0.0; 16][..n]);

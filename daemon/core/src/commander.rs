@@ -1,0 +1,707 @@
+//! The commander: arming, flight modes and what each mode flies (PX4's commander and navigator
+//! in one pure state machine of time and the estimate).
+//!
+//! Commands ([`Commander::arm`], [`Commander::set_mode`], [`Commander::takeoff`], …) are answered
+//! at once with `Ok` or a denial that says why; [`Commander::update`] then turns the mode into a
+//! position set-point for the flight core on every sample.
+//!
+//! - *Takeoff*: spool up for `spool_s` after arming, climb on a speed- and acceleration-limited
+//!   profile to the take-off altitude above home, then *Loiter* there.
+//! - *Loiter* (Hold): brake to a stop and hold that point; armed on the ground it stays there.
+//! - *Land*: descend where it is (slower for the last metres), touchdown after standing still for
+//!   a second, disarm.
+//! - *RTL*: climb to the return altitude (if lower), fly home on a limited profile, land there.
+//! - *Descend* (failsafe): when the estimate stops being fit to fly on, an armed vehicle on the
+//!   ground disarms and one in the air levels and descends on what estimate is left, until
+//!   touchdown; it is left only by landing.
+
+use crate::control::position::PositionSetpoint;
+use nalgebra::Vector3;
+
+/// The flight modes, in PX4's terms (the MAVLink layer maps them to PX4's `custom_mode`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum FlightMode {
+    /// Sticks to attitude and thrust, no self-levelling (not flown yet).
+    Manual,
+    /// Sticks to attitude, self-levelling (not flown yet).
+    Stabilized,
+    /// Altitude hold, sticks to attitude (not flown yet).
+    Altctl,
+    /// Position hold, sticks to velocity (not flown yet).
+    Posctl,
+    /// Climb to the take-off altitude, then Loiter.
+    Takeoff,
+    /// Hold position (PX4's AUTO.LOITER, "Hold").
+    Loiter,
+    /// Fly the uploaded mission (not flown yet).
+    Mission,
+    /// Return to home and land.
+    Rtl,
+    /// Land where it is.
+    Land,
+    /// Follow set-points from a companion or script (not flown yet).
+    Offboard,
+    /// Failsafe: level and descend on what estimate is left.
+    Descend,
+}
+
+impl FlightMode {
+    /// The mode's name as PX4 reports it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Manual => "MANUAL",
+            Self::Stabilized => "STABILIZED",
+            Self::Altctl => "ALTCTL",
+            Self::Posctl => "POSCTL",
+            Self::Takeoff => "TAKEOFF",
+            Self::Loiter => "LOITER",
+            Self::Mission => "MISSION",
+            Self::Rtl => "RTL",
+            Self::Land => "LAND",
+            Self::Offboard => "OFFBOARD",
+            Self::Descend => "DESCEND",
+        }
+    }
+}
+
+/// Where the vehicle is relative to the ground (MAVLink's `MAV_LANDED_STATE`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LandedState {
+    /// On the ground (armed or not).
+    OnGround,
+    /// Climbing away from the ground.
+    Takeoff,
+    /// Flying.
+    InAir,
+    /// Descending to land.
+    Landing,
+}
+
+/// What to fly, and the commander's limits.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CommanderParams {
+    /// Take-off altitude above home (m), PX4's `MIS_TAKEOFF_ALT`.
+    pub takeoff_alt_m: f64,
+    /// Climb speed of the take-off set-point (m/s), as PX4's `MPC_TKO_SPEED`.
+    pub takeoff_speed_m_s: f64,
+    /// Spool-up time on the ground after arming (s).
+    pub spool_s: f64,
+    /// Descent speed while landing (m/s), PX4's `MPC_LAND_SPEED`.
+    pub land_speed_m_s: f64,
+    /// Descent speed for the last part of the landing (m/s), as PX4's two-stage landing.
+    pub final_speed_m_s: f64,
+    /// Height above home where the final, slower descent begins (m).
+    pub final_height_m: f64,
+    /// Return altitude above home (m), PX4's `RTL_RETURN_ALT`.
+    pub rtl_return_alt_m: f64,
+    /// Horizontal cruise speed of automatic flight (m/s), PX4's `MPC_XY_CRUISE`.
+    pub cruise_speed_m_s: f64,
+    /// Acceleration of the automatic set-point profiles (m/s²).
+    pub accel_m_s2: f64,
+    /// Disarm when armed on the ground this long without taking off (s; 0: never), PX4's
+    /// `COM_DISARM_PRFLT`.
+    pub disarm_preflight_s: f64,
+}
+
+impl Default for CommanderParams {
+    fn default() -> Self {
+        Self {
+            takeoff_alt_m: 2.5,
+            takeoff_speed_m_s: 1.5,
+            spool_s: 1.0,
+            land_speed_m_s: 0.7,
+            final_speed_m_s: 0.3,
+            final_height_m: 2.0,
+            rtl_return_alt_m: 30.0,
+            cruise_speed_m_s: 5.0,
+            accel_m_s2: 1.0,
+            disarm_preflight_s: 10.0,
+        }
+    }
+}
+
+/// The estimate the commander watches.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CommanderInput {
+    /// Time (s).
+    pub t_s: f64,
+    /// The estimator can be flown on (attitude and position valid).
+    pub ready: bool,
+    /// The horizontal estimate is valid (GPS fresh): a descent without a full estimate then
+    /// brakes to a stop over the ground instead of only levelling.
+    pub horizontal_valid: bool,
+    /// Estimated position NED (m).
+    pub pos_ned_m: Vector3<f64>,
+    /// Estimated velocity NED (m/s).
+    pub vel_ned_m_s: Vector3<f64>,
+    /// Estimated heading (rad).
+    pub yaw_rad: f64,
+}
+
+/// Why a command was refused, in words for the operator (`STATUSTEXT`).
+pub type Denial = String;
+
+/// The commander's state as telemetry shows it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CommanderStatus {
+    /// Motors armed.
+    pub armed: bool,
+    /// The flight mode.
+    pub mode: FlightMode,
+    /// On the ground, taking off, flying or landing.
+    pub landed: LandedState,
+    /// Home position NED (m) and heading (rad), once set.
+    pub home: Option<(Vector3<f64>, f64)>,
+    /// A failsafe is flying the vehicle.
+    pub failsafe: bool,
+    /// The estimator can be flown on.
+    pub ready: bool,
+    /// Time in the current mode (s).
+    pub in_mode_s: f64,
+}
+
+/// A straight-line set-point profile from `from` to `to`: speed ramps up at `accel`, cruises
+/// at `speed`, and slows so that it stops at the end (v ≤ √(2·a·d)).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Line {
+    from: Vector3<f64>,
+    dir: Vector3<f64>,
+    length: f64,
+    s: f64,
+    v: f64,
+    speed: f64,
+    accel: f64,
+    /// Stepped at least once: the first step starts the profile (no time has passed on it).
+    started: bool,
+}
+
+impl Line {
+    fn new(from: Vector3<f64>, to: Vector3<f64>, speed: f64, accel: f64) -> Self {
+        let d = to - from;
+        let length = d.norm();
+        Self {
+            from,
+            dir: if length > 1e-9 {
+                d / length
+            } else {
+                Vector3::zeros()
+            },
+            length,
+            s: 0.0,
+            v: 0.0,
+            speed,
+            accel,
+            started: false,
+        }
+    }
+
+    /// Advances `dt`; returns the set-point (position, velocity and acceleration feed-forward,
+    /// yaw left to the caller) and whether the end is reached.
+    fn step(&mut self, dt: f64, yaw_rad: f64) -> (PositionSetpoint, bool) {
+        let dt = if self.started { dt } else { 0.0 };
+        self.started = true;
+        let left = (self.length - self.s).max(0.0);
+        let v = (self.v + self.accel * dt)
+            .min(self.speed)
+            .min(braking_speed(left, self.accel, dt));
+        let a = if dt > 0.0 { (v - self.v) / dt } else { 0.0 };
+        self.v = v;
+        self.s = (self.s + v * dt).min(self.length);
+        let arrived = self.s >= self.length;
+        let sp = PositionSetpoint {
+            pos_ned_m: self.from + self.dir * self.s,
+            vel_ned_m_s: if arrived {
+                Vector3::zeros()
+            } else {
+                self.dir * v
+            },
+            accel_ned_m_s2: self.dir * a,
+            yaw_rad,
+        };
+        (sp, arrived)
+    }
+}
+
+/// The fastest speed from which a set-point stepping every `dt` still stops within `left` at
+/// deceleration `a`: v = √(2·a·d) in the limit, here with the half-step of the discrete motion,
+/// √(2·a·d + (a·dt/2)²) − a·dt/2.
+fn braking_speed(left: f64, a: f64, dt: f64) -> f64 {
+    let h = 0.5 * a * dt;
+    (2.0 * a * left + h * h).sqrt() - h
+}
+
+/// The stages of a return.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum RtlStage {
+    Climb,
+    Return,
+    Land,
+}
+
+/// The commander.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Commander {
+    params: CommanderParams,
+    armed: bool,
+    mode: FlightMode,
+    landed: LandedState,
+    since_s: f64,
+    armed_at_s: f64,
+    home: Option<(Vector3<f64>, f64)>,
+    /// The take-off altitude of the current take-off (m above home).
+    takeoff_alt_m: f64,
+    line: Option<Line>,
+    hold: Option<(Vector3<f64>, f64)>,
+    land_sp_down: Option<f64>,
+    land_xy: Option<(f64, f64)>,
+    rtl: RtlStage,
+    still_since_s: Option<f64>,
+    last: Option<CommanderInput>,
+    /// The mode changed since the caller last asked (heartbeat "right after a mode change").
+    changed: bool,
+}
+
+impl Commander {
+    /// A disarmed commander in Loiter (Hold), PX4's default.
+    pub fn new(params: CommanderParams) -> Self {
+        Self {
+            params,
+            armed: false,
+            mode: FlightMode::Loiter,
+            landed: LandedState::OnGround,
+            since_s: 0.0,
+            armed_at_s: 0.0,
+            home: None,
+            takeoff_alt_m: params.takeoff_alt_m,
+            line: None,
+            hold: None,
+            land_sp_down: None,
+            land_xy: None,
+            rtl: RtlStage::Climb,
+            still_since_s: None,
+            last: None,
+            changed: false,
+        }
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &CommanderParams {
+        &self.params
+    }
+
+    /// Changes the parameters (a parameter set from a ground station); the flight in progress
+    /// uses the new values from its next stage.
+    pub fn set_params(&mut self, params: CommanderParams) {
+        self.params = params;
+    }
+
+    /// The state as telemetry shows it.
+    pub fn status(&self) -> CommanderStatus {
+        CommanderStatus {
+            armed: self.armed,
+            mode: self.mode,
+            landed: self.landed,
+            home: self.home,
+            failsafe: self.mode == FlightMode::Descend,
+            ready: self.last.is_some_and(|i| i.ready),
+            in_mode_s: self.last.map_or(0.0, |i| (i.t_s - self.since_s).max(0.0)),
+        }
+    }
+
+    /// Motors armed.
+    pub fn armed(&self) -> bool {
+        self.armed
+    }
+
+    /// The flight mode.
+    pub fn mode(&self) -> FlightMode {
+        self.mode
+    }
+
+    /// On the ground, taking off, flying or landing.
+    pub fn landed(&self) -> LandedState {
+        self.landed
+    }
+
+    /// Home position NED (m), once set (at arming, or by [`Commander::set_home`]).
+    pub fn home(&self) -> Option<Vector3<f64>> {
+        self.home.map(|h| h.0)
+    }
+
+    /// Whether the armed state or the mode changed since the last call (and clears it).
+    pub fn take_changed(&mut self) -> bool {
+        std::mem::take(&mut self.changed)
+    }
+
+    fn now(&self) -> f64 {
+        self.last.map_or(0.0, |i| i.t_s)
+    }
+
+    fn ready(&self) -> bool {
+        self.last.is_some_and(|i| i.ready)
+    }
+
+    fn enter(&mut self, mode: FlightMode) {
+        if mode != self.mode {
+            self.changed = true;
+        }
+        self.mode = mode;
+        self.since_s = self.now();
+        self.line = None;
+        self.hold = None;
+        self.land_sp_down = None;
+        self.land_xy = None;
+        self.rtl = RtlStage::Climb;
+        self.still_since_s = None;
+    }
+
+    /// Arms the motors. Refused while the estimator is not ready (unless `force`), in modes
+    /// that cannot start on the ground (Land, RTL, Descend), and in modes not flown yet.
+    pub fn arm(&mut self, force: bool) -> Result<(), Denial> {
+        if self.armed {
+            return Ok(());
+        }
+        match self.mode {
+            FlightMode::Takeoff | FlightMode::Loiter => {}
+            FlightMode::Land | FlightMode::Rtl | FlightMode::Descend => {
+                return Err(format!(
+                    "arming refused: not in a mode to start in ({})",
+                    self.mode.name()
+                ));
+            }
+            m => return Err(format!("arming refused: {} is not flown yet", m.name())),
+        }
+        let Some(i) = self.last else {
+            return Err("arming refused: no sensor data yet".into());
+        };
+        if !i.ready && !force {
+            return Err(
+                "arming refused: estimator not ready (attitude or position invalid)".into(),
+            );
+        }
+        self.armed = true;
+        self.changed = true;
+        self.armed_at_s = i.t_s;
+        self.since_s = i.t_s;
+        self.landed = LandedState::OnGround;
+        self.home = Some((i.pos_ned_m, i.yaw_rad));
+        self.hold = None;
+        self.line = None;
+        Ok(())
+    }
+
+    /// Disarms. Refused in the air unless `force` (which stops the motors wherever it is).
+    pub fn disarm(&mut self, force: bool) -> Result<(), Denial> {
+        if !self.armed {
+            return Ok(());
+        }
+        if self.landed != LandedState::OnGround && !force {
+            return Err("disarming refused: in the air (land first, or force)".into());
+        }
+        self.disarmed();
+        Ok(())
+    }
+
+    /// The motors stopped (a forced disarm, the end of a failsafe): on the ground from now on,
+    /// in Loiter unless the mode needs no flight (a failsafe's Descend ends here).
+    pub fn disarmed(&mut self) {
+        if self.armed {
+            self.changed = true;
+        }
+        self.armed = false;
+        self.landed = LandedState::OnGround;
+        if matches!(
+            self.mode,
+            FlightMode::Land | FlightMode::Rtl | FlightMode::Descend | FlightMode::Takeoff
+        ) {
+            self.enter(FlightMode::Loiter);
+        }
+    }
+
+    /// Switches mode. Refused for modes not flown yet, for RTL without a home, and out of a
+    /// failsafe's Descend while it flies.
+    pub fn set_mode(&mut self, mode: FlightMode) -> Result<(), Denial> {
+        if mode == self.mode {
+            return Ok(());
+        }
+        if self.mode == FlightMode::Descend && self.armed {
+            return Err("mode change refused: failsafe descent in progress".into());
+        }
+        match mode {
+            FlightMode::Takeoff | FlightMode::Loiter | FlightMode::Land => {}
+            FlightMode::Rtl => {
+                if self.home.is_none() {
+                    return Err("RTL refused: no home position".into());
+                }
+            }
+            FlightMode::Descend => return Err("DESCEND is a failsafe, not a mode to select".into()),
+            m => return Err(format!("{} is not flown yet", m.name())),
+        }
+        if mode == FlightMode::Takeoff && self.armed && !self.ready() {
+            return Err("take-off refused: estimator not ready".into());
+        }
+        self.enter(mode);
+        Ok(())
+    }
+
+    /// Take-off to `alt_above_home_m` (the parameter's altitude if `None`): switches to
+    /// Takeoff; a disarmed vehicle climbs once armed.
+    pub fn takeoff(&mut self, alt_above_home_m: Option<f64>) -> Result<(), Denial> {
+        let alt = alt_above_home_m.unwrap_or(self.params.takeoff_alt_m);
+        if !(alt.is_finite() && alt > 0.0) {
+            return Err(format!(
+                "take-off refused: altitude {alt} m is not above home"
+            ));
+        }
+        if self.mode == FlightMode::Takeoff {
+            // A repeated command (a retransmission) keeps the climb in progress.
+            self.takeoff_alt_m = alt;
+            return Ok(());
+        }
+        self.set_mode(FlightMode::Takeoff)?;
+        self.takeoff_alt_m = alt;
+        Ok(())
+    }
+
+    /// Sets home to `pos_ned_m` (or to the current position if `None`).
+    pub fn set_home(&mut self, pos_ned_m: Option<Vector3<f64>>) -> Result<(), Denial> {
+        let Some(i) = self.last else {
+            return Err("home refused: no position estimate yet".into());
+        };
+        let pos = match pos_ned_m {
+            Some(p) => p,
+            None if i.ready => i.pos_ned_m,
+            None => return Err("home refused: position estimate not valid".into()),
+        };
+        if !pos.iter().all(|x| x.is_finite()) {
+            return Err("home refused: position not finite".into());
+        }
+        let yaw = self.home.map_or(i.yaw_rad, |h| h.1);
+        self.home = Some((pos, yaw));
+        Ok(())
+    }
+
+    /// The estimate is lost (sensors stopped, or it is unfit to fly on): on the ground the motors
+    /// stop; in the air the vehicle descends (what flies it until they return is the caller's:
+    /// see [`crate::failsafe::BlindDescent`]). Returns whether it is in the air.
+    pub fn sensors_stopped(&mut self) -> bool {
+        if !self.armed {
+            return false;
+        }
+        if self.landed == LandedState::OnGround {
+            self.disarmed();
+            return false;
+        }
+        if self.mode != FlightMode::Descend {
+            self.enter(FlightMode::Descend);
+            self.landed = LandedState::Landing;
+        }
+        true
+    }
+
+    /// Touchdown when the vehicle has been `stopped` for a second: disarm.
+    fn touchdown_check(&mut self, stopped: bool, t: f64) {
+        match (stopped, self.still_since_s) {
+            (true, None) => self.still_since_s = Some(t),
+            (true, Some(s)) if t - s >= 1.0 => self.disarmed(),
+            (false, _) => self.still_since_s = None,
+            _ => {}
+        }
+    }
+
+    /// The landing descent at `xy`: the set-point goes down steadily (slower near the ground);
+    /// touchdown when the vehicle has stopped moving down for a second while the set-point is
+    /// well below it (it cannot go lower).
+    fn land_at(&mut self, i: &CommanderInput, dt: f64, yaw: f64) -> PositionSetpoint {
+        let p = self.params;
+        self.landed = LandedState::Landing;
+        let (x, y) = *self.land_xy.get_or_insert((i.pos_ned_m.x, i.pos_ned_m.y));
+        let ground = self.home.map_or(i.pos_ned_m.z, |h| h.0.z);
+        let height = ground - i.pos_ned_m.z;
+        let speed = if height > p.final_height_m {
+            p.land_speed_m_s
+        } else {
+            p.final_speed_m_s
+        };
+        let down = self.land_sp_down.get_or_insert(i.pos_ned_m.z);
+        *down = (*down + speed * dt).min(i.pos_ned_m.z + 1.0);
+        let down = *down;
+        let stopped = i.vel_ned_m_s.z.abs() < 0.15 && down - i.pos_ned_m.z > 0.5;
+        self.touchdown_check(stopped, i.t_s);
+        PositionSetpoint {
+            pos_ned_m: Vector3::new(x, y, down),
+            vel_ned_m_s: Vector3::new(0.0, 0.0, speed),
+            accel_ned_m_s2: Vector3::zeros(),
+            yaw_rad: yaw,
+        }
+    }
+
+    /// Advances; returns the set-point and whether the motors are armed.
+    pub fn update(&mut self, i: &CommanderInput) -> (PositionSetpoint, bool) {
+        let p = self.params;
+        let t = i.t_s;
+        let dt = self.last.map_or(0.0, |l| (t - l.t_s).max(0.0));
+        self.last = Some(*i);
+        if !i.ready {
+            // The same reaction as to silent sensors, at this update's time.
+            self.sensors_stopped();
+        }
+        let yaw = self.home.map_or(i.yaw_rad, |h| h.1);
+        let hold = |pos: Vector3<f64>| PositionSetpoint {
+            pos_ned_m: pos,
+            vel_ned_m_s: Vector3::zeros(),
+            accel_ned_m_s2: Vector3::zeros(),
+            yaw_rad: yaw,
+        };
+        if !self.armed {
+            return (hold(i.pos_ned_m), false);
+        }
+        let home = self.home.map_or(i.pos_ned_m, |h| h.0);
+        // Spool-up: a set-point just below the ground keeps thrust low until take-off.
+        let on_ground = hold(home + Vector3::new(0.0, 0.0, 0.5));
+        let since_arming = t - self.armed_at_s;
+        if self.landed == LandedState::OnGround
+            && self.mode != FlightMode::Takeoff
+            && p.disarm_preflight_s > 0.0
+            && since_arming >= p.disarm_preflight_s
+        {
+            // PX4's COM_DISARM_PRFLT: armed and left on the ground.
+            self.disarmed();
+            return (hold(i.pos_ned_m), false);
+        }
+        let sp = match self.mode {
+            FlightMode::Takeoff => {
+                if self.landed == LandedState::OnGround && since_arming < p.spool_s {
+                    return (on_ground, true);
+                }
+                let target_down = home.z - self.takeoff_alt_m;
+                if self.line.is_none() {
+                    if i.pos_ned_m.z <= target_down && self.landed != LandedState::OnGround {
+                        // Already above the take-off altitude: hold here.
+                        self.enter(FlightMode::Loiter);
+                        return (self.loiter(i, yaw), true);
+                    }
+                    // From the ground the climb starts at the ground, not at the estimate's
+                    // noise around it.
+                    let from = if self.landed == LandedState::OnGround {
+                        Vector3::new(i.pos_ned_m.x, i.pos_ned_m.y, home.z)
+                    } else {
+                        i.pos_ned_m
+                    };
+                    self.line = Some(Line::new(
+                        from,
+                        Vector3::new(from.x, from.y, target_down),
+                        p.takeoff_speed_m_s,
+                        p.accel_m_s2,
+                    ));
+                    self.landed = LandedState::Takeoff;
+                }
+                let Some(line) = self.line.as_mut() else {
+                    return (on_ground, true);
+                };
+                let (sp, arrived) = line.step(dt, yaw);
+                let goal = line.from.z - line.length;
+                if arrived && i.pos_ned_m.z - home.z <= 0.95 * (goal - home.z) {
+                    self.landed = LandedState::InAir;
+                    self.enter(FlightMode::Loiter);
+                    self.hold = Some((sp.pos_ned_m, yaw));
+                }
+                sp
+            }
+            FlightMode::Loiter => {
+                if self.landed == LandedState::OnGround {
+                    return (on_ground, true);
+                }
+                self.landed = LandedState::InAir;
+                self.loiter(i, yaw)
+            }
+            FlightMode::Land => self.land_at(i, dt, yaw),
+            FlightMode::Rtl => {
+                if self.landed == LandedState::OnGround {
+                    return (on_ground, true);
+                }
+                self.rtl(i, dt, yaw, home)
+            }
+            FlightMode::Descend => {
+                // Braking to zero ground speed while the horizontal estimate holds, else level
+                // (horizontal velocity uncontrolled); touchdown when the vertical speed has
+                // stayed near zero for a second.
+                self.landed = LandedState::Landing;
+                let stopped = t - self.since_s > 1.0 && i.vel_ned_m_s.z.abs() < 0.15;
+                self.touchdown_check(stopped, t);
+                let h = if i.horizontal_valid { 0.0 } else { f64::NAN };
+                PositionSetpoint {
+                    pos_ned_m: Vector3::repeat(f64::NAN),
+                    vel_ned_m_s: Vector3::new(h, h, p.land_speed_m_s),
+                    accel_ned_m_s2: Vector3::zeros(),
+                    yaw_rad: yaw,
+                }
+            }
+            // Not selectable yet (set_mode refuses them): hold.
+            _ => self.loiter(i, yaw),
+        };
+        (sp, self.armed)
+    }
+
+    /// Hold: the point where braking at the profile's acceleration stops the vehicle.
+    fn loiter(&mut self, i: &CommanderInput, yaw: f64) -> PositionSetpoint {
+        let a = self.params.accel_m_s2.max(0.1);
+        let (pos, yaw) = *self.hold.get_or_insert_with(|| {
+            let v = i.vel_ned_m_s;
+            (i.pos_ned_m + v * v.norm() / (2.0 * a), yaw)
+        });
+        PositionSetpoint {
+            pos_ned_m: pos,
+            vel_ned_m_s: Vector3::zeros(),
+            accel_ned_m_s2: Vector3::zeros(),
+            yaw_rad: yaw,
+        }
+    }
+
+    /// Return: climb to the return altitude, fly home level, land there.
+    fn rtl(
+        &mut self,
+        i: &CommanderInput,
+        dt: f64,
+        yaw: f64,
+        home: Vector3<f64>,
+    ) -> PositionSetpoint {
+        let p = self.params;
+        self.landed = LandedState::InAir;
+        loop {
+            match self.rtl {
+                RtlStage::Climb => {
+                    let up_to = (home.z - p.rtl_return_alt_m).min(i.pos_ned_m.z);
+                    let line = self.line.get_or_insert_with(|| {
+                        let to = Vector3::new(i.pos_ned_m.x, i.pos_ned_m.y, up_to);
+                        Line::new(i.pos_ned_m, to, p.takeoff_speed_m_s, p.accel_m_s2)
+                    });
+                    let (sp, arrived) = line.step(dt, yaw);
+                    if !arrived {
+                        return sp;
+                    }
+                    self.rtl = RtlStage::Return;
+                    self.line = None;
+                }
+                RtlStage::Return => {
+                    let line = self.line.get_or_insert_with(|| {
+                        let from = Vector3::new(i.pos_ned_m.x, i.pos_ned_m.y, i.pos_ned_m.z);
+                        let to = Vector3::new(home.x, home.y, from.z);
+                        Line::new(from, to, p.cruise_speed_m_s, p.accel_m_s2)
+                    });
+                    let to = line.from + line.dir * line.length;
+                    let (sp, arrived) = line.step(dt, yaw);
+                    if !(arrived && (i.pos_ned_m.xy() - to.xy()).norm() < 1.0) {
+                        return sp;
+                    }
+                    self.rtl = RtlStage::Land;
+                    self.land_xy = Some((home.x, home.y));
+                }
+                RtlStage::Land => return self.land_at(i, dt, yaw),
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,278 @@
+#![allow(clippy::unwrap_used)]
+use super::*;
+
+fn input(t: f64, down: f64, vd: f64) -> CommanderInput {
+    CommanderInput {
+        t_s: t,
+        ready: true,
+        horizontal_valid: true,
+        pos_ned_m: Vector3::new(0.0, 0.0, down),
+        vel_ned_m_s: Vector3::new(0.0, 0.0, vd),
+        yaw_rad: 0.0,
+    }
+}
+
+fn params() -> CommanderParams {
+    CommanderParams {
+        takeoff_alt_m: 5.0,
+        final_speed_m_s: 0.7,
+        final_height_m: 0.0,
+        ..CommanderParams::default()
+    }
+}
+
+/// A commander that has seen the estimate at rest, ready.
+fn ready() -> Commander {
+    let mut c = Commander::new(params());
+    c.update(&input(0.0, 0.0, 0.0));
+    c
+}
+
+/// Take-off, hold, land as a table: (time, estimated down, vertical speed, command) →
+/// (mode, landed state, armed) after the update.
+#[test]
+fn takeoff_hold_and_land_follow_the_flight() {
+    use FlightMode::{Land, Loiter, Takeoff};
+    use LandedState::{InAir, Landing, OnGround, Takeoff as Climbing};
+    enum Do {
+        Nothing,
+        Takeoff,
+        Arm,
+        Land,
+    }
+    let mut c = ready();
+    let table = [
+        (0.1, 0.0, 0.0, Do::Takeoff, Takeoff, OnGround, false),
+        (0.2, 0.0, 0.0, Do::Arm, Takeoff, OnGround, true),
+        (0.7, 0.0, 0.0, Do::Nothing, Takeoff, OnGround, true), // spooling up
+        (1.3, 0.0, 0.0, Do::Nothing, Takeoff, Climbing, true),
+        (3.0, -2.0, -1.5, Do::Nothing, Takeoff, Climbing, true),
+        (6.0, -4.6, -0.5, Do::Nothing, Takeoff, Climbing, true), // set-point there, vehicle not
+        (6.5, -4.9, -0.1, Do::Nothing, Loiter, InAir, true),
+        (9.0, -5.0, 0.0, Do::Nothing, Loiter, InAir, true),
+        (9.1, -5.0, 0.0, Do::Land, Land, Landing, true),
+        (14.0, -1.5, 0.7, Do::Nothing, Land, Landing, true), // descending at 0.7 m/s
+        (16.6, 0.0, 0.0, Do::Nothing, Land, Landing, true),  // on the ground, set-point not below
+        (17.1, 0.0, 0.0, Do::Nothing, Land, Landing, true),  // set-point 0.6 m below: still for...
+        (17.6, 0.0, 0.0, Do::Nothing, Land, Landing, true),
+        (18.2, 0.0, 0.0, Do::Nothing, Loiter, OnGround, false), // ...a second: disarmed
+    ];
+    for (t, d, vd, cmd, mode, landed, armed) in table {
+        match cmd {
+            Do::Nothing => Ok(()),
+            Do::Takeoff => c.takeoff(None),
+            Do::Arm => c.arm(false),
+            Do::Land => c.set_mode(FlightMode::Land),
+        }
+        .unwrap();
+        let (_, out_armed) = c.update(&input(t, d, vd));
+        assert_eq!(
+            (c.mode(), c.landed(), c.armed(), out_armed),
+            (mode, landed, armed, armed),
+            "at t = {t}"
+        );
+    }
+}
+
+#[test]
+fn commands_are_refused_with_a_reason_and_repeats_are_harmless() {
+    let mut c = Commander::new(params());
+    assert!(c.arm(false).unwrap_err().contains("no sensor data"));
+    c.update(&CommanderInput {
+        ready: false,
+        ..input(0.0, 0.0, 0.0)
+    });
+    assert!(c.arm(false).unwrap_err().contains("estimator not ready"));
+    assert!(c.set_mode(FlightMode::Rtl).unwrap_err().contains("no home"));
+    assert!(
+        c.set_mode(FlightMode::Mission)
+            .unwrap_err()
+            .contains("not flown yet")
+    );
+    assert!(c.set_mode(FlightMode::Descend).is_err());
+    assert!(c.takeoff(Some(f64::NAN)).is_err() && c.takeoff(Some(-3.0)).is_err());
+    c.update(&input(0.1, 0.0, 0.0));
+    c.set_mode(FlightMode::Land).unwrap();
+    assert!(c.arm(false).unwrap_err().contains("LAND"));
+    c.set_mode(FlightMode::Loiter).unwrap();
+    // Arming twice, taking off twice: the same as once (a retransmitted command).
+    c.arm(false).unwrap();
+    assert!(c.take_changed());
+    c.arm(false).unwrap();
+    assert!(!c.take_changed(), "a repeated arm changes nothing");
+    c.takeoff(Some(3.0)).unwrap();
+    c.takeoff(Some(3.0)).unwrap();
+    assert_eq!(c.mode(), FlightMode::Takeoff);
+    // Airborne: disarm refused unless forced.
+    for t in [0.2, 1.5, 2.0] {
+        c.update(&input(t, -0.5, -1.0));
+    }
+    assert_eq!(c.landed(), LandedState::Takeoff);
+    assert!(c.disarm(false).unwrap_err().contains("in the air"));
+    assert!(c.armed());
+    c.disarm(true).unwrap();
+    assert!(!c.armed() && c.landed() == LandedState::OnGround);
+}
+
+#[test]
+fn armed_on_the_ground_and_left_there_disarms() {
+    let mut c = ready();
+    c.arm(false).unwrap();
+    assert_eq!(c.mode(), FlightMode::Loiter);
+    let (sp, armed) = c.update(&input(5.0, 0.0, 0.0));
+    assert!(
+        armed && sp.pos_ned_m.z > 0.0,
+        "held below the ground: idle thrust"
+    );
+    c.update(&input(9.9, 0.0, 0.0));
+    assert!(c.armed());
+    let (_, armed) = c.update(&input(10.0, 0.0, 0.0));
+    assert!(!armed && !c.armed(), "COM_DISARM_PRFLT");
+}
+
+#[test]
+fn rtl_climbs_returns_and_lands_at_home() {
+    let mut c = Commander::new(CommanderParams {
+        rtl_return_alt_m: 10.0,
+        ..params()
+    });
+    c.update(&input(0.0, 0.0, 0.0));
+    c.takeoff(None).unwrap();
+    c.arm(false).unwrap();
+    // Fly the set-points perfectly: the vehicle is where the set-point was a step ago.
+    let dt = 0.01;
+    let mut t = 0.0;
+    let mut pos = Vector3::zeros();
+    let mut vel = Vector3::zeros();
+    let fly = |c: &mut Commander, t: f64, pos: &mut Vector3<f64>, vel: &mut Vector3<f64>| {
+        let (sp, armed) = c.update(&CommanderInput {
+            pos_ned_m: *pos,
+            vel_ned_m_s: *vel,
+            ..input(t, 0.0, 0.0)
+        });
+        if armed && sp.pos_ned_m.z < 0.0 {
+            *vel = (sp.pos_ned_m - *pos) / dt;
+            *pos = sp.pos_ned_m;
+        } else {
+            *vel = Vector3::zeros();
+            pos.z = 0.0;
+        }
+    };
+    while c.mode() != FlightMode::Loiter && t < 20.0 {
+        t += dt;
+        fly(&mut c, t, &mut pos, &mut vel);
+    }
+    assert!((pos.z + 5.0).abs() < 0.01, "took off to 5 m: {pos:?}");
+    // Somewhere else: 40 m north, 30 m east (moved there by hand).
+    pos += Vector3::new(40.0, 30.0, 0.0);
+    c.set_mode(FlightMode::Loiter).unwrap();
+    c.set_mode(FlightMode::Rtl).unwrap();
+    let mut max_up = 0.0f64;
+    let mut max_speed = 0.0f64;
+    let start = t;
+    while c.armed() && t < start + 120.0 {
+        t += dt;
+        fly(&mut c, t, &mut pos, &mut vel);
+        max_up = max_up.max(-pos.z);
+        max_speed = max_speed.max(vel.xy().norm());
+    }
+    assert!(!c.armed(), "landed and disarmed");
+    assert!(pos.xy().norm() < 0.05, "at home: {pos:?}");
+    assert!(
+        (max_up - 10.0).abs() < 0.01,
+        "climbed to the return altitude: {max_up}"
+    );
+    assert!(max_speed <= 5.0 + 1e-9, "cruise speed limited: {max_speed}");
+    // 50 m at 5 m/s with 1 m/s² ramps: 15 s; climb 5 m at 1.5: 4.8 s; descent 10 m at 0.7:
+    // 14.3 s; touchdown 1 s and more.
+    let took = t - start;
+    assert!((33.0..45.0).contains(&took), "RTL took {took:.1} s");
+}
+
+#[test]
+fn losing_the_estimate_disarms_on_the_ground_and_descends_level_in_the_air() {
+    let lost = |t, down, vd| CommanderInput {
+        ready: false,
+        horizontal_valid: false,
+        ..input(t, down, vd)
+    };
+    // Spooling up on the ground: disarm at once.
+    let mut c = ready();
+    c.takeoff(None).unwrap();
+    c.arm(false).unwrap();
+    let (_, armed) = c.update(&lost(0.5, 0.0, 0.0));
+    assert!(!armed && !c.armed());
+
+    // Climbing: level and descend, touchdown after a second standing still, and no way back.
+    let mut c = ready();
+    c.takeoff(None).unwrap();
+    c.arm(false).unwrap();
+    for (t, d, vd) in [(1.2, 0.0, 0.0), (3.0, -2.0, -1.5)] {
+        c.update(&input(t, d, vd));
+    }
+    let (sp, armed) = c.update(&lost(3.1, -2.1, -1.4));
+    assert!(armed && c.mode() == FlightMode::Descend && c.status().failsafe);
+    assert!(
+        sp.pos_ned_m.iter().all(|p| p.is_nan()),
+        "no position control"
+    );
+    assert!(
+        sp.vel_ned_m_s.x.is_nan() && sp.vel_ned_m_s.y.is_nan(),
+        "level"
+    );
+    assert!((sp.vel_ned_m_s.z - 0.7).abs() < 1e-12 && sp.accel_ned_m_s2 == Vector3::zeros());
+    assert!(
+        c.set_mode(FlightMode::Loiter).is_err(),
+        "no way out but down"
+    );
+    // The barometer lost but the GPS still there: brake over the ground while descending.
+    let baro_lost = CommanderInput {
+        ready: false,
+        ..input(3.2, -2.1, 0.5)
+    };
+    let (sp, _) = c.update(&baro_lost);
+    assert!(sp.vel_ned_m_s.xy() == nalgebra::Vector2::zeros() && sp.pos_ned_m.x.is_nan());
+    c.update(&input(3.5, -2.2, 0.0)); // valid again: still descending
+    assert_eq!(c.mode(), FlightMode::Descend);
+    c.update(&lost(4.0, -2.0, 0.05)); // passing through zero speed is not touchdown
+    c.update(&lost(4.5, -1.7, 0.7));
+    assert_eq!(c.mode(), FlightMode::Descend);
+    for t in [7.0, 7.5, 7.9] {
+        c.update(&lost(t, 0.0, 0.02));
+        assert!(c.armed(), "at {t}");
+    }
+    let (_, armed) = c.update(&lost(8.05, 0.0, 0.0));
+    assert!(!armed && !c.armed() && c.landed() == LandedState::OnGround);
+}
+
+#[test]
+fn the_takeoff_set_point_climbs_smoothly_and_stops_at_the_altitude() {
+    let mut c = ready();
+    c.takeoff(None).unwrap();
+    c.arm(false).unwrap();
+    let dt = 0.004;
+    c.update(&input(1.0, 0.0, 0.0));
+    let (mut t, mut last_up, mut last_v) = (1.0 + dt, 0.0f64, 0.0f64);
+    while t < 9.0 {
+        // The vehicle is where the set-point was a step ago.
+        let (sp, _) = c.update(&input(t, -last_up, -last_v));
+        if c.mode() == FlightMode::Loiter {
+            break;
+        }
+        let (up, v) = (-sp.pos_ned_m.z, -sp.vel_ned_m_s.z);
+        assert!(
+            up >= last_up - 1e-12 && up <= 5.0 + 1e-12,
+            "monotonic, bounded"
+        );
+        assert!(v <= 1.5 + 1e-12, "climb speed limited: {v}");
+        assert!(
+            (v - last_v).abs() <= 1.02 * dt,
+            "acceleration limited at t = {t}: {last_v} → {v}"
+        );
+        (last_up, last_v) = (up, v);
+        t += dt;
+    }
+    assert_eq!(c.mode(), FlightMode::Loiter);
+    // 5 m at 1.5 m/s with 1 m/s² ramps at both ends: 5/1.5 + 1.5 = 4.83 s after take-off.
+    assert!((t - 1.0 - 4.83).abs() < 0.05, "arrived after {} s", t - 1.0);
+}
