@@ -53,6 +53,8 @@ pub struct ConfigFile {
     pub loop_spin_us: Option<f64>,
     /// CPU the control loop is pinned to.
     pub loop_cpu: Option<usize>,
+    /// Ground-station endpoints (URLs), or `["none"]`.
+    pub mavlink: Option<Vec<String>>,
 }
 
 /// Allowed take-off altitudes (m).

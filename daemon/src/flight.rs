@@ -65,6 +65,10 @@ pub struct Telemetry {
     pub status: Option<CommanderStatus>,
     /// The last step's output.
     pub output: Option<StepOutput>,
+    /// The last GPS solution.
+    pub gps: Option<hil::GpsReport>,
+    /// Battery voltage (V).
+    pub battery_v: f64,
     /// Sensor frames stepped.
     pub frames: u64,
     /// The deadline loop's timing over the last interval (none in lockstep).
@@ -330,6 +334,8 @@ impl<'a> ControlLoop<'a> {
                 self.ports.telemetry.send_replace(Telemetry {
                     t_s: step.t_s,
                     status: Some(status),
+                    gps: self.vehicle.gps(),
+                    battery_v: self.vehicle.battery_v(),
                     output: Some(step.output),
                     frames: self.report.frames,
                     loop_stats: self.loop_stats,

@@ -8,6 +8,7 @@ mod config;
 mod deadline;
 mod flight;
 mod flight_csv;
+mod gcs;
 mod link;
 mod replay;
 mod score;
@@ -109,6 +110,14 @@ struct Cli {
     /// interrupts [default: not pinned].
     #[arg(long, value_name = "N")]
     loop_cpu: Option<usize>,
+    /// A ground-station endpoint; repeat for several, `none` for none. `udpout://HOST:PORT?bind=LOCAL`
+    /// pushes to HOST:PORT from the LOCAL port and answers every peer writing to it;
+    /// `udpin://ADDR:PORT` answers every peer writing to it; `tcpin://ADDR:PORT` is a TCP
+    /// server. Every port is offset by --instance [default: udpout://127.0.0.1:14550?bind=18570
+    /// (QGroundControl, pymavlink, MAVProxy), udpout://127.0.0.1:14540?bind=14580 (MAVSDK),
+    /// tcpin://0.0.0.0:5760].
+    #[arg(long, value_name = "URL")]
+    mavlink: Vec<String>,
     #[command(subcommand)]
     command: Option<Command>,
 }
@@ -151,6 +160,7 @@ struct Settings {
     loop_hz: f64,
     loop_spin_us: f64,
     loop_cpu: Option<usize>,
+    mavlink: Vec<String>,
 }
 
 impl Settings {
@@ -242,6 +252,16 @@ impl Settings {
             loop_hz,
             loop_spin_us,
             loop_cpu: cli.loop_cpu.or(file.loop_cpu),
+            mavlink: if cli.mavlink.is_empty() {
+                file.mavlink.unwrap_or_else(|| {
+                    gcs::links::DEFAULT_ENDPOINTS
+                        .iter()
+                        .map(|s| s.to_string())
+                        .collect()
+                })
+            } else {
+                cli.mavlink.clone()
+            },
         })
     }
 
@@ -282,6 +302,14 @@ fn fly(cli: &Cli) -> Result<()> {
         );
     }
     let system_id = (cfg.instance + 1) as u8;
+    let endpoints = cfg
+        .mavlink
+        .iter()
+        .filter(|u| u.as_str() != "none")
+        .map(|u| gcs::links::Endpoint::parse(u, cfg.instance))
+        .collect::<Result<Vec<_>>>()
+        .context("--mavlink")?;
+    let mav_type = gcs::GroundStation::mav_type(airframe.rotors.len());
     let deadlines = Pacing::Deadlines {
         period: Duration::from_secs_f64(1.0 / cfg.loop_hz),
         spin: Duration::from_secs_f64(cfg.loop_spin_us * 1e-6),
@@ -348,6 +376,13 @@ fn fly(cli: &Cli) -> Result<()> {
         .build()
         .context("starting the async runtime")?;
     runtime.block_on(async move {
+        tokio::spawn(gcs::links::run(
+            endpoints,
+            system_id,
+            mav_type,
+            telemetry.clone(),
+            commands.clone(),
+        ));
         tokio::spawn(interrupts(commands));
         status_line(telemetry).await;
     });

@@ -9,7 +9,7 @@ use flight_core::control::position::PositionSetpoint;
 use flight_core::core::{FlightCore, FlightCoreConfig, SensorSample, StepOutput};
 use flight_core::estimator::translation::GpsMeasurement;
 use flight_core::failsafe::{BlindDescent, HoverCommands};
-use flight_core::geo::LatLonAlt;
+use flight_core::geo::{LatLonAlt, LocalFrame};
 use flight_core::params::FlightParams;
 use hil::SensorUpdate;
 use mavlink::dialects::common::MavMessage;
@@ -46,8 +46,13 @@ pub enum VehicleCommand {
     SetMode(FlightMode),
     /// Take off to this altitude above home (m), or the parameter's.
     Takeoff(Option<f64>),
+    /// Take off to this altitude above mean sea level (m), as `MAV_CMD_NAV_TAKEOFF` param7
+    /// does in PX4: at least the parameter's altitude above home.
+    TakeoffAmsl(f64),
     /// Set home here (NED, m), or at the current position.
     SetHome(Option<Vector3<f64>>),
+    /// Set home at this global position.
+    SetHomeGlobal(LatLonAlt),
 }
 
 /// The vehicle: flight core, commander and what has arrived since the last frame.
@@ -70,6 +75,8 @@ pub struct Vehicle {
     hover: HoverCommands,
     blind: Option<BlindDescent>,
     last_t_usec: u64,
+    gps: Option<hil::GpsReport>,
+    battery_v: f64,
 }
 
 /// One step's result.
@@ -112,6 +119,8 @@ impl Vehicle {
             hover: HoverCommands::new(2.0),
             blind: None,
             last_t_usec: 0,
+            gps: None,
+            battery_v: 0.0,
         })
     }
 
@@ -142,6 +151,16 @@ impl Vehicle {
         self.ended
     }
 
+    /// The last GPS solution received.
+    pub fn gps(&self) -> Option<hil::GpsReport> {
+        self.gps
+    }
+
+    /// The battery voltage (V): the board's report, else the pack's nominal voltage.
+    pub fn battery_v(&self) -> f64 {
+        self.battery_v
+    }
+
     /// The auto flight is waiting for the estimator before it takes off.
     pub fn awaiting_takeoff(&self) -> bool {
         self.auto.is_some() && !self.end_when_disarmed
@@ -154,6 +173,7 @@ impl Vehicle {
 
     /// Carries out a command, or says why not.
     pub fn command(&mut self, c: VehicleCommand) -> Result<(), Denial> {
+        let origin = self.origin();
         let c_ = &mut self.commander;
         match c {
             VehicleCommand::Arm { force } => c_.arm(force),
@@ -161,6 +181,21 @@ impl Vehicle {
             VehicleCommand::SetMode(m) => c_.set_mode(m),
             VehicleCommand::Takeoff(alt) => c_.takeoff(alt),
             VehicleCommand::SetHome(p) => c_.set_home(p),
+            VehicleCommand::TakeoffAmsl(amsl_m) => {
+                let (Some(out), Some(origin)) = (self.last, origin) else {
+                    return Err("take-off refused: no global position yet".into());
+                };
+                let home_down = c_.home().map_or(out.translation.pos_ned_m.z, |h| h.z);
+                let home_amsl = origin.alt_m - home_down;
+                let above_home = (amsl_m - home_amsl).max(c_.params().takeoff_alt_m);
+                c_.takeoff(Some(above_home))
+            }
+            VehicleCommand::SetHomeGlobal(p) => {
+                let Some(origin) = origin else {
+                    return Err("home refused: no global position yet".into());
+                };
+                c_.set_home(Some(LocalFrame::new(origin).to_ned(&p)))
+            }
         }
     }
 
@@ -172,6 +207,11 @@ impl Vehicle {
     /// Sensor frames that repeated or went back in time, answered or dropped without a step.
     pub fn repeated_frames(&self) -> u64 {
         self.repeated_frames
+    }
+
+    /// The estimator's local origin, once the GPS has set it.
+    pub fn origin(&self) -> Option<LatLonAlt> {
+        self.last.and_then(|o| o.translation.origin)
     }
 
     /// Ends the run (Ctrl-C): lands first if in the air.
@@ -300,17 +340,23 @@ impl Vehicle {
             accel,
             mag: u.mag_frd.take(),
             baro_alt_m: u.pressure_alt_m.take(),
-            gps: u.gps.take().map(|g| GpsMeasurement {
-                fix_type: g.fix_type,
-                position: LatLonAlt {
-                    lat_deg: g.lat_deg,
-                    lon_deg: g.lon_deg,
-                    alt_m: g.alt_m,
-                },
-                vel_ned_m_s: g.vel_ned_m_s,
-                h_acc_m: g.h_acc_m,
+            gps: u.gps.take().map(|g| {
+                self.gps = Some(g);
+                GpsMeasurement {
+                    fix_type: g.fix_type,
+                    position: LatLonAlt {
+                        lat_deg: g.lat_deg,
+                        lon_deg: g.lon_deg,
+                        alt_m: g.alt_m,
+                    },
+                    vel_ned_m_s: g.vel_ned_m_s,
+                    h_acc_m: g.h_acc_m,
+                }
             }),
-            battery_v: u.battery_v.unwrap_or(self.nominal_v),
+            battery_v: {
+                self.battery_v = u.battery_v.unwrap_or(self.nominal_v);
+                self.battery_v
+            },
             rotor_speed_rad_s: u.rotor_speed_rad_s.take(),
         };
         let t_s = t_usec as f64 * 1e-6;
@@ -360,8 +406,8 @@ impl Vehicle {
             let estimate = output.attitude.map(|a| a.q);
             self.score.add(truth, estimate, &status, armed);
         }
-        if let Some(csv) = self.csv.as_mut() {
-            if let Err(e) = csv.record(
+        if let Some(csv) = self.csv.as_mut()
+            && let Err(e) = csv.record(
                 t_s,
                 &status,
                 armed,
@@ -369,12 +415,12 @@ impl Vehicle {
                 &output,
                 truth.as_ref(),
                 &self.score,
-            ) {
-                // A full disk must not stop the flight: stop logging, report at the end.
-                tracing::error!("flight-data CSV: {e}; logging stopped");
-                self.csv = None;
-                self.csv_error = Some(e);
-            }
+            )
+        {
+            // A full disk must not stop the flight: stop logging, report at the end.
+            tracing::error!("flight-data CSV: {e}; logging stopped");
+            self.csv = None;
+            self.csv_error = Some(e);
         }
         let message = hil::actuator_controls(t_usec, &output.commands[..self.rotors], armed);
         self.last_answer = Some((t_usec, message.clone()));

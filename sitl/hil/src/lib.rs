@@ -7,7 +7,9 @@
 mod simulator_end;
 pub use simulator_end::{STATE_INTERVAL_USEC, SimulatorEnd};
 mod wire;
-pub use wire::{Decoded, Encoder, MAX_FRAME, StreamDecoder, checksum, decode, decode_into};
+pub use wire::{
+    Decoded, Encoder, MAX_FRAME, RawMessage, StreamDecoder, checksum, decode, decode_into,
+};
 
 use mavlink::dialects::common::{
     ESC_STATUS_DATA, HIL_ACTUATOR_CONTROLS_DATA, HIL_GPS_DATA, HIL_SENSOR_DATA,
@@ -281,6 +283,8 @@ pub struct GpsReport {
     pub vel_ned_m_s: Vector3<f64>,
     /// Horizontal accuracy (m): this link sends `eph` as the accuracy in cm.
     pub h_acc_m: f64,
+    /// Satellites visible.
+    pub satellites: u8,
 }
 
 /// What the autopilot has taken from the simulator's messages since the last sensor frame.
@@ -351,6 +355,7 @@ impl SensorUpdate {
                     alt_m: g.alt as f64 * 1e-3,
                     vel_ned_m_s: Vector3::new(g.vn as f64, g.ve as f64, g.vd as f64) * 0.01,
                     h_acc_m: g.eph as f64 * 0.01,
+                    satellites: g.satellites_visible,
                 });
                 false
             }

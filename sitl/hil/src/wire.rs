@@ -116,7 +116,23 @@ impl Encoder {
     pub fn push(&mut self, out: &mut Vec<u8>, msg: &MavMessage) {
         let mut frame = [0u8; V2_HEADER + 255 + CHECKSUM];
         let len = msg.ser(MavlinkVersion::V2, &mut frame[V2_HEADER..V2_HEADER + 255]);
-        let id = msg.message_id().to_le_bytes();
+        self.finish(out, &mut frame, len, msg.message_id());
+    }
+
+    /// Appends a message given as its id and payload bytes (for payloads the dialect cannot
+    /// express, such as an acknowledgement of a command id it does not know); trailing zero
+    /// bytes are truncated, a payload over 255 bytes is cut.
+    pub fn push_raw(&mut self, out: &mut Vec<u8>, msg_id: u32, payload: &[u8]) {
+        let mut frame = [0u8; V2_HEADER + 255 + CHECKSUM];
+        let payload = &payload[..payload.len().min(255)];
+        frame[V2_HEADER..V2_HEADER + payload.len()].copy_from_slice(payload);
+        let len = payload.iter().rposition(|&b| b != 0).map_or(1, |i| i + 1);
+        self.finish(out, &mut frame, len, msg_id);
+    }
+
+    /// Writes the header and checksum around the `len` payload bytes in `frame` and appends it.
+    fn finish(&mut self, out: &mut Vec<u8>, frame: &mut [u8], len: usize, msg_id: u32) {
+        let id = msg_id.to_le_bytes();
         frame[..V2_HEADER].copy_from_slice(&[
             STX_V2,
             len as u8,
@@ -130,7 +146,7 @@ impl Encoder {
             id[2],
         ]);
         let end = V2_HEADER + len;
-        let crc = checksum(&frame[1..end], MavMessage::extra_crc(msg.message_id()));
+        let crc = checksum(&frame[1..end], MavMessage::extra_crc(msg_id));
         frame[end..end + CHECKSUM].copy_from_slice(&crc.to_le_bytes());
         out.extend_from_slice(&frame[..end + CHECKSUM]);
         self.sequence = self.sequence.wrapping_add(1);
@@ -161,8 +177,28 @@ fn frame_len(b: &[u8]) -> Result<Option<usize>, ()> {
     }
 }
 
+/// A frame whose checksum is right but whose payload the dialect cannot parse (an enum value
+/// it does not know, such as a command id from a newer dialect).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawMessage {
+    /// The sender.
+    pub header: MavHeader,
+    /// Message id.
+    pub msg_id: u32,
+    /// Payload bytes as received (MAVLink 2 truncates trailing zeros).
+    pub payload: Vec<u8>,
+}
+
+/// What one frame held (lives for one frame on the stack: the size difference is harmless).
+#[allow(clippy::large_enum_variant)]
+enum Frame {
+    Message(MavHeader, MavMessage),
+    Unparsed(RawMessage),
+    Bad,
+}
+
 /// Parses one whole frame (`frame.len()` is its length): checksum, then payload.
-fn parse_frame(frame: &[u8]) -> Option<(MavHeader, MavMessage)> {
+fn parse_frame(frame: &[u8]) -> Frame {
     let (version, header_len, msgid) = if frame[0] == STX_V1 {
         (MavlinkVersion::V1, V1_HEADER, frame[5] as u32)
     } else {
@@ -173,20 +209,27 @@ fn parse_frame(frame: &[u8]) -> Option<(MavHeader, MavMessage)> {
     let crc = checksum(&frame[1..payload_end], MavMessage::extra_crc(msgid));
     let sent = u16::from_le_bytes([frame[payload_end], frame[payload_end + 1]]);
     if crc != sent {
-        return None;
+        return Frame::Bad;
     }
     let (seq, sys, comp) = if version == MavlinkVersion::V1 {
         (frame[2], frame[3], frame[4])
     } else {
         (frame[4], frame[5], frame[6])
     };
-    let msg = MavMessage::parse(version, msgid, &frame[header_len..payload_end]).ok()?;
     let header = MavHeader {
         system_id: sys.into(),
         component_id: comp,
         sequence: seq,
     };
-    Some((header, msg))
+    let payload = &frame[header_len..payload_end];
+    match MavMessage::parse(version, msgid, payload) {
+        Ok(msg) => Frame::Message(header, msg),
+        Err(_) => Frame::Unparsed(RawMessage {
+            header,
+            msg_id: msgid,
+            payload: payload.to_vec(),
+        }),
+    }
 }
 
 /// What one datagram held.
@@ -195,8 +238,14 @@ pub struct Decoded {
     /// Well-formed messages with their headers.
     pub messages: Vec<(MavHeader, MavMessage)>,
     /// Frames or runs of bytes that were not a valid message (bad CRC, truncated, unknown id,
-    /// garbage between frames).
+    /// garbage between frames, a payload that does not parse).
     pub malformed: u32,
+    /// Keep the frames whose checksum is right but whose payload does not parse in
+    /// `unparsed` (they are counted in `malformed` either way). Off by default: a sensor link
+    /// has no use for them.
+    pub keep_unparsed: bool,
+    /// Those frames, when kept.
+    pub unparsed: Vec<RawMessage>,
 }
 
 /// Splits a datagram into MAVLink 1/2 frames; each bad frame or run of junk counts once.
@@ -252,8 +301,19 @@ impl Splitter {
             let rest = &buf[i..];
             match frame_len(rest) {
                 Ok(Some(len)) if len <= rest.len() || whole => {
-                    if let Some(msg) = rest.get(..len).and_then(parse_frame) {
-                        out.messages.push(msg);
+                    let frame = rest.get(..len).map_or(Frame::Bad, parse_frame);
+                    let good = !matches!(frame, Frame::Bad);
+                    match frame {
+                        Frame::Message(h, m) => out.messages.push((h, m)),
+                        Frame::Unparsed(raw) => {
+                            out.malformed += 1;
+                            if out.keep_unparsed {
+                                out.unparsed.push(raw);
+                            }
+                        }
+                        Frame::Bad => {}
+                    }
+                    if good {
                         self.in_junk = false;
                         self.shadow = 0;
                         i += len;

@@ -1,0 +1,348 @@
+//! The links to ground stations (tokio tasks), like mavlink-router: several endpoints at once,
+//! every frame the vehicle sends goes out on all of them, every frame received on any of them
+//! reaches the one [`GroundStation`].
+//!
+//! - `udpout://HOST:PORT?bind=LOCAL`: pushes to HOST:PORT (where QGroundControl, pymavlink or
+//!   MAVSDK listen) from the bound LOCAL port, and also answers every peer that writes to it.
+//! - `udpin://ADDR:PORT`: a bound port that answers every peer that writes to it.
+//! - `tcpin://ADDR:PORT`: a TCP server; every client gets the stream.
+//!
+//! A frame that does not parse is counted and dropped; it never closes a link. Sending never
+//! waits on a slow peer: a link that falls behind loses frames, not the vehicle's time.
+
+use super::{AckTo, GroundStation, Outbox, Outgoing};
+use crate::flight::{Command, Telemetry};
+use anyhow::{Context, Result, bail};
+use hil::{Decoded, Encoder, RawMessage, StreamDecoder};
+use mavlink::MavHeader;
+use mavlink::dialects::common::{MavMessage, MavType};
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::net::{TcpListener, TcpStream, UdpSocket};
+use tokio::sync::{broadcast, mpsc, oneshot, watch};
+
+/// PX4 SITL's links: QGroundControl and MAVSDK ports pushed to, each from its own bound port,
+/// and a TCP server.
+pub const DEFAULT_ENDPOINTS: [&str; 3] = [
+    "udpout://127.0.0.1:14550?bind=18570",
+    "udpout://127.0.0.1:14540?bind=14580",
+    "tcpin://0.0.0.0:5760",
+];
+
+/// How often the streams are looked at.
+const POLL: Duration = Duration::from_millis(10);
+/// A UDP peer silent this long is no longer answered.
+const PEER_TIMEOUT: Duration = Duration::from_secs(10);
+/// Peers answered per UDP endpoint at most.
+const MAX_PEERS: usize = 16;
+/// How long a command waits for the control loop's answer.
+const ANSWER_TIMEOUT: Duration = Duration::from_secs(2);
+
+/// One endpoint.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Endpoint {
+    /// Push to `target` from `bind`, answering every peer.
+    UdpOut {
+        /// Where to push.
+        target: SocketAddr,
+        /// The local address.
+        bind: SocketAddr,
+    },
+    /// A bound UDP port answering every peer.
+    UdpIn {
+        /// The local address.
+        bind: SocketAddr,
+    },
+    /// A TCP server.
+    TcpIn {
+        /// The local address.
+        bind: SocketAddr,
+    },
+}
+
+impl Endpoint {
+    /// Parses an endpoint URL; every port is offset by `instance` (a port 0 stays 0: any).
+    pub fn parse(url: &str, instance: u16) -> Result<Self> {
+        let addr = |s: &str| -> Result<SocketAddr> {
+            let mut a: SocketAddr = s.parse().with_context(|| {
+                format!("{url:?}: {s:?} is not an address like 127.0.0.1:14550")
+            })?;
+            if a.port() != 0 {
+                let port = a.port().checked_add(instance).with_context(|| {
+                    format!(
+                        "{url:?}: port {} + instance {instance} is past 65535",
+                        a.port()
+                    )
+                })?;
+                a.set_port(port);
+            }
+            Ok(a)
+        };
+        let (scheme, rest) = url
+            .split_once("://")
+            .with_context(|| format!("{url:?}: expected udpout://, udpin:// or tcpin://"))?;
+        let (host, query) = rest.split_once('?').unwrap_or((rest, ""));
+        let mut bind = None;
+        for kv in query.split('&').filter(|s| !s.is_empty()) {
+            match kv.split_once('=') {
+                Some(("bind", p)) => {
+                    let port: u16 = p
+                        .parse()
+                        .with_context(|| format!("{url:?}: bind={p} is not a port"))?;
+                    bind = Some(addr(&format!("0.0.0.0:{port}"))?);
+                }
+                _ => bail!("{url:?}: unknown option {kv:?} (udpout takes bind=PORT)"),
+            }
+        }
+        Ok(match scheme {
+            "udpout" => Endpoint::UdpOut {
+                target: addr(host)?,
+                bind: bind.unwrap_or_else(|| SocketAddr::from(([0, 0, 0, 0], 0))),
+            },
+            "udpin" if bind.is_none() => Endpoint::UdpIn { bind: addr(host)? },
+            "tcpin" if bind.is_none() => Endpoint::TcpIn { bind: addr(host)? },
+            "udpin" | "tcpin" => bail!("{url:?}: bind= is for udpout"),
+            _ => bail!("{url:?}: expected udpout://, udpin:// or tcpin://"),
+        })
+    }
+}
+
+/// What an endpoint received: the messages of one datagram or read.
+#[derive(Debug)]
+struct Inbound {
+    messages: Vec<(MavHeader, MavMessage)>,
+    unparsed: Vec<RawMessage>,
+    malformed: u32,
+}
+
+/// The frames going out, shared by every endpoint.
+type Frames = broadcast::Sender<Arc<[u8]>>;
+
+fn new_decoded() -> Decoded {
+    Decoded {
+        keep_unparsed: true,
+        ..Decoded::default()
+    }
+}
+
+/// Hands what `d` holds to the ground station (dropped if it is behind: never waits).
+fn deliver(d: &mut Decoded, inbound: &mpsc::Sender<Inbound>) {
+    if d.messages.is_empty() && d.unparsed.is_empty() && d.malformed == 0 {
+        return;
+    }
+    let i = Inbound {
+        messages: std::mem::take(&mut d.messages),
+        unparsed: std::mem::take(&mut d.unparsed),
+        malformed: std::mem::take(&mut d.malformed),
+    };
+    if inbound.try_send(i).is_err() {
+        tracing::debug!("ground-station input behind: frames dropped");
+    }
+}
+
+async fn udp(
+    socket: UdpSocket,
+    target: Option<SocketAddr>,
+    inbound: mpsc::Sender<Inbound>,
+    mut frames: broadcast::Receiver<Arc<[u8]>>,
+) {
+    let mut peers: Vec<(SocketAddr, Instant)> = Vec::new();
+    let mut buf = vec![0u8; 65536];
+    let mut decoded = new_decoded();
+    loop {
+        tokio::select! {
+            r = socket.recv_from(&mut buf) => match r {
+                Ok((n, from)) => {
+                    let now = Instant::now();
+                    peers.retain(|p| now - p.1 < PEER_TIMEOUT);
+                    if let Some(p) = peers.iter_mut().find(|p| p.0 == from) {
+                        p.1 = now;
+                    } else if peers.len() < MAX_PEERS && Some(from) != target {
+                        tracing::info!(peer = %from, "ground station connected");
+                        peers.push((from, now));
+                    }
+                    hil::decode_into(&buf[..n], &mut decoded);
+                    deliver(&mut decoded, &inbound);
+                }
+                // An ICMP "port unreachable" from an earlier push (nobody listening yet).
+                Err(e) => tracing::trace!("ground-station UDP: {e}"),
+            },
+            f = frames.recv() => match f {
+                Ok(frame) => {
+                    for to in target.iter().chain(peers.iter().map(|p| &p.0)) {
+                        // A full socket buffer or nobody listening loses this frame only.
+                        let _ = socket.try_send_to(&frame, *to);
+                    }
+                }
+                Err(broadcast::error::RecvError::Lagged(n)) => {
+                    tracing::debug!("ground-station UDP behind: {n} frames dropped");
+                }
+                Err(broadcast::error::RecvError::Closed) => return,
+            },
+        }
+    }
+}
+
+async fn tcp_client(
+    stream: TcpStream,
+    peer: SocketAddr,
+    inbound: mpsc::Sender<Inbound>,
+    mut frames: broadcast::Receiver<Arc<[u8]>>,
+) {
+    let _ = stream.set_nodelay(true);
+    let (mut rd, mut wr) = stream.into_split();
+    let mut buf = vec![0u8; 4096];
+    let mut splitter = StreamDecoder::default();
+    let mut decoded = new_decoded();
+    loop {
+        tokio::select! {
+            r = rd.read(&mut buf) => match r {
+                Ok(0) | Err(_) => break,
+                Ok(n) => {
+                    splitter.push(&buf[..n], &mut decoded);
+                    deliver(&mut decoded, &inbound);
+                }
+            },
+            f = frames.recv() => match f {
+                Ok(frame) => {
+                    if wr.write_all(&frame).await.is_err() {
+                        break;
+                    }
+                }
+                Err(broadcast::error::RecvError::Lagged(n)) => {
+                    tracing::debug!(%peer, "ground-station TCP behind: {n} frames dropped");
+                }
+                Err(broadcast::error::RecvError::Closed) => break,
+            },
+        }
+    }
+    tracing::info!(%peer, "ground station disconnected (TCP)");
+}
+
+async fn tcp_server(listener: TcpListener, inbound: mpsc::Sender<Inbound>, frames: Frames) {
+    loop {
+        match listener.accept().await {
+            Ok((stream, peer)) => {
+                tracing::info!(%peer, "ground station connected (TCP)");
+                tokio::spawn(tcp_client(
+                    stream,
+                    peer,
+                    inbound.clone(),
+                    frames.subscribe(),
+                ));
+            }
+            Err(e) => {
+                tracing::warn!("ground-station TCP accept: {e}");
+                tokio::time::sleep(Duration::from_millis(100)).await;
+            }
+        }
+    }
+}
+
+/// Opens `endpoint`; its task runs until the frames channel closes. A port that cannot be
+/// bound is reported and skipped (another vehicle may hold it: give it `-i N`).
+async fn open(endpoint: &Endpoint, inbound: &mpsc::Sender<Inbound>, frames: &Frames) -> Result<()> {
+    match endpoint {
+        Endpoint::UdpOut { target, bind } => {
+            let s = UdpSocket::bind(bind)
+                .await
+                .with_context(|| format!("binding UDP {bind}"))?;
+            tracing::info!(local = %s.local_addr()?, push_to = %target, "MAVLink UDP endpoint");
+            tokio::spawn(udp(s, Some(*target), inbound.clone(), frames.subscribe()));
+        }
+        Endpoint::UdpIn { bind } => {
+            let s = UdpSocket::bind(bind)
+                .await
+                .with_context(|| format!("binding UDP {bind}"))?;
+            tracing::info!(local = %s.local_addr()?, "MAVLink UDP endpoint");
+            tokio::spawn(udp(s, None, inbound.clone(), frames.subscribe()));
+        }
+        Endpoint::TcpIn { bind } => {
+            let l = TcpListener::bind(bind)
+                .await
+                .with_context(|| format!("listening on TCP {bind}"))?;
+            tracing::info!(local = %l.local_addr()?, "MAVLink TCP server");
+            tokio::spawn(tcp_server(l, inbound.clone(), frames.clone()));
+        }
+    }
+    Ok(())
+}
+
+/// Runs the ground-station side until the control loop ends: opens `endpoints`, answers what
+/// arrives, streams telemetry, and passes vehicle commands to the control loop.
+pub async fn run(
+    endpoints: Vec<Endpoint>,
+    system_id: u8,
+    mav_type: MavType,
+    mut telemetry: watch::Receiver<Telemetry>,
+    commands: mpsc::Sender<Command>,
+) {
+    let (frames, _) = broadcast::channel::<Arc<[u8]>>(1024);
+    let (inbound_tx, mut inbound) = mpsc::channel::<Inbound>(256);
+    let (answers_tx, mut answers) = mpsc::channel::<(AckTo, Result<(), String>)>(64);
+    for e in &endpoints {
+        if let Err(e) = open(e, &inbound_tx, &frames).await {
+            tracing::warn!("ground-station endpoint not opened: {e:#}");
+        }
+    }
+    let mut gcs = GroundStation::new(system_id, mav_type);
+    let mut encoder = Encoder::with_ids(system_id, super::COMPONENT_ID);
+    let mut out = Outbox::default();
+    let mut tick = tokio::time::interval(POLL);
+    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    let start = Instant::now();
+    let mut malformed = 0u64;
+    loop {
+        tokio::select! {
+            Some(i) = inbound.recv() => {
+                malformed += i.malformed as u64;
+                let t = *telemetry.borrow();
+                for (h, m) in &i.messages {
+                    gcs.on_message(h, m, &t, &mut out);
+                }
+                for raw in &i.unparsed {
+                    gcs.on_unparsed(raw, &mut out);
+                }
+            }
+            Some((to, result)) = answers.recv() => gcs.answered(to, result, &mut out),
+            _ = tick.tick() => {
+                let t = *telemetry.borrow_and_update();
+                if t.finished || telemetry.has_changed().is_err() {
+                    break;
+                }
+                gcs.poll(start.elapsed().as_secs_f64(), &t, &mut out);
+            }
+        }
+        for (cmd, to) in out.vehicle.drain(..) {
+            let (tx, rx) = oneshot::channel();
+            if commands.try_send(Command::Vehicle(cmd, Some(tx))).is_err() {
+                let _ = answers_tx.try_send((to, Err("vehicle busy: try again".into())));
+                continue;
+            }
+            let answers = answers_tx.clone();
+            tokio::spawn(async move {
+                let result = match tokio::time::timeout(ANSWER_TIMEOUT, rx).await {
+                    Ok(Ok(r)) => r,
+                    _ => Err("the control loop did not answer".into()),
+                };
+                let _ = answers.send((to, result)).await;
+            });
+        }
+        for m in out.messages.drain(..) {
+            let mut bytes = Vec::with_capacity(64);
+            match &m {
+                Outgoing::Message(m) => encoder.push(&mut bytes, m),
+                Outgoing::Raw(id, payload) => encoder.push_raw(&mut bytes, *id, payload),
+            }
+            // No endpoint listening is not an error.
+            let _ = frames.send(bytes.into());
+        }
+    }
+    tracing::info!(
+        malformed,
+        dropped = gcs.dropped,
+        "ground-station links closed"
+    );
+}

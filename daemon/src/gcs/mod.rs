@@ -1,0 +1,661 @@
+//! The ground-station side: what the vehicle says and answers on MAVLink, as a pure state
+//! machine ([`GroundStation`]) of the messages received, the latest telemetry and the clock,
+//! and the links that carry it ([`links`]).
+//!
+//! The vehicle speaks as component 1 of its system id, in MAVLink 2, as a `MAV_AUTOPILOT_PX4`
+//! vehicle (flight modes in PX4's `custom_mode` encoding, see [`modes`]). Commands that change
+//! the vehicle go to the control loop; their `COMMAND_ACK` follows its answer.
+
+// SET_MODE, REQUEST_DATA_STREAM and PING are deprecated in the spec, and still what MAVProxy
+// and older scripts send: honoured on purpose.
+#![allow(deprecated)]
+
+pub mod links;
+pub mod modes;
+pub mod telemetry;
+
+use crate::flight::Telemetry;
+use crate::vehicle::VehicleCommand;
+use flight_core::commander::{FlightMode, LandedState};
+use flight_core::geo::LatLonAlt;
+use mavlink::MavHeader;
+use mavlink::MessageData;
+use mavlink::dialects::common::*;
+
+/// Our component id (`MAV_COMP_ID_AUTOPILOT1`).
+pub const COMPONENT_ID: u8 = 1;
+
+/// `MAV_CMD_COMPONENT_ARM_DISARM` param2 that forces the command.
+const FORCE_MAGIC: f32 = 21196.0;
+
+/// Messages sent without being asked, with their default rates (Hz), PX4-like.
+const DEFAULT_STREAMS: [(u32, f64); 14] = [
+    (HEARTBEAT_DATA::ID, 1.0),
+    (SYS_STATUS_DATA::ID, 1.0),
+    (EXTENDED_SYS_STATE_DATA::ID, 1.0),
+    (GLOBAL_POSITION_INT_DATA::ID, 5.0),
+    (LOCAL_POSITION_NED_DATA::ID, 5.0),
+    (GPS_RAW_INT_DATA::ID, 2.0),
+    (ATTITUDE_DATA::ID, 10.0),
+    (ATTITUDE_QUATERNION_DATA::ID, 10.0),
+    (VFR_HUD_DATA::ID, 4.0),
+    (BATTERY_STATUS_DATA::ID, 1.0),
+    (HOME_POSITION_DATA::ID, 0.5),
+    (ALTITUDE_DATA::ID, 1.0),
+    (SYSTEM_TIME_DATA::ID, 1.0),
+    (CURRENT_MODE_DATA::ID, 1.0),
+];
+
+/// Slowest and fastest stream rates a ground station may ask for (Hz).
+const RATE_RANGE_HZ: (f64, f64) = (0.01, 100.0);
+
+/// What the vehicle sends: a message, or a raw payload the dialect cannot express. (Held for
+/// a moment in the outbox; the size difference is harmless.)
+#[allow(clippy::large_enum_variant)]
+#[derive(Debug, Clone, PartialEq)]
+pub enum Outgoing {
+    /// A message.
+    Message(MavMessage),
+    /// A message id and its payload bytes.
+    Raw(u32, Vec<u8>),
+}
+
+/// Who to acknowledge a command to, and which command it was.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AckTo {
+    /// The command.
+    pub command: MavCmd,
+    /// The requester.
+    pub system: u8,
+    /// The requester's component.
+    pub component: u8,
+}
+
+/// What handling a message produced.
+#[derive(Debug, Default)]
+pub struct Outbox {
+    /// Messages to send.
+    pub messages: Vec<Outgoing>,
+    /// Commands for the control loop; each answer comes back to [`GroundStation::answered`].
+    pub vehicle: Vec<(VehicleCommand, AckTo)>,
+}
+
+impl Outbox {
+    fn send(&mut self, m: MavMessage) {
+        self.messages.push(Outgoing::Message(m));
+    }
+}
+
+/// One stream: its interval and when it is next due (s of the ground station's clock).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Stream {
+    id: u32,
+    interval_s: f64,
+    next_s: f64,
+}
+
+/// A command as both `COMMAND_LONG` and `COMMAND_INT` carry it: params 5–7 are floats here
+/// (`COMMAND_INT`'s x and y arrive as degrees, its z as it is).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Command {
+    command: MavCmd,
+    p: [f32; 7],
+}
+
+/// The ground-station protocol state.
+#[derive(Debug)]
+pub struct GroundStation {
+    system_id: u8,
+    mav_type: MavType,
+    streams: Vec<Stream>,
+    /// One-off messages asked for (REQUEST_MESSAGE), sent on the next poll.
+    requested: Vec<(u32, f32)>,
+    /// What the last heartbeat showed: a change sends one at once.
+    shown: Option<(bool, FlightMode, LandedState)>,
+    home_shown: Option<[f64; 3]>,
+    /// Messages that could not be parsed or were not for us.
+    pub dropped: u64,
+    /// When the clock started, for SYSTEM_TIME.
+    unix_start_usec: u64,
+}
+
+impl GroundStation {
+    /// The protocol for system `system_id`, a vehicle of `mav_type`.
+    pub fn new(system_id: u8, mav_type: MavType) -> Self {
+        let unix_start_usec = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_micros() as u64);
+        Self {
+            system_id,
+            mav_type,
+            streams: DEFAULT_STREAMS
+                .iter()
+                .map(|&(id, hz)| Stream {
+                    id,
+                    interval_s: 1.0 / hz,
+                    next_s: 0.0,
+                })
+                .collect(),
+            requested: Vec::new(),
+            shown: None,
+            home_shown: None,
+            dropped: 0,
+            unix_start_usec,
+        }
+    }
+
+    /// The MAVLink vehicle type of an airframe with `rotors` rotors.
+    pub fn mav_type(rotors: usize) -> MavType {
+        match rotors {
+            6 => MavType::MAV_TYPE_HEXAROTOR,
+            8 => MavType::MAV_TYPE_OCTOROTOR,
+            12 => MavType::MAV_TYPE_DODECAROTOR,
+            _ => MavType::MAV_TYPE_QUADROTOR,
+        }
+    }
+
+    /// The current interval of message `id` (s), if it is streamed.
+    pub fn interval_s(&self, id: u32) -> Option<f64> {
+        self.streams
+            .iter()
+            .find(|s| s.id == id)
+            .map(|s| s.interval_s)
+    }
+
+    /// Sends what is due at `now_s`: streams, requested messages, and a heartbeat at once when
+    /// the armed state, mode or landed state changed.
+    pub fn poll(&mut self, now_s: f64, t: &Telemetry, out: &mut Outbox) {
+        let unix = self.unix_start_usec + (now_s * 1e6) as u64;
+        let shown = t.status.map(|s| (s.armed, s.mode, s.landed));
+        if shown != self.shown {
+            self.shown = shown;
+            out.send(telemetry::heartbeat(t, self.mav_type));
+            for id in [EXTENDED_SYS_STATE_DATA::ID, CURRENT_MODE_DATA::ID] {
+                out.messages
+                    .extend(telemetry::build(id, t, unix).map(Outgoing::Message));
+            }
+            if let Some(s) = self.streams.iter_mut().find(|s| s.id == HEARTBEAT_DATA::ID) {
+                s.next_s = now_s + s.interval_s;
+            }
+        }
+        let home = t.status.and_then(|s| s.home).map(|h| [h.0.x, h.0.y, h.0.z]);
+        if home.is_some() && home != self.home_shown {
+            // HOME_POSITION on every change, as PX4.
+            self.home_shown = home;
+            out.messages
+                .extend(telemetry::build(HOME_POSITION_DATA::ID, t, unix).map(Outgoing::Message));
+        }
+        for s in &mut self.streams {
+            if now_s < s.next_s {
+                continue;
+            }
+            // Keep the phase; after a long gap start afresh rather than burst.
+            s.next_s = if now_s - s.next_s > s.interval_s {
+                now_s + s.interval_s
+            } else {
+                s.next_s + s.interval_s
+            };
+            let m = if s.id == HEARTBEAT_DATA::ID {
+                Some(telemetry::heartbeat(t, self.mav_type))
+            } else {
+                telemetry::build(s.id, t, unix)
+            };
+            out.messages.extend(m.map(Outgoing::Message));
+        }
+        for (id, param) in std::mem::take(&mut self.requested) {
+            out.messages
+                .extend(self.one_off(id, param, t, unix).map(Outgoing::Message));
+        }
+    }
+
+    /// A message sent once on request.
+    fn one_off(&self, id: u32, param: f32, t: &Telemetry, unix: u64) -> Option<MavMessage> {
+        match id {
+            HEARTBEAT_DATA::ID => Some(telemetry::heartbeat(t, self.mav_type)),
+            AUTOPILOT_VERSION_DATA::ID => Some(self.autopilot_version()),
+            AVAILABLE_MODES_DATA::ID => telemetry::available_mode(param as usize),
+            _ => telemetry::build(id, t, unix),
+        }
+    }
+
+    /// Whether REQUEST_MESSAGE can give message `id`.
+    fn can_send(id: u32) -> bool {
+        DEFAULT_STREAMS.iter().any(|&(i, _)| i == id)
+            || matches!(id, AUTOPILOT_VERSION_DATA::ID | AVAILABLE_MODES_DATA::ID)
+    }
+
+    /// `AUTOPILOT_VERSION`: what this vehicle speaks, its version and a uid from its system id.
+    pub fn autopilot_version(&self) -> MavMessage {
+        let v = |s: &str| s.parse::<u32>().unwrap_or(0);
+        let version = (v(env!("CARGO_PKG_VERSION_MAJOR")) << 24)
+            | (v(env!("CARGO_PKG_VERSION_MINOR")) << 16)
+            | (v(env!("CARGO_PKG_VERSION_PATCH")) << 8)
+            | 0xFF; // FIRMWARE_VERSION_TYPE_OFFICIAL
+        MavMessage::AUTOPILOT_VERSION(AUTOPILOT_VERSION_DATA {
+            capabilities: MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_MISSION_INT
+                | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+                | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_MAVLINK2
+                | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET
+                | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
+                | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT
+                | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE,
+            uid: 0x4155_5450_0000_0000 | self.system_id as u64,
+            flight_sw_version: version,
+            ..Default::default()
+        })
+    }
+
+    /// A `STATUSTEXT` with `text` (cut to 50 bytes).
+    pub fn statustext(severity: MavSeverity, text: &str) -> MavMessage {
+        let mut cut = text.len().min(50);
+        while !text.is_char_boundary(cut) {
+            cut -= 1;
+        }
+        MavMessage::STATUSTEXT(STATUSTEXT_DATA {
+            severity,
+            text: text[..cut].into(),
+            id: 0,
+            chunk_seq: 0,
+        })
+    }
+
+    fn ack(&self, to: AckTo, result: MavResult) -> MavMessage {
+        MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+            command: to.command,
+            result,
+            progress: 0,
+            result_param2: 0,
+            target_system: to.system,
+            target_component: to.component,
+        })
+    }
+
+    /// The control loop's answer to a command sent through [`Outbox::vehicle`]: the ack, and
+    /// the reason in a `STATUSTEXT` when denied.
+    pub fn answered(&mut self, to: AckTo, result: Result<(), String>, out: &mut Outbox) {
+        match result {
+            Ok(()) => out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED)),
+            Err(reason) => {
+                out.send(self.ack(to, MavResult::MAV_RESULT_DENIED));
+                out.send(Self::statustext(MavSeverity::MAV_SEVERITY_WARNING, &reason));
+            }
+        }
+    }
+
+    /// Whether a message addressed to (`system`, `component`) is ours: system 0 is everyone,
+    /// component 0 every component of ours.
+    fn for_us(&self, system: u8, component: Option<u8>) -> bool {
+        (system == 0 || system == self.system_id)
+            && component.is_none_or(|c| c == 0 || c == COMPONENT_ID)
+    }
+
+    /// Handles one message from `from`, with the latest telemetry at hand.
+    pub fn on_message(
+        &mut self,
+        from: &MavHeader,
+        msg: &MavMessage,
+        t: &Telemetry,
+        out: &mut Outbox,
+    ) {
+        let requester = |command| AckTo {
+            command,
+            system: from.system_id as u8,
+            component: from.component_id,
+        };
+        match msg {
+            MavMessage::COMMAND_LONG(c) => {
+                if !self.for_us(c.target_system, Some(c.target_component)) {
+                    self.dropped += 1;
+                    return;
+                }
+                let p = [
+                    c.param1, c.param2, c.param3, c.param4, c.param5, c.param6, c.param7,
+                ];
+                let cmd = Command {
+                    command: c.command,
+                    p,
+                };
+                self.command(cmd, requester(c.command), t, out);
+            }
+            MavMessage::COMMAND_INT(c) => {
+                if !self.for_us(c.target_system, Some(c.target_component)) {
+                    self.dropped += 1;
+                    return;
+                }
+                let p = [
+                    c.param1,
+                    c.param2,
+                    c.param3,
+                    c.param4,
+                    (c.x as f64 * 1e-7) as f32,
+                    (c.y as f64 * 1e-7) as f32,
+                    c.z,
+                ];
+                let cmd = Command {
+                    command: c.command,
+                    p,
+                };
+                // Latitude and longitude need their 1e-7 precision: the global commands read
+                // x and y from the message itself.
+                let global = (c.x != 0 || c.y != 0).then_some((c.x, c.y));
+                self.command_int(cmd, global, requester(c.command), t, out);
+            }
+            MavMessage::SET_MODE(m) => {
+                if !self.for_us(m.target_system, None) {
+                    self.dropped += 1;
+                    return;
+                }
+                // The legacy message, acknowledged as MAV_CMD_DO_SET_MODE (as PX4 does).
+                let to = requester(MavCmd::MAV_CMD_DO_SET_MODE);
+                let p = [
+                    m.base_mode.bits() as f32,
+                    ((m.custom_mode >> 16) & 0xFF) as f32,
+                    (m.custom_mode >> 24) as f32,
+                    0.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                ];
+                let cmd = Command {
+                    command: MavCmd::MAV_CMD_DO_SET_MODE,
+                    p,
+                };
+                self.command(cmd, to, t, out);
+            }
+            MavMessage::REQUEST_DATA_STREAM(r)
+                if self.for_us(r.target_system, Some(r.target_component)) =>
+            {
+                self.data_stream(r);
+            }
+            MavMessage::PING(p) if p.target_system == 0 => {
+                out.send(MavMessage::PING(PING_DATA {
+                    time_usec: p.time_usec,
+                    seq: p.seq,
+                    target_system: from.system_id as u8,
+                    target_component: from.component_id,
+                }));
+            }
+            MavMessage::TIMESYNC(s) if s.tc1 == 0 => {
+                let now_ns = (t.t_s * 1e9) as i64;
+                out.send(MavMessage::TIMESYNC(TIMESYNC_DATA {
+                    tc1: now_ns,
+                    ts1: s.ts1,
+                    target_system: from.system_id as u8,
+                    target_component: from.component_id,
+                }));
+            }
+            MavMessage::FILE_TRANSFER_PROTOCOL(f)
+                if self.for_us(f.target_system, Some(f.target_component)) =>
+            {
+                out.send(ftp_nak(f, from));
+            }
+            _ => {}
+        }
+    }
+
+    /// A frame whose payload did not parse: a command with an id this dialect does not know
+    /// is still acknowledged, as UNSUPPORTED.
+    pub fn on_unparsed(&mut self, raw: &hil::RawMessage, out: &mut Outbox) {
+        self.dropped += 1;
+        if raw.msg_id != COMMAND_LONG_DATA::ID && raw.msg_id != COMMAND_INT_DATA::ID {
+            return;
+        }
+        // Both carry the command id at byte 28 and the target at 30–31.
+        let mut p = [0u8; 35];
+        let n = raw.payload.len().min(35);
+        p[..n].copy_from_slice(&raw.payload[..n]);
+        if !self.for_us(p[30], Some(p[31])) {
+            return;
+        }
+        // COMMAND_ACK: command u16, result u8, progress u8, result_param2 i32,
+        // target_system u8, target_component u8.
+        let mut ack = [0u8; 10];
+        ack[0..2].copy_from_slice(&p[28..30]);
+        ack[2] = MavResult::MAV_RESULT_UNSUPPORTED as u8;
+        ack[8] = raw.header.system_id as u8;
+        ack[9] = raw.header.component_id;
+        out.messages
+            .push(Outgoing::Raw(COMMAND_ACK_DATA::ID, ack.to_vec()));
+    }
+
+    fn data_stream(&mut self, r: &REQUEST_DATA_STREAM_DATA) {
+        use MavDataStream::*;
+        let ids: &[u32] = match r.req_stream_id {
+            MAV_DATA_STREAM_ALL => &[],
+            MAV_DATA_STREAM_EXTENDED_STATUS => &[SYS_STATUS_DATA::ID, GPS_RAW_INT_DATA::ID],
+            MAV_DATA_STREAM_POSITION => {
+                &[GLOBAL_POSITION_INT_DATA::ID, LOCAL_POSITION_NED_DATA::ID]
+            }
+            MAV_DATA_STREAM_EXTRA1 => &[ATTITUDE_DATA::ID],
+            MAV_DATA_STREAM_EXTRA2 => &[VFR_HUD_DATA::ID],
+            MAV_DATA_STREAM_EXTRA3 => &[BATTERY_STATUS_DATA::ID, SYSTEM_TIME_DATA::ID],
+            _ => return,
+        };
+        let all: Vec<u32>;
+        let ids = if ids.is_empty() {
+            all = DEFAULT_STREAMS
+                .iter()
+                .map(|s| s.0)
+                .filter(|&i| i != HEARTBEAT_DATA::ID)
+                .collect();
+            &all[..]
+        } else {
+            ids
+        };
+        for &id in ids {
+            let hz = if r.start_stop == 0 {
+                None
+            } else {
+                Some(r.req_message_rate as f64)
+            };
+            self.set_rate(id, hz.filter(|&h| h > 0.0));
+        }
+    }
+
+    /// Sets message `id` to `hz` (`None`: off).
+    fn set_rate(&mut self, id: u32, hz: Option<f64>) {
+        self.streams.retain(|s| s.id != id);
+        if let Some(hz) = hz {
+            let hz = hz.clamp(RATE_RANGE_HZ.0, RATE_RANGE_HZ.1);
+            self.streams.push(Stream {
+                id,
+                interval_s: 1.0 / hz,
+                next_s: 0.0,
+            });
+        }
+    }
+
+    fn command_int(
+        &mut self,
+        c: Command,
+        global: Option<(i32, i32)>,
+        to: AckTo,
+        t: &Telemetry,
+        out: &mut Outbox,
+    ) {
+        if c.command == MavCmd::MAV_CMD_DO_SET_HOME && c.p[0] != 1.0 {
+            let Some((x, y)) = global else {
+                return out.send(self.ack(to, MavResult::MAV_RESULT_DENIED));
+            };
+            let p = LatLonAlt {
+                lat_deg: x as f64 * 1e-7,
+                lon_deg: y as f64 * 1e-7,
+                alt_m: c.p[6] as f64,
+            };
+            return out.vehicle.push((VehicleCommand::SetHomeGlobal(p), to));
+        }
+        self.command(c, to, t, out);
+    }
+
+    /// A command: answered here, or passed to the vehicle (answered through
+    /// [`GroundStation::answered`]).
+    fn command(&mut self, c: Command, to: AckTo, t: &Telemetry, out: &mut Outbox) {
+        let p = c.p;
+        let deny = |this: &Self, out: &mut Outbox, why: &str| {
+            out.send(this.ack(to, MavResult::MAV_RESULT_DENIED));
+            out.send(Self::statustext(MavSeverity::MAV_SEVERITY_WARNING, why));
+        };
+        let vehicle = |out: &mut Outbox, v| out.vehicle.push((v, to));
+        match c.command {
+            MavCmd::MAV_CMD_COMPONENT_ARM_DISARM => {
+                let force = p[1] == FORCE_MAGIC;
+                match p[0] {
+                    1.0 => vehicle(out, VehicleCommand::Arm { force }),
+                    0.0 => vehicle(out, VehicleCommand::Disarm { force }),
+                    x => deny(
+                        self,
+                        out,
+                        &format!("arm/disarm: param1 must be 0 or 1, got {x}"),
+                    ),
+                }
+            }
+            MavCmd::MAV_CMD_NAV_TAKEOFF => {
+                // param7: altitude AMSL (PX4); NaN: the take-off altitude parameter.
+                if p[6].is_finite() {
+                    vehicle(out, VehicleCommand::TakeoffAmsl(p[6] as f64));
+                } else {
+                    vehicle(out, VehicleCommand::Takeoff(None));
+                }
+            }
+            MavCmd::MAV_CMD_NAV_LAND => vehicle(out, VehicleCommand::SetMode(FlightMode::Land)),
+            MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH => {
+                vehicle(out, VehicleCommand::SetMode(FlightMode::Rtl));
+            }
+            MavCmd::MAV_CMD_NAV_LOITER_UNLIM => {
+                vehicle(out, VehicleCommand::SetMode(FlightMode::Loiter));
+            }
+            MavCmd::MAV_CMD_DO_SET_MODE => {
+                let base = p[0] as u32;
+                if base & MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED.bits() as u32 == 0 {
+                    return deny(self, out, "set mode: only PX4 custom modes are supported");
+                }
+                match modes::from_px4(p[1] as u8, p[2] as u8) {
+                    Some(m) => vehicle(out, VehicleCommand::SetMode(m)),
+                    None => deny(
+                        self,
+                        out,
+                        &format!("set mode: no mode {}/{}", p[1] as u8, p[2] as u8),
+                    ),
+                }
+            }
+            MavCmd::MAV_CMD_DO_SET_STANDARD_MODE => match modes::from_standard(p[0] as u32) {
+                Some(m) => vehicle(out, VehicleCommand::SetMode(m)),
+                None => deny(self, out, &format!("no standard mode {}", p[0])),
+            },
+            MavCmd::MAV_CMD_DO_SET_HOME => {
+                if p[0] == 1.0 {
+                    vehicle(out, VehicleCommand::SetHome(None));
+                } else if p[4].is_finite() && p[5].is_finite() && p[6].is_finite() {
+                    let g = LatLonAlt {
+                        lat_deg: p[4] as f64,
+                        lon_deg: p[5] as f64,
+                        alt_m: p[6] as f64,
+                    };
+                    vehicle(out, VehicleCommand::SetHomeGlobal(g));
+                } else {
+                    deny(
+                        self,
+                        out,
+                        "set home: latitude, longitude and altitude needed",
+                    );
+                }
+            }
+            MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL => {
+                let id = p[0] as u32;
+                if !(p[0].is_finite() && Self::can_send(id)) {
+                    return deny(
+                        self,
+                        out,
+                        &format!("message interval: cannot stream {}", p[0]),
+                    );
+                }
+                let us = p[1];
+                let hz = match us {
+                    -1.0 => None,
+                    0.0 => DEFAULT_STREAMS.iter().find(|s| s.0 == id).map(|s| s.1),
+                    x if x > 0.0 && x.is_finite() => Some(1e6 / x as f64),
+                    x => {
+                        return deny(self, out, &format!("message interval: bad interval {x}"));
+                    }
+                };
+                self.set_rate(id, hz);
+                out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED));
+            }
+            MavCmd::MAV_CMD_GET_MESSAGE_INTERVAL => {
+                let id = p[0] as u32;
+                let interval_us = match self.interval_s(id) {
+                    Some(s) => (s * 1e6) as i32,
+                    None if Self::can_send(id) => -1,
+                    None => 0,
+                };
+                out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED));
+                out.send(MavMessage::MESSAGE_INTERVAL(MESSAGE_INTERVAL_DATA {
+                    interval_us,
+                    message_id: id as u16,
+                }));
+            }
+            MavCmd::MAV_CMD_REQUEST_MESSAGE => {
+                let id = p[0] as u32;
+                if !(p[0].is_finite() && Self::can_send(id)) {
+                    return deny(self, out, &format!("request message: cannot send {}", p[0]));
+                }
+                if self.one_off(id, p[1], t, 0).is_none() {
+                    // Known, but no data for it yet (no position, no home).
+                    out.send(self.ack(to, MavResult::MAV_RESULT_TEMPORARILY_REJECTED));
+                    return;
+                }
+                out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED));
+                self.requested.push((id, p[1]));
+            }
+            MavCmd::MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES => {
+                out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED));
+                out.send(self.autopilot_version());
+            }
+            MavCmd::MAV_CMD_GET_HOME_POSITION => {
+                let home = telemetry::build(HOME_POSITION_DATA::ID, t, 0);
+                let result = if home.is_some() {
+                    MavResult::MAV_RESULT_ACCEPTED
+                } else {
+                    MavResult::MAV_RESULT_TEMPORARILY_REJECTED
+                };
+                out.send(self.ack(to, result));
+                out.messages.extend(home.map(Outgoing::Message));
+            }
+            _ => out.send(self.ack(to, MavResult::MAV_RESULT_UNSUPPORTED)),
+        }
+    }
+}
+
+/// MAVLink FTP: every request is refused (NAK), so that clients fall back to the parameter
+/// and mission protocols at once instead of waiting for a time-out.
+fn ftp_nak(f: &FILE_TRANSFER_PROTOCOL_DATA, from: &MavHeader) -> MavMessage {
+    const NAK: u8 = 129;
+    const ERR_FAIL: u8 = 1;
+    const ERR_FILE_NOT_FOUND: u8 = 10;
+    const OPEN_FILE_RO: u8 = 4;
+    let req = &f.payload;
+    let mut payload = [0u8; 251];
+    payload[0..3].copy_from_slice(&req[0..3]); // seq, session
+    payload[0..2].copy_from_slice(
+        &u16::from_le_bytes([req[0], req[1]])
+            .wrapping_add(1)
+            .to_le_bytes(),
+    );
+    payload[3] = NAK;
+    payload[4] = 1; // size
+    payload[5] = req[3]; // the request's opcode
+    payload[12] = if req[3] == OPEN_FILE_RO {
+        ERR_FILE_NOT_FOUND
+    } else {
+        ERR_FAIL
+    };
+    MavMessage::FILE_TRANSFER_PROTOCOL(FILE_TRANSFER_PROTOCOL_DATA {
+        target_network: 0,
+        target_system: from.system_id as u8,
+        target_component: from.component_id,
+        payload,
+    })
+}
+
+#[cfg(test)]
+mod tests;

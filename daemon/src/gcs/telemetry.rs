@@ -1,0 +1,316 @@
+//! Telemetry messages built from the control loop's latest [`Telemetry`]: pure functions of it
+//! and the clock.
+
+use crate::flight::Telemetry;
+use crate::gcs::modes;
+use flight_core::commander::{FlightMode, LandedState};
+use flight_core::geo::{LatLonAlt, LocalFrame};
+use mavlink::MessageData;
+use mavlink::dialects::common::*;
+
+/// Degrees as MAVLink's 1e7 integers.
+fn e7(deg: f64) -> i32 {
+    (deg * 1e7).round() as i32
+}
+
+/// The vehicle's clock (`time_boot_ms`): its sensor time.
+fn boot_ms(t: &Telemetry) -> u32 {
+    (t.t_s * 1e3) as u32
+}
+
+/// The sensors and loops `SYS_STATUS` reports, all present and enabled.
+fn sensors_present() -> MavSysStatusSensor {
+    MavSysStatusSensor::MAV_SYS_STATUS_SENSOR_3D_GYRO
+        | MavSysStatusSensor::MAV_SYS_STATUS_SENSOR_3D_ACCEL
+        | MavSysStatusSensor::MAV_SYS_STATUS_SENSOR_3D_MAG
+        | MavSysStatusSensor::MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
+        | MavSysStatusSensor::MAV_SYS_STATUS_SENSOR_GPS
+        | MavSysStatusSensor::MAV_SYS_STATUS_SENSOR_ANGULAR_RATE_CONTROL
+        | MavSysStatusSensor::MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION
+        | MavSysStatusSensor::MAV_SYS_STATUS_SENSOR_YAW_POSITION
+        | MavSysStatusSensor::MAV_SYS_STATUS_SENSOR_Z_ALTITUDE_CONTROL
+        | MavSysStatusSensor::MAV_SYS_STATUS_SENSOR_XY_POSITION_CONTROL
+        | MavSysStatusSensor::MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
+        | MavSysStatusSensor::MAV_SYS_STATUS_AHRS
+        | MavSysStatusSensor::MAV_SYS_STATUS_SENSOR_BATTERY
+        | MavSysStatusSensor::MAV_SYS_STATUS_GEOFENCE
+}
+
+/// The vehicle as `HEARTBEAT` shows it.
+pub fn heartbeat(t: &Telemetry, mav_type: MavType) -> MavMessage {
+    let status = t.status;
+    let armed = status.is_some_and(|s| s.armed);
+    let mode = status.map_or(FlightMode::Loiter, |s| s.mode);
+    let mut base_mode = MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED;
+    if armed {
+        base_mode |= MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED;
+    }
+    if mode != FlightMode::Manual {
+        base_mode |= MavModeFlag::MAV_MODE_FLAG_STABILIZE_ENABLED;
+    }
+    if matches!(
+        mode,
+        FlightMode::Takeoff
+            | FlightMode::Loiter
+            | FlightMode::Mission
+            | FlightMode::Rtl
+            | FlightMode::Land
+            | FlightMode::Descend
+    ) {
+        base_mode |=
+            MavModeFlag::MAV_MODE_FLAG_AUTO_ENABLED | MavModeFlag::MAV_MODE_FLAG_GUIDED_ENABLED;
+    }
+    let system_status = match status {
+        None => MavState::MAV_STATE_BOOT,
+        Some(s) if s.failsafe => MavState::MAV_STATE_CRITICAL,
+        Some(s) if s.armed => MavState::MAV_STATE_ACTIVE,
+        Some(_) => MavState::MAV_STATE_STANDBY,
+    };
+    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        custom_mode: modes::custom_mode(mode),
+        mavtype: mav_type,
+        autopilot: MavAutopilot::MAV_AUTOPILOT_PX4,
+        base_mode,
+        system_status,
+        mavlink_version: 3,
+    })
+}
+
+/// The message with id `id` from the latest telemetry, if there is data for it.
+pub fn build(id: u32, t: &Telemetry, unix_usec: u64) -> Option<MavMessage> {
+    let out = t.output;
+    let att = out.and_then(|o| o.attitude);
+    let tr = out.map(|o| o.translation);
+    let status = t.status;
+    let frame = tr.and_then(|tr| tr.origin).map(LocalFrame::new);
+    let ms = boot_ms(t);
+    Some(match id {
+        SYS_STATUS_DATA::ID => {
+            let present = sensors_present();
+            let mut health = present;
+            if !att.is_some_and(|a| a.valid) {
+                health -= MavSysStatusSensor::MAV_SYS_STATUS_AHRS;
+            }
+            if !tr.is_some_and(|t| t.horizontal_valid) {
+                health -= MavSysStatusSensor::MAV_SYS_STATUS_SENSOR_GPS;
+            }
+            if !tr.is_some_and(|t| t.vertical_valid) {
+                health -= MavSysStatusSensor::MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE;
+            }
+            if status.is_some_and(|s| s.ready && !s.armed) {
+                health |= MavSysStatusSensor::MAV_SYS_STATUS_PREARM_CHECK;
+            }
+            MavMessage::SYS_STATUS(SYS_STATUS_DATA {
+                onboard_control_sensors_present: present
+                    | MavSysStatusSensor::MAV_SYS_STATUS_PREARM_CHECK,
+                onboard_control_sensors_enabled: present
+                    | MavSysStatusSensor::MAV_SYS_STATUS_PREARM_CHECK,
+                onboard_control_sensors_health: health,
+                voltage_battery: (t.battery_v * 1e3).clamp(0.0, 65534.0) as u16,
+                current_battery: -1,
+                battery_remaining: -1,
+                ..Default::default()
+            })
+        }
+        EXTENDED_SYS_STATE_DATA::ID => {
+            let landed = match status?.landed {
+                LandedState::OnGround => MavLandedState::MAV_LANDED_STATE_ON_GROUND,
+                LandedState::Takeoff => MavLandedState::MAV_LANDED_STATE_TAKEOFF,
+                LandedState::InAir => MavLandedState::MAV_LANDED_STATE_IN_AIR,
+                LandedState::Landing => MavLandedState::MAV_LANDED_STATE_LANDING,
+            };
+            MavMessage::EXTENDED_SYS_STATE(EXTENDED_SYS_STATE_DATA {
+                vtol_state: MavVtolState::MAV_VTOL_STATE_UNDEFINED,
+                landed_state: landed,
+            })
+        }
+        ATTITUDE_DATA::ID => {
+            let a = att?;
+            let (roll, pitch, yaw) = a.q.euler_angles();
+            let w = a.rate;
+            MavMessage::ATTITUDE(ATTITUDE_DATA {
+                time_boot_ms: ms,
+                roll: roll as f32,
+                pitch: pitch as f32,
+                yaw: yaw as f32,
+                rollspeed: w.x as f32,
+                pitchspeed: w.y as f32,
+                yawspeed: w.z as f32,
+            })
+        }
+        ATTITUDE_QUATERNION_DATA::ID => {
+            let a = att?;
+            let q = a.q.quaternion();
+            let w = a.rate;
+            MavMessage::ATTITUDE_QUATERNION(ATTITUDE_QUATERNION_DATA {
+                time_boot_ms: ms,
+                q1: q.w as f32,
+                q2: q.i as f32,
+                q3: q.j as f32,
+                q4: q.k as f32,
+                rollspeed: w.x as f32,
+                pitchspeed: w.y as f32,
+                yawspeed: w.z as f32,
+                repr_offset_q: [0.0; 4],
+            })
+        }
+        LOCAL_POSITION_NED_DATA::ID => {
+            let tr = tr.filter(|t| t.vertical_valid)?;
+            let (p, v) = (tr.pos_ned_m, tr.vel_ned_m_s);
+            MavMessage::LOCAL_POSITION_NED(LOCAL_POSITION_NED_DATA {
+                time_boot_ms: ms,
+                x: p.x as f32,
+                y: p.y as f32,
+                z: p.z as f32,
+                vx: v.x as f32,
+                vy: v.y as f32,
+                vz: v.z as f32,
+            })
+        }
+        GLOBAL_POSITION_INT_DATA::ID => {
+            let tr = tr.filter(|t| t.horizontal_valid)?;
+            let g = frame?.to_geodetic(&tr.pos_ned_m);
+            let home_down = status.and_then(|s| s.home).map_or(0.0, |h| h.0.z);
+            let v = tr.vel_ned_m_s * 100.0;
+            let yaw = att.map_or(0.0, |a| a.q.euler_angles().2);
+            MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
+                time_boot_ms: ms,
+                lat: e7(g.lat_deg),
+                lon: e7(g.lon_deg),
+                alt: (g.alt_m * 1e3).round() as i32,
+                relative_alt: ((home_down - tr.pos_ned_m.z) * 1e3).round() as i32,
+                vx: v.x.clamp(-32767.0, 32767.0) as i16,
+                vy: v.y.clamp(-32767.0, 32767.0) as i16,
+                vz: v.z.clamp(-32767.0, 32767.0) as i16,
+                hdg: (yaw.to_degrees().rem_euclid(360.0) * 100.0) as u16,
+            })
+        }
+        GPS_RAW_INT_DATA::ID => {
+            let g = t.gps?;
+            let speed = g.vel_ned_m_s.xy().norm();
+            let cog = g.vel_ned_m_s.y.atan2(g.vel_ned_m_s.x).to_degrees();
+            MavMessage::GPS_RAW_INT(GPS_RAW_INT_DATA {
+                time_usec: (t.t_s * 1e6) as u64,
+                lat: e7(g.lat_deg),
+                lon: e7(g.lon_deg),
+                alt: (g.alt_m * 1e3).round() as i32,
+                eph: (g.h_acc_m * 100.0).clamp(0.0, 65534.0) as u16,
+                epv: u16::MAX,
+                vel: (speed * 100.0).clamp(0.0, 65534.0) as u16,
+                cog: (cog.rem_euclid(360.0) * 100.0) as u16,
+                fix_type: match g.fix_type {
+                    0 => GpsFixType::GPS_FIX_TYPE_NO_GPS,
+                    1 => GpsFixType::GPS_FIX_TYPE_NO_FIX,
+                    2 => GpsFixType::GPS_FIX_TYPE_2D_FIX,
+                    _ => GpsFixType::GPS_FIX_TYPE_3D_FIX,
+                },
+                satellites_visible: g.satellites,
+                h_acc: (g.h_acc_m * 1e3) as u32,
+                ..Default::default()
+            })
+        }
+        VFR_HUD_DATA::ID => {
+            let tr = tr?;
+            let o = out?;
+            let alt = frame.map_or(-tr.pos_ned_m.z, |f| f.to_geodetic(&tr.pos_ned_m).alt_m);
+            let yaw = att.map_or(0.0, |a| a.q.euler_angles().2);
+            let n = o.commands.iter().filter(|c| **c > 0.0).count().max(1);
+            let throttle = o.commands.iter().sum::<f64>() / n as f64;
+            MavMessage::VFR_HUD(VFR_HUD_DATA {
+                airspeed: tr.vel_ned_m_s.xy().norm() as f32,
+                groundspeed: tr.vel_ned_m_s.xy().norm() as f32,
+                alt: alt as f32,
+                climb: -tr.vel_ned_m_s.z as f32,
+                heading: yaw.to_degrees().rem_euclid(360.0) as i16,
+                throttle: (throttle * 100.0).clamp(0.0, 100.0) as u16,
+            })
+        }
+        BATTERY_STATUS_DATA::ID => {
+            let mut voltages = [u16::MAX; 10];
+            voltages[0] = (t.battery_v * 1e3).clamp(0.0, 65534.0) as u16;
+            MavMessage::BATTERY_STATUS(BATTERY_STATUS_DATA {
+                voltages,
+                current_battery: -1,
+                current_consumed: -1,
+                energy_consumed: -1,
+                temperature: i16::MAX,
+                battery_remaining: -1,
+                battery_function: MavBatteryFunction::MAV_BATTERY_FUNCTION_ALL,
+                mavtype: MavBatteryType::MAV_BATTERY_TYPE_LIPO,
+                ..Default::default()
+            })
+        }
+        HOME_POSITION_DATA::ID => {
+            let (home, yaw) = status?.home?;
+            let g: LatLonAlt = frame?.to_geodetic(&home);
+            let (s, c) = (yaw * 0.5).sin_cos();
+            MavMessage::HOME_POSITION(HOME_POSITION_DATA {
+                latitude: e7(g.lat_deg),
+                longitude: e7(g.lon_deg),
+                altitude: (g.alt_m * 1e3).round() as i32,
+                x: home.x as f32,
+                y: home.y as f32,
+                z: home.z as f32,
+                q: [c as f32, 0.0, 0.0, s as f32],
+                approach_x: 0.0,
+                approach_y: 0.0,
+                approach_z: 0.0,
+                time_usec: (t.t_s * 1e6) as u64,
+            })
+        }
+        ALTITUDE_DATA::ID => {
+            let tr = tr.filter(|t| t.vertical_valid)?;
+            let amsl = frame.map_or(f64::NAN, |f| f.to_geodetic(&tr.pos_ned_m).alt_m);
+            let home_down = status.and_then(|s| s.home).map_or(0.0, |h| h.0.z);
+            MavMessage::ALTITUDE(ALTITUDE_DATA {
+                time_usec: (t.t_s * 1e6) as u64,
+                altitude_monotonic: amsl as f32,
+                altitude_amsl: amsl as f32,
+                altitude_local: -tr.pos_ned_m.z as f32,
+                altitude_relative: (home_down - tr.pos_ned_m.z) as f32,
+                altitude_terrain: f32::NAN,
+                bottom_clearance: f32::NAN,
+            })
+        }
+        SYSTEM_TIME_DATA::ID => MavMessage::SYSTEM_TIME(SYSTEM_TIME_DATA {
+            time_unix_usec: unix_usec,
+            time_boot_ms: ms,
+        }),
+        CURRENT_MODE_DATA::ID => {
+            let mode = status.map_or(FlightMode::Loiter, |s| s.mode);
+            MavMessage::CURRENT_MODE(CURRENT_MODE_DATA {
+                custom_mode: modes::custom_mode(mode),
+                intended_custom_mode: modes::custom_mode(mode),
+                standard_mode: modes::standard_mode(mode),
+            })
+        }
+        _ => return None,
+    })
+}
+
+/// `AVAILABLE_MODES` for the mode at `index` (1-based) of [`modes::SELECTABLE`].
+pub fn available_mode(index: usize) -> Option<MavMessage> {
+    let mode = *modes::SELECTABLE.get(index.checked_sub(1)?)?;
+    let mut properties = MavModeProperty::empty();
+    if matches!(mode, FlightMode::Manual | FlightMode::Stabilized) {
+        properties |= MavModeProperty::MAV_MODE_PROPERTY_ADVANCED;
+    }
+    if matches!(
+        mode,
+        FlightMode::Takeoff
+            | FlightMode::Loiter
+            | FlightMode::Mission
+            | FlightMode::Rtl
+            | FlightMode::Land
+    ) {
+        properties |= MavModeProperty::MAV_MODE_PROPERTY_AUTO_MODE;
+    }
+    Some(MavMessage::AVAILABLE_MODES(AVAILABLE_MODES_DATA {
+        custom_mode: modes::custom_mode(mode),
+        properties,
+        number_modes: modes::SELECTABLE.len() as u8,
+        mode_index: index as u8,
+        standard_mode: modes::standard_mode(mode),
+        mode_name: mode.name().into(),
+    }))
+}

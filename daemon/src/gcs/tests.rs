@@ -1,0 +1,330 @@
+#![allow(clippy::unwrap_used)]
+use super::*;
+use crate::flight::Telemetry;
+use flight_core::commander::CommanderStatus;
+use mavlink::Message;
+
+fn gcs_header() -> MavHeader {
+    MavHeader {
+        system_id: 255,
+        component_id: 190,
+        sequence: 0,
+    }
+}
+
+fn telemetry(armed: bool, mode: FlightMode) -> Telemetry {
+    Telemetry {
+        t_s: 12.0,
+        status: Some(CommanderStatus {
+            armed,
+            mode,
+            landed: LandedState::OnGround,
+            home: None,
+            failsafe: false,
+            ready: true,
+            in_mode_s: 0.0,
+        }),
+        battery_v: 16.0,
+        ..Telemetry::default()
+    }
+}
+
+fn command_long(command: MavCmd, p: [f32; 7], target: (u8, u8)) -> MavMessage {
+    MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        param1: p[0],
+        param2: p[1],
+        param3: p[2],
+        param4: p[3],
+        param5: p[4],
+        param6: p[5],
+        param7: p[6],
+        command,
+        target_system: target.0,
+        target_component: target.1,
+        confirmation: 0,
+    })
+}
+
+fn acks(out: &Outbox) -> Vec<&COMMAND_ACK_DATA> {
+    out.messages
+        .iter()
+        .filter_map(|m| match m {
+            Outgoing::Message(MavMessage::COMMAND_ACK(a)) => Some(a),
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn commands_for_us_reach_the_vehicle_and_others_are_ignored() {
+    let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
+    let t = telemetry(false, FlightMode::Loiter);
+    let arm = [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+    let mut out = Outbox::default();
+    // Target component 0 (pymavlink's default) and 1 are ours; system 0 is everyone.
+    for target in [(1, 0), (1, 1), (0, 0)] {
+        g.on_message(
+            &gcs_header(),
+            &command_long(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, arm, target),
+            &t,
+            &mut out,
+        );
+    }
+    assert_eq!(out.vehicle.len(), 3);
+    assert_eq!(out.vehicle[0].0, VehicleCommand::Arm { force: false });
+    assert_eq!(
+        (out.vehicle[0].1.system, out.vehicle[0].1.component),
+        (255, 190)
+    );
+    // Another system's, or another component's: no ack, nothing done.
+    let mut out = Outbox::default();
+    for target in [(2, 1), (1, 100)] {
+        g.on_message(
+            &gcs_header(),
+            &command_long(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, arm, target),
+            &t,
+            &mut out,
+        );
+    }
+    assert!(out.vehicle.is_empty() && out.messages.is_empty());
+    // Force, and a NaN where a value is needed: denied with a reason.
+    let mut out = Outbox::default();
+    let force = [0.0, 21196.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+    g.on_message(
+        &gcs_header(),
+        &command_long(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, force, (1, 1)),
+        &t,
+        &mut out,
+    );
+    assert_eq!(out.vehicle[0].0, VehicleCommand::Disarm { force: true });
+    let mut out = Outbox::default();
+    let nan = [f32::NAN, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+    g.on_message(
+        &gcs_header(),
+        &command_long(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, nan, (1, 1)),
+        &t,
+        &mut out,
+    );
+    assert_eq!(acks(&out)[0].result, MavResult::MAV_RESULT_DENIED);
+    assert!(
+        out.messages
+            .iter()
+            .any(|m| matches!(m, Outgoing::Message(MavMessage::STATUSTEXT(_))))
+    );
+}
+
+#[test]
+fn every_command_gets_exactly_one_ack_addressed_to_the_requester() {
+    let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
+    let t = telemetry(false, FlightMode::Loiter);
+    let nan = [f32::NAN; 7];
+    let mut interval = nan;
+    interval[0] = ATTITUDE_DATA::ID as f32;
+    interval[1] = 20_000.0;
+    for (cmd, p) in [
+        (MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL, interval),
+        (MavCmd::MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, nan),
+        (MavCmd::MAV_CMD_DO_FLIGHTTERMINATION, nan), // not supported
+    ] {
+        let mut out = Outbox::default();
+        // Twice: a retransmission gets its own ack.
+        for _ in 0..2 {
+            g.on_message(&gcs_header(), &command_long(cmd, p, (1, 0)), &t, &mut out);
+        }
+        let a = acks(&out);
+        assert_eq!(a.len(), 2, "{cmd:?}");
+        assert!(
+            a.iter()
+                .all(|a| a.command == cmd && a.target_system == 255 && a.target_component == 190)
+        );
+    }
+    assert_eq!(g.interval_s(ATTITUDE_DATA::ID), Some(0.02));
+    // The vehicle's answers become acks too.
+    let to = AckTo {
+        command: MavCmd::MAV_CMD_NAV_LAND,
+        system: 255,
+        component: 190,
+    };
+    let mut out = Outbox::default();
+    g.answered(to, Err("not now".into()), &mut out);
+    assert_eq!(acks(&out)[0].result, MavResult::MAV_RESULT_DENIED);
+}
+
+#[test]
+fn an_unknown_command_id_is_acknowledged_unsupported() {
+    // COMMAND_LONG with command 31999 (no MAV_CMD has it): parse it as the wire does.
+    let mut payload = [0u8; 33];
+    payload[28..30].copy_from_slice(&31999u16.to_le_bytes());
+    payload[30] = 1;
+    payload[31] = 1;
+    let mut frame = Vec::new();
+    hil::Encoder::with_ids(255, 190).push_raw(&mut frame, COMMAND_LONG_DATA::ID, &payload);
+    let mut d = hil::Decoded {
+        keep_unparsed: true,
+        ..hil::Decoded::default()
+    };
+    hil::decode_into(&frame, &mut d);
+    assert!(d.messages.is_empty() && d.unparsed.len() == 1 && d.malformed == 1);
+    let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
+    let mut out = Outbox::default();
+    g.on_unparsed(&d.unparsed[0], &mut out);
+    let Outgoing::Raw(id, ack) = &out.messages[0] else {
+        panic!("a raw ack");
+    };
+    assert_eq!(*id, COMMAND_ACK_DATA::ID);
+    // Through the wire again: an ack of 31999, UNSUPPORTED, to 255/190.
+    let mut frame = Vec::new();
+    hil::Encoder::with_ids(1, 1).push_raw(&mut frame, *id, ack);
+    let raw = &frame[10..frame.len() - 2];
+    assert_eq!(u16::from_le_bytes([raw[0], raw[1]]), 31999);
+    assert_eq!(raw[2], MavResult::MAV_RESULT_UNSUPPORTED as u8);
+    assert_eq!((raw[8], raw[9]), (255, 190));
+}
+
+#[test]
+fn heartbeats_show_px4_modes_and_follow_a_change_at_once() {
+    let mut g = GroundStation::new(3, MavType::MAV_TYPE_HEXAROTOR);
+    let mut out = Outbox::default();
+    g.poll(0.0, &telemetry(false, FlightMode::Loiter), &mut out);
+    let beats = |out: &Outbox| -> Vec<HEARTBEAT_DATA> {
+        out.messages
+            .iter()
+            .filter_map(|m| match m {
+                Outgoing::Message(MavMessage::HEARTBEAT(h)) => Some(h.clone()),
+                _ => None,
+            })
+            .collect()
+    };
+    let hb = beats(&out);
+    assert_eq!(hb.len(), 1, "one heartbeat, not two, at the start");
+    assert_eq!(hb[0].custom_mode, 0x0304_0000);
+    assert_eq!(hb[0].autopilot, MavAutopilot::MAV_AUTOPILOT_PX4);
+    assert_eq!(hb[0].mavtype, MavType::MAV_TYPE_HEXAROTOR);
+    assert!(
+        hb[0]
+            .base_mode
+            .contains(MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED)
+    );
+    assert_eq!(hb[0].system_status, MavState::MAV_STATE_STANDBY);
+    // Nothing new 0.1 s later; armed in TAKEOFF 0.01 s after that: a heartbeat at once.
+    let mut out = Outbox::default();
+    g.poll(0.1, &telemetry(false, FlightMode::Loiter), &mut out);
+    assert!(beats(&out).is_empty());
+    g.poll(0.11, &telemetry(true, FlightMode::Takeoff), &mut out);
+    let hb = beats(&out);
+    assert_eq!(hb.len(), 1);
+    assert!(
+        hb[0]
+            .base_mode
+            .contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED)
+    );
+    assert_eq!(hb[0].custom_mode, 0x0204_0000);
+    assert_eq!(hb[0].system_status, MavState::MAV_STATE_ACTIVE);
+}
+
+#[test]
+fn streams_run_at_their_rates_and_can_be_changed_or_stopped() {
+    let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
+    let t = telemetry(false, FlightMode::Loiter);
+    let mut clock = 100.0;
+    let mut count = |g: &mut GroundStation, id: u32| {
+        let mut n = 0;
+        for _ in 0..1000 {
+            let mut out = Outbox::default();
+            clock += 0.01;
+            g.poll(clock, &t, &mut out);
+            n += out
+                .messages
+                .iter()
+                .filter(|m| matches!(m, Outgoing::Message(m) if m.message_id() == id))
+                .count();
+        }
+        n
+    };
+    // Ten seconds of polls at 100 Hz.
+    assert_eq!(count(&mut g, SYS_STATUS_DATA::ID), 10);
+    assert!((9..=11).contains(&count(&mut g, HEARTBEAT_DATA::ID)));
+    let mut p = [0.0f32; 7];
+    p[0] = SYS_STATUS_DATA::ID as f32;
+    p[1] = 200_000.0; // 5 Hz
+    let mut out = Outbox::default();
+    g.on_message(
+        &gcs_header(),
+        &command_long(MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL, p, (1, 1)),
+        &t,
+        &mut out,
+    );
+    assert_eq!(count(&mut g, SYS_STATUS_DATA::ID), 50);
+    p[1] = -1.0;
+    g.on_message(
+        &gcs_header(),
+        &command_long(MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL, p, (1, 1)),
+        &t,
+        &mut out,
+    );
+    assert_eq!(count(&mut g, SYS_STATUS_DATA::ID), 0);
+}
+
+#[test]
+fn set_mode_in_both_forms_names_px4_modes() {
+    let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
+    let t = telemetry(false, FlightMode::Loiter);
+    let mut out = Outbox::default();
+    // pymavlink's set_mode('LAND'): the legacy SET_MODE message.
+    g.on_message(
+        &gcs_header(),
+        &MavMessage::SET_MODE(SET_MODE_DATA {
+            custom_mode: 0x0604_0000,
+            target_system: 1,
+            base_mode: MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+        }),
+        &t,
+        &mut out,
+    );
+    assert_eq!(out.vehicle[0].0, VehicleCommand::SetMode(FlightMode::Land));
+    assert_eq!(out.vehicle[0].1.command, MavCmd::MAV_CMD_DO_SET_MODE);
+    // COMMAND_LONG DO_SET_MODE to AUTO.RTL, and a mode that does not exist.
+    let mut out = Outbox::default();
+    for (main, sub) in [(4.0, 5.0), (4.0, 1.0)] {
+        g.on_message(
+            &gcs_header(),
+            &command_long(
+                MavCmd::MAV_CMD_DO_SET_MODE,
+                [1.0, main, sub, 0.0, 0.0, 0.0, 0.0],
+                (1, 1),
+            ),
+            &t,
+            &mut out,
+        );
+    }
+    assert_eq!(out.vehicle.len(), 1);
+    assert_eq!(out.vehicle[0].0, VehicleCommand::SetMode(FlightMode::Rtl));
+    assert_eq!(acks(&out)[0].result, MavResult::MAV_RESULT_DENIED);
+}
+
+#[test]
+fn endpoints_parse_with_the_instance_offset() {
+    let e = links::Endpoint::parse("udpout://127.0.0.1:14550?bind=18570", 2).unwrap();
+    assert_eq!(
+        e,
+        links::Endpoint::UdpOut {
+            target: "127.0.0.1:14552".parse().unwrap(),
+            bind: "0.0.0.0:18572".parse().unwrap(),
+        }
+    );
+    let e = links::Endpoint::parse("tcpin://0.0.0.0:5760", 1).unwrap();
+    assert_eq!(
+        e,
+        links::Endpoint::TcpIn {
+            bind: "0.0.0.0:5761".parse().unwrap()
+        }
+    );
+    for bad in [
+        "udp://1.2.3.4:5",
+        "udpout://localhost",
+        "udpin://0.0.0.0:1?bind=3",
+        "udpout://1.2.3.4:5?speed=9",
+    ] {
+        assert!(links::Endpoint::parse(bad, 0).is_err(), "{bad}");
+    }
+}
