@@ -36,6 +36,19 @@ fn sensors_present() -> MavSysStatusSensor {
         | MavSysStatusSensor::MAV_SYS_STATUS_GEOFENCE
 }
 
+/// Whether the vehicle flies itself in `mode` (PX4's AUTO modes).
+fn is_auto(mode: FlightMode) -> bool {
+    matches!(
+        mode,
+        FlightMode::Takeoff
+            | FlightMode::Loiter
+            | FlightMode::Mission
+            | FlightMode::Rtl
+            | FlightMode::Land
+            | FlightMode::Descend
+    )
+}
+
 /// The vehicle as `HEARTBEAT` shows it.
 pub fn heartbeat(t: &Telemetry, mav_type: MavType) -> MavMessage {
     let status = t.status;
@@ -48,15 +61,7 @@ pub fn heartbeat(t: &Telemetry, mav_type: MavType) -> MavMessage {
     if mode != FlightMode::Manual {
         base_mode |= MavModeFlag::MAV_MODE_FLAG_STABILIZE_ENABLED;
     }
-    if matches!(
-        mode,
-        FlightMode::Takeoff
-            | FlightMode::Loiter
-            | FlightMode::Mission
-            | FlightMode::Rtl
-            | FlightMode::Land
-            | FlightMode::Descend
-    ) {
+    if is_auto(mode) {
         base_mode |=
             MavModeFlag::MAV_MODE_FLAG_AUTO_ENABLED | MavModeFlag::MAV_MODE_FLAG_GUIDED_ENABLED;
     }
@@ -295,14 +300,7 @@ pub fn available_mode(index: usize) -> Option<MavMessage> {
     if matches!(mode, FlightMode::Manual | FlightMode::Stabilized) {
         properties |= MavModeProperty::MAV_MODE_PROPERTY_ADVANCED;
     }
-    if matches!(
-        mode,
-        FlightMode::Takeoff
-            | FlightMode::Loiter
-            | FlightMode::Mission
-            | FlightMode::Rtl
-            | FlightMode::Land
-    ) {
+    if is_auto(mode) {
         properties |= MavModeProperty::MAV_MODE_PROPERTY_AUTO_MODE;
     }
     Some(MavMessage::AVAILABLE_MODES(AVAILABLE_MODES_DATA {
