@@ -55,6 +55,8 @@ pub struct ConfigFile {
     pub loop_cpu: Option<usize>,
     /// Ground-station endpoints (URLs), or `["none"]`.
     pub mavlink: Option<Vec<String>>,
+    /// File of the parameters changed from a ground station, or `"none"`.
+    pub param_store: Option<PathBuf>,
 }
 
 /// Allowed take-off altitudes (m).
@@ -131,6 +133,9 @@ impl ConfigFile {
         rebase(&mut c.params_dir);
         rebase(&mut c.truth_csv);
         rebase(&mut c.flight_csv);
+        if c.param_store.as_deref() != Some(Path::new("none")) {
+            rebase(&mut c.param_store);
+        }
         if let Some(a) = c.airframe.as_mut()
             && a.ends_with(".toml")
             && Path::new(a.as_str()).is_relative()

@@ -15,6 +15,7 @@ use crate::vehicle::VehicleCommand;
 use anyhow::{Context, Result, bail};
 use flight_core::commander::{CommanderStatus, Denial};
 use flight_core::core::StepOutput;
+use flight_core::params::FlightParams;
 use hil::{Decoded, Encoder};
 use std::time::{Duration, Instant};
 use tokio::sync::{mpsc, oneshot, watch};
@@ -83,6 +84,8 @@ pub struct Ports {
     pub commands: mpsc::Receiver<Command>,
     /// The latest telemetry.
     pub telemetry: watch::Sender<Telemetry>,
+    /// The parameters to fly with, when something (the ground-station side) changes them.
+    pub params: Option<watch::Receiver<FlightParams>>,
 }
 
 impl Ports {
@@ -95,6 +98,7 @@ impl Ports {
             Self {
                 commands,
                 telemetry,
+                params: None,
             },
             tx,
             rx,
@@ -231,8 +235,15 @@ impl<'a> ControlLoop<'a> {
         }
     }
 
-    /// Drains the commands.
+    /// Drains the commands and takes new parameters.
     fn commands(&mut self) -> Flow {
+        if let Some(params) = self.ports.params.as_mut()
+            && params.has_changed().unwrap_or(false)
+        {
+            let p = params.borrow_and_update().clone();
+            self.vehicle.set_params(&p);
+            tracing::debug!("flying with new parameters");
+        }
         while let Ok(c) = self.ports.commands.try_recv() {
             match c {
                 Command::Land => self.vehicle.request_land(),

@@ -10,6 +10,7 @@ mod flight;
 mod flight_csv;
 mod gcs;
 mod link;
+mod param_store;
 mod replay;
 mod score;
 mod sim;
@@ -21,11 +22,12 @@ use flight::{Command as LoopCommand, FlightReport, Pacing, Ports, Telemetry};
 use flight_core::params::FlightParams;
 use flight_csv::FlightCsv;
 use link::{SensorLink, SerialLink, Source, UdpLink};
+use param_store::ParamStore;
 use sim::EmbeddedSim;
 use sitl_core::Airframe;
 use sitl_core::sensors::SensorPreset;
 use std::io::{IsTerminal, Write};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 use tokio::sync::{mpsc, watch};
 use vehicle::{AutoFlight, Vehicle};
@@ -42,8 +44,8 @@ use vehicle::{AutoFlight, Vehicle};
 struct Cli {
     /// Settings file (TOML): every key mirrors a flag below (source, instance, airframe,
     /// params, params_dir, takeoff_m, hover_s, speed, seed, sensors, truth_csv, flight_csv,
-    /// loop_hz, loop_spin_us, loop_cpu);
-    /// flags given here win. Paths in it are relative to its directory.
+    /// loop_hz, loop_spin_us, loop_cpu,
+    /// mavlink, param_store); flags given here win. Paths in it are relative to its directory.
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
     /// Fly in the embedded simulator (the physics of `sitl`, in-process, behind the same HIL
@@ -118,6 +120,11 @@ struct Cli {
     /// tcpin://0.0.0.0:5760].
     #[arg(long, value_name = "URL")]
     mavlink: Vec<String>,
+    /// Where the parameters a ground station changes are kept (applied over the flight
+    /// parameters at start; written atomically on every change), or `none` to keep them in
+    /// memory only [default: autopilot-params-N.toml in the working directory, N the instance].
+    #[arg(long, value_name = "FILE|none")]
+    param_store: Option<PathBuf>,
     #[command(subcommand)]
     command: Option<Command>,
 }
@@ -161,6 +168,8 @@ struct Settings {
     loop_spin_us: f64,
     loop_cpu: Option<usize>,
     mavlink: Vec<String>,
+    /// None: in memory only.
+    param_store: Option<PathBuf>,
 }
 
 impl Settings {
@@ -262,6 +271,14 @@ impl Settings {
             } else {
                 cli.mavlink.clone()
             },
+            param_store: match cli.param_store.clone().or(file.param_store) {
+                Some(p) if p == Path::new("none") => None,
+                Some(p) => Some(p),
+                None => Some(PathBuf::from(format!(
+                    "autopilot-params-{}.toml",
+                    cli.instance.or(file.instance).unwrap_or(0)
+                ))),
+            },
         })
     }
 
@@ -283,7 +300,27 @@ fn fly(cli: &Cli) -> Result<()> {
         .params
         .clone()
         .unwrap_or_else(|| dir.join("flight.toml"));
-    let params = FlightParams::load(&params_path)?;
+    // flight.toml, then what ground stations changed, then the command line.
+    let mut base = FlightParams::load(&params_path)?;
+    let (params, store) = match &cfg.param_store {
+        Some(path) => {
+            let loaded = ParamStore::load(path, &base)?;
+            for w in &loaded.warnings {
+                tracing::warn!("{w}");
+            }
+            let names: Vec<&str> = loaded.store.names().collect();
+            if !names.is_empty() {
+                tracing::info!(store = %path.display(), "parameters set from a ground station: {}", names.join(", "));
+            }
+            (loaded.params, loaded.store)
+        }
+        None => (base.clone(), ParamStore::in_memory()),
+    };
+    let mut params = params;
+    if let Some(t) = cfg.takeoff_m {
+        params.commander.takeoff_alt_m = t;
+        base.commander.takeoff_alt_m = t;
+    }
     if source != Source::Embedded && cfg.truth_csv.is_some() {
         bail!(
             "--truth-csv is for the embedded simulator; an external one writes its own (sitl --truth-csv)"
@@ -315,6 +352,9 @@ fn fly(cli: &Cli) -> Result<()> {
         spin: Duration::from_secs_f64(cfg.loop_spin_us * 1e-6),
     };
     let (mut ports, commands, telemetry) = Ports::new(16);
+    let (params_tx, params_rx) = watch::channel(params.clone());
+    ports.params = Some(params_rx);
+    let parameters = gcs::params::Parameters::new(params, store);
     let loop_cpu = cfg.loop_cpu;
     // The control loop on its own thread owns the vehicle and the sensor link; this thread runs
     // the tasks that talk to it (status line, Ctrl-C; the ground stations later).
@@ -375,22 +415,45 @@ fn fly(cli: &Cli) -> Result<()> {
         .enable_all()
         .build()
         .context("starting the async runtime")?;
-    runtime.block_on(async move {
-        tokio::spawn(gcs::links::run(
+    let exit = runtime.block_on(async move {
+        let gcs = tokio::spawn(gcs::links::run(
             endpoints,
-            system_id,
-            mav_type,
-            telemetry.clone(),
-            commands.clone(),
+            gcs::links::Vehicle {
+                system_id,
+                mav_type,
+                telemetry: telemetry.clone(),
+                commands: commands.clone(),
+                parameters,
+                base_params: base,
+                params: params_tx,
+            },
         ));
         tokio::spawn(interrupts(commands));
         status_line(telemetry).await;
+        // The ground-station side ends with the loop, after its last save.
+        gcs.await.ok().flatten()
     });
+    drop(runtime);
     let report = control
         .join()
         .map_err(|_| anyhow::anyhow!("the control loop panicked"))??;
     println!("{report}");
+    if exit == Some(gcs::Action::Reboot) {
+        reboot()?;
+    }
     Ok(())
+}
+
+/// `PREFLIGHT_REBOOT_SHUTDOWN` reboot: the process starts again with the same arguments, as a
+/// flight board does (the new process reads the saved parameters, aligns, waits for commands).
+fn reboot() -> Result<()> {
+    use std::os::unix::process::CommandExt;
+    let exe = std::env::current_exe().context("reboot: finding the executable")?;
+    tracing::info!("rebooting");
+    let err = std::process::Command::new(exe)
+        .args(std::env::args_os().skip(1))
+        .exec();
+    Err(err).context("reboot")
 }
 
 /// Flushes the vehicle's log and hands the report on.

@@ -3,7 +3,7 @@
 
 use anyhow::{Context, Result};
 use flight_core::commander::{
-    Commander, CommanderInput, CommanderParams, CommanderStatus, Denial, FlightMode, LandedState,
+    Commander, CommanderInput, CommanderStatus, Denial, FlightMode, LandedState,
 };
 use flight_core::control::position::PositionSetpoint;
 use flight_core::core::{FlightCore, FlightCoreConfig, SensorSample, StepOutput};
@@ -59,6 +59,8 @@ pub enum VehicleCommand {
 pub struct Vehicle {
     core: FlightCore,
     commander: Commander,
+    /// For new parameters: the configuration is derived from them and the airframe.
+    airframe: Airframe,
     auto: Option<AutoFlight>,
     /// The auto flight has armed, or an operator asked to end: the run ends once disarmed.
     end_when_disarmed: bool,
@@ -96,7 +98,7 @@ impl Vehicle {
         params: &FlightParams,
         auto: Option<AutoFlight>,
     ) -> Result<Self> {
-        let mut commander_params = CommanderParams::default();
+        let mut commander_params = params.commander;
         if let Some(a) = auto {
             commander_params.takeoff_alt_m = a.takeoff_m;
         }
@@ -104,6 +106,7 @@ impl Vehicle {
             core: FlightCore::new(airframe, FlightCoreConfig::from_params(params, airframe))
                 .context("building the mixer")?,
             commander: Commander::new(commander_params),
+            airframe: airframe.clone(),
             auto,
             end_when_disarmed: false,
             ended: false,
@@ -138,6 +141,14 @@ impl Vehicle {
             csv.flush().context("writing the flight-data CSV")?;
         }
         Ok(())
+    }
+
+    /// Flies with new parameters from the next step on (a ground station's PARAM_SET); the
+    /// estimates, integrators and the flight in progress are kept.
+    pub fn set_params(&mut self, params: &FlightParams) {
+        self.core
+            .set_config(FlightCoreConfig::from_params(params, &self.airframe));
+        self.commander.set_params(params.commander);
     }
 
     /// The commander's state.

@@ -6,6 +6,8 @@ commands (PX4's pre-flight auto-disarm, for one, counts simulated seconds).
 """
 
 import math
+import signal
+import struct
 import subprocess
 import time
 
@@ -17,32 +19,68 @@ from conftest import ROOT, binary, free_udp_port
 PREARM_CHECK = mavutil.mavlink.MAV_SYS_STATUS_PREARM_CHECK
 
 
-@pytest.fixture
-def vehicle():
-    """sitl (real time x3) + autopilot; yields a pymavlink connection that has seen a heartbeat."""
-    sim_port, gcs_port = free_udp_port(), free_udp_port()
-    gcs = mavutil.mavlink_connection(f"udpin:127.0.0.1:{gcs_port}", source_system=255)
-    ap = subprocess.Popen(
-        [str(binary("autopilot")), "--params-dir", str(ROOT / "params"),
-         "--source", f"udp://127.0.0.1:{sim_port}?lockstep=false", "--loop-hz", "500",
-         "--mavlink", f"udpout://127.0.0.1:{gcs_port}?bind=0"],
-        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-    )
-    sim = subprocess.Popen(
-        [str(binary("sitl")), "--params-dir", str(ROOT / "params"), "--status-interval", "0",
-         "--mode", "realtime", "--speed", "3", "--duration", "100000",
-         "--autopilot", f"127.0.0.1:{sim_port}"],
-        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-    )
-    try:
-        assert gcs.wait_heartbeat(timeout=30), "no heartbeat"
-        yield gcs
-    finally:
-        sim.kill()
-        ap.kill()
-        sim.wait()
-        _, err = ap.communicate()
+class Daemon:
+    """sitl (real time x3) and an autopilot that can be stopped and started again on its ports,
+    with its parameter store in a temporary directory."""
+
+    def __init__(self, tmp_path):
+        self.sim_port, self.gcs_port = free_udp_port(), free_udp_port()
+        self.store = tmp_path / "params.toml"
+        self.out = tmp_path / "autopilot.out"
+        self.gcs = mavutil.mavlink_connection(f"udpin:127.0.0.1:{self.gcs_port}",
+                                              source_system=255)
+        self.ap = None
+        self.start()
+        self.sim = subprocess.Popen(
+            [str(binary("sitl")), "--params-dir", str(ROOT / "params"), "--status-interval", "0",
+             "--mode", "realtime", "--speed", "3", "--duration", "100000",
+             "--autopilot", f"127.0.0.1:{self.sim_port}"],
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        )
+
+    def start(self):
+        self.ap = subprocess.Popen(
+            [str(binary("autopilot")), "--params-dir", str(ROOT / "params"),
+             "--source", f"udp://127.0.0.1:{self.sim_port}?lockstep=false", "--loop-hz", "500",
+             "--mavlink", f"udpout://127.0.0.1:{self.gcs_port}?bind=0",
+             "--param-store", str(self.store)],
+            stdout=open(self.out, "a"), stderr=subprocess.PIPE, text=True,
+        )
+
+    def summaries(self):
+        """How many runs of the control loop have ended (one summary line each)."""
+        return self.out.read_text().count("autopilot summary:")
+
+    def stop(self):
+        """Ctrl-C on a disarmed vehicle: the run ends cleanly, its store saved."""
+        self.ap.send_signal(signal.SIGINT)
+        _, err = self.ap.communicate(timeout=20)
+        assert self.ap.returncode == 0, err
         assert "panicked" not in err, err
+
+    def close(self):
+        self.sim.kill()
+        self.sim.wait()
+        if self.ap.poll() is None:
+            self.ap.kill()
+            _, err = self.ap.communicate()
+            assert "panicked" not in err, err
+
+
+@pytest.fixture
+def daemon(tmp_path):
+    d = Daemon(tmp_path)
+    try:
+        assert d.gcs.wait_heartbeat(timeout=30), "no heartbeat"
+        yield d
+    finally:
+        d.close()
+
+
+@pytest.fixture
+def vehicle(daemon):
+    """A pymavlink connection that has seen a heartbeat."""
+    return daemon.gcs
 
 
 def wait(gcs, what, condition, timeout=30):
@@ -171,3 +209,129 @@ def test_raw_command_long_takeoff_and_land(vehicle):
     gcs.mav.command_long_send(1, 1, mavutil.mavlink.MAV_CMD_NAV_LAND, 0, 0, 0, 0, 0, 0, 0, 0)
     assert ack(gcs, mavutil.mavlink.MAV_CMD_NAV_LAND) == 0
     wait(gcs, "HEARTBEAT", lambda m: not armed(m), timeout=40)
+
+
+REAL32 = mavutil.mavlink.MAV_PARAM_TYPE_REAL32
+INT32 = mavutil.mavlink.MAV_PARAM_TYPE_INT32
+
+
+def int_bits(value):
+    """An INT32 parameter value as it travels (byte-wise in the float field), as MAVProxy packs it."""
+    return struct.unpack(">f", struct.pack(">i", value))[0]
+
+
+def from_bits(raw):
+    return struct.unpack(">i", struct.pack(">f", raw))[0]
+
+
+def param(gcs, name, timeout=20):
+    """PARAM_REQUEST_READ by name, repeated every second as clients do (the vehicle may be
+    starting); the PARAM_VALUE that answers it."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        gcs.mav.param_request_read_send(1, 1, name.encode(), -1)
+        asked = time.monotonic()
+        while time.monotonic() - asked < 1.0:
+            m = gcs.recv_match(type="PARAM_VALUE", blocking=True, timeout=0.2)
+            if m is not None and m.param_id == name:
+                return m
+    pytest.fail(f"no PARAM_VALUE {name} within {timeout} s")
+
+
+def set_param(gcs, name, value, ptype=REAL32, texts=None):
+    """PARAM_SET as pymavlink's param_set_send; the PARAM_VALUE echo. STATUSTEXTs that arrive
+    meanwhile are appended to `texts`."""
+    gcs.param_set_send(name, value, ptype)
+    end = time.monotonic() + 3
+    while time.monotonic() < end:
+        m = gcs.recv_match(type=["PARAM_VALUE", "STATUSTEXT"], blocking=True, timeout=0.5)
+        if m is None or m.get_srcComponent() != 1:
+            continue
+        if m.get_type() == "STATUSTEXT" and texts is not None:
+            texts.append(m.text)
+        if m.get_type() == "PARAM_VALUE" and m.param_id == name:
+            return m
+    pytest.fail(f"no PARAM_VALUE {name} after PARAM_SET")
+
+
+def test_parameters_fetch_set_persist_across_restart_and_reboot(daemon):
+    gcs = daemon.gcs
+    # Fetch all: a constant count, every index once, each name once.
+    gcs.mav.param_request_list_send(1, 0)
+    first = wait(gcs, "PARAM_VALUE", lambda m: True, 3)
+    count, seen = first.param_count, {first.param_index: first}
+    end = time.monotonic() + 10
+    while len(seen) < count and time.monotonic() < end:
+        m = gcs.recv_match(type="PARAM_VALUE", blocking=True, timeout=0.5)
+        if m is not None:
+            assert m.param_count == count
+            seen[m.param_index] = m
+    assert sorted(seen) == list(range(count)), f"{len(seen)} of {count}"
+    by_name = {m.param_id: m for m in seen.values()}
+    assert len(by_name) == count >= 50
+    assert (by_name["MIS_TAKEOFF_ALT"].param_type, by_name["MIS_TAKEOFF_ALT"].param_value) == \
+        (REAL32, 2.5)
+    assert by_name["ATT_ALIGN_N"].param_type == INT32
+    assert from_bits(by_name["ATT_ALIGN_N"].param_value) == 250
+
+    # Set and read back; a bad value is answered with the value in force and a reason.
+    assert set_param(gcs, "MIS_TAKEOFF_ALT", 4.0).param_value == 4.0
+    assert from_bits(set_param(gcs, "ATT_ALIGN_N", int_bits(300), INT32).param_value) == 300
+    texts = []
+    assert set_param(gcs, "MPC_XY_P", 99.0, texts=texts).param_value == pytest.approx(0.95)
+    assert set_param(gcs, "MPC_XY_P", math.nan, texts=texts).param_value == pytest.approx(0.95)
+    # The wrong type: REAL32 for an INT32 parameter.
+    assert set_param(gcs, "ATT_ALIGN_N", 1000.0, texts=texts).param_value == int_bits(300)
+    assert texts[0].startswith("MPC_XY_P: 99 is outside [0, 5]"), texts
+    assert texts[1].startswith("MPC_XY_P: NaN is not a number"), texts
+    assert texts[2].startswith("ATT_ALIGN_N: INT32 parameter, sent as REAL32"), texts
+    assert param(gcs, "MIS_TAKEOFF_ALT").param_value == 4.0
+    gcs.mav.param_request_read_send(1, 1, b"", by_name["MIS_TAKEOFF_ALT"].param_index)
+    assert wait(gcs, "PARAM_VALUE", lambda m: m.param_id == "MIS_TAKEOFF_ALT", 3).param_value == 4.0
+
+    # Persisted: after a clean stop and a new start the values are still there.
+    daemon.stop()
+    assert "MIS_TAKEOFF_ALT = 4.0" in daemon.store.read_text()
+    daemon.start()
+    assert gcs.wait_heartbeat(timeout=30)
+    assert param(gcs, "MIS_TAKEOFF_ALT").param_value == 4.0
+    assert from_bits(param(gcs, "ATT_ALIGN_N").param_value) == 300
+
+    # And flown: a take-off without an altitude climbs to MIS_TAKEOFF_ALT.
+    ready_to_arm(gcs)
+    gcs.arducopter_arm()
+    assert ack(gcs, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM) == 0
+    gcs.mav.command_long_send(1, 1, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF, 0,
+                              0, 0, 0, math.nan, math.nan, math.nan, math.nan)
+    assert ack(gcs, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF) == 0
+    wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER" and armed(m), timeout=30)
+    p = wait(gcs, "GLOBAL_POSITION_INT", lambda m: True)
+    assert 3.6 < p.relative_alt / 1000 < 4.4, p
+    # Reboot is refused in the air.
+    reboot = mavutil.mavlink.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN
+    gcs.mav.command_long_send(1, 1, reboot, 0, 1, 0, 0, 0, 0, 0, 0)
+    assert ack(gcs, reboot) == mavutil.mavlink.MAV_RESULT_DENIED
+    gcs.mav.command_long_send(1, 1, mavutil.mavlink.MAV_CMD_NAV_LAND, 0, 0, 0, 0, 0, 0, 0, 0)
+    assert ack(gcs, mavutil.mavlink.MAV_CMD_NAV_LAND) == 0
+    wait(gcs, "HEARTBEAT", lambda m: not armed(m), timeout=40)
+
+    # A reboot (the process starts again in place) keeps a value set just before it.
+    assert set_param(gcs, "RTL_RETURN_ALT", 40.0).param_value == 40.0
+    runs = daemon.summaries()
+    gcs.mav.command_long_send(1, 1, reboot, 0, 1, 0, 0, 0, 0, 0, 0)
+    assert ack(gcs, reboot) == mavutil.mavlink.MAV_RESULT_ACCEPTED
+    end = time.monotonic() + 10
+    while daemon.summaries() == runs and time.monotonic() < end:
+        gcs.recv_match(blocking=True, timeout=0.2)
+    assert daemon.summaries() == runs + 1, "the first run did not end"
+    assert daemon.ap.poll() is None, "the process exited instead of starting again"
+    assert gcs.wait_heartbeat(timeout=30)
+    assert param(gcs, "RTL_RETURN_ALT").param_value == 40.0
+
+    # Reset to defaults: flight.toml's values, the store emptied.
+    gcs.mav.command_long_send(1, 1, mavutil.mavlink.MAV_CMD_PREFLIGHT_STORAGE, 0,
+                              2, 0, 0, 0, 0, 0, 0)
+    assert ack(gcs, mavutil.mavlink.MAV_CMD_PREFLIGHT_STORAGE) == 0
+    assert param(gcs, "MIS_TAKEOFF_ALT").param_value == 2.5
+    daemon.stop()
+    assert "MIS_TAKEOFF_ALT" not in daemon.store.read_text()

@@ -77,46 +77,31 @@ pub enum LandedState {
     Landing,
 }
 
-/// What to fly, and the commander's limits.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CommanderParams {
-    /// Take-off altitude above home (m), PX4's `MIS_TAKEOFF_ALT`.
-    pub takeoff_alt_m: f64,
-    /// Climb speed of the take-off set-point (m/s), as PX4's `MPC_TKO_SPEED`.
-    pub takeoff_speed_m_s: f64,
-    /// Spool-up time on the ground after arming (s).
-    pub spool_s: f64,
-    /// Descent speed while landing (m/s), PX4's `MPC_LAND_SPEED`.
-    pub land_speed_m_s: f64,
-    /// Descent speed for the last part of the landing (m/s), as PX4's two-stage landing.
-    pub final_speed_m_s: f64,
-    /// Height above home where the final, slower descent begins (m).
-    pub final_height_m: f64,
-    /// Return altitude above home (m), PX4's `RTL_RETURN_ALT`.
-    pub rtl_return_alt_m: f64,
-    /// Horizontal cruise speed of automatic flight (m/s), PX4's `MPC_XY_CRUISE`.
-    pub cruise_speed_m_s: f64,
-    /// Acceleration of the automatic set-point profiles (m/s²).
-    pub accel_m_s2: f64,
-    /// Disarm when armed on the ground this long without taking off (s; 0: never), PX4's
-    /// `COM_DISARM_PRFLT`.
-    pub disarm_preflight_s: f64,
-}
-
-impl Default for CommanderParams {
-    fn default() -> Self {
-        Self {
-            takeoff_alt_m: 2.5,
-            takeoff_speed_m_s: 1.5,
-            spool_s: 1.0,
-            land_speed_m_s: 0.7,
-            final_speed_m_s: 0.3,
-            final_height_m: 2.0,
-            rtl_return_alt_m: 30.0,
-            cruise_speed_m_s: 5.0,
-            accel_m_s2: 1.0,
-            disarm_preflight_s: 10.0,
-        }
+crate::params::param_group! {
+    /// What to fly, and the commander's limits. Names and types are PX4's where PX4 has the
+    /// parameter (`MIS_TAKEOFF_ALT`, `RTL_RETURN_ALT`, …), so that ground stations and MAVSDK
+    /// find them where they look.
+    CommanderParams, "commander", COMMANDER_META {
+        /// Take-off altitude above home (m).
+        takeoff_alt_m: f64 = 2.5, "MIS_TAKEOFF_ALT", "m", [0.5, 100.0], "Take-off altitude above home";
+        /// Climb speed of the take-off set-point (m/s).
+        takeoff_speed_m_s: f64 = 1.5, "MPC_TKO_SPEED", "m/s", [0.3, 5.0], "Climb speed of the take-off";
+        /// Spool-up time on the ground after arming (s).
+        spool_s: f64 = 1.0, "COM_SPOOLUP_TIME", "s", [0.0, 30.0], "Time on the ground after arming before a take-off climbs";
+        /// Descent speed while landing (m/s).
+        land_speed_m_s: f64 = 0.7, "MPC_LAND_SPEED", "m/s", [0.1, 3.0], "Descent speed while landing";
+        /// Descent speed for the last part of the landing (m/s), as PX4's two-stage landing.
+        final_speed_m_s: f64 = 0.3, "MPC_LAND_CRWL", "m/s", [0.1, 3.0], "Descent speed for the last metres of a landing";
+        /// Height above home where the final, slower descent begins (m).
+        final_height_m: f64 = 2.0, "MPC_LAND_ALT3", "m", [0.0, 20.0], "Height above home below which a landing descends at MPC_LAND_CRWL";
+        /// Return altitude above home (m).
+        rtl_return_alt_m: f64 = 30.0, "RTL_RETURN_ALT", "m", [0.0, 500.0], "Return altitude above home (a vehicle higher up returns at its altitude)";
+        /// Horizontal cruise speed of automatic flight (m/s).
+        cruise_speed_m_s: f64 = 5.0, "MPC_XY_CRUISE", "m/s", [0.5, 20.0], "Horizontal speed of automatic flight";
+        /// Acceleration of the automatic set-point profiles (m/s²).
+        accel_m_s2: f64 = 1.0, "MPC_ACC_HOR", "m/s^2", [0.2, 15.0], "Acceleration of the automatic set-point profiles";
+        /// Disarm when armed on the ground this long without taking off (s; 0: never).
+        disarm_preflight_s: f64 = 10.0, "COM_DISARM_PRFLT", "s", [0.0, 3600.0], "Disarm when armed on the ground this long without taking off (0: never)";
     }
 }
 

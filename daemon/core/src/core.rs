@@ -267,6 +267,45 @@ impl FlightCore {
         })
     }
 
+    /// The configuration flown.
+    pub fn config(&self) -> &FlightCoreConfig {
+        &self.config
+    }
+
+    /// Changes the configuration in flight (a parameter set from a ground station): gains,
+    /// limits and estimator settings take effect at the next step and every state (estimates,
+    /// integrators, observers) is kept. Only a change of rate controller (LADRC ↔ PID) starts
+    /// that loop afresh.
+    pub fn set_config(&mut self, config: FlightCoreConfig) {
+        self.attitude.set_params(&config.attitude);
+        self.translation.set_params(config.translation);
+        self.position.params = config.position;
+        self.attitude_law = config.attitude_law;
+        match (&mut self.rate, &config.rate) {
+            (axes, RateLoopParams::Ladrc(p))
+                if axes.iter().all(|a| matches!(a, RateAxis::Ladrc(_))) =>
+            {
+                for (a, p) in axes.iter_mut().zip(p) {
+                    if let RateAxis::Ladrc(l) = a {
+                        l.params = *p;
+                    }
+                }
+            }
+            (axes, RateLoopParams::Pid(p))
+                if axes.iter().all(|a| matches!(a, RateAxis::Pid(_))) =>
+            {
+                for (a, p) in axes.iter_mut().zip(p) {
+                    if let RateAxis::Pid(l) = a {
+                        l.params = *p;
+                    }
+                }
+            }
+            (axes, p) => *axes = rate_axes(p),
+        }
+        self.motor.set_params(config.motor);
+        self.config = config;
+    }
+
     /// The mixer (to mark failed rotors).
     pub fn mixer_mut(&mut self) -> &mut Mixer {
         &mut self.mixer

@@ -98,7 +98,7 @@ macro_rules! param_group_impl {
         }
     ) => {
         $(#[$doc])*
-        #[derive(Debug, Clone, PartialEq, serde::Deserialize)]
+        #[derive(Debug, Clone, Copy, PartialEq, serde::Deserialize)]
         #[serde(deny_unknown_fields, default)]
         pub struct $name {
             $( $(#[$fdoc])* pub $field: $ty, )*
@@ -116,6 +116,22 @@ macro_rules! param_group_impl {
         ];
 
         impl $name {
+            /// The value of the field `key`, if there is one.
+            pub fn get(&self, key: &str) -> Option<f64> {
+                match key {
+                    $( stringify!($field) => Some(self.$field as f64), )*
+                    _ => None,
+                }
+            }
+
+            /// Sets the field `key` (unchecked: see `validate`); false if there is none.
+            pub fn set(&mut self, key: &str, value: f64) -> bool {
+                match key {
+                    $( stringify!($field) => { self.$field = value as $ty; true } )*
+                    _ => false,
+                }
+            }
+
             /// Every out-of-range value, with its key and range.
             pub fn validate(&self) -> Vec<$crate::params::ParamViolation> {
                 let mut v = Vec::new();
@@ -127,6 +143,7 @@ macro_rules! param_group_impl {
 }
 pub(crate) use param_group_impl as param_group;
 
+pub use crate::commander::{COMMANDER_META, CommanderParams};
 pub use crate::control::attitude::{ATTITUDE_CONTROL_META, AttitudeControlGroup};
 pub use crate::control::motor::{MOTOR_META, MotorGroup};
 pub use crate::control::position::{POSITION_META, PositionGroup};
@@ -150,6 +167,27 @@ pub struct FlightParams {
     pub rate: RateGroup,
     /// Rotor-speed loop.
     pub motor: MotorGroup,
+    /// Commander: take-off, landing, return.
+    pub commander: CommanderParams,
+}
+
+/// Why a parameter value was refused (for the operator, `STATUSTEXT`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ParamRejection {
+    /// No parameter has that name.
+    Unknown(String),
+    /// The value is NaN or infinite, not an integer for an integer parameter, out of its
+    /// range, or inconsistent with another parameter.
+    Invalid(String),
+}
+
+impl std::fmt::Display for ParamRejection {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Unknown(name) => write!(f, "no parameter {name}"),
+            Self::Invalid(why) => f.write_str(why),
+        }
+    }
 }
 
 impl FlightParams {
@@ -161,7 +199,82 @@ impl FlightParams {
         v.extend(self.attitude_control.validate());
         v.extend(self.rate.validate());
         v.extend(self.motor.validate());
+        v.extend(self.commander.validate());
         v
+    }
+
+    /// The number of parameters in [`FlightParams::metadata`].
+    pub fn count() -> usize {
+        Self::metadata().count()
+    }
+
+    /// The index (in [`FlightParams::metadata`]'s order, stable for a build), group and
+    /// metadata of the parameter called `name` on MAVLink.
+    pub fn find(name: &str) -> Option<(usize, &'static str, &'static ParamMeta)> {
+        Self::metadata()
+            .enumerate()
+            .find(|(_, (_, m))| m.name == name)
+            .map(|(i, (g, m))| (i, g, m))
+    }
+
+    /// The value of `key` in `group`.
+    pub fn get(&self, group: &str, key: &str) -> Option<f64> {
+        match group {
+            "attitude" => self.attitude.get(key),
+            "translation" => self.translation.get(key),
+            "position" => self.position.get(key),
+            "attitude_control" => self.attitude_control.get(key),
+            "rate" => self.rate.get(key),
+            "motor" => self.motor.get(key),
+            "commander" => self.commander.get(key),
+            _ => None,
+        }
+    }
+
+    fn set_field(&mut self, group: &str, key: &str, value: f64) -> bool {
+        match group {
+            "attitude" => self.attitude.set(key, value),
+            "translation" => self.translation.set(key, value),
+            "position" => self.position.set(key, value),
+            "attitude_control" => self.attitude_control.set(key, value),
+            "rate" => self.rate.set(key, value),
+            "motor" => self.motor.set(key, value),
+            "commander" => self.commander.set(key, value),
+            _ => false,
+        }
+    }
+
+    /// The value of the parameter called `name` on MAVLink.
+    pub fn value(&self, name: &str) -> Option<f64> {
+        let (_, group, m) = Self::find(name)?;
+        self.get(group, m.key)
+    }
+
+    /// Sets the parameter called `name` on MAVLink, if `value` is finite, an integer for an
+    /// integer parameter, within the parameter's range and consistent with the others;
+    /// otherwise nothing changes and the rejection says why.
+    pub fn set(&mut self, name: &str, value: f64) -> Result<(), ParamRejection> {
+        let (_, group, m) = Self::find(name).ok_or_else(|| ParamRejection::Unknown(name.into()))?;
+        let invalid = |why: String| Err(ParamRejection::Invalid(format!("{name}: {why}")));
+        if !value.is_finite() {
+            return invalid(format!("{value} is not a number"));
+        }
+        if m.kind == ParamKind::Int32 && value.fract() != 0.0 {
+            return invalid(format!("{value} is not an integer"));
+        }
+        if !(m.min..=m.max).contains(&value) {
+            return invalid(format!(
+                "{value} is outside [{}, {}] {}",
+                m.min, m.max, m.unit
+            ));
+        }
+        let mut next = self.clone();
+        next.set_field(group, m.key, value);
+        if let Some(v) = next.validate().into_iter().next() {
+            return invalid(v.reason);
+        }
+        *self = next;
+        Ok(())
     }
 
     /// Every parameter's metadata, group by group.
@@ -173,6 +286,7 @@ impl FlightParams {
             ("attitude_control", ATTITUDE_CONTROL_META),
             ("rate", RATE_META),
             ("motor", MOTOR_META),
+            ("commander", COMMANDER_META),
         ]
         .into_iter()
         .flat_map(|(g, m)| m.iter().map(move |p| (g, p)))
@@ -274,6 +388,53 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.starts_with("f.toml:") && err.contains("k_p"), "{err}");
+    }
+
+    #[test]
+    fn parameters_are_read_and_set_by_their_mavlink_name_with_every_check() {
+        let mut p = FlightParams::default();
+        let n = FlightParams::count();
+        for (i, (group, m)) in FlightParams::metadata().enumerate() {
+            assert_eq!(FlightParams::find(m.name).map(|f| f.0), Some(i));
+            assert_eq!(p.value(m.name), Some(m.default), "{group}.{}", m.key);
+        }
+        assert_eq!(
+            FlightParams::find("MIS_TAKEOFF_ALT").unwrap().1,
+            "commander"
+        );
+        p.set("MIS_TAKEOFF_ALT", 12.5).unwrap();
+        p.set("ATT_ALIGN_N", 100.0).unwrap();
+        p.set("ATT_OBS_K", 2.0).unwrap();
+        assert_eq!(
+            (
+                p.commander.takeoff_alt_m,
+                p.attitude.align_samples,
+                p.attitude.observer_gain
+            ),
+            (12.5, 100, 2.0)
+        );
+        let before = p.clone();
+        for (name, value, says) in [
+            ("MIS_TAKEOFF_ALT", f64::NAN, "not a number"),
+            ("MIS_TAKEOFF_ALT", f64::INFINITY, "not a number"),
+            ("MIS_TAKEOFF_ALT", 1000.0, "outside [0.5, 100] m"),
+            ("ATT_ALIGN_N", 10.5, "not an integer"),
+            ("ATT_ALIGN_N", 0.0, "outside [1, 10000]"),
+            // Each within its own range, but the soft limit above the gate.
+            ("ATT_ACC_SOFT", 0.5, "must be below accel_gate_g"),
+        ] {
+            let err = p.set(name, value).unwrap_err();
+            assert!(
+                matches!(&err, ParamRejection::Invalid(w) if w.starts_with(name) && w.contains(says)),
+                "{name} = {value}: {err}"
+            );
+        }
+        assert_eq!(
+            p.set("NO_SUCH_PARAM", 1.0),
+            Err(ParamRejection::Unknown("NO_SUCH_PARAM".into()))
+        );
+        assert_eq!(p, before, "a refused value changes nothing");
+        assert_eq!(FlightParams::count(), n);
     }
 
     #[test]

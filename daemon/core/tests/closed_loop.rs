@@ -344,3 +344,60 @@ fn the_position_loop_runs_at_its_own_rate() {
         );
     }
 }
+
+/// Parameters changed in flight (a ground station's PARAM_SET): re-applying the same set keeps
+/// every state, so the flight is bit-identical; a new set (the PID rate loop instead of LADRC,
+/// a softer altitude gain) takes over in the hover without losing it.
+#[test]
+fn parameters_change_in_flight_without_a_jump() {
+    let a = Airframe::load(
+        &PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../params/airframes/quad_x.toml"),
+    )
+    .unwrap();
+    let base = FlightParams::default();
+    let mut changed = base.clone();
+    changed.set("MC_RATE_CTRL", 1.0).unwrap();
+    changed.set("MPC_Z_P", 0.6).unwrap();
+    let fly = |at_8s: Option<&FlightParams>| {
+        let mut sim = Simulator::new(&a, SimConfig::default(), BodyState::default()).unwrap();
+        let mut core = FlightCore::new(&a, FlightCoreConfig::from_params(&base, &a)).unwrap();
+        let sp = PositionSetpoint {
+            pos_ned_m: Vector3::new(0.0, 0.0, -3.0),
+            vel_ned_m_s: Vector3::zeros(),
+            accel_ned_m_s2: Vector3::zeros(),
+            yaw_rad: 0.0,
+        };
+        let mut commands = [0.0; 16];
+        let (mut trace, mut worst_after) = (Vec::new(), 0.0f64);
+        let mut pending = at_8s;
+        for _ in 0..(16_000 / DECIMATION) {
+            let sample = common::control_interval(&mut sim, &commands[..4]);
+            let t = sim.time_s();
+            if t >= 8.0
+                && let Some(p) = pending.take()
+            {
+                core.set_config(FlightCoreConfig::from_params(p, &a));
+            }
+            let out = core.step(&sample, &sp, t > 3.0);
+            commands = out.commands;
+            trace.push(commands);
+            if t >= 8.0 {
+                worst_after = worst_after.max((-sim.truth().body.pos_ned_m.z - 3.0).abs());
+            }
+        }
+        (trace, worst_after, core.config().rate)
+    };
+    let (reference, worst, _) = fly(None);
+    assert!(worst < 0.3, "the reference hover itself: {worst:.2} m");
+    let (same, _, _) = fly(Some(&base));
+    assert!(
+        same == reference,
+        "re-applying the same parameters changed the flight"
+    );
+    let (_, worst, rate) = fly(Some(&changed));
+    assert!(
+        matches!(rate, flight_core::core::RateLoopParams::Pid(_)),
+        "{rate:?}"
+    );
+    assert!(worst < 0.3, "after the change: {worst:.2} m off the hover");
+}

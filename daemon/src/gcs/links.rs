@@ -10,12 +10,15 @@
 //! A frame that does not parse is counted and dropped; it never closes a link. Sending never
 //! waits on a slow peer: a link that falls behind loses frames, not the vehicle's time.
 
-use super::{AckTo, GroundStation, Outbox, Outgoing};
+use super::params::Parameters;
+use super::{AckTo, Action, GroundStation, Outbox, Outgoing};
 use crate::flight::{Command, Telemetry};
+use crate::param_store::{Loaded, ParamStore};
 use anyhow::{Context, Result, bail};
+use flight_core::params::FlightParams;
 use hil::{Decoded, Encoder, RawMessage, StreamDecoder};
 use mavlink::MavHeader;
-use mavlink::dialects::common::{MavMessage, MavType};
+use mavlink::dialects::common::{MavMessage, MavSeverity, MavType};
 use std::net::SocketAddr;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -270,30 +273,77 @@ async fn open(endpoint: &Endpoint, inbound: &mpsc::Sender<Inbound>, frames: &Fra
     Ok(())
 }
 
+/// The vehicle side the links serve.
+pub struct Vehicle {
+    /// MAVLink system id.
+    pub system_id: u8,
+    /// MAVLink vehicle type.
+    pub mav_type: MavType,
+    /// The control loop's latest telemetry.
+    pub telemetry: watch::Receiver<Telemetry>,
+    /// Commands to the control loop.
+    pub commands: mpsc::Sender<Command>,
+    /// The parameter table and its store.
+    pub parameters: Parameters,
+    /// The values a parameter reset returns to.
+    pub base_params: FlightParams,
+    /// The parameters the control loop flies with.
+    pub params: watch::Sender<FlightParams>,
+}
+
+/// Saves every store it is handed, the latest first (a burst of sets is one write), and says
+/// so when a save fails.
+async fn saver(mut stores: watch::Receiver<Option<ParamStore>>, notices: mpsc::Sender<String>) {
+    while stores.changed().await.is_ok() {
+        let Some(store) = stores.borrow_and_update().clone() else {
+            continue;
+        };
+        let result = tokio::task::spawn_blocking(move || store.save()).await;
+        let failure = match result {
+            Ok(Ok(())) => continue,
+            Ok(Err(e)) => format!("{e:#}"),
+            Err(e) => format!("saving parameters: {e}"),
+        };
+        tracing::error!("{failure}");
+        let _ = notices
+            .send(format!("parameters not saved: {failure}"))
+            .await;
+    }
+}
+
 /// Runs the ground-station side until the control loop ends: opens `endpoints`, answers what
-/// arrives, streams telemetry, and passes vehicle commands to the control loop.
-pub async fn run(
-    endpoints: Vec<Endpoint>,
-    system_id: u8,
-    mav_type: MavType,
-    mut telemetry: watch::Receiver<Telemetry>,
-    commands: mpsc::Sender<Command>,
-) {
+/// arrives, streams telemetry, passes vehicle commands and parameters to the control loop and
+/// saves the parameter store. Returns the reboot or shutdown a ground station asked for, once
+/// the store is saved.
+pub async fn run(endpoints: Vec<Endpoint>, vehicle: Vehicle) -> Option<Action> {
+    let Vehicle {
+        system_id,
+        mav_type,
+        mut telemetry,
+        commands,
+        parameters,
+        base_params,
+        params,
+    } = vehicle;
     let (frames, _) = broadcast::channel::<Arc<[u8]>>(1024);
     let (inbound_tx, mut inbound) = mpsc::channel::<Inbound>(256);
     let (answers_tx, mut answers) = mpsc::channel::<(AckTo, Result<(), String>)>(64);
+    let (notices_tx, mut notices) = mpsc::channel::<String>(8);
+    let (save_tx, save_rx) = watch::channel(None::<ParamStore>);
+    let saving = tokio::spawn(saver(save_rx, notices_tx));
     for e in &endpoints {
         if let Err(e) = open(e, &inbound_tx, &frames).await {
             tracing::warn!("ground-station endpoint not opened: {e:#}");
         }
     }
-    let mut gcs = GroundStation::new(system_id, mav_type);
+    let mut gcs = GroundStation::new(system_id, mav_type).with_parameters(parameters, base_params);
     let mut encoder = Encoder::with_ids(system_id, super::COMPONENT_ID);
     let mut out = Outbox::default();
     let mut tick = tokio::time::interval(POLL);
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
     let start = Instant::now();
     let mut malformed = 0u64;
+    let mut exit = None;
     loop {
         tokio::select! {
             Some(i) = inbound.recv() => {
@@ -307,6 +357,9 @@ pub async fn run(
                 }
             }
             Some((to, result)) = answers.recv() => gcs.answered(to, result, &mut out),
+            Some(text) = notices.recv() => {
+                out.send(GroundStation::statustext(MavSeverity::MAV_SEVERITY_ERROR, &text));
+            }
             _ = tick.tick() => {
                 let t = *telemetry.borrow_and_update();
                 if t.finished || telemetry.has_changed().is_err() {
@@ -330,6 +383,34 @@ pub async fn run(
                 let _ = answers.send((to, result)).await;
             });
         }
+        for action in std::mem::take(&mut out.actions) {
+            match action {
+                Action::ParamsChanged => {
+                    params.send_replace(gcs.parameters().values().clone());
+                }
+                Action::SaveParams => {
+                    save_tx.send_replace(Some(gcs.parameters().store().clone()));
+                }
+                Action::ReloadParams(to) => {
+                    let loaded = match gcs.parameters().store().path() {
+                        Some(path) => ParamStore::load(path, gcs.base_parameters())
+                            .map_err(|e| format!("{e:#}")),
+                        None => Ok(Loaded {
+                            store: gcs.parameters().store().clone(),
+                            params: gcs.parameters().values().clone(),
+                            warnings: Vec::new(),
+                        }),
+                    };
+                    gcs.params_reloaded(to, loaded, &mut out);
+                    params.send_replace(gcs.parameters().values().clone());
+                }
+                Action::Reboot | Action::Shutdown => {
+                    exit = Some(action);
+                    // Disarmed (checked before): the loop may stop at once.
+                    let _ = commands.try_send(Command::Stop);
+                }
+            }
+        }
         for m in out.messages.drain(..) {
             let mut bytes = Vec::with_capacity(64);
             match &m {
@@ -345,4 +426,7 @@ pub async fn run(
         dropped = gcs.dropped,
         "ground-station links closed"
     );
+    drop(save_tx);
+    let _ = saving.await;
+    exit
 }

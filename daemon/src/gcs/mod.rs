@@ -12,15 +12,18 @@
 
 pub mod links;
 pub mod modes;
+pub mod params;
 pub mod telemetry;
 
 use crate::flight::Telemetry;
 use crate::vehicle::VehicleCommand;
 use flight_core::commander::{FlightMode, LandedState};
 use flight_core::geo::LatLonAlt;
+use flight_core::params::FlightParams;
 use mavlink::MavHeader;
 use mavlink::MessageData;
 use mavlink::dialects::common::*;
+use params::Parameters;
 
 /// Our component id (`MAV_COMP_ID_AUTOPILOT1`).
 pub const COMPONENT_ID: u8 = 1;
@@ -71,6 +74,21 @@ pub struct AckTo {
     pub component: u8,
 }
 
+/// Work for the links' task that is not a message: I/O and the process.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Action {
+    /// The parameter values changed: hand [`GroundStation::parameters`] to the control loop.
+    ParamsChanged,
+    /// The parameter store changed: save it.
+    SaveParams,
+    /// `PREFLIGHT_STORAGE` read: load the store again, then [`GroundStation::params_reloaded`].
+    ReloadParams(AckTo),
+    /// `PREFLIGHT_REBOOT_SHUTDOWN`: stop the control loop and start again (acknowledged).
+    Reboot,
+    /// `PREFLIGHT_REBOOT_SHUTDOWN`: stop the control loop and exit (acknowledged).
+    Shutdown,
+}
+
 /// What handling a message produced.
 #[derive(Debug, Default)]
 pub struct Outbox {
@@ -78,6 +96,8 @@ pub struct Outbox {
     pub messages: Vec<Outgoing>,
     /// Commands for the control loop; each answer comes back to [`GroundStation::answered`].
     pub vehicle: Vec<(VehicleCommand, AckTo)>,
+    /// Other work, in order.
+    pub actions: Vec<Action>,
 }
 
 impl Outbox {
@@ -117,6 +137,10 @@ pub struct GroundStation {
     pub dropped: u64,
     /// When the clock started, for SYSTEM_TIME.
     unix_start_usec: u64,
+    /// The parameter table.
+    params: Parameters,
+    /// The values a reset returns to (`flight.toml` and the command line).
+    base_params: FlightParams,
 }
 
 impl GroundStation {
@@ -141,6 +165,48 @@ impl GroundStation {
             home_shown: None,
             dropped: 0,
             unix_start_usec,
+            params: Parameters::default(),
+            base_params: FlightParams::default(),
+        }
+    }
+
+    /// With this parameter table; a reset returns to `base`.
+    pub fn with_parameters(mut self, params: Parameters, base: FlightParams) -> Self {
+        self.params = params;
+        self.base_params = base;
+        self
+    }
+
+    /// The parameter table.
+    pub fn parameters(&self) -> &Parameters {
+        &self.params
+    }
+
+    /// The values a reset returns to.
+    pub fn base_parameters(&self) -> &FlightParams {
+        &self.base_params
+    }
+
+    /// The store was read again (`PREFLIGHT_STORAGE`): fly `loaded`, or say why not.
+    pub fn params_reloaded(
+        &mut self,
+        to: AckTo,
+        loaded: Result<crate::param_store::Loaded, String>,
+        out: &mut Outbox,
+    ) {
+        match loaded {
+            Ok(l) => {
+                for w in &l.warnings {
+                    out.send(Self::statustext(MavSeverity::MAV_SEVERITY_WARNING, w));
+                }
+                self.params.replace(l.params, l.store);
+                out.actions.push(Action::ParamsChanged);
+                out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED));
+            }
+            Err(e) => {
+                out.send(self.ack(to, MavResult::MAV_RESULT_FAILED));
+                out.send(Self::statustext(MavSeverity::MAV_SEVERITY_ERROR, &e));
+            }
         }
     }
 
@@ -302,6 +368,15 @@ impl GroundStation {
             system: from.system_id as u8,
             component: from.component_id,
         };
+        if let Some(change) = self.on_param_message(msg, out) {
+            if change.values {
+                out.actions.push(Action::ParamsChanged);
+            }
+            if change.store {
+                out.actions.push(Action::SaveParams);
+            }
+            return;
+        }
         match msg {
             MavMessage::COMMAND_LONG(c) => {
                 if !self.for_us(c.target_system, Some(c.target_component)) {
@@ -610,6 +685,55 @@ impl GroundStation {
             MavCmd::MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES => {
                 out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED));
                 out.send(self.autopilot_version());
+            }
+            MavCmd::MAV_CMD_PREFLIGHT_STORAGE => {
+                let armed = t.status.is_some_and(|s| s.armed);
+                // MAV_PFS_CMD: 0 read, 1 write, 2 clear (reset to defaults), 6 nothing.
+                match p[0] {
+                    0.0 | 2.0 if armed => deny(self, out, "parameters: disarm first"),
+                    0.0 => out.actions.push(Action::ReloadParams(to)),
+                    1.0 => {
+                        out.actions.push(Action::SaveParams);
+                        out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED));
+                    }
+                    2.0 => {
+                        let base = self.base_params.clone();
+                        self.params.reset(&base);
+                        out.actions.push(Action::ParamsChanged);
+                        out.actions.push(Action::SaveParams);
+                        out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED));
+                        out.send(Self::statustext(
+                            MavSeverity::MAV_SEVERITY_INFO,
+                            "parameters reset to defaults",
+                        ));
+                    }
+                    6.0 => out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED)),
+                    x => deny(self, out, &format!("storage: param1 {x} not supported")),
+                }
+            }
+            MavCmd::MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN => {
+                let armed = t.status.is_some_and(|s| s.armed);
+                let action = match p[0] {
+                    0.0 => None,
+                    1.0 => Some(Action::Reboot),
+                    2.0 => Some(Action::Shutdown),
+                    x => {
+                        return deny(self, out, &format!("reboot: param1 {x} not supported"));
+                    }
+                };
+                if armed && action.is_some() {
+                    return deny(self, out, "reboot: disarm first");
+                }
+                out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED));
+                if let Some(a) = action {
+                    out.actions.push(a);
+                    let what = if a == Action::Reboot {
+                        "rebooting"
+                    } else {
+                        "shutting down"
+                    };
+                    out.send(Self::statustext(MavSeverity::MAV_SEVERITY_NOTICE, what));
+                }
             }
             MavCmd::MAV_CMD_GET_HOME_POSITION => {
                 let home = telemetry::build(HOME_POSITION_DATA::ID, t, 0);

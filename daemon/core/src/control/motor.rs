@@ -40,6 +40,11 @@ pub struct MotorSpeedLoop {
 }
 
 impl MotorSpeedLoop {
+    /// Changes the gains in flight; the gain estimates and integrals are kept.
+    pub fn set_params(&mut self, params: MotorLoopParams) {
+        self.params = params;
+    }
+
     /// Loops for every rotor of `airframe`, gains at their nominal values.
     pub fn new(airframe: &Airframe, params: MotorLoopParams) -> Self {
         let mut nominal_gain = [0.0; MAX_ROTORS];

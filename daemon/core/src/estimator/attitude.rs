@@ -144,6 +144,19 @@ impl AttitudeEstimator {
         }
     }
 
+    /// Changes the parameters in flight: gains, weights, gates and the magnetic model take
+    /// effect at the next sample; the estimate and its bias are kept.
+    pub fn set_params(&mut self, params: &AttitudeParams) {
+        self.mag_cal = params.mag_calibration();
+        self.mag_ref_ned = params.earth_field_ned();
+        if let Some(o) = self.observer.as_mut() {
+            o.gain = params.observer_gain;
+            o.bias_gain = params.bias_gain;
+            o.bias_limit = params.bias_limit_rad_s;
+        }
+        self.params = params.clone();
+    }
+
     /// Starts the observer at a given attitude (skipping alignment), e.g. to test recovery.
     pub fn start_at(&mut self, q: UnitQuaternion<f64>) {
         let p = &self.params;
@@ -508,6 +521,48 @@ pub const ATTITUDE_META: &[ParamMeta] = &[
 ];
 
 impl AttitudeParams {
+    /// The value of the field `key` named in [`ATTITUDE_META`].
+    pub fn get(&self, key: &str) -> Option<f64> {
+        Some(match key {
+            "observer_gain" => self.observer_gain,
+            "bias_gain" => self.bias_gain,
+            "bias_limit_rad_s" => self.bias_limit_rad_s,
+            "accel_weight" => self.accel_weight,
+            "mag_weight" => self.mag_weight,
+            "accel_deweight_g" => self.accel_deweight_g,
+            "accel_gate_g" => self.accel_gate_g,
+            "align_samples" => self.align_samples as f64,
+            "max_uncorrected_s" => self.max_uncorrected_s,
+            "mag_inclination_deg" => self.mag_inclination_deg,
+            "mag_declination_deg" => self.mag_declination_deg,
+            _ => return None,
+        })
+    }
+
+    /// Sets the field `key` named in [`ATTITUDE_META`] (unchecked: see `validate`); false if
+    /// there is none.
+    pub fn set(&mut self, key: &str, value: f64) -> bool {
+        let field = match key {
+            "observer_gain" => &mut self.observer_gain,
+            "bias_gain" => &mut self.bias_gain,
+            "bias_limit_rad_s" => &mut self.bias_limit_rad_s,
+            "accel_weight" => &mut self.accel_weight,
+            "mag_weight" => &mut self.mag_weight,
+            "accel_deweight_g" => &mut self.accel_deweight_g,
+            "accel_gate_g" => &mut self.accel_gate_g,
+            "align_samples" => {
+                self.align_samples = value as u32;
+                return true;
+            }
+            "max_uncorrected_s" => &mut self.max_uncorrected_s,
+            "mag_inclination_deg" => &mut self.mag_inclination_deg,
+            "mag_declination_deg" => &mut self.mag_declination_deg,
+            _ => return false,
+        };
+        *field = value;
+        true
+    }
+
     /// Every out-of-range value.
     pub fn validate(&self) -> Vec<ParamViolation> {
         let mut v = Vec::new();

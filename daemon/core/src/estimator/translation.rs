@@ -150,6 +150,11 @@ impl TranslationEstimator {
         }
     }
 
+    /// Changes the parameters in flight; the estimate is kept.
+    pub fn set_params(&mut self, params: TranslationParams) {
+        self.params = params;
+    }
+
     /// Counters, innovations and the bias estimate.
     pub fn status(&self) -> TranslationStatus {
         TranslationStatus {

@@ -1,0 +1,211 @@
+//! The MAVLink parameter protocol: `PARAM_REQUEST_LIST`, `PARAM_REQUEST_READ` (by name or
+//! index), `PARAM_SET`, each answered with `PARAM_VALUE`.
+//!
+//! The table is [`FlightParams::metadata`]: a constant `param_count`, indices stable for a
+//! build. `REAL32` parameters travel as floats; `INT32` ones are encoded byte-wise (the
+//! integer's bits in the float field, `MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE`), as
+//! PX4 does. A `PARAM_SET` is accepted only with the parameter's own type and a value that is
+//! finite, in range and consistent with the others; a refused one is answered with the current
+//! value and a `STATUSTEXT` that says why, so a client waiting for its echo is not left
+//! hanging. Accepted values go to the flight core and the [`ParamStore`].
+
+use super::{GroundStation, Outbox};
+use crate::param_store::ParamStore;
+use flight_core::params::{FlightParams, ParamKind, ParamMeta};
+use mavlink::dialects::common::*;
+
+/// The parameters, as the ground stations see and change them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Parameters {
+    values: FlightParams,
+    store: ParamStore,
+}
+
+/// What a parameter message changed, for the caller to act on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct ParamChange {
+    /// The values flown changed: hand them to the control loop.
+    pub values: bool,
+    /// The store changed: save it.
+    pub store: bool,
+}
+
+impl Default for Parameters {
+    fn default() -> Self {
+        Self::new(FlightParams::default(), ParamStore::in_memory())
+    }
+}
+
+/// The MAVLink type of a parameter kind.
+fn mav_type(kind: ParamKind) -> MavParamType {
+    match kind {
+        ParamKind::Real32 => MavParamType::MAV_PARAM_TYPE_REAL32,
+        ParamKind::Int32 => MavParamType::MAV_PARAM_TYPE_INT32,
+    }
+}
+
+/// A type's short name for messages (STATUSTEXT holds 50 characters).
+fn type_name(t: MavParamType) -> String {
+    format!("{t:?}")
+        .trim_start_matches("MAV_PARAM_TYPE_")
+        .to_owned()
+}
+
+/// A value as it travels in `param_value`: a float, or an integer's bits.
+fn encode(kind: ParamKind, value: f64) -> f32 {
+    match kind {
+        ParamKind::Real32 => value as f32,
+        ParamKind::Int32 => f32::from_bits(value as i32 as u32),
+    }
+}
+
+/// The value carried in `param_value` for a parameter of `kind`.
+fn decode(kind: ParamKind, raw: f32) -> f64 {
+    match kind {
+        ParamKind::Real32 => raw as f64,
+        ParamKind::Int32 => raw.to_bits() as i32 as f64,
+    }
+}
+
+impl Parameters {
+    /// The table with `values`, changes recorded in `store`.
+    pub fn new(values: FlightParams, store: ParamStore) -> Self {
+        Self { values, store }
+    }
+
+    /// The values flown.
+    pub fn values(&self) -> &FlightParams {
+        &self.values
+    }
+
+    /// The store.
+    pub fn store(&self) -> &ParamStore {
+        &self.store
+    }
+
+    /// `PARAM_VALUE` of the parameter at `index`.
+    fn value_message(&self, index: usize, group: &str, m: &ParamMeta) -> MavMessage {
+        let value = self.values.get(group, m.key).unwrap_or(m.default);
+        MavMessage::PARAM_VALUE(PARAM_VALUE_DATA {
+            param_value: encode(m.kind, value),
+            param_count: FlightParams::count() as u16,
+            param_index: index as u16,
+            param_id: m.name.into(),
+            param_type: mav_type(m.kind),
+        })
+    }
+
+    /// Every parameter, in index order.
+    fn list(&self, out: &mut Outbox) {
+        for (i, (group, m)) in FlightParams::metadata().enumerate() {
+            out.send(self.value_message(i, group, m));
+        }
+    }
+
+    /// The parameter `PARAM_REQUEST_READ` asks for: by index when it is not −1, else by name.
+    fn read(&self, r: &PARAM_REQUEST_READ_DATA, out: &mut Outbox) {
+        let name = r.param_id.to_str().unwrap_or("");
+        let found = if r.param_index >= 0 {
+            FlightParams::metadata()
+                .nth(r.param_index as usize)
+                .map(|(g, m)| (r.param_index as usize, g, m))
+        } else {
+            FlightParams::find(name)
+        };
+        match found {
+            Some((i, g, m)) => out.send(self.value_message(i, g, m)),
+            None if r.param_index >= 0 => warn(out, &format!("no parameter #{}", r.param_index)),
+            None => warn(out, &format!("no parameter {name}")),
+        }
+    }
+
+    /// `PARAM_SET`: checks type and value, applies, and answers with the value now in force.
+    fn set(&mut self, s: &PARAM_SET_DATA, out: &mut Outbox) -> ParamChange {
+        let name = s.param_id.to_str().unwrap_or("");
+        let Some((i, group, m)) = FlightParams::find(name) else {
+            warn(out, &format!("no parameter {name}"));
+            return ParamChange::default();
+        };
+        let mut change = ParamChange::default();
+        if s.param_type != mav_type(m.kind) {
+            warn(
+                out,
+                &format!(
+                    "{name}: {} parameter, sent as {}",
+                    type_name(mav_type(m.kind)),
+                    type_name(s.param_type)
+                ),
+            );
+        } else {
+            let value = match m.kind {
+                ParamKind::Real32 => shortest(s.param_value),
+                ParamKind::Int32 => decode(m.kind, s.param_value),
+            };
+            match self.values.set(name, value) {
+                Ok(()) => {
+                    self.store.record(name, value);
+                    change = ParamChange {
+                        values: true,
+                        store: true,
+                    };
+                }
+                Err(e) => warn(out, &e.to_string()),
+            }
+        }
+        out.send(self.value_message(i, group, m));
+        change
+    }
+
+    /// Resets every parameter to `base` (`flight.toml`'s values) and empties the store.
+    pub fn reset(&mut self, base: &FlightParams) {
+        self.values = base.clone();
+        self.store.clear();
+    }
+
+    /// Replaces the values and store (reloaded from the file).
+    pub fn replace(&mut self, values: FlightParams, store: ParamStore) {
+        self.values = values;
+        self.store = store;
+    }
+}
+
+/// A float as sent, taken to f64 by its shortest decimal form: what the operator typed, 0.1
+/// rather than 0.10000000149 (and range checks on the value the operator meant).
+fn shortest(value: f32) -> f64 {
+    format!("{value}").parse().unwrap_or(value as f64)
+}
+
+fn warn(out: &mut Outbox, text: &str) {
+    out.send(GroundStation::statustext(
+        MavSeverity::MAV_SEVERITY_WARNING,
+        text,
+    ));
+}
+
+impl GroundStation {
+    /// Handles a parameter message addressed to us; `None` if `msg` is not one.
+    pub(super) fn on_param_message(
+        &mut self,
+        msg: &MavMessage,
+        out: &mut Outbox,
+    ) -> Option<ParamChange> {
+        match msg {
+            MavMessage::PARAM_REQUEST_LIST(r)
+                if self.for_us(r.target_system, Some(r.target_component)) =>
+            {
+                self.params.list(out);
+                Some(ParamChange::default())
+            }
+            MavMessage::PARAM_REQUEST_READ(r)
+                if self.for_us(r.target_system, Some(r.target_component)) =>
+            {
+                self.params.read(r, out);
+                Some(ParamChange::default())
+            }
+            MavMessage::PARAM_SET(s) if self.for_us(s.target_system, Some(s.target_component)) => {
+                Some(self.params.set(s, out))
+            }
+            _ => None,
+        }
+    }
+}
