@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Runs every test of the project on a fresh machine: formatting, lints, the Rust tests, then the
-# Python end-to-end tests (pymavlink) from a pinned virtual environment this script creates.
+# Python end-to-end tests (pymavlink, MAVSDK-Python, MAVProxy) from a pinned virtual environment
+# this script creates.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -20,9 +21,11 @@ cargo build --workspace --bins --quiet
 echo "== python tests"
 venv=.venv
 stamp="$venv/.requirements"
-if ! cmp -s tests/requirements.txt "$stamp" 2>/dev/null; then
+if ! cat tests/requirements.txt tests/requirements-nodeps.txt | cmp -s - "$stamp" 2>/dev/null; then
     python3 -m venv "$venv"
-    "$venv/bin/python" -m pip install --quiet --disable-pip-version-check -r tests/requirements.txt
-    cp tests/requirements.txt "$stamp"
+    pip=("$venv/bin/python" -m pip install --quiet --disable-pip-version-check)
+    "${pip[@]}" -r tests/requirements.txt
+    "${pip[@]}" --no-deps -r tests/requirements-nodeps.txt
+    cat tests/requirements.txt tests/requirements-nodeps.txt > "$stamp"
 fi
 "$venv/bin/python" -m pytest -q tests/python

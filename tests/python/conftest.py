@@ -1,11 +1,13 @@
 """Helpers shared by the Python end-to-end tests: find the binaries, run them on free ports."""
 
 import os
+import signal
 import socket
 import subprocess
 from pathlib import Path
 
 import pytest
+from pymavlink import mavutil
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -43,3 +45,56 @@ def run_sitl(args, port):
          "--connect-timeout", "20", "--autopilot", f"127.0.0.1:{port}", *args],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )
+
+
+class Daemon:
+    """sitl (real time x3) and an autopilot that can be stopped and started again on its ports,
+    with its parameter store in a temporary directory."""
+
+    def __init__(self, tmp_path, mavlink, connect=True):
+        """`mavlink`: the ground-station endpoint, `{port}` standing for a free UDP port (on which
+        a pymavlink connection listens when `connect`)."""
+        self.sim_port, self.gcs_port = free_udp_port(), free_udp_port()
+        self.mavlink = mavlink.format(port=self.gcs_port)
+        self.store = tmp_path / "params.toml"
+        self.out = tmp_path / "autopilot.out"
+        self.gcs = None
+        if connect:
+            self.gcs = mavutil.mavlink_connection(f"udpin:127.0.0.1:{self.gcs_port}",
+                                                  source_system=255)
+        self.ap = None
+        self.start()
+        self.sim = subprocess.Popen(
+            [str(binary("sitl")), "--params-dir", str(ROOT / "params"), "--status-interval", "0",
+             "--mode", "realtime", "--speed", "3", "--duration", "100000",
+             "--autopilot", f"127.0.0.1:{self.sim_port}"],
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        )
+
+    def start(self):
+        self.ap = subprocess.Popen(
+            [str(binary("autopilot")), "--params-dir", str(ROOT / "params"),
+             "--source", f"udp://127.0.0.1:{self.sim_port}?lockstep=false", "--loop-hz", "500",
+             "--mavlink", self.mavlink,
+             "--param-store", str(self.store)],
+            stdout=open(self.out, "a"), stderr=subprocess.PIPE, text=True,
+        )
+
+    def summaries(self):
+        """How many runs of the control loop have ended (one summary line each)."""
+        return self.out.read_text().count("autopilot summary:")
+
+    def stop(self):
+        """Ctrl-C on a disarmed vehicle: the run ends cleanly, its store saved."""
+        self.ap.send_signal(signal.SIGINT)
+        _, err = self.ap.communicate(timeout=20)
+        assert self.ap.returncode == 0, err
+        assert "panicked" not in err, err
+
+    def close(self):
+        self.sim.kill()
+        self.sim.wait()
+        if self.ap.poll() is None:
+            self.ap.kill()
+            _, err = self.ap.communicate()
+            assert "panicked" not in err, err

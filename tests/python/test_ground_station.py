@@ -6,7 +6,6 @@ commands (PX4's pre-flight auto-disarm, for one, counts simulated seconds).
 """
 
 import math
-import signal
 import struct
 import subprocess
 import time
@@ -14,62 +13,14 @@ import time
 import pytest
 from pymavlink import mavutil
 
-from conftest import ROOT, binary, free_udp_port
+from conftest import Daemon
 
 PREARM_CHECK = mavutil.mavlink.MAV_SYS_STATUS_PREARM_CHECK
 
 
-class Daemon:
-    """sitl (real time x3) and an autopilot that can be stopped and started again on its ports,
-    with its parameter store in a temporary directory."""
-
-    def __init__(self, tmp_path):
-        self.sim_port, self.gcs_port = free_udp_port(), free_udp_port()
-        self.store = tmp_path / "params.toml"
-        self.out = tmp_path / "autopilot.out"
-        self.gcs = mavutil.mavlink_connection(f"udpin:127.0.0.1:{self.gcs_port}",
-                                              source_system=255)
-        self.ap = None
-        self.start()
-        self.sim = subprocess.Popen(
-            [str(binary("sitl")), "--params-dir", str(ROOT / "params"), "--status-interval", "0",
-             "--mode", "realtime", "--speed", "3", "--duration", "100000",
-             "--autopilot", f"127.0.0.1:{self.sim_port}"],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-        )
-
-    def start(self):
-        self.ap = subprocess.Popen(
-            [str(binary("autopilot")), "--params-dir", str(ROOT / "params"),
-             "--source", f"udp://127.0.0.1:{self.sim_port}?lockstep=false", "--loop-hz", "500",
-             "--mavlink", f"udpout://127.0.0.1:{self.gcs_port}?bind=0",
-             "--param-store", str(self.store)],
-            stdout=open(self.out, "a"), stderr=subprocess.PIPE, text=True,
-        )
-
-    def summaries(self):
-        """How many runs of the control loop have ended (one summary line each)."""
-        return self.out.read_text().count("autopilot summary:")
-
-    def stop(self):
-        """Ctrl-C on a disarmed vehicle: the run ends cleanly, its store saved."""
-        self.ap.send_signal(signal.SIGINT)
-        _, err = self.ap.communicate(timeout=20)
-        assert self.ap.returncode == 0, err
-        assert "panicked" not in err, err
-
-    def close(self):
-        self.sim.kill()
-        self.sim.wait()
-        if self.ap.poll() is None:
-            self.ap.kill()
-            _, err = self.ap.communicate()
-            assert "panicked" not in err, err
-
-
 @pytest.fixture
 def daemon(tmp_path):
-    d = Daemon(tmp_path)
+    d = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0")
     try:
         assert d.gcs.wait_heartbeat(timeout=30), "no heartbeat"
         yield d

@@ -233,6 +233,8 @@ pub struct Commander {
     since_s: f64,
     armed_at_s: f64,
     home: Option<(Vector3<f64>, f64)>,
+    /// Home was set by a command: arming keeps it.
+    home_commanded: bool,
     /// The take-off altitude of the current take-off (m above home).
     takeoff_alt_m: f64,
     line: Option<Line>,
@@ -257,6 +259,7 @@ impl Commander {
             since_s: 0.0,
             armed_at_s: 0.0,
             home: None,
+            home_commanded: false,
             takeoff_alt_m: params.takeoff_alt_m,
             line: None,
             hold: None,
@@ -308,7 +311,8 @@ impl Commander {
         self.landed
     }
 
-    /// Home position NED (m), once set (at arming, or by [`Commander::set_home`]).
+    /// Home position NED (m), once set: where the position first became valid on the ground,
+    /// then where it armed (unless [`Commander::set_home`] set it).
     pub fn home(&self) -> Option<Vector3<f64>> {
         self.home.map(|h| h.0)
     }
@@ -369,7 +373,9 @@ impl Commander {
         self.armed_at_s = i.t_s;
         self.since_s = i.t_s;
         self.landed = LandedState::OnGround;
-        self.home = Some((i.pos_ned_m, i.yaw_rad));
+        if !self.home_commanded {
+            self.home = Some((i.pos_ned_m, i.yaw_rad));
+        }
         self.hold = None;
         self.line = None;
         Ok(())
@@ -463,6 +469,7 @@ impl Commander {
         }
         let yaw = self.home.map_or(i.yaw_rad, |h| h.1);
         self.home = Some((pos, yaw));
+        self.home_commanded = true;
         Ok(())
     }
 
@@ -539,6 +546,11 @@ impl Commander {
             yaw_rad: yaw,
         };
         if !self.armed {
+            if self.home.is_none() && i.ready {
+                // As PX4: home as soon as the position is valid on the ground (ground stations
+                // and MAVSDK's health wait for it), then again at arming.
+                self.home = Some((i.pos_ned_m, i.yaw_rad));
+            }
             return (hold(i.pos_ned_m), false);
         }
         let home = self.home.map_or(i.pos_ned_m, |h| h.0);

@@ -276,3 +276,36 @@ fn the_takeoff_set_point_climbs_smoothly_and_stops_at_the_altitude() {
     // 5 m at 1.5 m/s with 1 m/s² ramps at both ends: 5/1.5 + 1.5 = 4.83 s after take-off.
     assert!((t - 1.0 - 4.83).abs() < 0.05, "arrived after {} s", t - 1.0);
 }
+
+#[test]
+fn home_is_set_once_the_position_is_valid_and_again_at_arming_unless_commanded() {
+    let mut c = Commander::new(params());
+    c.update(&CommanderInput {
+        ready: false,
+        ..input(0.0, 0.0, 0.0)
+    });
+    assert_eq!(c.home(), None, "not from an invalid estimate");
+    c.update(&input(0.1, 1.0, 0.0));
+    assert_eq!(
+        c.home(),
+        Some(Vector3::new(0.0, 0.0, 1.0)),
+        "on the ground, disarmed"
+    );
+    c.update(&input(0.2, 2.0, 0.0));
+    assert_eq!(c.home(), Some(Vector3::new(0.0, 0.0, 1.0)), "set once");
+    c.arm(false).unwrap();
+    assert_eq!(
+        c.home(),
+        Some(Vector3::new(0.0, 0.0, 2.0)),
+        "again at arming"
+    );
+    c.disarm(false).unwrap();
+    c.set_home(Some(Vector3::new(5.0, 5.0, 0.0))).unwrap();
+    c.update(&input(0.3, 3.0, 0.0));
+    c.arm(false).unwrap();
+    assert_eq!(
+        c.home(),
+        Some(Vector3::new(5.0, 5.0, 0.0)),
+        "a commanded home is kept"
+    );
+}
