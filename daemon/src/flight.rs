@@ -251,6 +251,8 @@ impl<'a> ControlLoop<'a> {
                 Command::Vehicle(c, reply) => {
                     let result = self.vehicle.command(c);
                     match &result {
+                        // Sticks arrive tens of times a second.
+                        Ok(()) if matches!(c, VehicleCommand::Sticks(_)) => {}
                         Ok(()) => tracing::info!(command = ?c, "accepted"),
                         Err(e) => tracing::warn!(command = ?c, "{e}"),
                     }

@@ -143,6 +143,8 @@ mod tests {
             failsafe: false,
             ready: true,
             in_mode_s: 0.0,
+            manual_losses: 0,
+            manual_control: None,
         };
         let hold = status(FlightMode::Loiter, LandedState::InAir);
         let mut s = FlightScore::new(5.0);

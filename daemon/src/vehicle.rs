@@ -3,7 +3,7 @@
 
 use anyhow::{Context, Result};
 use flight_core::commander::{
-    Commander, CommanderInput, CommanderStatus, Denial, FlightMode, LandedState,
+    Commander, CommanderInput, CommanderStatus, Denial, FlightMode, LandedState, Sticks,
 };
 use flight_core::control::position::PositionSetpoint;
 use flight_core::core::{FlightCore, FlightCoreConfig, SensorSample, StepOutput};
@@ -53,6 +53,8 @@ pub enum VehicleCommand {
     SetHome(Option<Vector3<f64>>),
     /// Set home at this global position.
     SetHomeGlobal(LatLonAlt),
+    /// Stick positions (`MANUAL_CONTROL`); never answered.
+    Sticks(Sticks),
 }
 
 /// The vehicle: flight core, commander and what has arrived since the last frame.
@@ -206,6 +208,10 @@ impl Vehicle {
                     return Err("home refused: no global position yet".into());
                 };
                 c_.set_home(Some(LocalFrame::new(origin).to_ned(&p)))
+            }
+            VehicleCommand::Sticks(s) => {
+                c_.manual_control(s);
+                Ok(())
             }
         }
     }

@@ -7,7 +7,7 @@ commands (PX4's pre-flight auto-disarm, for one, counts simulated seconds).
 
 import math
 import struct
-import subprocess
+import threading
 import time
 
 import pytest
@@ -286,3 +286,80 @@ def test_parameters_fetch_set_persist_across_restart_and_reboot(daemon):
     assert param(gcs, "MIS_TAKEOFF_ALT").param_value == 2.5
     daemon.stop()
     assert "MIS_TAKEOFF_ALT" not in daemon.store.read_text()
+
+
+class Sticks:
+    """A joystick through the ground station: MANUAL_CONTROL at 20 Hz from a thread, as
+    QGroundControl sends it (x pitch, y roll, r yaw: ±1000; z throttle 0–1000, 500 centred)."""
+
+    def __init__(self, gcs):
+        self.gcs, self.values = gcs, (0, 0, 500, 0)
+        self.running = True
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    def _run(self):
+        while self.running:
+            x, y, z, r = self.values
+            self.gcs.mav.manual_control_send(1, x, y, z, r, 0)
+            time.sleep(0.05)  # the stream's period, not a wait for the vehicle
+
+    def set(self, x=0, y=0, z=500, r=0):
+        self.values = (x, y, z, r)
+
+    def stop(self):
+        self.running = False
+        self.thread.join()
+
+
+def test_position_mode_flies_the_sticks_and_holds_then_holds_on_their_loss(vehicle):
+    gcs = vehicle
+    ready_to_arm(gcs)
+    gcs.set_mode("POSCTL")
+    assert ack(gcs, mavutil.mavlink.MAV_CMD_DO_SET_MODE) == mavutil.mavlink.MAV_RESULT_DENIED
+    wait(gcs, "STATUSTEXT", lambda m: "no manual control" in m.text, 2)
+    rc = mavutil.mavlink.MAV_SYS_STATUS_SENSOR_RC_RECEIVER
+    sticks = Sticks(gcs)
+    try:
+        sticks.set(z=0)
+        # The vehicle reports the joystick as PX4 reports its RC: in SYS_STATUS.
+        wait(gcs, "SYS_STATUS", lambda m: m.onboard_control_sensors_health & rc, 5)
+        gcs.set_mode("POSCTL")
+        assert ack(gcs, mavutil.mavlink.MAV_CMD_DO_SET_MODE) == 0
+        wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "POSCTL", timeout=3)
+        gcs.arducopter_arm()
+        assert ack(gcs, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM) == 0
+        # Throttle up: climbs; centred: holds the altitude.
+        sticks.set(z=850)
+        wait(gcs, "GLOBAL_POSITION_INT", lambda m: m.relative_alt > 4000, 20)
+        sticks.set()
+        wait(gcs, "GLOBAL_POSITION_INT", lambda m: abs(m.vz) < 20, 10)
+        alt0 = wait(gcs, "GLOBAL_POSITION_INT", lambda m: True).relative_alt / 1000
+        end, worst = time.monotonic() + 2.0, 0.0
+        while time.monotonic() < end:
+            m = wait(gcs, "GLOBAL_POSITION_INT", lambda m: True)
+            worst = max(worst, abs(m.relative_alt / 1000 - alt0))
+        assert worst < 0.4, f"altitude hold: {worst:.2f} m off"
+        # Full forward: flies along its heading at MPC_VEL_MANUAL (5 m/s).
+        yaw = wait(gcs, "ATTITUDE", lambda m: True).yaw
+        sticks.set(x=1000)
+        fast = wait(gcs, "LOCAL_POSITION_NED", lambda m: math.hypot(m.vx, m.vy) > 4.0, 15)
+        heading = math.atan2(fast.vy, fast.vx)
+        assert abs(math.remainder(heading - yaw, math.tau)) < math.radians(15), (heading, yaw)
+        # Centred: brakes and holds the position.
+        sticks.set()
+        wait(gcs, "LOCAL_POSITION_NED", lambda m: math.hypot(m.vx, m.vy) < 0.3, 15)
+        p0 = wait(gcs, "LOCAL_POSITION_NED", lambda m: True)
+        end, worst = time.monotonic() + 2.0, 0.0
+        while time.monotonic() < end:
+            m = wait(gcs, "LOCAL_POSITION_NED", lambda m: True)
+            worst = max(worst, math.hypot(m.x - p0.x, m.y - p0.y))
+        assert worst < 0.5, f"position hold: {worst:.2f} m off"
+    finally:
+        sticks.stop()
+    # The sticks stop: Hold after COM_RC_LOSS_T, with a reason.
+    wait(gcs, "STATUSTEXT", lambda m: "manual control lost" in m.text, 5)
+    wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER" and armed(m), timeout=3)
+    gcs.set_mode("LAND")
+    assert ack(gcs, mavutil.mavlink.MAV_CMD_DO_SET_MODE) == 0
+    wait(gcs, "HEARTBEAT", lambda m: not armed(m), timeout=60)

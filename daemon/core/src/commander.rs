@@ -11,12 +11,17 @@
 //! - *Land*: descend where it is (slower for the last metres), touchdown after standing still for
 //!   a second, disarm.
 //! - *RTL*: climb to the return altitude (if lower), fly home on a limited profile, land there.
+//! - *Posctl*, *Altctl* (manual, sticks from `MANUAL_CONTROL`): velocity or tilt from the sticks,
+//!   climb rate from the throttle stick around its centre, hold when centred; take-off by
+//!   raising the throttle, touchdown and disarm after holding it low on the ground. Sticks
+//!   that stop arriving (`COM_RC_LOSS_T`) switch to Hold.
 //! - *Descend* (failsafe): when the estimate stops being fit to fly on, an armed vehicle on the
 //!   ground disarms and one in the air levels and descends on what estimate is left, until
 //!   touchdown; it is left only by landing.
 
 use crate::control::position::PositionSetpoint;
 use nalgebra::Vector3;
+use std::f64::consts::{PI, TAU};
 
 /// The flight modes, in PX4's terms (the MAVLink layer maps them to PX4's `custom_mode`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -25,9 +30,11 @@ pub enum FlightMode {
     Manual,
     /// Sticks to attitude, self-levelling (not flown yet).
     Stabilized,
-    /// Altitude hold, sticks to attitude (not flown yet).
+    /// Altitude hold: the throttle stick sets the climb rate (centre holds), the roll and pitch
+    /// sticks tilt the vehicle, the yaw stick turns it.
     Altctl,
-    /// Position hold, sticks to velocity (not flown yet).
+    /// Position hold: the sticks set horizontal velocity in the heading's frame, climb rate and
+    /// yaw rate; centred sticks hold the position.
     Posctl,
     /// Climb to the take-off altitude, then Loiter.
     Takeoff,
@@ -102,6 +109,65 @@ crate::params::param_group! {
         accel_m_s2: f64 = 1.0, "MPC_ACC_HOR", "m/s^2", [0.2, 15.0], "Acceleration of the automatic set-point profiles";
         /// Disarm when armed on the ground this long without taking off (s; 0: never).
         disarm_preflight_s: f64 = 10.0, "COM_DISARM_PRFLT", "s", [0.0, 3600.0], "Disarm when armed on the ground this long without taking off (0: never)";
+        /// Largest horizontal speed from the sticks in Posctl (m/s).
+        manual_speed_m_s: f64 = 5.0, "MPC_VEL_MANUAL", "m/s", [0.5, 20.0], "Horizontal speed at full stick in position mode";
+        /// Largest tilt from the sticks in Altctl (deg).
+        manual_tilt_deg: f64 = 35.0, "MPC_MAN_TILT_MAX", "deg", [1.0, 70.0], "Tilt at full stick in altitude mode";
+        /// Yaw rate at full stick (deg/s).
+        manual_yaw_rate_deg_s: f64 = 150.0, "MPC_MAN_Y_MAX", "deg/s", [0.0, 400.0], "Yaw rate at full stick";
+        /// Climb rate at full throttle stick (m/s).
+        manual_climb_m_s: f64 = 3.0, "MAN_Z_VEL_UP", "m/s", [0.3, 10.0], "Climb rate at full throttle stick in altitude and position modes";
+        /// Descent rate at zero throttle stick (m/s).
+        manual_sink_m_s: f64 = 1.0, "MAN_Z_VEL_DN", "m/s", [0.3, 10.0], "Descent rate at zero throttle stick in altitude and position modes";
+        /// Stick dead zone around the centre (fraction of full travel).
+        stick_deadzone: f64 = 0.1, "MPC_HOLD_DZ", "", [0.0, 0.5], "Stick dead zone around the centre, where the vehicle holds";
+        /// Manual control older than this is lost (s).
+        manual_loss_s: f64 = 0.5, "COM_RC_LOSS_T", "s", [0.1, 35.0], "Manual control lost after this long without MANUAL_CONTROL: position and altitude modes switch to Hold";
+    }
+}
+
+/// Stick positions from a ground station's joystick (`MANUAL_CONTROL`), normalised.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sticks {
+    /// Pitch stick, forward positive, −1 to 1.
+    pub forward: f64,
+    /// Roll stick, right positive, −1 to 1.
+    pub right: f64,
+    /// Throttle stick, 0 (low) to 1 (high); 0.5 is the centre of altitude and position modes.
+    pub throttle: f64,
+    /// Yaw stick, clockwise positive, −1 to 1.
+    pub yaw: f64,
+}
+
+impl Sticks {
+    /// Centred sticks, throttle at its centre.
+    pub const CENTRED: Self = Self {
+        forward: 0.0,
+        right: 0.0,
+        throttle: 0.5,
+        yaw: 0.0,
+    };
+
+    /// The sticks clamped to their ranges (NaN: centred).
+    pub fn clamped(self) -> Self {
+        let c = |x: f64, lo: f64, hi: f64, centre: f64| {
+            if x.is_nan() { centre } else { x.clamp(lo, hi) }
+        };
+        Self {
+            forward: c(self.forward, -1.0, 1.0, 0.0),
+            right: c(self.right, -1.0, 1.0, 0.0),
+            throttle: c(self.throttle, 0.0, 1.0, 0.5),
+            yaw: c(self.yaw, -1.0, 1.0, 0.0),
+        }
+    }
+}
+
+/// A stick value with the dead zone `dz` around zero taken out, rescaled to reach ±1.
+fn deadzone(x: f64, dz: f64) -> f64 {
+    if x.abs() <= dz {
+        0.0
+    } else {
+        x.signum() * (x.abs() - dz) / (1.0 - dz).max(1e-6)
     }
 }
 
@@ -143,6 +209,10 @@ pub struct CommanderStatus {
     pub ready: bool,
     /// Time in the current mode (s).
     pub in_mode_s: f64,
+    /// How often manual control was lost in a manual mode (Hold took over).
+    pub manual_losses: u32,
+    /// Manual control: never seen (`None`), arriving (`Some(true)`) or stale (`Some(false)`).
+    pub manual_control: Option<bool>,
 }
 
 /// A straight-line set-point profile from `from` to `to`: speed ramps up at `accel`, cruises
@@ -246,6 +316,12 @@ pub struct Commander {
     last: Option<CommanderInput>,
     /// The mode changed since the caller last asked (heartbeat "right after a mode change").
     changed: bool,
+    /// The last sticks and the time they arrived (s, the commander's clock).
+    sticks: Option<(Sticks, f64)>,
+    /// The heading the yaw stick steers (rad).
+    manual_yaw: Option<f64>,
+    /// How often manual control was lost in a manual mode (and Hold took over).
+    manual_losses: u32,
 }
 
 impl Commander {
@@ -269,7 +345,22 @@ impl Commander {
             still_since_s: None,
             last: None,
             changed: false,
+            sticks: None,
+            manual_yaw: None,
+            manual_losses: 0,
         }
+    }
+
+    /// New stick positions (`MANUAL_CONTROL`), at the time of the last update.
+    pub fn manual_control(&mut self, sticks: Sticks) {
+        self.sticks = Some((sticks.clamped(), self.now()));
+    }
+
+    /// The sticks, if they arrived within `COM_RC_LOSS_T`.
+    fn fresh_sticks(&self) -> Option<Sticks> {
+        self.sticks
+            .filter(|&(_, t)| self.now() - t <= self.params.manual_loss_s)
+            .map(|(s, _)| s)
     }
 
     /// The parameters.
@@ -293,6 +384,8 @@ impl Commander {
             failsafe: self.mode == FlightMode::Descend,
             ready: self.last.is_some_and(|i| i.ready),
             in_mode_s: self.last.map_or(0.0, |i| (i.t_s - self.since_s).max(0.0)),
+            manual_losses: self.manual_losses,
+            manual_control: self.sticks.map(|_| self.fresh_sticks().is_some()),
         }
     }
 
@@ -342,6 +435,7 @@ impl Commander {
         self.land_xy = None;
         self.rtl = RtlStage::Climb;
         self.still_since_s = None;
+        self.manual_yaw = None;
     }
 
     /// Arms the motors. Refused while the estimator is not ready (unless `force`), in modes
@@ -352,6 +446,17 @@ impl Commander {
         }
         match self.mode {
             FlightMode::Takeoff | FlightMode::Loiter => {}
+            FlightMode::Posctl | FlightMode::Altctl => {
+                let Some(s) = self.fresh_sticks() else {
+                    return Err(format!(
+                        "arming refused: {} needs manual control (MANUAL_CONTROL)",
+                        self.mode.name()
+                    ));
+                };
+                if s.throttle > 0.5 + self.params.stick_deadzone && !force {
+                    return Err("arming refused: throttle stick above centre".into());
+                }
+            }
             FlightMode::Land | FlightMode::Rtl | FlightMode::Descend => {
                 return Err(format!(
                     "arming refused: not in a mode to start in ({})",
@@ -423,6 +528,14 @@ impl Commander {
             FlightMode::Rtl => {
                 if self.home.is_none() {
                     return Err("RTL refused: no home position".into());
+                }
+            }
+            FlightMode::Posctl | FlightMode::Altctl => {
+                if self.fresh_sticks().is_none() {
+                    return Err(format!(
+                        "{} refused: no manual control (MANUAL_CONTROL)",
+                        mode.name()
+                    ));
                 }
             }
             FlightMode::Descend => return Err("DESCEND is a failsafe, not a mode to select".into()),
@@ -634,10 +747,112 @@ impl Commander {
                     yaw_rad: yaw,
                 }
             }
+            FlightMode::Posctl | FlightMode::Altctl => match self.fresh_sticks() {
+                Some(sticks) => match self.manual(i, dt, sticks, home) {
+                    Some(sp) => sp,
+                    None => return (on_ground, true),
+                },
+                None => {
+                    // PX4's manual-control-loss failsafe: hold where it is.
+                    self.manual_losses += 1;
+                    self.enter(FlightMode::Loiter);
+                    if self.landed == LandedState::OnGround {
+                        return (on_ground, true);
+                    }
+                    self.loiter(i, yaw)
+                }
+            },
             // Not selectable yet (set_mode refuses them): hold.
             _ => self.loiter(i, yaw),
         };
         (sp, self.armed)
+    }
+
+    /// Position and altitude modes from the sticks; `None`: on the ground, stay there.
+    fn manual(
+        &mut self,
+        i: &CommanderInput,
+        dt: f64,
+        s: Sticks,
+        home: Vector3<f64>,
+    ) -> Option<PositionSetpoint> {
+        let p = self.params;
+        let dz = p.stick_deadzone;
+        // Throttle around its centre: climb (up to MAN_Z_VEL_UP) or sink (MAN_Z_VEL_DN).
+        let climb = deadzone(2.0 * s.throttle - 1.0, dz);
+        let vz = if climb > 0.0 {
+            -climb * p.manual_climb_m_s
+        } else {
+            -climb * p.manual_sink_m_s
+        };
+        if self.landed == LandedState::OnGround {
+            if climb <= 0.0 {
+                self.still_since_s = None;
+                return None;
+            }
+            self.landed = LandedState::Takeoff;
+        }
+        let yaw = *self.manual_yaw.get_or_insert(i.yaw_rad);
+        let turned = yaw + deadzone(s.yaw, dz) * p.manual_yaw_rate_deg_s.to_radians() * dt;
+        let yaw = (turned + PI).rem_euclid(TAU) - PI;
+        self.manual_yaw = Some(yaw);
+        let height = home.z - i.pos_ned_m.z;
+        if self.landed == LandedState::Takeoff && height > 1.0 {
+            self.landed = LandedState::InAir;
+        }
+        // Touchdown: sinking commanded, and no longer moving down for a second.
+        let stopped = climb < 0.0 && i.vel_ned_m_s.z.abs() < 0.15 && height < 1.0;
+        self.touchdown_check(stopped, i.t_s);
+        if !self.armed {
+            return None;
+        }
+        // The held point: set when a stick centres, forgotten when it moves.
+        let (hold_pos, _) = *self.hold.get_or_insert((i.pos_ned_m, yaw));
+        let mut pos = Vector3::repeat(f64::NAN);
+        let mut vel = Vector3::repeat(f64::NAN);
+        let mut accel = Vector3::zeros();
+        if vz == 0.0 {
+            pos.z = hold_pos.z;
+        } else {
+            vel.z = vz;
+        }
+        let (fwd, right) = (deadzone(s.forward, dz), deadzone(s.right, dz));
+        // The stick in the frame of the vehicle's heading, to NED (as PX4).
+        let (c, sn) = (i.yaw_rad.cos(), i.yaw_rad.sin());
+        let north = fwd * c - right * sn;
+        let east = fwd * sn + right * c;
+        if self.mode == FlightMode::Posctl {
+            if fwd == 0.0 && right == 0.0 {
+                pos.x = hold_pos.x;
+                pos.y = hold_pos.y;
+            } else {
+                vel.x = north * p.manual_speed_m_s;
+                vel.y = east * p.manual_speed_m_s;
+            }
+        } else {
+            // Altitude mode: the stick tilts the vehicle (its horizontal acceleration).
+            let a = crate::GRAVITY_M_S2 * p.manual_tilt_deg.to_radians().tan();
+            accel.x = north * a;
+            accel.y = east * a;
+        }
+        let moving_h = self.mode == FlightMode::Posctl && (fwd != 0.0 || right != 0.0);
+        if vz != 0.0 || moving_h {
+            // Re-centre the hold on the next centred stick.
+            let h = self.hold.get_or_insert((i.pos_ned_m, yaw));
+            if vz != 0.0 {
+                h.0.z = i.pos_ned_m.z;
+            }
+            if moving_h {
+                h.0.x = i.pos_ned_m.x;
+                h.0.y = i.pos_ned_m.y;
+            }
+        }
+        Some(PositionSetpoint {
+            pos_ned_m: pos,
+            vel_ned_m_s: vel,
+            accel_ned_m_s2: accel,
+            yaw_rad: yaw,
+        })
     }
 
     /// Hold: the point where braking at the profile's acceleration stops the vehicle.

@@ -14,6 +14,7 @@ use super::params::Parameters;
 use super::{AckTo, Action, GroundStation, Outbox, Outgoing};
 use crate::flight::{Command, Telemetry};
 use crate::param_store::{Loaded, ParamStore};
+use crate::vehicle::VehicleCommand;
 use anyhow::{Context, Result, bail};
 use flight_core::params::FlightParams;
 use hil::{Decoded, Encoder, RawMessage, StreamDecoder};
@@ -382,6 +383,10 @@ pub async fn run(endpoints: Vec<Endpoint>, vehicle: Vehicle) -> Option<Action> {
                 };
                 let _ = answers.send((to, result)).await;
             });
+        }
+        if let Some(sticks) = out.sticks.take() {
+            // A full queue loses these sticks only: the next ones follow within 50 ms.
+            let _ = commands.try_send(Command::Vehicle(VehicleCommand::Sticks(sticks), None));
         }
         for action in std::mem::take(&mut out.actions) {
             match action {

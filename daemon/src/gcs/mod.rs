@@ -17,7 +17,7 @@ pub mod telemetry;
 
 use crate::flight::Telemetry;
 use crate::vehicle::VehicleCommand;
-use flight_core::commander::{FlightMode, LandedState};
+use flight_core::commander::{FlightMode, LandedState, Sticks};
 use flight_core::geo::LatLonAlt;
 use flight_core::params::FlightParams;
 use mavlink::MavHeader;
@@ -98,6 +98,8 @@ pub struct Outbox {
     pub vehicle: Vec<(VehicleCommand, AckTo)>,
     /// Other work, in order.
     pub actions: Vec<Action>,
+    /// The latest stick positions (`MANUAL_CONTROL`), for the control loop; never answered.
+    pub sticks: Option<Sticks>,
 }
 
 impl Outbox {
@@ -141,6 +143,8 @@ pub struct GroundStation {
     params: Parameters,
     /// The values a reset returns to (`flight.toml` and the command line).
     base_params: FlightParams,
+    /// Manual-control losses already reported.
+    manual_losses_shown: u32,
 }
 
 impl GroundStation {
@@ -167,6 +171,7 @@ impl GroundStation {
             unix_start_usec,
             params: Parameters::default(),
             base_params: FlightParams::default(),
+            manual_losses_shown: 0,
         }
     }
 
@@ -243,6 +248,14 @@ impl GroundStation {
             if let Some(s) = self.streams.iter_mut().find(|s| s.id == HEARTBEAT_DATA::ID) {
                 s.next_s = now_s + s.interval_s;
             }
+        }
+        let losses = t.status.map_or(0, |s| s.manual_losses);
+        if losses > self.manual_losses_shown {
+            self.manual_losses_shown = losses;
+            out.send(Self::statustext(
+                MavSeverity::MAV_SEVERITY_CRITICAL,
+                "manual control lost: Hold",
+            ));
         }
         let home = t.status.and_then(|s| s.home).map(|h| [h.0.x, h.0.y, h.0.z]);
         if home.is_some() && home != self.home_shown {
@@ -436,6 +449,9 @@ impl GroundStation {
                     p,
                 };
                 self.command(cmd, to, t, out);
+            }
+            MavMessage::MANUAL_CONTROL(m) if self.for_us(m.target, None) => {
+                out.sticks = Some(sticks(m));
             }
             MavMessage::REQUEST_DATA_STREAM(r)
                 if self.for_us(r.target_system, Some(r.target_component)) =>
@@ -748,6 +764,27 @@ impl GroundStation {
             _ => out.send(self.ack(to, MavResult::MAV_RESULT_UNSUPPORTED)),
         }
     }
+}
+
+/// The sticks of a `MANUAL_CONTROL` as PX4 reads them: x pitch (forward +), y roll (right +), r
+/// yaw, each ±1000; z throttle 0 to 1000 (500: the centre of altitude and position modes). An
+/// axis at `INT16_MAX` is "invalid" in the spec: centred.
+fn sticks(m: &MANUAL_CONTROL_DATA) -> Sticks {
+    // NaN: centred by `clamped`.
+    let axis = |v: i16| {
+        if v == i16::MAX {
+            f64::NAN
+        } else {
+            v as f64 / 1000.0
+        }
+    };
+    Sticks {
+        forward: axis(m.x),
+        right: axis(m.y),
+        throttle: axis(m.z),
+        yaw: axis(m.r),
+    }
+    .clamped()
 }
 
 /// MAVLink FTP: every request is refused (NAK), so that clients fall back to the parameter

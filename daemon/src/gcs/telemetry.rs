@@ -105,11 +105,20 @@ pub fn build(id: u32, t: &Telemetry, unix_usec: u64) -> Option<MavMessage> {
             if status.is_some_and(|s| s.ready && !s.armed) {
                 health |= MavSysStatusSensor::MAV_SYS_STATUS_PREARM_CHECK;
             }
+            // Manual control (a joystick through MANUAL_CONTROL) as PX4 reports its RC: present
+            // once it has been seen, healthy while it arrives.
+            let mut extra = MavSysStatusSensor::MAV_SYS_STATUS_PREARM_CHECK;
+            if let Some(s) = status
+                && s.manual_control.is_some()
+            {
+                extra |= MavSysStatusSensor::MAV_SYS_STATUS_SENSOR_RC_RECEIVER;
+                if s.manual_control == Some(true) {
+                    health |= MavSysStatusSensor::MAV_SYS_STATUS_SENSOR_RC_RECEIVER;
+                }
+            }
             MavMessage::SYS_STATUS(SYS_STATUS_DATA {
-                onboard_control_sensors_present: present
-                    | MavSysStatusSensor::MAV_SYS_STATUS_PREARM_CHECK,
-                onboard_control_sensors_enabled: present
-                    | MavSysStatusSensor::MAV_SYS_STATUS_PREARM_CHECK,
+                onboard_control_sensors_present: present | extra,
+                onboard_control_sensors_enabled: present | extra,
                 onboard_control_sensors_health: health,
                 voltage_battery: (t.battery_v * 1e3).clamp(0.0, 65534.0) as u16,
                 current_battery: -1,

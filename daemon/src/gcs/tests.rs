@@ -2,6 +2,7 @@
 use super::*;
 use crate::flight::Telemetry;
 use flight_core::commander::CommanderStatus;
+use flight_core::commander::Sticks;
 use mavlink::Message;
 use params::Parameters;
 
@@ -24,6 +25,8 @@ fn telemetry(armed: bool, mode: FlightMode) -> Telemetry {
             failsafe: false,
             ready: true,
             in_mode_s: 0.0,
+            manual_losses: 0,
+            manual_control: None,
         }),
         battery_v: 16.0,
         ..Telemetry::default()
@@ -574,4 +577,47 @@ fn storage_reset_and_reboot_are_for_a_disarmed_vehicle() {
     let mut out = Outbox::default();
     g.on_message(&gcs_header(), &reboot(3.0), &ground, &mut out);
     assert_eq!(acks(&out)[0].result, MavResult::MAV_RESULT_DENIED);
+}
+
+#[test]
+fn manual_control_reaches_the_vehicle_as_sticks_and_a_loss_is_reported() {
+    let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
+    let mut t = telemetry(true, FlightMode::Posctl);
+    let manual = |target, x, z| {
+        MavMessage::MANUAL_CONTROL(MANUAL_CONTROL_DATA {
+            x,
+            y: -1000,
+            z,
+            r: i16::MAX,
+            target,
+            ..Default::default()
+        })
+    };
+    let mut out = Outbox::default();
+    g.on_message(&gcs_header(), &manual(1, 500, 750), &t, &mut out);
+    assert_eq!(
+        out.sticks,
+        Some(Sticks {
+            forward: 0.5,
+            right: -1.0,
+            throttle: 0.75,
+            yaw: 0.0
+        })
+    );
+    assert!(out.messages.is_empty(), "never answered");
+    let mut out = Outbox::default();
+    g.on_message(&gcs_header(), &manual(2, 500, 750), &t, &mut out);
+    assert_eq!(out.sticks, None, "another vehicle's");
+    g.on_message(&gcs_header(), &manual(1, 3000, -200), &t, &mut out);
+    let s = out.sticks.unwrap();
+    assert_eq!((s.forward, s.throttle), (1.0, 0.0), "clamped");
+
+    let mut out = Outbox::default();
+    g.poll(0.0, &t, &mut out);
+    if let Some(s) = t.status.as_mut() {
+        s.manual_losses = 1;
+    }
+    g.poll(0.01, &t, &mut out);
+    g.poll(0.02, &t, &mut out);
+    assert_eq!(statustexts(&out), ["manual control lost: Hold"]);
 }

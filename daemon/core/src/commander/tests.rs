@@ -1,5 +1,6 @@
 #![allow(clippy::unwrap_used)]
 use super::*;
+use std::f64::consts::FRAC_PI_2;
 
 fn input(t: f64, down: f64, vd: f64) -> CommanderInput {
     CommanderInput {
@@ -308,4 +309,124 @@ fn home_is_set_once_the_position_is_valid_and_again_at_arming_unless_commanded()
         Some(Vector3::new(5.0, 5.0, 0.0)),
         "a commanded home is kept"
     );
+}
+
+fn at(t: f64, pos: Vector3<f64>, vel: Vector3<f64>, yaw: f64) -> CommanderInput {
+    CommanderInput {
+        t_s: t,
+        ready: true,
+        horizontal_valid: true,
+        pos_ned_m: pos,
+        vel_ned_m_s: vel,
+        yaw_rad: yaw,
+    }
+}
+
+#[test]
+fn position_mode_flies_the_sticks_and_holds_when_they_centre() {
+    let mut c = Commander::new(CommanderParams::default());
+    let z = Vector3::zeros();
+    c.update(&at(0.0, z, z, 0.0));
+    let err = c.set_mode(FlightMode::Posctl).unwrap_err();
+    assert!(err.contains("no manual control"), "{err}");
+    let sticks = |forward, right, throttle, yaw| Sticks {
+        forward,
+        right,
+        throttle,
+        yaw,
+    };
+    c.manual_control(sticks(0.0, 0.0, 1.0, 0.0));
+    c.set_mode(FlightMode::Posctl).unwrap();
+    assert!(
+        c.arm(false)
+            .unwrap_err()
+            .contains("throttle stick above centre")
+    );
+    c.manual_control(sticks(0.0, 0.0, 0.0, 0.0));
+    c.arm(false).unwrap();
+    let (sp, armed) = c.update(&at(0.1, z, z, 0.0));
+    assert!(
+        armed && sp.pos_ned_m.z > 0.0,
+        "throttle low: stays on the ground {sp:?}"
+    );
+    assert_eq!(c.landed(), LandedState::OnGround);
+
+    // Full throttle: climb at MAN_Z_VEL_UP; airborne above a metre.
+    c.manual_control(sticks(0.0, 0.0, 1.0, 0.0));
+    let (sp, _) = c.update(&at(0.2, z, z, 0.0));
+    assert_eq!(sp.vel_ned_m_s.z, -3.0);
+    assert!(sp.pos_ned_m.z.is_nan());
+    assert_eq!(c.landed(), LandedState::Takeoff);
+    let up = Vector3::new(0.0, 0.0, -2.0);
+    c.update(&at(0.3, up, Vector3::new(0.0, 0.0, -3.0), 0.0));
+    assert_eq!(c.landed(), LandedState::InAir);
+
+    // Centred: hold the point where it was when the stick centred.
+    c.manual_control(Sticks::CENTRED);
+    let (sp, _) = c.update(&at(0.4, up, z, 0.0));
+    assert_eq!(sp.pos_ned_m, up);
+    // Full forward, heading east: 5 m/s east; the held point follows.
+    c.manual_control(sticks(1.0, 0.0, 0.5, 0.0));
+    let (sp, _) = c.update(&at(0.5, up, z, FRAC_PI_2));
+    assert!(sp.pos_ned_m.x.is_nan() && sp.pos_ned_m.z == up.z, "{sp:?}");
+    assert!((sp.vel_ned_m_s.y - 5.0).abs() < 1e-9 && sp.vel_ned_m_s.x.abs() < 1e-9);
+    let there = Vector3::new(0.0, 3.0, -2.0);
+    c.update(&at(0.6, there, z, FRAC_PI_2));
+    c.manual_control(Sticks::CENTRED);
+    let (sp, _) = c.update(&at(0.7, there, z, FRAC_PI_2));
+    assert_eq!(sp.pos_ned_m, there);
+    // The yaw stick turns the heading set-point at MPC_MAN_Y_MAX.
+    c.manual_control(sticks(0.0, 0.0, 0.5, 1.0));
+    let (a, _) = c.update(&at(0.8, there, z, FRAC_PI_2));
+    let (b, _) = c.update(&at(0.9, there, z, FRAC_PI_2));
+    assert!((b.yaw_rad - a.yaw_rad - 15f64.to_radians()).abs() < 1e-9);
+
+    // Altitude mode: the stick is a tilt (horizontal acceleration), position uncontrolled.
+    c.set_mode(FlightMode::Altctl).unwrap();
+    c.manual_control(sticks(-1.0, 0.0, 0.5, 0.0));
+    let (sp, _) = c.update(&at(1.0, there, z, 0.0));
+    let a = crate::GRAVITY_M_S2 * 35f64.to_radians().tan();
+    assert!(sp.pos_ned_m.x.is_nan() && sp.vel_ned_m_s.x.is_nan());
+    assert!((sp.accel_ned_m_s2.x + a).abs() < 1e-9, "{sp:?}");
+
+    // The sticks stop: after COM_RC_LOSS_T, Hold.
+    c.update(&at(1.3, there, z, 0.0));
+    assert_eq!(c.mode(), FlightMode::Altctl);
+    c.update(&at(1.6, there, z, 0.0));
+    assert_eq!(c.mode(), FlightMode::Loiter);
+    assert_eq!(c.status().manual_losses, 1);
+}
+
+#[test]
+fn position_mode_lands_and_disarms_on_a_low_throttle() {
+    let mut c = Commander::new(CommanderParams::default());
+    let z = Vector3::zeros();
+    c.update(&at(0.0, z, z, 0.0));
+    c.manual_control(Sticks::CENTRED);
+    c.set_mode(FlightMode::Posctl).unwrap();
+    c.arm(false).unwrap();
+    c.manual_control(Sticks {
+        throttle: 1.0,
+        ..Sticks::CENTRED
+    });
+    c.update(&at(0.1, Vector3::new(0.0, 0.0, -3.0), z, 0.0));
+    assert_eq!(c.landed(), LandedState::InAir);
+    let mut t = 0.1;
+    // Throttle low: sink; standing on the ground for a second: disarmed.
+    while c.armed() && t < 10.0 {
+        t += 0.1;
+        c.manual_control(Sticks {
+            throttle: 0.0,
+            ..Sticks::CENTRED
+        });
+        let (sp, _) = c.update(&at(t, Vector3::new(0.0, 0.0, -0.05), z, 0.0));
+        if c.armed() {
+            assert_eq!(sp.vel_ned_m_s.z, 1.0, "MAN_Z_VEL_DN");
+        }
+    }
+    assert!(
+        !c.armed() && (1.0..1.3).contains(&(t - 0.1)),
+        "disarmed at {t}"
+    );
+    assert_eq!(c.landed(), LandedState::OnGround);
 }
