@@ -15,6 +15,25 @@ use std::path::PathBuf;
 mod common;
 use common::DECIMATION;
 
+/// An airframe of `params/airframes/`.
+fn airframe(name: &str) -> Airframe {
+    Airframe::load(
+        &PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join(format!("../../params/airframes/{name}.toml")),
+    )
+    .unwrap()
+}
+
+/// Hold the take-off spot at `alt` m, heading north.
+fn hover_at(alt: f64) -> PositionSetpoint {
+    PositionSetpoint {
+        pos_ned_m: Vector3::new(0.0, 0.0, -alt),
+        vel_ned_m_s: Vector3::zeros(),
+        accel_ned_m_s2: Vector3::zeros(),
+        yaw_rad: 0.0,
+    }
+}
+
 /// Flight-quality figures of one flight.
 #[derive(Debug)]
 struct Flight {
@@ -44,11 +63,7 @@ fn fly_with(
     duration: f64,
     target_alt: f64,
 ) -> Flight {
-    let a = Airframe::load(
-        &PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-            .join(format!("../../params/airframes/{name}.toml")),
-    )
-    .unwrap();
+    let a = airframe(name);
     let mut sim = Simulator::new(
         &a,
         SimConfig {
@@ -61,12 +76,7 @@ fn fly_with(
     let mut core = FlightCore::new(&a, FlightCoreConfig::from_params(params, &a)).unwrap();
     let n = a.rotors.len();
     let mut commands = [0.0; 16];
-    let sp = PositionSetpoint {
-        pos_ned_m: Vector3::new(0.0, 0.0, -target_alt),
-        vel_ned_m_s: Vector3::zeros(),
-        accel_ned_m_s2: Vector3::zeros(),
-        yaw_rad: 0.0,
-    };
+    let sp = hover_at(target_alt);
     let (mut sum_alt, mut sum_h, mut sum_hold, mut sum_att, mut count, mut max_tilt) =
         (0.0, 0.0, 0.0, 0.0, 0usize, 0.0f64);
     let mut gps_error_at_origin = None;
@@ -183,11 +193,7 @@ fn takeoff_hover_land_and_disarm() {
         Commander, CommanderInput, CommanderParams, FlightMode, LandedState,
     };
     for name in ["quad_x", "hexa_x", "octa_x", "dodeca"] {
-        let a = Airframe::load(
-            &PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-                .join(format!("../../params/airframes/{name}.toml")),
-        )
-        .unwrap();
+        let a = airframe(name);
         let mut sim = Simulator::new(
             &a,
             SimConfig {
@@ -298,21 +304,13 @@ fn takeoff_hover_land_and_disarm() {
 /// while the attitude and rate loops run on every 250 Hz sample; both rates fly.
 #[test]
 fn the_position_loop_runs_at_its_own_rate() {
-    let a = Airframe::load(
-        &PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../params/airframes/quad_x.toml"),
-    )
-    .unwrap();
+    let a = airframe("quad_x");
     for (loop_hz, runs_per_s) in [(50.0, 50), (250.0, 250), (100.0, 100)] {
         let mut p = FlightParams::default();
         p.position.loop_hz = loop_hz;
         let mut sim = Simulator::new(&a, SimConfig::default(), BodyState::default()).unwrap();
         let mut core = FlightCore::new(&a, FlightCoreConfig::from_params(&p, &a)).unwrap();
-        let sp = PositionSetpoint {
-            pos_ned_m: Vector3::new(0.0, 0.0, -3.0),
-            vel_ned_m_s: Vector3::zeros(),
-            accel_ned_m_s2: Vector3::zeros(),
-            yaw_rad: 0.0,
-        };
+        let sp = hover_at(3.0);
         let mut commands = [0.0; 16];
         let (mut last, mut changes, mut rate_changes) = (None, 0, 0);
         let mut last_rate_reference = Vector3::zeros();
@@ -350,10 +348,7 @@ fn the_position_loop_runs_at_its_own_rate() {
 /// a softer altitude gain) takes over in the hover without losing it.
 #[test]
 fn parameters_change_in_flight_without_a_jump() {
-    let a = Airframe::load(
-        &PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../params/airframes/quad_x.toml"),
-    )
-    .unwrap();
+    let a = airframe("quad_x");
     let base = FlightParams::default();
     let mut changed = base.clone();
     changed.set("MC_RATE_CTRL", 1.0).unwrap();
@@ -361,12 +356,7 @@ fn parameters_change_in_flight_without_a_jump() {
     let fly = |at_8s: Option<&FlightParams>| {
         let mut sim = Simulator::new(&a, SimConfig::default(), BodyState::default()).unwrap();
         let mut core = FlightCore::new(&a, FlightCoreConfig::from_params(&base, &a)).unwrap();
-        let sp = PositionSetpoint {
-            pos_ned_m: Vector3::new(0.0, 0.0, -3.0),
-            vel_ned_m_s: Vector3::zeros(),
-            accel_ned_m_s2: Vector3::zeros(),
-            yaw_rad: 0.0,
-        };
+        let sp = hover_at(3.0);
         let mut commands = [0.0; 16];
         let (mut trace, mut worst_after) = (Vec::new(), 0.0f64);
         let mut pending = at_8s;
