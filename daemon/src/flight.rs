@@ -14,7 +14,8 @@ use crate::vehicle::Vehicle;
 use crate::vehicle::VehicleCommand;
 use anyhow::{Context, Result, bail};
 use flight_core::commander::{CommanderStatus, Denial};
-use flight_core::core::StepOutput;
+use flight_core::control::position::PositionSetpoint;
+use flight_core::core::{SensorSample, StepOutput};
 use flight_core::params::FlightParams;
 use hil::{Decoded, Encoder};
 use std::time::{Duration, Instant};
@@ -68,6 +69,14 @@ pub struct Telemetry {
     pub output: Option<StepOutput>,
     /// The last GPS solution.
     pub gps: Option<hil::GpsReport>,
+    /// The last sensor sample stepped on.
+    pub sample: Option<SensorSample>,
+    /// The position set-point flown (armed only).
+    pub setpoint: Option<PositionSetpoint>,
+    /// The simulator's ground truth (SITL only).
+    pub truth: Option<hil::TruthReport>,
+    /// The largest collective thrust (N).
+    pub max_thrust_n: f64,
     /// Battery voltage (V).
     pub battery_v: f64,
     /// Sensor frames stepped.
@@ -348,6 +357,10 @@ impl<'a> ControlLoop<'a> {
                     t_s: step.t_s,
                     status: Some(status),
                     gps: self.vehicle.gps(),
+                    sample: self.vehicle.sample(),
+                    setpoint: self.vehicle.setpoint(),
+                    truth: self.vehicle.truth(),
+                    max_thrust_n: self.vehicle.max_thrust_n(),
                     battery_v: self.vehicle.battery_v(),
                     output: Some(step.output),
                     frames: self.report.frames,

@@ -130,6 +130,8 @@ mod tests {
             lon_deg: 8.0 + east_m / (k * lat0.to_radians().cos()),
             alt_m: 400.0 + up_m,
             vel_ned_m_s: Vector3::zeros(),
+            rate_frd_rad_s: Vector3::zeros(),
+            specific_force_frd_m_s2: Vector3::zeros(),
         }
     }
 

@@ -63,6 +63,10 @@ pub struct Vehicle {
     commander: Commander,
     /// For new parameters: the configuration is derived from them and the airframe.
     airframe: Airframe,
+    /// The last sensor sample stepped on, set-point flown and ground truth received.
+    last_sample: Option<SensorSample>,
+    last_setpoint: Option<PositionSetpoint>,
+    last_truth: Option<hil::TruthReport>,
     auto: Option<AutoFlight>,
     /// The auto flight has armed, or an operator asked to end: the run ends once disarmed.
     end_when_disarmed: bool,
@@ -109,6 +113,9 @@ impl Vehicle {
                 .context("building the mixer")?,
             commander: Commander::new(commander_params),
             airframe: airframe.clone(),
+            last_sample: None,
+            last_setpoint: None,
+            last_truth: None,
             auto,
             end_when_disarmed: false,
             ended: false,
@@ -151,6 +158,26 @@ impl Vehicle {
         self.core
             .set_config(FlightCoreConfig::from_params(params, &self.airframe));
         self.commander.set_params(params.commander);
+    }
+
+    /// The last sensor sample stepped on.
+    pub fn sample(&self) -> Option<SensorSample> {
+        self.last_sample
+    }
+
+    /// The position set-point flown (armed only).
+    pub fn setpoint(&self) -> Option<PositionSetpoint> {
+        self.last_setpoint
+    }
+
+    /// The simulator's last ground truth (SITL only).
+    pub fn truth(&self) -> Option<hil::TruthReport> {
+        self.last_truth
+    }
+
+    /// The largest collective thrust (N): what `ATTITUDE_TARGET`'s thrust is a fraction of.
+    pub fn max_thrust_n(&self) -> f64 {
+        self.core.config().position.max_thrust_n
     }
 
     /// The commander's state.
@@ -411,6 +438,17 @@ impl Vehicle {
         }
         let truth = self.update.truth.take();
         let output = self.core.step(&sample, &setpoint, armed);
+        // Magnetometer and barometer as last seen (a frame carries them only when fresh).
+        let prev = self.last_sample;
+        self.last_sample = Some(SensorSample {
+            mag: sample.mag.or(prev.and_then(|p| p.mag)),
+            baro_alt_m: sample.baro_alt_m.or(prev.and_then(|p| p.baro_alt_m)),
+            ..sample
+        });
+        self.last_setpoint = armed.then_some(setpoint);
+        if truth.is_some() {
+            self.last_truth = truth;
+        }
         if armed {
             let dt = t_usec.saturating_sub(self.last_t_usec) as f64 * 1e-6;
             self.hover.update(&output.commands, dt);

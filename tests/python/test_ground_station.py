@@ -81,9 +81,32 @@ def test_identity_gps_and_requests(vehicle):
     assert v.capabilities & mavutil.mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2
     assert v.uid != 0
 
+    # The on-request messages, on the ground before arming.
+    imu = request(gcs, "HIGHRES_IMU")
+    assert abs(imu.zacc + 9.81) < 0.5 and abs(imu.xgyro) < 0.05, imu
+    assert 900 < imu.abs_pressure < 1013.25 and abs(imu.pressure_alt - loc.alt) < 10, imu
+    assert abs(request(gcs, "SCALED_IMU").zacc + 1000) < 50
+    servo = request(gcs, "SERVO_OUTPUT_RAW")
+    assert (servo.servo1_raw, servo.servo4_raw) == (1000, 1000), servo  # disarmed: stopped
+    assert request(gcs, "ACTUATOR_OUTPUT_STATUS").actuator[0] == 0.0
+    est = request(gcs, "ESTIMATOR_STATUS")
+    assert est.flags & mavutil.mavlink.ESTIMATOR_ATTITUDE, est
+    assert est.flags & mavutil.mavlink.ESTIMATOR_POS_HORIZ_ABS, est
+    truth = request(gcs, "HIL_STATE_QUATERNION")  # SITL: the simulator's ground truth
+    assert abs(truth.lat / 1e7 - loc.lat) < 1e-4 and abs(truth.alt / 1e3 - loc.alt) < 2, truth
+
     # A command this vehicle does not know (an id no dialect has): acknowledged UNSUPPORTED.
     gcs.mav.command_long_send(1, 1, 31999, 0, 0, 0, 0, 0, 0, 0, 0)
     assert ack(gcs, 31999) == mavutil.mavlink.MAV_RESULT_UNSUPPORTED
+
+
+def request(gcs, what):
+    """REQUEST_MESSAGE for message type `what`; the message, which follows within 1 s."""
+    msg_id = getattr(mavutil.mavlink, f"MAVLINK_MSG_ID_{what}")
+    gcs.mav.command_long_send(1, 1, mavutil.mavlink.MAV_CMD_REQUEST_MESSAGE, 0,
+                              msg_id, 0, 0, 0, 0, 0, 0)
+    assert ack(gcs, mavutil.mavlink.MAV_CMD_REQUEST_MESSAGE) == 0, what
+    return wait(gcs, what, lambda m: True, timeout=1)
 
 
 def rate(gcs, what, seconds):
@@ -127,6 +150,17 @@ def test_takeoff_loiter_land_by_mode(vehicle):
     wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER", timeout=20)
     p = wait(gcs, "GLOBAL_POSITION_INT", lambda m: True)
     assert 2.2 < p.relative_alt / 1000 < 2.8, p
+    # What the loops are asked to fly: the held point, a level attitude, hover thrust.
+    here = wait(gcs, "LOCAL_POSITION_NED", lambda m: True)
+    target = request(gcs, "POSITION_TARGET_LOCAL_NED")
+    assert math.dist((target.x, target.y, target.z), (here.x, here.y, here.z)) < 0.5, target
+    assert target.type_mask & mavutil.mavlink.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE
+    att = request(gcs, "ATTITUDE_TARGET")
+    assert abs(att.q[1]) < 0.1 and abs(att.q[2]) < 0.1, att  # level: no roll or pitch part
+    assert 0.2 < att.thrust < 0.8, att
+    servo = request(gcs, "SERVO_OUTPUT_RAW")
+    assert all(1100 < s < 1900 for s in (servo.servo1_raw, servo.servo2_raw,
+                                         servo.servo3_raw, servo.servo4_raw)), servo
     gcs.set_mode("LOITER")
     assert ack(gcs, mavutil.mavlink.MAV_CMD_DO_SET_MODE) == 0
     # Disarming in the air is refused, with a reason.

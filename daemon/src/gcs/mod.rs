@@ -300,6 +300,7 @@ impl GroundStation {
     /// Whether REQUEST_MESSAGE can give message `id`.
     fn can_send(id: u32) -> bool {
         DEFAULT_STREAMS.iter().any(|&(i, _)| i == id)
+            || telemetry::ON_REQUEST.contains(&id)
             || matches!(id, AUTOPILOT_VERSION_DATA::ID | AVAILABLE_MODES_DATA::ID)
     }
 

@@ -298,6 +298,228 @@ pub fn build(id: u32, t: &Telemetry, unix_usec: u64) -> Option<MavMessage> {
                 standard_mode: modes::standard_mode(mode),
             })
         }
+        other => return detail(other, t),
+    })
+}
+
+/// Messages sent only when asked for (`REQUEST_MESSAGE`, or a rate through
+/// `SET_MESSAGE_INTERVAL`): sensor, estimator, output and target detail, and SITL's truth.
+pub const ON_REQUEST: [u32; 8] = [
+    HIGHRES_IMU_DATA::ID,
+    SCALED_IMU_DATA::ID,
+    ESTIMATOR_STATUS_DATA::ID,
+    SERVO_OUTPUT_RAW_DATA::ID,
+    ACTUATOR_OUTPUT_STATUS_DATA::ID,
+    ATTITUDE_TARGET_DATA::ID,
+    POSITION_TARGET_LOCAL_NED_DATA::ID,
+    HIL_STATE_QUATERNION_DATA::ID,
+];
+
+/// ISA pressure (hPa) at a pressure altitude (m).
+fn isa_pressure_hpa(alt_m: f64) -> f64 {
+    1013.25 * (1.0 - 2.255_77e-5 * alt_m).max(0.0).powf(5.255_88)
+}
+
+/// Saturating conversion to `i16`.
+fn i16_sat(x: f64) -> i16 {
+    x.round().clamp(i16::MIN as f64, i16::MAX as f64) as i16
+}
+
+/// The on-request messages ([`ON_REQUEST`]) from the latest telemetry, if there is data.
+fn detail(id: u32, t: &Telemetry) -> Option<MavMessage> {
+    let ms = boot_ms(t);
+    let usec = (t.t_s * 1e6) as u64;
+    let out = t.output;
+    Some(match id {
+        HIGHRES_IMU_DATA::ID => {
+            let s = t.sample?;
+            let mag = s.mag.unwrap_or(nalgebra::Vector3::repeat(f64::NAN));
+            let alt = s.baro_alt_m.unwrap_or(f64::NAN);
+            use HighresImuUpdatedFlags as F;
+            MavMessage::HIGHRES_IMU(HIGHRES_IMU_DATA {
+                time_usec: s.t_usec,
+                xacc: s.accel.x as f32,
+                yacc: s.accel.y as f32,
+                zacc: s.accel.z as f32,
+                xgyro: s.gyro.x as f32,
+                ygyro: s.gyro.y as f32,
+                zgyro: s.gyro.z as f32,
+                xmag: mag.x as f32,
+                ymag: mag.y as f32,
+                zmag: mag.z as f32,
+                abs_pressure: isa_pressure_hpa(alt) as f32,
+                diff_pressure: 0.0,
+                pressure_alt: alt as f32,
+                temperature: f32::NAN,
+                fields_updated: F::HIGHRES_IMU_UPDATED_XACC
+                    | F::HIGHRES_IMU_UPDATED_YACC
+                    | F::HIGHRES_IMU_UPDATED_ZACC
+                    | F::HIGHRES_IMU_UPDATED_XGYRO
+                    | F::HIGHRES_IMU_UPDATED_YGYRO
+                    | F::HIGHRES_IMU_UPDATED_ZGYRO
+                    | F::HIGHRES_IMU_UPDATED_XMAG
+                    | F::HIGHRES_IMU_UPDATED_YMAG
+                    | F::HIGHRES_IMU_UPDATED_ZMAG
+                    | F::HIGHRES_IMU_UPDATED_ABS_PRESSURE
+                    | F::HIGHRES_IMU_UPDATED_PRESSURE_ALT,
+                id: 0,
+            })
+        }
+        SCALED_IMU_DATA::ID => {
+            // mg, mrad/s, mgauss.
+            let s = t.sample?;
+            let mg = |x: f64| i16_sat(x / flight_core::GRAVITY_M_S2 * 1e3);
+            let mag = s.mag.unwrap_or_default() * 1e3;
+            MavMessage::SCALED_IMU(SCALED_IMU_DATA {
+                time_boot_ms: ms,
+                xacc: mg(s.accel.x),
+                yacc: mg(s.accel.y),
+                zacc: mg(s.accel.z),
+                xgyro: i16_sat(s.gyro.x * 1e3),
+                ygyro: i16_sat(s.gyro.y * 1e3),
+                zgyro: i16_sat(s.gyro.z * 1e3),
+                xmag: i16_sat(mag.x),
+                ymag: i16_sat(mag.y),
+                zmag: i16_sat(mag.z),
+                temperature: 0,
+            })
+        }
+        ESTIMATOR_STATUS_DATA::ID => {
+            let o = out?;
+            let tr = o.translation;
+            use EstimatorStatusFlags as F;
+            let mut flags = F::empty();
+            if o.attitude.is_some_and(|a| a.valid) {
+                flags |= F::ESTIMATOR_ATTITUDE;
+            }
+            if tr.horizontal_valid {
+                flags |= F::ESTIMATOR_VELOCITY_HORIZ
+                    | F::ESTIMATOR_POS_HORIZ_REL
+                    | F::ESTIMATOR_POS_HORIZ_ABS;
+            }
+            if tr.vertical_valid {
+                flags |= F::ESTIMATOR_VELOCITY_VERT | F::ESTIMATOR_POS_VERT_ABS;
+            }
+            let h_acc = t.gps.map_or(f32::NAN, |g| g.h_acc_m as f32);
+            MavMessage::ESTIMATOR_STATUS(ESTIMATOR_STATUS_DATA {
+                time_usec: usec,
+                flags,
+                // No innovation test ratios: the complementary filters gate by accuracy and age.
+                pos_horiz_accuracy: h_acc,
+                pos_vert_accuracy: f32::NAN,
+                ..Default::default()
+            })
+        }
+        SERVO_OUTPUT_RAW_DATA::ID => {
+            let o = out?;
+            // PWM as a flight board would drive the ESCs: 1000 µs stopped, 2000 µs full.
+            let pwm = |i: usize| (1000.0 + 1000.0 * o.commands[i].clamp(0.0, 1.0)) as u16;
+            MavMessage::SERVO_OUTPUT_RAW(SERVO_OUTPUT_RAW_DATA {
+                time_usec: usec as u32,
+                servo1_raw: pwm(0),
+                servo2_raw: pwm(1),
+                servo3_raw: pwm(2),
+                servo4_raw: pwm(3),
+                servo5_raw: pwm(4),
+                servo6_raw: pwm(5),
+                servo7_raw: pwm(6),
+                servo8_raw: pwm(7),
+                port: 0,
+                servo9_raw: pwm(8),
+                servo10_raw: pwm(9),
+                servo11_raw: pwm(10),
+                servo12_raw: pwm(11),
+                servo13_raw: pwm(12),
+                servo14_raw: pwm(13),
+                servo15_raw: pwm(14),
+                servo16_raw: pwm(15),
+            })
+        }
+        ACTUATOR_OUTPUT_STATUS_DATA::ID => {
+            let o = out?;
+            let mut actuator = [0.0f32; 32];
+            for (a, c) in actuator.iter_mut().zip(o.commands.iter()) {
+                *a = *c as f32;
+            }
+            MavMessage::ACTUATOR_OUTPUT_STATUS(ACTUATOR_OUTPUT_STATUS_DATA {
+                time_usec: usec,
+                active: (1u32 << o.commands.len().min(31)) - 1,
+                actuator,
+            })
+        }
+        ATTITUDE_TARGET_DATA::ID => {
+            let sp = out?.attitude_setpoint?;
+            let q = sp.q_d.quaternion();
+            let w = out?.rate_reference;
+            MavMessage::ATTITUDE_TARGET(ATTITUDE_TARGET_DATA {
+                time_boot_ms: ms,
+                q: [q.w as f32, q.i as f32, q.j as f32, q.k as f32],
+                body_roll_rate: w.x as f32,
+                body_pitch_rate: w.y as f32,
+                body_yaw_rate: w.z as f32,
+                thrust: (sp.thrust_n / t.max_thrust_n.max(1e-9)).clamp(0.0, 1.0) as f32,
+                type_mask: AttitudeTargetTypemask::empty(),
+            })
+        }
+        POSITION_TARGET_LOCAL_NED_DATA::ID => {
+            let sp = t.setpoint?;
+            use PositionTargetTypemask as M;
+            let mut mask = M::POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE;
+            let ignore = [
+                (sp.pos_ned_m.x, M::POSITION_TARGET_TYPEMASK_X_IGNORE),
+                (sp.pos_ned_m.y, M::POSITION_TARGET_TYPEMASK_Y_IGNORE),
+                (sp.pos_ned_m.z, M::POSITION_TARGET_TYPEMASK_Z_IGNORE),
+                (sp.vel_ned_m_s.x, M::POSITION_TARGET_TYPEMASK_VX_IGNORE),
+                (sp.vel_ned_m_s.y, M::POSITION_TARGET_TYPEMASK_VY_IGNORE),
+                (sp.vel_ned_m_s.z, M::POSITION_TARGET_TYPEMASK_VZ_IGNORE),
+            ];
+            for (v, m) in ignore {
+                if v.is_nan() {
+                    mask |= m;
+                }
+            }
+            MavMessage::POSITION_TARGET_LOCAL_NED(POSITION_TARGET_LOCAL_NED_DATA {
+                time_boot_ms: ms,
+                x: sp.pos_ned_m.x as f32,
+                y: sp.pos_ned_m.y as f32,
+                z: sp.pos_ned_m.z as f32,
+                vx: sp.vel_ned_m_s.x as f32,
+                vy: sp.vel_ned_m_s.y as f32,
+                vz: sp.vel_ned_m_s.z as f32,
+                afx: sp.accel_ned_m_s2.x as f32,
+                afy: sp.accel_ned_m_s2.y as f32,
+                afz: sp.accel_ned_m_s2.z as f32,
+                yaw: sp.yaw_rad as f32,
+                yaw_rate: 0.0,
+                type_mask: mask,
+                coordinate_frame: MavFrame::MAV_FRAME_LOCAL_NED,
+            })
+        }
+        HIL_STATE_QUATERNION_DATA::ID => {
+            let g = t.truth?;
+            let q = g.q.quaternion();
+            let w = g.rate_frd_rad_s;
+            let v = g.vel_ned_m_s * 100.0;
+            let f = g.specific_force_frd_m_s2 / flight_core::GRAVITY_M_S2 * 1e3;
+            MavMessage::HIL_STATE_QUATERNION(HIL_STATE_QUATERNION_DATA {
+                time_usec: g.time_usec,
+                attitude_quaternion: [q.w as f32, q.i as f32, q.j as f32, q.k as f32],
+                rollspeed: w.x as f32,
+                pitchspeed: w.y as f32,
+                yawspeed: w.z as f32,
+                lat: e7(g.lat_deg),
+                lon: e7(g.lon_deg),
+                alt: (g.alt_m * 1e3).round() as i32,
+                vx: i16_sat(v.x),
+                vy: i16_sat(v.y),
+                vz: i16_sat(v.z),
+                ind_airspeed: 0,
+                true_airspeed: 0,
+                xacc: i16_sat(f.x),
+                yacc: i16_sat(f.y),
+                zacc: i16_sat(f.z),
+            })
+        }
         _ => return None,
     })
 }

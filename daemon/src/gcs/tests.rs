@@ -621,3 +621,77 @@ fn manual_control_reaches_the_vehicle_as_sticks_and_a_loss_is_reported() {
     g.poll(0.02, &t, &mut out);
     assert_eq!(statustexts(&out), ["manual control lost: Hold"]);
 }
+
+#[test]
+fn on_request_messages_can_be_asked_for_and_say_which_set_point_axes_are_flown() {
+    let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
+    let mut t = telemetry(true, FlightMode::Posctl);
+    let mut out = Outbox::default();
+    for id in telemetry::ON_REQUEST {
+        let set = command_long(
+            MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
+            [id as f32, 100_000.0, 0., 0., 0., 0., 0.],
+            (1, 1),
+        );
+        g.on_message(&gcs_header(), &set, &t, &mut out);
+    }
+    assert!(
+        acks(&out)
+            .iter()
+            .all(|a| a.result == MavResult::MAV_RESULT_ACCEPTED),
+        "{:?}",
+        acks(&out)
+    );
+    // No data yet (no set-point, no truth): asked for, refused for now.
+    let mut out = Outbox::default();
+    let ask = |id: u32| {
+        command_long(
+            MavCmd::MAV_CMD_REQUEST_MESSAGE,
+            [id as f32, 0., 0., 0., 0., 0., 0.],
+            (1, 1),
+        )
+    };
+    g.on_message(
+        &gcs_header(),
+        &ask(HIL_STATE_QUATERNION_DATA::ID),
+        &t,
+        &mut out,
+    );
+    assert_eq!(
+        acks(&out)[0].result,
+        MavResult::MAV_RESULT_TEMPORARILY_REJECTED
+    );
+    // Velocity horizontally, position vertically (POSCTL with the pitch stick forward).
+    t.setpoint = Some(flight_core::control::position::PositionSetpoint {
+        pos_ned_m: nalgebra::Vector3::new(f64::NAN, f64::NAN, -5.0),
+        vel_ned_m_s: nalgebra::Vector3::new(3.0, 0.0, f64::NAN),
+        accel_ned_m_s2: nalgebra::Vector3::zeros(),
+        yaw_rad: 0.5,
+    });
+    let mut out = Outbox::default();
+    g.on_message(
+        &gcs_header(),
+        &ask(POSITION_TARGET_LOCAL_NED_DATA::ID),
+        &t,
+        &mut out,
+    );
+    assert_eq!(acks(&out)[0].result, MavResult::MAV_RESULT_ACCEPTED);
+    g.poll(100.0, &t, &mut out);
+    let target = out
+        .messages
+        .iter()
+        .find_map(|m| match m {
+            Outgoing::Message(MavMessage::POSITION_TARGET_LOCAL_NED(p)) => Some(p.clone()),
+            _ => None,
+        })
+        .unwrap();
+    use PositionTargetTypemask as M;
+    assert_eq!(
+        target.type_mask,
+        M::POSITION_TARGET_TYPEMASK_X_IGNORE
+            | M::POSITION_TARGET_TYPEMASK_Y_IGNORE
+            | M::POSITION_TARGET_TYPEMASK_VZ_IGNORE
+            | M::POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE
+    );
+    assert_eq!((target.z, target.vx, target.yaw), (-5.0, 3.0, 0.5));
+}

@@ -325,6 +325,10 @@ pub struct TruthReport {
     pub alt_m: f64,
     /// Velocity NED (m/s).
     pub vel_ned_m_s: Vector3<f64>,
+    /// Body rate FRD (rad/s).
+    pub rate_frd_rad_s: Vector3<f64>,
+    /// Specific force FRD (m/s²), from the message's milli-g.
+    pub specific_force_frd_m_s2: Vector3<f64>,
 }
 
 impl SensorUpdate {
@@ -383,6 +387,16 @@ impl SensorUpdate {
                     lon_deg: q.lon as f64 * 1e-7,
                     alt_m: q.alt as f64 * 1e-3,
                     vel_ned_m_s: Vector3::new(q.vx as f64, q.vy as f64, q.vz as f64) * 0.01,
+                    rate_frd_rad_s: Vector3::new(
+                        q.rollspeed as f64,
+                        q.pitchspeed as f64,
+                        q.yawspeed as f64,
+                    ),
+                    specific_force_frd_m_s2: Vector3::new(
+                        q.xacc as f64,
+                        q.yacc as f64,
+                        q.zacc as f64,
+                    ) * (sitl_core::GRAVITY_M_S2 / 1000.0),
                 });
                 false
             }
