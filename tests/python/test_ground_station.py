@@ -6,6 +6,8 @@ commands (PX4's pre-flight auto-disarm, for one, counts simulated seconds).
 """
 
 import math
+import os
+import select
 import struct
 import threading
 import time
@@ -397,3 +399,55 @@ def test_position_mode_flies_the_sticks_and_holds_then_holds_on_their_loss(vehic
     gcs.set_mode("LAND")
     assert ack(gcs, mavutil.mavlink.MAV_CMD_DO_SET_MODE) == 0
     wait(gcs, "HEARTBEAT", lambda m: not armed(m), timeout=60)
+
+
+class PtyLink:
+    """The ground station's end of a pseudo-terminal pair: pymavlink's parser and encoder over
+    the master side; the autopilot opens the slave side as a serial port."""
+
+    def __init__(self):
+        self.master, slave = os.openpty()
+        self.device = os.ttyname(slave)
+        os.close(slave)  # the autopilot opens it by name
+        self.mav = mavutil.mavlink.MAVLink(self, srcSystem=255, srcComponent=190)
+        self.mav.robust_parsing = True
+
+    def write(self, data):
+        os.write(self.master, data)
+
+    def recv(self, what, condition, timeout=10):
+        """The first message of type `what` from component 1 for which condition(msg) holds."""
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            ready, _, _ = select.select([self.master], [], [], 0.2)
+            if not ready:
+                continue
+            try:
+                data = os.read(self.master, 4096)
+            except OSError:  # nobody has the slave side open yet
+                continue
+            for m in self.mav.parse_buffer(data) or []:
+                if m.get_type() == what and m.get_srcComponent() == 1 and condition(m):
+                    return m
+        pytest.fail(f"no {what} over the serial line within {timeout} s")
+
+
+def test_a_ground_station_on_a_serial_line(tmp_path):
+    link = PtyLink()
+    daemon = Daemon(tmp_path, f"serial://{link.device}?baud=57600", connect=False)
+    try:
+        hb = link.recv("HEARTBEAT", lambda m: True, 30)
+        assert hb.autopilot == mavutil.mavlink.MAV_AUTOPILOT_PX4
+        link.mav.command_long_send(1, 1, mavutil.mavlink.MAV_CMD_REQUEST_MESSAGE, 0,
+                                   mavutil.mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION,
+                                   0, 0, 0, 0, 0, 0)
+        ack = link.recv("COMMAND_ACK",
+                        lambda m: m.command == mavutil.mavlink.MAV_CMD_REQUEST_MESSAGE)
+        assert ack.result == 0
+        assert link.recv("AUTOPILOT_VERSION", lambda m: True).uid != 0
+        link.mav.param_request_read_send(1, 1, b"MIS_TAKEOFF_ALT", -1)
+        assert link.recv("PARAM_VALUE", lambda m: m.param_id == "MIS_TAKEOFF_ALT").param_value \
+            == 2.5
+    finally:
+        daemon.close()
+        os.close(link.master)

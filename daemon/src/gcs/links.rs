@@ -64,6 +64,13 @@ pub enum Endpoint {
         /// The local address.
         bind: SocketAddr,
     },
+    /// A serial line (a telemetry radio or a USB link to a ground station).
+    Serial {
+        /// The device.
+        path: std::path::PathBuf,
+        /// Its baud rate.
+        baud: u32,
+    },
 }
 
 impl Endpoint {
@@ -84,10 +91,32 @@ impl Endpoint {
             }
             Ok(a)
         };
-        let (scheme, rest) = url
-            .split_once("://")
-            .with_context(|| format!("{url:?}: expected udpout://, udpin:// or tcpin://"))?;
+        let (scheme, rest) = url.split_once("://").with_context(|| {
+            format!("{url:?}: expected udpout://, udpin://, tcpin:// or serial://")
+        })?;
         let (host, query) = rest.split_once('?').unwrap_or((rest, ""));
+        if scheme == "serial" {
+            let mut baud = 57_600;
+            for kv in query.split('&').filter(|s| !s.is_empty()) {
+                match kv.split_once('=') {
+                    Some(("baud", b)) => {
+                        baud = b
+                            .parse()
+                            .ok()
+                            .filter(|&b| b > 0)
+                            .with_context(|| format!("{url:?}: baud={b} is not a baud rate"))?;
+                    }
+                    _ => bail!("{url:?}: unknown option {kv:?} (serial takes baud=N)"),
+                }
+            }
+            if host.is_empty() {
+                bail!("{url:?}: no device (serial:///dev/ttyUSB0?baud=57600)");
+            }
+            return Ok(Endpoint::Serial {
+                path: host.into(),
+                baud,
+            });
+        }
         let mut bind = None;
         for kv in query.split('&').filter(|s| !s.is_empty()) {
             match kv.split_once('=') {
@@ -108,7 +137,7 @@ impl Endpoint {
             "udpin" if bind.is_none() => Endpoint::UdpIn { bind: addr(host)? },
             "tcpin" if bind.is_none() => Endpoint::TcpIn { bind: addr(host)? },
             "udpin" | "tcpin" => bail!("{url:?}: bind= is for udpout"),
-            _ => bail!("{url:?}: expected udpout://, udpin:// or tcpin://"),
+            _ => bail!("{url:?}: expected udpout://, udpin://, tcpin:// or serial://"),
         })
     }
 }
@@ -245,6 +274,86 @@ async fn tcp_server(listener: TcpListener, inbound: mpsc::Sender<Inbound>, frame
     }
 }
 
+/// How long a serial read waits: the latency of frames going out while nothing comes in.
+const SERIAL_POLL: Duration = Duration::from_millis(10);
+
+/// A serial endpoint on its own thread (serial I/O blocks): reads frames in, writes the
+/// vehicle's frames out, and reopens the port with backoff (0.1 s doubling to 2 s) when it
+/// fails or vanishes, until the frames channel closes. Frames sent while it is closed are lost.
+fn serial(
+    path: std::path::PathBuf,
+    baud: u32,
+    inbound: mpsc::Sender<Inbound>,
+    mut frames: broadcast::Receiver<Arc<[u8]>>,
+) {
+    use std::io::{Read, Write};
+    let mut backoff = Duration::from_millis(100);
+    let mut said_down = false;
+    let mut buf = vec![0u8; 4096];
+    loop {
+        // Frames queued while the port is closed are dropped, not sent late.
+        loop {
+            match frames.try_recv() {
+                Ok(_) | Err(broadcast::error::TryRecvError::Lagged(_)) => {}
+                Err(broadcast::error::TryRecvError::Empty) => break,
+                Err(broadcast::error::TryRecvError::Closed) => return,
+            }
+        }
+        let mut port = match serialport::new(path.to_string_lossy(), baud)
+            .timeout(SERIAL_POLL)
+            .open_native()
+        {
+            Ok(p) => p,
+            Err(e) => {
+                if !said_down {
+                    tracing::warn!(port = %path.display(), "ground-station serial port: {e}; retrying");
+                    said_down = true;
+                }
+                std::thread::sleep(backoff);
+                backoff = (backoff * 2).min(Duration::from_secs(2));
+                continue;
+            }
+        };
+        tracing::info!(port = %path.display(), baud, "MAVLink serial endpoint");
+        said_down = false;
+        backoff = Duration::from_millis(100);
+        let mut splitter = StreamDecoder::default();
+        let mut decoded = new_decoded();
+        let failure = loop {
+            match port.read(&mut buf) {
+                Ok(0) => {}
+                Ok(n) => {
+                    splitter.push(&buf[..n], &mut decoded);
+                    deliver(&mut decoded, &inbound);
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) => break e,
+            }
+            let mut write_error = None;
+            loop {
+                match frames.try_recv() {
+                    Ok(frame) => {
+                        if let Err(e) = port.write_all(&frame) {
+                            write_error = Some(e);
+                            break;
+                        }
+                    }
+                    Err(broadcast::error::TryRecvError::Lagged(n)) => {
+                        tracing::debug!("ground-station serial behind: {n} frames dropped");
+                    }
+                    Err(broadcast::error::TryRecvError::Empty) => break,
+                    Err(broadcast::error::TryRecvError::Closed) => return,
+                }
+            }
+            if let Some(e) = write_error {
+                break e;
+            }
+        };
+        tracing::warn!(port = %path.display(), "ground-station serial link lost: {failure}; reopening");
+    }
+}
+
 /// Opens `endpoint`; its task runs until the frames channel closes. A port that cannot be
 /// bound is reported and skipped (another vehicle may hold it: give it `-i N`).
 async fn open(endpoint: &Endpoint, inbound: &mpsc::Sender<Inbound>, frames: &Frames) -> Result<()> {
@@ -269,6 +378,14 @@ async fn open(endpoint: &Endpoint, inbound: &mpsc::Sender<Inbound>, frames: &Fra
                 .with_context(|| format!("listening on TCP {bind}"))?;
             tracing::info!(local = %l.local_addr()?, "MAVLink TCP server");
             tokio::spawn(tcp_server(l, inbound.clone(), frames.clone()));
+        }
+        Endpoint::Serial { path, baud } => {
+            let (path, baud, inbound, frames) =
+                (path.clone(), *baud, inbound.clone(), frames.subscribe());
+            std::thread::Builder::new()
+                .name("gcs-serial".into())
+                .spawn(move || serial(path, baud, inbound, frames))
+                .context("starting the serial endpoint")?;
         }
     }
     Ok(())

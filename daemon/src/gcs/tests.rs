@@ -323,11 +323,30 @@ fn endpoints_parse_with_the_instance_offset() {
             bind: "0.0.0.0:5761".parse().unwrap()
         }
     );
+    assert_eq!(
+        links::Endpoint::parse("serial:///dev/ttyUSB0?baud=921600", 3).unwrap(),
+        links::Endpoint::Serial {
+            path: "/dev/ttyUSB0".into(),
+            baud: 921_600
+        }
+    );
+    assert_eq!(
+        links::Endpoint::parse("serial:///dev/ttyACM0", 0).unwrap(),
+        links::Endpoint::Serial {
+            path: "/dev/ttyACM0".into(),
+            baud: 57_600
+        },
+        "a telemetry radio's rate by default"
+    );
     for bad in [
         "udp://1.2.3.4:5",
         "udpout://localhost",
         "udpin://0.0.0.0:1?bind=3",
         "udpout://1.2.3.4:5?speed=9",
+        "serial://?baud=57600",
+        "serial:///dev/ttyS0?baud=fast",
+        "serial:///dev/ttyS0?baud=0",
+        "serial:///dev/ttyS0?bind=3",
     ] {
         assert!(links::Endpoint::parse(bad, 0).is_err(), "{bad}");
     }
