@@ -14,7 +14,7 @@ use crate::vehicle::Vehicle;
 use crate::vehicle::VehicleCommand;
 use anyhow::{Context, Result, bail};
 use flight_core::commander::{CommanderStatus, Denial};
-use flight_core::control::position::PositionSetpoint;
+use flight_core::control::Setpoint;
 use flight_core::core::{SensorSample, StepOutput};
 use flight_core::params::FlightParams;
 use hil::{Decoded, Encoder};
@@ -72,7 +72,7 @@ pub struct Telemetry {
     /// The last sensor sample stepped on.
     pub sample: Option<SensorSample>,
     /// The position set-point flown (armed only).
-    pub setpoint: Option<PositionSetpoint>,
+    pub setpoint: Option<Setpoint>,
     /// The simulator's ground truth (SITL only).
     pub truth: Option<hil::TruthReport>,
     /// The largest collective thrust (N).

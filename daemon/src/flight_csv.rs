@@ -4,7 +4,7 @@
 
 use crate::score::FlightScore;
 use flight_core::commander::CommanderStatus;
-use flight_core::control::position::PositionSetpoint;
+use flight_core::control::Setpoint;
 use flight_core::core::StepOutput;
 use hil::TruthReport;
 use std::io::{BufWriter, Write};
@@ -55,13 +55,17 @@ impl FlightCsv {
         t_s: f64,
         status: &CommanderStatus,
         armed: bool,
-        setpoint: &PositionSetpoint,
+        setpoint: &Setpoint,
         out: &StepOutput,
         truth: Option<&TruthReport>,
         score: &FlightScore,
     ) -> std::io::Result<()> {
         let tr = &out.translation;
-        let (p, v, s) = (tr.pos_ned_m, tr.vel_ned_m_s, setpoint.pos_ned_m);
+        // Stick-to-attitude modes fly no position: its set-point columns are NaN.
+        let s = setpoint
+            .position()
+            .map_or(nalgebra::Vector3::repeat(f64::NAN), |p| p.pos_ned_m);
+        let (p, v) = (tr.pos_ned_m, tr.vel_ned_m_s);
         write!(
             self.out,
             "{t_s:.4},{},{:?},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{},",

@@ -5,6 +5,7 @@ use anyhow::{Context, Result};
 use flight_core::commander::{
     Commander, CommanderInput, CommanderStatus, Denial, FlightMode, LandedState, Sticks,
 };
+use flight_core::control::Setpoint;
 use flight_core::control::position::PositionSetpoint;
 use flight_core::core::{FlightCore, FlightCoreConfig, SensorSample, StepOutput};
 use flight_core::estimator::translation::GpsMeasurement;
@@ -65,7 +66,7 @@ pub struct Vehicle {
     airframe: Airframe,
     /// The last sensor sample stepped on, set-point flown and ground truth received.
     last_sample: Option<SensorSample>,
-    last_setpoint: Option<PositionSetpoint>,
+    last_setpoint: Option<Setpoint>,
     last_truth: Option<hil::TruthReport>,
     auto: Option<AutoFlight>,
     /// The auto flight has armed, or an operator asked to end: the run ends once disarmed.
@@ -165,8 +166,8 @@ impl Vehicle {
         self.last_sample
     }
 
-    /// The position set-point flown (armed only).
-    pub fn setpoint(&self) -> Option<PositionSetpoint> {
+    /// The set-point flown (armed only).
+    pub fn setpoint(&self) -> Option<Setpoint> {
         self.last_setpoint
     }
 
@@ -417,17 +418,21 @@ impl Vehicle {
                     pos_ned_m: e.translation.pos_ned_m,
                     vel_ned_m_s: e.translation.vel_ned_m_s,
                     yaw_rad: e.attitude.map_or(0.0, |a| a.q.euler_angles().2),
+                    hover_thrust: {
+                        let p = &self.core.config().position;
+                        p.mass_kg * flight_core::GRAVITY_M_S2 / p.max_thrust_n.max(1e-9)
+                    },
                 });
                 self.check_end();
                 out
             }
             None => (
-                PositionSetpoint {
+                Setpoint::Position(PositionSetpoint {
                     pos_ned_m: Vector3::zeros(),
                     vel_ned_m_s: Vector3::zeros(),
                     accel_ned_m_s2: Vector3::zeros(),
                     yaw_rad: 0.0,
-                },
+                }),
                 false,
             ),
         };

@@ -330,18 +330,30 @@ class Sticks:
 
     def __init__(self, gcs):
         self.gcs, self.values = gcs, (0, 0, 500, 0)
-        self.running = True
+        self.running, self.sent = True, 0
+        self.cond = threading.Condition()
         self.thread = threading.Thread(target=self._run, daemon=True)
         self.thread.start()
 
     def _run(self):
         while self.running:
-            x, y, z, r = self.values
-            self.gcs.mav.manual_control_send(1, x, y, z, r, 0)
+            with self.cond:
+                x, y, z, r = self.values
+                self.gcs.mav.manual_control_send(1, x, y, z, r, 0)
+                self.sent += 1
+                self.cond.notify_all()
             time.sleep(0.05)  # the stream's period, not a wait for the vehicle
 
     def set(self, x=0, y=0, z=500, r=0):
         self.values = (x, y, z, r)
+
+    def sent_now(self, x=0, y=0, z=500, r=0):
+        """Sets the sticks and returns once they have been sent: a command sent next on the
+        same link reaches the vehicle after them."""
+        with self.cond:
+            self.values = (x, y, z, r)
+            n = self.sent
+            assert self.cond.wait_for(lambda: self.sent > n, timeout=2)
 
     def stop(self):
         self.running = False
@@ -399,6 +411,81 @@ def test_position_mode_flies_the_sticks_and_holds_then_holds_on_their_loss(vehic
     gcs.set_mode("LAND")
     assert ack(gcs, mavutil.mavlink.MAV_CMD_DO_SET_MODE) == 0
     wait(gcs, "HEARTBEAT", lambda m: not armed(m), timeout=60)
+
+
+def pilot(gcs, sticks, until, climb=0.0, timeout=30, **stick):
+    """A pilot's throttle hand in STABILIZED (no altitude hold there): throttle around its centre
+    (hover thrust) to keep the climb rate at `climb` m/s, the other sticks as given, until
+    until(LOCAL_POSITION_NED or ATTITUDE message) holds."""
+    end = time.monotonic() + timeout
+    throttle, last = 500, {}
+    while time.monotonic() < end:
+        m = gcs.recv_match(type=["LOCAL_POSITION_NED", "ATTITUDE"], blocking=True, timeout=0.5)
+        if m is None or m.get_srcComponent() != 1:
+            continue
+        last[m.get_type()] = m
+        if m.get_type() == "LOCAL_POSITION_NED":
+            throttle = min(1000, max(0, 500 + 60 * (m.vz + climb)))
+        sticks.set(z=int(throttle), **stick)
+        if until(m):
+            return m
+    pytest.fail(f"the pilot's condition not met within {timeout} s: "
+                f"{ {k: v.to_dict() for k, v in last.items()} }, throttle {throttle}, "
+                f"mode {gcs.flightmode}")
+
+
+def test_stabilized_flies_attitude_and_thrust_from_the_sticks(vehicle):
+    """STABILIZED as on PX4 multicopters: roll and pitch sticks to tilt (MPC_MAN_TILT_MAX 35°),
+    yaw stick to a turn rate (MPC_MAN_Y_MAX 150°/s), throttle to thrust through hover at its
+    centre; the vehicle levels when the sticks centre; touchdown on low throttle disarms."""
+    gcs = vehicle
+    set_param(gcs, "MPC_MAN_Y_MAX", 60.0)
+    # 20 Hz sticks at 3x speed are 0.15 s of vehicle time apart: a scheduling hiccup of this
+    # process must not read as a lost joystick (the loss itself is tested in POSCTL).
+    set_param(gcs, "COM_RC_LOSS_T", 2.0)
+    ready_to_arm(gcs)
+    sticks = Sticks(gcs)
+    try:
+        sticks.sent_now(z=0)
+        gcs.set_mode("STABILIZED")
+        assert ack(gcs, mavutil.mavlink.MAV_CMD_DO_SET_MODE) == 0
+        wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "STABILIZED", timeout=3)
+        sticks.sent_now(z=600)
+        gcs.arducopter_arm()
+        assert ack(gcs, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM) == mavutil.mavlink.MAV_RESULT_DENIED
+        wait(gcs, "STATUSTEXT", lambda m: "throttle stick not low" in m.text, 2)
+        sticks.sent_now(z=0)
+        gcs.arducopter_arm()
+        assert ack(gcs, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM) == 0
+        # Climb at 1.5 m/s to 4 m on the throttle alone.
+        pilot(gcs, sticks, lambda m: m.get_type() == "LOCAL_POSITION_NED" and m.z < -4.0, 1.5)
+        pilot(gcs, sticks, lambda m: m.get_type() == "LOCAL_POSITION_NED" and abs(m.vz) < 0.2)
+        # Roll stick 40 % right: 14° of roll, flying east of the heading.
+        roll = math.radians(0.4 * 35)
+        pilot(gcs, sticks, lambda m: m.get_type() == "ATTITUDE"
+              and abs(m.roll - roll) < math.radians(1.5) and abs(m.pitch) < math.radians(1.5),
+              timeout=10, y=400)
+        # Pitch stick 30 % forward: nose down 10.5°, level in roll.
+        pitch = -math.radians(0.3 * 35)
+        pilot(gcs, sticks, lambda m: m.get_type() == "ATTITUDE"
+              and abs(m.pitch - pitch) < math.radians(1.5) and abs(m.roll) < math.radians(1.5),
+              timeout=10, x=300)
+        # Centred: level again.
+        pilot(gcs, sticks, lambda m: m.get_type() == "ATTITUDE"
+              and math.hypot(m.roll, m.pitch) < math.radians(1.0), timeout=10)
+        # Full yaw stick: turns at MPC_MAN_Y_MAX (set to 60°/s, below the rate loop's limit).
+        m = pilot(gcs, sticks, lambda m: m.get_type() == "ATTITUDE"
+                  and abs(m.yawspeed - math.radians(60)) < math.radians(5), timeout=10, r=1000)
+        pilot(gcs, sticks, lambda m: m.get_type() == "ATTITUDE" and abs(m.yawspeed) < 0.1,
+              timeout=10)
+        # Down at 0.8 m/s, throttle to zero near the ground: touchdown, disarmed, still STABILIZED.
+        pilot(gcs, sticks, lambda m: m.get_type() == "LOCAL_POSITION_NED" and m.z > -0.5, -0.8,
+              timeout=40)
+        sticks.set(z=0)
+        wait(gcs, "HEARTBEAT", lambda m: not armed(m), timeout=15)
+        assert gcs.flightmode == "STABILIZED"
+    finally:
+        sticks.stop()
 
 
 class PtyLink:

@@ -36,12 +36,12 @@ fn tick(c: &mut Criterion) {
                 Simulator::new(&a, SimConfig::default(), BodyState::default()).expect("sim");
             let mut core =
                 FlightCore::new(&a, FlightCoreConfig::for_airframe(&a, pid)).expect("mixer");
-            let sp = PositionSetpoint {
+            let sp = flight_core::control::Setpoint::Position(PositionSetpoint {
                 pos_ned_m: Vector3::new(0.0, 0.0, -5.0),
                 vel_ned_m_s: Vector3::zeros(),
                 accel_ned_m_s2: Vector3::zeros(),
                 yaw_rad: 0.0,
-            };
+            });
             let mut commands = [0.0; 16];
             // Align, take off and settle into the hover first.
             for _ in 0..(15 * 250) {

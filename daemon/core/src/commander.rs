@@ -3,7 +3,8 @@
 //!
 //! Commands ([`Commander::arm`], [`Commander::set_mode`], [`Commander::takeoff`], …) are answered
 //! at once with `Ok` or a denial that says why; [`Commander::update`] then turns the mode into a
-//! position set-point for the flight core on every sample.
+//! set-point for the flight core on every sample: a position set-point, or an attitude and thrust
+//! in the stick-to-attitude modes.
 //!
 //! - *Takeoff*: spool up for `spool_s` after arming, climb on a speed- and acceleration-limited
 //!   profile to the take-off altitude above home, then *Loiter* there.
@@ -15,20 +16,26 @@
 //!   climb rate from the throttle stick around its centre, hold when centred; take-off by
 //!   raising the throttle, touchdown and disarm after holding it low on the ground. Sticks
 //!   that stop arriving (`COM_RC_LOSS_T`) switch to Hold.
+//! - *Stabilized* and *Manual* (the same on a multicopter, as in PX4): the roll and pitch sticks
+//!   tilt the vehicle up to `MPC_MAN_TILT_MAX` in the heading's frame, the yaw stick turns it,
+//!   the throttle stick sets the collective thrust (its centre is hover thrust); the vehicle
+//!   levels itself when the sticks centre but holds neither altitude nor position. Touchdown
+//!   and disarm after the throttle has stayed low with the vehicle still for a second.
 //! - *Descend* (failsafe): when the estimate stops being fit to fly on, an armed vehicle on the
 //!   ground disarms and one in the air levels and descends on what estimate is left, until
 //!   touchdown; it is left only by landing.
 
 use crate::control::position::PositionSetpoint;
-use nalgebra::Vector3;
+use crate::control::{AttitudeTarget, Setpoint};
+use nalgebra::{UnitQuaternion, Vector2, Vector3};
 use std::f64::consts::{PI, TAU};
 
 /// The flight modes, in PX4's terms (the MAVLink layer maps them to PX4's `custom_mode`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum FlightMode {
-    /// Sticks to attitude and thrust, no self-levelling (not flown yet).
+    /// PX4's Manual: on a multicopter the same as Stabilized.
     Manual,
-    /// Sticks to attitude, self-levelling (not flown yet).
+    /// Sticks to attitude (self-levelling) and throttle to thrust; no altitude or position hold.
     Stabilized,
     /// Altitude hold: the throttle stick sets the climb rate (centre holds), the roll and pitch
     /// sticks tilt the vehicle, the yaw stick turns it.
@@ -112,7 +119,7 @@ crate::params::param_group! {
         /// Largest horizontal speed from the sticks in Posctl (m/s).
         manual_speed_m_s: f64 = 5.0, "MPC_VEL_MANUAL", "m/s", [0.5, 20.0], "Horizontal speed at full stick in position mode";
         /// Largest tilt from the sticks in Altctl (deg).
-        manual_tilt_deg: f64 = 35.0, "MPC_MAN_TILT_MAX", "deg", [1.0, 70.0], "Tilt at full stick in altitude mode";
+        manual_tilt_deg: f64 = 35.0, "MPC_MAN_TILT_MAX", "deg", [1.0, 70.0], "Tilt at full stick in altitude, stabilized and manual modes";
         /// Yaw rate at full stick (deg/s).
         manual_yaw_rate_deg_s: f64 = 150.0, "MPC_MAN_Y_MAX", "deg/s", [0.0, 400.0], "Yaw rate at full stick";
         /// Climb rate at full throttle stick (m/s).
@@ -122,7 +129,9 @@ crate::params::param_group! {
         /// Stick dead zone around the centre (fraction of full travel).
         stick_deadzone: f64 = 0.1, "MPC_HOLD_DZ", "", [0.0, 0.5], "Stick dead zone around the centre, where the vehicle holds";
         /// Manual control older than this is lost (s).
-        manual_loss_s: f64 = 0.5, "COM_RC_LOSS_T", "s", [0.1, 35.0], "Manual control lost after this long without MANUAL_CONTROL: position and altitude modes switch to Hold";
+        manual_loss_s: f64 = 0.5, "COM_RC_LOSS_T", "s", [0.1, 35.0], "Manual control lost after this long without MANUAL_CONTROL: manual modes switch to Hold";
+        /// Thrust at zero throttle stick in the stick-to-attitude modes (fraction of full thrust).
+        manual_thrust_min: f64 = 0.08, "MPC_MANTHR_MIN", "", [0.0, 0.3], "Thrust at zero throttle stick in Stabilized and Manual (fraction of full thrust)";
     }
 }
 
@@ -162,6 +171,9 @@ impl Sticks {
     }
 }
 
+/// The throttle stick at or below this is "low" (arming and touchdown in Stabilized).
+const LOW_THROTTLE: f64 = 0.1;
+
 /// A stick value with the dead zone `dz` around zero taken out, rescaled to reach ±1.
 fn deadzone(x: f64, dz: f64) -> f64 {
     if x.abs() <= dz {
@@ -187,6 +199,9 @@ pub struct CommanderInput {
     pub vel_ned_m_s: Vector3<f64>,
     /// Estimated heading (rad).
     pub yaw_rad: f64,
+    /// Thrust that holds the vehicle up, as a fraction of its full thrust (PX4's
+    /// `MPC_THR_HOVER`): the centre of the throttle stick in the stick-to-attitude modes.
+    pub hover_thrust: f64,
 }
 
 /// Why a command was refused, in words for the operator (`STATUSTEXT`).
@@ -457,6 +472,18 @@ impl Commander {
                     return Err("arming refused: throttle stick above centre".into());
                 }
             }
+            FlightMode::Manual | FlightMode::Stabilized => {
+                let Some(s) = self.fresh_sticks() else {
+                    return Err(format!(
+                        "arming refused: {} needs manual control (MANUAL_CONTROL)",
+                        self.mode.name()
+                    ));
+                };
+                // The throttle is the thrust here: arming with it up would leap.
+                if s.throttle > LOW_THROTTLE && !force {
+                    return Err("arming refused: throttle stick not low".into());
+                }
+            }
             FlightMode::Land | FlightMode::Rtl | FlightMode::Descend => {
                 return Err(format!(
                     "arming refused: not in a mode to start in ({})",
@@ -530,7 +557,10 @@ impl Commander {
                     return Err("RTL refused: no home position".into());
                 }
             }
-            FlightMode::Posctl | FlightMode::Altctl => {
+            FlightMode::Posctl
+            | FlightMode::Altctl
+            | FlightMode::Manual
+            | FlightMode::Stabilized => {
                 if self.fresh_sticks().is_none() {
                     return Err(format!(
                         "{} refused: no manual control (MANUAL_CONTROL)",
@@ -642,7 +672,7 @@ impl Commander {
     }
 
     /// Advances; returns the set-point and whether the motors are armed.
-    pub fn update(&mut self, i: &CommanderInput) -> (PositionSetpoint, bool) {
+    pub fn update(&mut self, i: &CommanderInput) -> (Setpoint, bool) {
         let p = self.params;
         let t = i.t_s;
         let dt = self.last.map_or(0.0, |l| (t - l.t_s).max(0.0));
@@ -664,7 +694,7 @@ impl Commander {
                 // and MAVSDK's health wait for it), then again at arming.
                 self.home = Some((i.pos_ned_m, i.yaw_rad));
             }
-            return (hold(i.pos_ned_m), false);
+            return (Setpoint::Position(hold(i.pos_ned_m)), false);
         }
         let home = self.home.map_or(i.pos_ned_m, |h| h.0);
         // Spool-up: a set-point just below the ground keeps thrust low until take-off.
@@ -677,19 +707,19 @@ impl Commander {
         {
             // PX4's COM_DISARM_PRFLT: armed and left on the ground.
             self.disarmed();
-            return (hold(i.pos_ned_m), false);
+            return (Setpoint::Position(hold(i.pos_ned_m)), false);
         }
         let sp = match self.mode {
             FlightMode::Takeoff => {
                 if self.landed == LandedState::OnGround && since_arming < p.spool_s {
-                    return (on_ground, true);
+                    return (Setpoint::Position(on_ground), true);
                 }
                 let target_down = home.z - self.takeoff_alt_m;
                 if self.line.is_none() {
                     if i.pos_ned_m.z <= target_down && self.landed != LandedState::OnGround {
                         // Already above the take-off altitude: hold here.
                         self.enter(FlightMode::Loiter);
-                        return (self.loiter(i, yaw), true);
+                        return (Setpoint::Position(self.loiter(i, yaw)), true);
                     }
                     // From the ground the climb starts at the ground, not at the estimate's
                     // noise around it.
@@ -707,7 +737,7 @@ impl Commander {
                     self.landed = LandedState::Takeoff;
                 }
                 let Some(line) = self.line.as_mut() else {
-                    return (on_ground, true);
+                    return (Setpoint::Position(on_ground), true);
                 };
                 let (sp, arrived) = line.step(dt, yaw);
                 let goal = line.from.z - line.length;
@@ -720,7 +750,7 @@ impl Commander {
             }
             FlightMode::Loiter => {
                 if self.landed == LandedState::OnGround {
-                    return (on_ground, true);
+                    return (Setpoint::Position(on_ground), true);
                 }
                 self.landed = LandedState::InAir;
                 self.loiter(i, yaw)
@@ -728,7 +758,7 @@ impl Commander {
             FlightMode::Land => self.land_at(i, dt, yaw),
             FlightMode::Rtl => {
                 if self.landed == LandedState::OnGround {
-                    return (on_ground, true);
+                    return (Setpoint::Position(on_ground), true);
                 }
                 self.rtl(i, dt, yaw, home)
             }
@@ -750,22 +780,99 @@ impl Commander {
             FlightMode::Posctl | FlightMode::Altctl => match self.fresh_sticks() {
                 Some(sticks) => match self.manual(i, dt, sticks, home) {
                     Some(sp) => sp,
-                    None => return (on_ground, true),
+                    None => return (Setpoint::Position(on_ground), true),
                 },
-                None => {
-                    // PX4's manual-control-loss failsafe: hold where it is.
-                    self.manual_losses += 1;
-                    self.enter(FlightMode::Loiter);
-                    if self.landed == LandedState::OnGround {
-                        return (on_ground, true);
-                    }
-                    self.loiter(i, yaw)
+                None => self.manual_lost(i, yaw),
+            },
+            FlightMode::Manual | FlightMode::Stabilized => match self.fresh_sticks() {
+                Some(sticks) => {
+                    let target = self.stabilized(i, sticks, home);
+                    return (Setpoint::Attitude(target), self.armed);
                 }
+                None => self.manual_lost(i, yaw),
             },
             // Not selectable yet (set_mode refuses them): hold.
             _ => self.loiter(i, yaw),
         };
-        (sp, self.armed)
+        (Setpoint::Position(sp), self.armed)
+    }
+
+    /// PX4's manual-control-loss failsafe: hold where it is (on the ground: stay there).
+    fn manual_lost(&mut self, i: &CommanderInput, yaw: f64) -> PositionSetpoint {
+        self.manual_losses += 1;
+        self.enter(FlightMode::Loiter);
+        if self.landed == LandedState::OnGround {
+            let home = self.home.map_or(i.pos_ned_m, |h| h.0);
+            return PositionSetpoint {
+                pos_ned_m: home + Vector3::new(0.0, 0.0, 0.5),
+                vel_ned_m_s: Vector3::zeros(),
+                accel_ned_m_s2: Vector3::zeros(),
+                yaw_rad: yaw,
+            };
+        }
+        self.loiter(i, yaw)
+    }
+
+    /// Stabilized (and Manual): the sticks as an attitude and a thrust, as PX4's
+    /// `ManualControl` → attitude set-point for multicopters.
+    fn stabilized(&mut self, i: &CommanderInput, s: Sticks, home: Vector3<f64>) -> AttitudeTarget {
+        let p = self.params;
+        // Throttle curve (PX4's MPC_THR_CURVE 0): zero → MPC_MANTHR_MIN, centre → hover
+        // thrust, full → full thrust, linear in between.
+        let hover = i.hover_thrust.clamp(0.05, 0.95);
+        let min = p.manual_thrust_min.min(hover);
+        let thrust = if s.throttle <= 0.5 {
+            min + (hover - min) * s.throttle / 0.5
+        } else {
+            hover + (1.0 - hover) * (s.throttle - 0.5) / 0.5
+        };
+        let height = home.z - i.pos_ned_m.z;
+        match self.landed {
+            LandedState::OnGround => {
+                // Lifting off: thrust above hover, or the vehicle has risen.
+                if thrust > hover || height > 0.5 {
+                    self.landed = LandedState::Takeoff;
+                }
+                self.still_since_s = None;
+            }
+            LandedState::Takeoff if height > 1.0 => self.landed = LandedState::InAir,
+            _ => {
+                // Touchdown: throttle held low and the vehicle still for a second.
+                let still = s.throttle <= LOW_THROTTLE && i.vel_ned_m_s.norm() < 0.3;
+                self.touchdown_check(still, i.t_s);
+            }
+        }
+        // The yaw stick commands a turn rate, the heading following the vehicle meanwhile (as
+        // PX4's StickYaw: a set-point integrated ahead of a vehicle whose turn rate is limited
+        // by MC_YAWRATE_MAX would run away from it); centred, the heading of that moment is
+        // held. On the ground the heading follows the vehicle.
+        let yaw_rate = deadzone(s.yaw, p.stick_deadzone) * p.manual_yaw_rate_deg_s.to_radians();
+        let yaw = match self.manual_yaw {
+            Some(y) if yaw_rate == 0.0 && self.landed != LandedState::OnGround => y,
+            _ => i.yaw_rad,
+        };
+        let yaw = (yaw + PI).rem_euclid(TAU) - PI;
+        self.manual_yaw = (yaw_rate == 0.0).then_some(yaw);
+        // Roll and pitch sticks: a tilt vector in the heading's frame (right stick: roll right;
+        // forward stick: nose down), its length limited to the largest tilt.
+        let max_tilt = p.manual_tilt_deg.to_radians();
+        let mut tilt = Vector2::new(s.right, -s.forward) * max_tilt;
+        if tilt.norm() > max_tilt {
+            tilt *= max_tilt / tilt.norm();
+        }
+        let q_d = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw)
+            * UnitQuaternion::from_scaled_axis(Vector3::new(tilt.x, tilt.y, 0.0));
+        // Ω_d: the heading's turn, seen in the desired body frame.
+        let rate = q_d.inverse() * Vector3::new(0.0, 0.0, yaw_rate);
+        AttitudeTarget {
+            q_d: Some(q_d),
+            rate_frd_rad_s: if self.landed == LandedState::OnGround {
+                Vector3::zeros()
+            } else {
+                rate
+            },
+            thrust,
+        }
     }
 
     /// Position and altitude modes from the sticks; `None`: on the ground, stay there.

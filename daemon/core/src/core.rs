@@ -4,11 +4,10 @@
 //! loop ─► kinematic attitude law (Castillo (63)) ─► rate loop (LADRC or PID) ─► mixer.
 //! Pure: no clock (time comes with the sample), no I/O, no allocation in `step`.
 
+use crate::control::Setpoint;
 use crate::control::attitude::{KinematicAttitude, KinematicParams, TiltYawPd, TiltYawPdParams};
 use crate::control::motor::{MotorLoopParams, MotorSpeedLoop};
-use crate::control::position::{
-    AttitudeSetpoint, PositionController, PositionParams, PositionSetpoint,
-};
+use crate::control::position::{AttitudeSetpoint, PositionController, PositionParams};
 use crate::control::rate::{LadrcAxis, LadrcParams, PidAxis, PidParams};
 use crate::estimator::attitude::{AttitudeEstimate, AttitudeEstimator, AttitudeInput, DT_RANGE_S};
 use crate::estimator::translation::{
@@ -324,13 +323,48 @@ impl FlightCore {
         self.rate = rate_axes(&self.config.rate);
     }
 
-    /// One step: estimate, then (armed) control toward `setpoint`.
-    pub fn step(
+    /// The position loop at its own, lower rate, on the first sample within half a sample of
+    /// its schedule; the schedule keeps its phase, so the mean rate is the configured one
+    /// (100 Hz over 250 Hz samples: 8 and 12 ms alternately), over the time since it last ran.
+    fn position_step(
         &mut self,
-        s: &SensorSample,
-        setpoint: &PositionSetpoint,
-        armed: bool,
-    ) -> StepOutput {
+        setpoint: &crate::control::position::PositionSetpoint,
+        translation: &TranslationEstimate,
+        q: &nalgebra::UnitQuaternion<f64>,
+        dt: f64,
+    ) -> AttitudeSetpoint {
+        let period = self.config.position_period_s;
+        self.since_position_s += dt;
+        self.position_phase_s += dt;
+        match self.position_output {
+            Some(sp) if self.position_phase_s < period - 0.5 * dt => sp,
+            _ => {
+                // Late by more than a period (a gap in the samples): start the schedule afresh.
+                self.position_phase_s = if self.position_phase_s > 2.0 * period {
+                    0.0
+                } else {
+                    self.position_phase_s - period
+                };
+                let sp = self.position.update(
+                    setpoint,
+                    &translation.pos_ned_m,
+                    &translation.vel_ned_m_s,
+                    q,
+                    if self.position_output.is_some() {
+                        self.since_position_s
+                    } else {
+                        dt
+                    },
+                );
+                self.position_output = Some(sp);
+                self.since_position_s = 0.0;
+                sp
+            }
+        }
+    }
+
+    /// One step: estimate, then (armed) control toward `setpoint`.
+    pub fn step(&mut self, s: &SensorSample, setpoint: &Setpoint, armed: bool) -> StepOutput {
         let raw_dt = self
             .last_t_usec
             .map_or(0.004, |t| s.t_usec.saturating_sub(t) as f64 * 1e-6);
@@ -390,50 +424,66 @@ impl FlightCore {
         // The position loop at its own, lower rate, on the first sample within half a sample of
         // its schedule; the schedule keeps its phase, so the mean rate is the configured one
         // (100 Hz over 250 Hz samples: 8 and 12 ms alternately), over the time since it last ran.
-        let period = self.config.position_period_s;
-        self.since_position_s += dt;
-        self.position_phase_s += dt;
-        let sp = match self.position_output {
-            Some(sp) if self.position_phase_s < period - 0.5 * dt => sp,
-            _ => {
-                // Late by more than a period (a gap in the samples): start the schedule afresh.
-                self.position_phase_s = if self.position_phase_s > 2.0 * period {
-                    0.0
-                } else {
-                    self.position_phase_s - period
+        let (sp, rate_ff, rate_only) = match setpoint {
+            Setpoint::Position(setpoint) => (
+                self.position_step(setpoint, &translation, &a.q, dt),
+                Vector3::zeros(),
+                false,
+            ),
+            Setpoint::Attitude(target) => {
+                // The position loop rests; back in a position mode it starts from the
+                // vehicle's own velocity.
+                self.reset_position_loop();
+                let thrust = target.thrust.clamp(0.0, 1.0);
+                let thrust = if thrust.is_nan() { 0.0 } else { thrust };
+                let nan = Vector3::repeat(f64::NAN);
+                let sp = AttitudeSetpoint {
+                    q_d: target.q_d.unwrap_or(a.q),
+                    thrust_n: thrust * self.config.position.max_thrust_n,
+                    accel_ned_m_s2: nan,
+                    vel_ned_m_s: nan,
                 };
-                let sp = self.position.update(
-                    setpoint,
-                    &translation.pos_ned_m,
-                    &translation.vel_ned_m_s,
-                    &a.q,
-                    if self.position_output.is_some() {
-                        self.since_position_s
-                    } else {
-                        dt
-                    },
-                );
-                self.position_output = Some(sp);
-                self.since_position_s = 0.0;
-                sp
+                let rate = target
+                    .rate_frd_rad_s
+                    .map(|r| if r.is_finite() { r } else { 0.0 });
+                (sp, rate, target.q_d.is_none())
             }
         };
         let (rate_reference, torque) = match self.attitude_law {
             AttitudeLaw::Kinematic(params) => {
-                let r = KinematicAttitude { params }.update(&a.q, &sp.q_d, &Vector3::zeros());
+                let r = if rate_only {
+                    // Rate mode: the body rates are the reference, within the loop's limits.
+                    let mut r = rate_ff;
+                    let tilt = r.xy().norm();
+                    if tilt > params.max_tilt_rate {
+                        r.x *= params.max_tilt_rate / tilt;
+                        r.y *= params.max_tilt_rate / tilt;
+                    }
+                    r.z = r.z.clamp(-params.max_yaw_rate, params.max_yaw_rate);
+                    r
+                } else {
+                    KinematicAttitude { params }
+                        .update(&a.q, &sp.q_d, &rate_ff)
+                        .rate
+                };
                 let mut torque = Vector3::zeros();
                 for (i, axis) in self.rate.iter_mut().enumerate() {
                     torque[i] = match axis {
-                        RateAxis::Ladrc(l) => l.update(r.rate[i], a.rate[i], dt),
-                        RateAxis::Pid(p) => p.update(r.rate[i], a.rate[i], dt),
+                        RateAxis::Ladrc(l) => l.update(r[i], a.rate[i], dt),
+                        RateAxis::Pid(p) => p.update(r[i], a.rate[i], dt),
                     };
                 }
-                (r.rate, torque)
+                (r, torque)
             }
-            AttitudeLaw::TiltYawPd(params) => (
-                Vector3::zeros(),
-                TiltYawPd { params }.update(&a.q, &sp.q_d, &a.rate),
-            ),
+            AttitudeLaw::TiltYawPd(params) => {
+                // Lewis's PD damps the rate toward Ω_d (its derivative term; rate mode has
+                // no proportional term: q_d is the current attitude).
+                let law = TiltYawPd { params };
+                (
+                    Vector3::zeros(),
+                    law.update(&a.q, &sp.q_d, &(a.rate - rate_ff)),
+                )
+            }
         };
         // The density of the last barometer sample, held between samples (the barometer is
         // fresh at 50 Hz: falling back to sea level in between made the thrust jump by the

@@ -4,6 +4,7 @@
 #![allow(clippy::unwrap_used)]
 
 use airframe::Airframe;
+use flight_core::control::Setpoint;
 use flight_core::control::position::PositionSetpoint;
 use flight_core::core::{FlightCore, FlightCoreConfig};
 use flight_core::params::FlightParams;
@@ -25,13 +26,13 @@ fn airframe(name: &str) -> Airframe {
 }
 
 /// Hold the take-off spot at `alt` m, heading north.
-fn hover_at(alt: f64) -> PositionSetpoint {
-    PositionSetpoint {
+fn hover_at(alt: f64) -> Setpoint {
+    Setpoint::Position(PositionSetpoint {
         pos_ned_m: Vector3::new(0.0, 0.0, -alt),
         vel_ned_m_s: Vector3::zeros(),
         accel_ned_m_s2: Vector3::zeros(),
         yaw_rad: 0.0,
-    }
+    })
 }
 
 /// Flight-quality figures of one flight.
@@ -220,12 +221,12 @@ fn takeoff_hover_land_and_disarm() {
             let est = last.unwrap_or_else(|| {
                 core.step(
                     &sample,
-                    &flight_core::control::position::PositionSetpoint {
+                    &Setpoint::Position(PositionSetpoint {
                         pos_ned_m: Vector3::zeros(),
                         vel_ned_m_s: Vector3::zeros(),
                         accel_ned_m_s2: Vector3::zeros(),
                         yaw_rad: 0.0,
-                    },
+                    }),
                     false,
                 )
             });
@@ -252,6 +253,7 @@ fn takeoff_hover_land_and_disarm() {
                 pos_ned_m: est.translation.pos_ned_m,
                 vel_ned_m_s: est.translation.vel_ned_m_s,
                 yaw_rad: est.attitude.map_or(0.0, |a| a.q.euler_angles().2),
+                hover_thrust: 0.5,
             });
             let out = core.step(&sample, &sp, armed);
             commands = out.commands;
@@ -390,4 +392,78 @@ fn parameters_change_in_flight_without_a_jump() {
         "{rate:?}"
     );
     assert!(worst < 0.3, "after the change: {worst:.2} m off the hover");
+}
+
+/// The attitude set-point path (Manual/Stabilized sticks, `SET_ATTITUDE_TARGET`): from a hover,
+/// a 15° roll target is held by the attitude and rate loops alone, a body-rate target (no
+/// attitude) turns the vehicle at that rate, and back on a position set-point the position loop
+/// brings it home without a jump.
+#[test]
+fn attitude_and_rate_targets_are_flown_without_the_position_loop() {
+    use flight_core::control::AttitudeTarget;
+    use nalgebra::UnitQuaternion;
+    let a = airframe("quad_x");
+    let mut sim = Simulator::new(&a, SimConfig::default(), BodyState::default()).unwrap();
+    let mut core = FlightCore::new(&a, FlightCoreConfig::for_airframe(&a, false)).unwrap();
+    let p = core.config().position;
+    let hover = p.mass_kg * flight_core::GRAVITY_M_S2 / p.max_thrust_n;
+    let roll = 15f64.to_radians();
+    let tilted = Setpoint::Attitude(AttitudeTarget {
+        q_d: Some(UnitQuaternion::from_euler_angles(roll, 0.0, 0.0)),
+        rate_frd_rad_s: Vector3::zeros(),
+        thrust: hover / roll.cos(),
+    });
+    let turning = Setpoint::Attitude(AttitudeTarget {
+        q_d: None,
+        rate_frd_rad_s: Vector3::new(0.0, 0.0, 0.5),
+        thrust: hover,
+    });
+    let mut commands = [0.0; 16];
+    let (mut roll_err, mut yaw_rates, mut alt_loss) = (0.0f64, Vec::new(), 0.0f64);
+    let (mut thrust_sp, mut far) = (0.0, 0.0f64);
+    for _ in 0..(32_000 / DECIMATION) {
+        let sample = common::control_interval(&mut sim, &commands[..4]);
+        let t = sim.time_s();
+        let sp = match t {
+            t if (10.0..12.0).contains(&t) => tilted,
+            t if (12.0..14.0).contains(&t) => turning,
+            _ => hover_at(3.0),
+        };
+        let out = core.step(&sample, &sp, t > 3.0);
+        commands = out.commands;
+        let truth = sim.truth().body;
+        let (r, _, _) = truth.q_ned_from_frd.euler_angles();
+        if (11.0..12.0).contains(&t) {
+            roll_err = roll_err.max((r - roll).abs());
+            thrust_sp = out.attitude_setpoint.unwrap().thrust_n;
+        }
+        if (13.0..14.0).contains(&t) {
+            yaw_rates.push(truth.rate_frd_rad_s.z);
+        }
+        if (10.0..14.0).contains(&t) {
+            alt_loss = alt_loss.max(3.0 + truth.pos_ned_m.z);
+        }
+        if t > 30.0 {
+            // The controller's property, on its estimate (GPS noise moves the truth ~0.3 m).
+            let est = out.translation.pos_ned_m;
+            far = far.max((est - Vector3::new(0.0, 0.0, -3.0)).norm());
+        }
+    }
+    assert!(
+        roll_err < 1f64.to_radians(),
+        "roll held within {:.2}°",
+        roll_err.to_degrees()
+    );
+    assert!(
+        (thrust_sp - hover / roll.cos() * p.max_thrust_n).abs() < 1e-9,
+        "the target's thrust is flown as given: {thrust_sp:.3} N"
+    );
+    let mean = yaw_rates.iter().sum::<f64>() / yaw_rates.len() as f64;
+    assert!((mean - 0.5).abs() < 0.025, "yaw rate {mean:.3} rad/s");
+    // No altitude hold in these modes, but the thrust given holds roughly.
+    assert!(
+        alt_loss < 1.0,
+        "lost {alt_loss:.2} m without the position loop"
+    );
+    assert!(far < 0.3, "back home: {far:.2} m off the hover point");
 }

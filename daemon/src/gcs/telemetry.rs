@@ -462,7 +462,7 @@ fn detail(id: u32, t: &Telemetry) -> Option<MavMessage> {
             })
         }
         POSITION_TARGET_LOCAL_NED_DATA::ID => {
-            let sp = t.setpoint?;
+            let sp = *t.setpoint?.position()?;
             use PositionTargetTypemask as M;
             let mut mask = M::POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE;
             let ignore = [

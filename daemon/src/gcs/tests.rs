@@ -681,12 +681,14 @@ fn on_request_messages_can_be_asked_for_and_say_which_set_point_axes_are_flown()
         MavResult::MAV_RESULT_TEMPORARILY_REJECTED
     );
     // Velocity horizontally, position vertically (POSCTL with the pitch stick forward).
-    t.setpoint = Some(flight_core::control::position::PositionSetpoint {
-        pos_ned_m: nalgebra::Vector3::new(f64::NAN, f64::NAN, -5.0),
-        vel_ned_m_s: nalgebra::Vector3::new(3.0, 0.0, f64::NAN),
-        accel_ned_m_s2: nalgebra::Vector3::zeros(),
-        yaw_rad: 0.5,
-    });
+    t.setpoint = Some(flight_core::control::Setpoint::Position(
+        flight_core::control::position::PositionSetpoint {
+            pos_ned_m: nalgebra::Vector3::new(f64::NAN, f64::NAN, -5.0),
+            vel_ned_m_s: nalgebra::Vector3::new(3.0, 0.0, f64::NAN),
+            accel_ned_m_s2: nalgebra::Vector3::zeros(),
+            yaw_rad: 0.5,
+        },
+    ));
     let mut out = Outbox::default();
     g.on_message(
         &gcs_header(),

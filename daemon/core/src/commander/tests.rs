@@ -1,5 +1,6 @@
 #![allow(clippy::unwrap_used)]
 use super::*;
+use nalgebra::UnitQuaternion;
 use std::f64::consts::FRAC_PI_2;
 
 fn input(t: f64, down: f64, vd: f64) -> CommanderInput {
@@ -10,6 +11,15 @@ fn input(t: f64, down: f64, vd: f64) -> CommanderInput {
         pos_ned_m: Vector3::new(0.0, 0.0, down),
         vel_ned_m_s: Vector3::new(0.0, 0.0, vd),
         yaw_rad: 0.0,
+        hover_thrust: 0.5,
+    }
+}
+
+/// One update of a commander in a position mode.
+fn step(c: &mut Commander, i: &CommanderInput) -> (PositionSetpoint, bool) {
+    match c.update(i) {
+        (Setpoint::Position(p), armed) => (p, armed),
+        (s, _) => panic!("a position set-point expected, not {s:?}"),
     }
 }
 
@@ -25,7 +35,7 @@ fn params() -> CommanderParams {
 /// A commander that has seen the estimate at rest, ready.
 fn ready() -> Commander {
     let mut c = Commander::new(params());
-    c.update(&input(0.0, 0.0, 0.0));
+    step(&mut c, &input(0.0, 0.0, 0.0));
     c
 }
 
@@ -66,7 +76,7 @@ fn takeoff_hold_and_land_follow_the_flight() {
             Do::Land => c.set_mode(FlightMode::Land),
         }
         .unwrap();
-        let (_, out_armed) = c.update(&input(t, d, vd));
+        let (_, out_armed) = step(&mut c, &input(t, d, vd));
         assert_eq!(
             (c.mode(), c.landed(), c.armed(), out_armed),
             (mode, landed, armed, armed),
@@ -79,10 +89,13 @@ fn takeoff_hold_and_land_follow_the_flight() {
 fn commands_are_refused_with_a_reason_and_repeats_are_harmless() {
     let mut c = Commander::new(params());
     assert!(c.arm(false).unwrap_err().contains("no sensor data"));
-    c.update(&CommanderInput {
-        ready: false,
-        ..input(0.0, 0.0, 0.0)
-    });
+    step(
+        &mut c,
+        &CommanderInput {
+            ready: false,
+            ..input(0.0, 0.0, 0.0)
+        },
+    );
     assert!(c.arm(false).unwrap_err().contains("estimator not ready"));
     assert!(c.set_mode(FlightMode::Rtl).unwrap_err().contains("no home"));
     assert!(
@@ -92,7 +105,7 @@ fn commands_are_refused_with_a_reason_and_repeats_are_harmless() {
     );
     assert!(c.set_mode(FlightMode::Descend).is_err());
     assert!(c.takeoff(Some(f64::NAN)).is_err() && c.takeoff(Some(-3.0)).is_err());
-    c.update(&input(0.1, 0.0, 0.0));
+    step(&mut c, &input(0.1, 0.0, 0.0));
     c.set_mode(FlightMode::Land).unwrap();
     assert!(c.arm(false).unwrap_err().contains("LAND"));
     c.set_mode(FlightMode::Loiter).unwrap();
@@ -106,7 +119,7 @@ fn commands_are_refused_with_a_reason_and_repeats_are_harmless() {
     assert_eq!(c.mode(), FlightMode::Takeoff);
     // Airborne: disarm refused unless forced.
     for t in [0.2, 1.5, 2.0] {
-        c.update(&input(t, -0.5, -1.0));
+        step(&mut c, &input(t, -0.5, -1.0));
     }
     assert_eq!(c.landed(), LandedState::Takeoff);
     assert!(c.disarm(false).unwrap_err().contains("in the air"));
@@ -120,14 +133,14 @@ fn armed_on_the_ground_and_left_there_disarms() {
     let mut c = ready();
     c.arm(false).unwrap();
     assert_eq!(c.mode(), FlightMode::Loiter);
-    let (sp, armed) = c.update(&input(5.0, 0.0, 0.0));
+    let (sp, armed) = step(&mut c, &input(5.0, 0.0, 0.0));
     assert!(
         armed && sp.pos_ned_m.z > 0.0,
         "held below the ground: idle thrust"
     );
-    c.update(&input(9.9, 0.0, 0.0));
+    step(&mut c, &input(9.9, 0.0, 0.0));
     assert!(c.armed());
-    let (_, armed) = c.update(&input(10.0, 0.0, 0.0));
+    let (_, armed) = step(&mut c, &input(10.0, 0.0, 0.0));
     assert!(!armed && !c.armed(), "COM_DISARM_PRFLT");
 }
 
@@ -137,7 +150,7 @@ fn rtl_climbs_returns_and_lands_at_home() {
         rtl_return_alt_m: 10.0,
         ..params()
     });
-    c.update(&input(0.0, 0.0, 0.0));
+    step(&mut c, &input(0.0, 0.0, 0.0));
     c.takeoff(None).unwrap();
     c.arm(false).unwrap();
     // Fly the set-points perfectly: the vehicle is where the set-point was a step ago.
@@ -146,11 +159,14 @@ fn rtl_climbs_returns_and_lands_at_home() {
     let mut pos = Vector3::zeros();
     let mut vel = Vector3::zeros();
     let fly = |c: &mut Commander, t: f64, pos: &mut Vector3<f64>, vel: &mut Vector3<f64>| {
-        let (sp, armed) = c.update(&CommanderInput {
-            pos_ned_m: *pos,
-            vel_ned_m_s: *vel,
-            ..input(t, 0.0, 0.0)
-        });
+        let (sp, armed) = step(
+            c,
+            &CommanderInput {
+                pos_ned_m: *pos,
+                vel_ned_m_s: *vel,
+                ..input(t, 0.0, 0.0)
+            },
+        );
         if armed && sp.pos_ned_m.z < 0.0 {
             *vel = (sp.pos_ned_m - *pos) / dt;
             *pos = sp.pos_ned_m;
@@ -201,7 +217,7 @@ fn losing_the_estimate_disarms_on_the_ground_and_descends_level_in_the_air() {
     let mut c = ready();
     c.takeoff(None).unwrap();
     c.arm(false).unwrap();
-    let (_, armed) = c.update(&lost(0.5, 0.0, 0.0));
+    let (_, armed) = step(&mut c, &lost(0.5, 0.0, 0.0));
     assert!(!armed && !c.armed());
 
     // Climbing: level and descend, touchdown after a second standing still, and no way back.
@@ -209,9 +225,9 @@ fn losing_the_estimate_disarms_on_the_ground_and_descends_level_in_the_air() {
     c.takeoff(None).unwrap();
     c.arm(false).unwrap();
     for (t, d, vd) in [(1.2, 0.0, 0.0), (3.0, -2.0, -1.5)] {
-        c.update(&input(t, d, vd));
+        step(&mut c, &input(t, d, vd));
     }
-    let (sp, armed) = c.update(&lost(3.1, -2.1, -1.4));
+    let (sp, armed) = step(&mut c, &lost(3.1, -2.1, -1.4));
     assert!(armed && c.mode() == FlightMode::Descend && c.status().failsafe);
     assert!(
         sp.pos_ned_m.iter().all(|p| p.is_nan()),
@@ -231,18 +247,18 @@ fn losing_the_estimate_disarms_on_the_ground_and_descends_level_in_the_air() {
         ready: false,
         ..input(3.2, -2.1, 0.5)
     };
-    let (sp, _) = c.update(&baro_lost);
+    let (sp, _) = step(&mut c, &baro_lost);
     assert!(sp.vel_ned_m_s.xy() == nalgebra::Vector2::zeros() && sp.pos_ned_m.x.is_nan());
-    c.update(&input(3.5, -2.2, 0.0)); // valid again: still descending
+    step(&mut c, &input(3.5, -2.2, 0.0)); // valid again: still descending
     assert_eq!(c.mode(), FlightMode::Descend);
-    c.update(&lost(4.0, -2.0, 0.05)); // passing through zero speed is not touchdown
-    c.update(&lost(4.5, -1.7, 0.7));
+    step(&mut c, &lost(4.0, -2.0, 0.05)); // passing through zero speed is not touchdown
+    step(&mut c, &lost(4.5, -1.7, 0.7));
     assert_eq!(c.mode(), FlightMode::Descend);
     for t in [7.0, 7.5, 7.9] {
-        c.update(&lost(t, 0.0, 0.02));
+        step(&mut c, &lost(t, 0.0, 0.02));
         assert!(c.armed(), "at {t}");
     }
-    let (_, armed) = c.update(&lost(8.05, 0.0, 0.0));
+    let (_, armed) = step(&mut c, &lost(8.05, 0.0, 0.0));
     assert!(!armed && !c.armed() && c.landed() == LandedState::OnGround);
 }
 
@@ -252,11 +268,11 @@ fn the_takeoff_set_point_climbs_smoothly_and_stops_at_the_altitude() {
     c.takeoff(None).unwrap();
     c.arm(false).unwrap();
     let dt = 0.004;
-    c.update(&input(1.0, 0.0, 0.0));
+    step(&mut c, &input(1.0, 0.0, 0.0));
     let (mut t, mut last_up, mut last_v) = (1.0 + dt, 0.0f64, 0.0f64);
     while t < 9.0 {
         // The vehicle is where the set-point was a step ago.
-        let (sp, _) = c.update(&input(t, -last_up, -last_v));
+        let (sp, _) = step(&mut c, &input(t, -last_up, -last_v));
         if c.mode() == FlightMode::Loiter {
             break;
         }
@@ -281,18 +297,21 @@ fn the_takeoff_set_point_climbs_smoothly_and_stops_at_the_altitude() {
 #[test]
 fn home_is_set_once_the_position_is_valid_and_again_at_arming_unless_commanded() {
     let mut c = Commander::new(params());
-    c.update(&CommanderInput {
-        ready: false,
-        ..input(0.0, 0.0, 0.0)
-    });
+    step(
+        &mut c,
+        &CommanderInput {
+            ready: false,
+            ..input(0.0, 0.0, 0.0)
+        },
+    );
     assert_eq!(c.home(), None, "not from an invalid estimate");
-    c.update(&input(0.1, 1.0, 0.0));
+    step(&mut c, &input(0.1, 1.0, 0.0));
     assert_eq!(
         c.home(),
         Some(Vector3::new(0.0, 0.0, 1.0)),
         "on the ground, disarmed"
     );
-    c.update(&input(0.2, 2.0, 0.0));
+    step(&mut c, &input(0.2, 2.0, 0.0));
     assert_eq!(c.home(), Some(Vector3::new(0.0, 0.0, 1.0)), "set once");
     c.arm(false).unwrap();
     assert_eq!(
@@ -302,7 +321,7 @@ fn home_is_set_once_the_position_is_valid_and_again_at_arming_unless_commanded()
     );
     c.disarm(false).unwrap();
     c.set_home(Some(Vector3::new(5.0, 5.0, 0.0))).unwrap();
-    c.update(&input(0.3, 3.0, 0.0));
+    step(&mut c, &input(0.3, 3.0, 0.0));
     c.arm(false).unwrap();
     assert_eq!(
         c.home(),
@@ -319,6 +338,7 @@ fn at(t: f64, pos: Vector3<f64>, vel: Vector3<f64>, yaw: f64) -> CommanderInput 
         pos_ned_m: pos,
         vel_ned_m_s: vel,
         yaw_rad: yaw,
+        hover_thrust: 0.5,
     }
 }
 
@@ -326,7 +346,7 @@ fn at(t: f64, pos: Vector3<f64>, vel: Vector3<f64>, yaw: f64) -> CommanderInput 
 fn position_mode_flies_the_sticks_and_holds_when_they_centre() {
     let mut c = Commander::new(CommanderParams::default());
     let z = Vector3::zeros();
-    c.update(&at(0.0, z, z, 0.0));
+    step(&mut c, &at(0.0, z, z, 0.0));
     let err = c.set_mode(FlightMode::Posctl).unwrap_err();
     assert!(err.contains("no manual control"), "{err}");
     let sticks = |forward, right, throttle, yaw| Sticks {
@@ -344,7 +364,7 @@ fn position_mode_flies_the_sticks_and_holds_when_they_centre() {
     );
     c.manual_control(sticks(0.0, 0.0, 0.0, 0.0));
     c.arm(false).unwrap();
-    let (sp, armed) = c.update(&at(0.1, z, z, 0.0));
+    let (sp, armed) = step(&mut c, &at(0.1, z, z, 0.0));
     assert!(
         armed && sp.pos_ned_m.z > 0.0,
         "throttle low: stays on the ground {sp:?}"
@@ -353,46 +373,46 @@ fn position_mode_flies_the_sticks_and_holds_when_they_centre() {
 
     // Full throttle: climb at MAN_Z_VEL_UP; airborne above a metre.
     c.manual_control(sticks(0.0, 0.0, 1.0, 0.0));
-    let (sp, _) = c.update(&at(0.2, z, z, 0.0));
+    let (sp, _) = step(&mut c, &at(0.2, z, z, 0.0));
     assert_eq!(sp.vel_ned_m_s.z, -3.0);
     assert!(sp.pos_ned_m.z.is_nan());
     assert_eq!(c.landed(), LandedState::Takeoff);
     let up = Vector3::new(0.0, 0.0, -2.0);
-    c.update(&at(0.3, up, Vector3::new(0.0, 0.0, -3.0), 0.0));
+    step(&mut c, &at(0.3, up, Vector3::new(0.0, 0.0, -3.0), 0.0));
     assert_eq!(c.landed(), LandedState::InAir);
 
     // Centred: hold the point where it was when the stick centred.
     c.manual_control(Sticks::CENTRED);
-    let (sp, _) = c.update(&at(0.4, up, z, 0.0));
+    let (sp, _) = step(&mut c, &at(0.4, up, z, 0.0));
     assert_eq!(sp.pos_ned_m, up);
     // Full forward, heading east: 5 m/s east; the held point follows.
     c.manual_control(sticks(1.0, 0.0, 0.5, 0.0));
-    let (sp, _) = c.update(&at(0.5, up, z, FRAC_PI_2));
+    let (sp, _) = step(&mut c, &at(0.5, up, z, FRAC_PI_2));
     assert!(sp.pos_ned_m.x.is_nan() && sp.pos_ned_m.z == up.z, "{sp:?}");
     assert!((sp.vel_ned_m_s.y - 5.0).abs() < 1e-9 && sp.vel_ned_m_s.x.abs() < 1e-9);
     let there = Vector3::new(0.0, 3.0, -2.0);
-    c.update(&at(0.6, there, z, FRAC_PI_2));
+    step(&mut c, &at(0.6, there, z, FRAC_PI_2));
     c.manual_control(Sticks::CENTRED);
-    let (sp, _) = c.update(&at(0.7, there, z, FRAC_PI_2));
+    let (sp, _) = step(&mut c, &at(0.7, there, z, FRAC_PI_2));
     assert_eq!(sp.pos_ned_m, there);
     // The yaw stick turns the heading set-point at MPC_MAN_Y_MAX.
     c.manual_control(sticks(0.0, 0.0, 0.5, 1.0));
-    let (a, _) = c.update(&at(0.8, there, z, FRAC_PI_2));
-    let (b, _) = c.update(&at(0.9, there, z, FRAC_PI_2));
+    let (a, _) = step(&mut c, &at(0.8, there, z, FRAC_PI_2));
+    let (b, _) = step(&mut c, &at(0.9, there, z, FRAC_PI_2));
     assert!((b.yaw_rad - a.yaw_rad - 15f64.to_radians()).abs() < 1e-9);
 
     // Altitude mode: the stick is a tilt (horizontal acceleration), position uncontrolled.
     c.set_mode(FlightMode::Altctl).unwrap();
     c.manual_control(sticks(-1.0, 0.0, 0.5, 0.0));
-    let (sp, _) = c.update(&at(1.0, there, z, 0.0));
+    let (sp, _) = step(&mut c, &at(1.0, there, z, 0.0));
     let a = crate::GRAVITY_M_S2 * 35f64.to_radians().tan();
     assert!(sp.pos_ned_m.x.is_nan() && sp.vel_ned_m_s.x.is_nan());
     assert!((sp.accel_ned_m_s2.x + a).abs() < 1e-9, "{sp:?}");
 
     // The sticks stop: after COM_RC_LOSS_T, Hold.
-    c.update(&at(1.3, there, z, 0.0));
+    step(&mut c, &at(1.3, there, z, 0.0));
     assert_eq!(c.mode(), FlightMode::Altctl);
-    c.update(&at(1.6, there, z, 0.0));
+    step(&mut c, &at(1.6, there, z, 0.0));
     assert_eq!(c.mode(), FlightMode::Loiter);
     assert_eq!(c.status().manual_losses, 1);
 }
@@ -401,7 +421,7 @@ fn position_mode_flies_the_sticks_and_holds_when_they_centre() {
 fn position_mode_lands_and_disarms_on_a_low_throttle() {
     let mut c = Commander::new(CommanderParams::default());
     let z = Vector3::zeros();
-    c.update(&at(0.0, z, z, 0.0));
+    step(&mut c, &at(0.0, z, z, 0.0));
     c.manual_control(Sticks::CENTRED);
     c.set_mode(FlightMode::Posctl).unwrap();
     c.arm(false).unwrap();
@@ -409,7 +429,7 @@ fn position_mode_lands_and_disarms_on_a_low_throttle() {
         throttle: 1.0,
         ..Sticks::CENTRED
     });
-    c.update(&at(0.1, Vector3::new(0.0, 0.0, -3.0), z, 0.0));
+    step(&mut c, &at(0.1, Vector3::new(0.0, 0.0, -3.0), z, 0.0));
     assert_eq!(c.landed(), LandedState::InAir);
     let mut t = 0.1;
     // Throttle low: sink; standing on the ground for a second: disarmed.
@@ -419,7 +439,7 @@ fn position_mode_lands_and_disarms_on_a_low_throttle() {
             throttle: 0.0,
             ..Sticks::CENTRED
         });
-        let (sp, _) = c.update(&at(t, Vector3::new(0.0, 0.0, -0.05), z, 0.0));
+        let (sp, _) = step(&mut c, &at(t, Vector3::new(0.0, 0.0, -0.05), z, 0.0));
         if c.armed() {
             assert_eq!(sp.vel_ned_m_s.z, 1.0, "MAN_Z_VEL_DN");
         }
@@ -429,4 +449,157 @@ fn position_mode_lands_and_disarms_on_a_low_throttle() {
         "disarmed at {t}"
     );
     assert_eq!(c.landed(), LandedState::OnGround);
+}
+
+/// One update of a commander in a stick-to-attitude mode.
+fn attitude(c: &mut Commander, i: &CommanderInput) -> (AttitudeTarget, bool) {
+    match c.update(i) {
+        (Setpoint::Attitude(a), armed) => (a, armed),
+        (s, _) => panic!("an attitude target expected, not {s:?}"),
+    }
+}
+
+/// Stabilized as PX4 flies it on a multicopter: the throttle curve through hover thrust, the
+/// roll and pitch sticks as a tilt limited to MPC_MAN_TILT_MAX in the heading's frame, the yaw
+/// stick as a turn rate (not on the ground), arming only with the throttle low.
+#[test]
+fn stabilized_turns_sticks_into_attitude_and_thrust() {
+    let mut c = Commander::new(CommanderParams::default());
+    let z = Vector3::zeros();
+    let hover = |t, pos, yaw| CommanderInput {
+        hover_thrust: 0.4,
+        ..at(t, pos, z, yaw)
+    };
+    step(&mut c, &hover(0.0, z, 0.0));
+    let err = c.set_mode(FlightMode::Stabilized).unwrap_err();
+    assert!(err.contains("no manual control"), "{err}");
+    let sticks = |forward, right, throttle, yaw| Sticks {
+        forward,
+        right,
+        throttle,
+        yaw,
+    };
+    c.manual_control(sticks(0.0, 0.0, 0.5, 0.0));
+    c.set_mode(FlightMode::Stabilized).unwrap();
+    let err = c.arm(false).unwrap_err();
+    assert!(err.contains("throttle stick not low"), "{err}");
+    c.manual_control(sticks(0.0, 0.0, 0.0, 0.0));
+    c.arm(false).unwrap();
+    // Throttle curve: 0 → MPC_MANTHR_MIN, ½ → hover, 1 → full, linear between.
+    for (throttle, thrust) in [
+        (0.0, 0.08),
+        (0.25, 0.24),
+        (0.5, 0.4),
+        (0.75, 0.7),
+        (1.0, 1.0),
+    ] {
+        c.manual_control(sticks(0.0, 0.0, throttle, 0.0));
+        let (a, armed) = attitude(&mut c, &hover(0.1, z, 0.3));
+        assert!(armed);
+        assert!(
+            (a.thrust - thrust).abs() < 1e-12,
+            "{throttle}: {}",
+            a.thrust
+        );
+    }
+    // Thrust above hover lifts off; risen above a metre, it is in the air.
+    assert_eq!(c.landed(), LandedState::Takeoff);
+    let up = Vector3::new(0.0, 0.0, -2.0);
+    attitude(&mut c, &hover(0.3, up, 0.3));
+    assert_eq!(c.landed(), LandedState::InAir);
+    // Centred, the heading is held while the vehicle turns away; the yaw stick asks for a
+    // turn at MPC_MAN_Y_MAX from wherever the vehicle points; centred again, that heading holds.
+    let (a, _) = attitude(&mut c, &hover(0.35, up, 0.4));
+    assert!((a.q_d.unwrap().euler_angles().2 - 0.3).abs() < 1e-9);
+    assert_eq!(a.rate_frd_rad_s, Vector3::zeros());
+    c.manual_control(sticks(0.0, 0.0, 0.5, 1.0));
+    let (a, _) = attitude(&mut c, &hover(0.4, up, 0.5));
+    assert!((a.q_d.unwrap().euler_angles().2 - 0.5).abs() < 1e-9);
+    let rate = a.q_d.unwrap() * a.rate_frd_rad_s;
+    assert!((rate - Vector3::new(0.0, 0.0, 150f64.to_radians())).norm() < 1e-9);
+    c.manual_control(sticks(0.0, 0.0, 0.5, 0.0));
+    for (t, yaw) in [(0.42, 0.7), (0.44, 0.75)] {
+        let (a, _) = attitude(&mut c, &hover(t, up, yaw));
+        assert!((a.q_d.unwrap().euler_angles().2 - 0.7).abs() < 1e-9);
+    }
+    // Roll right, pitch forward (nose down), and both at once: the tilt is limited.
+    let max = 35f64.to_radians();
+    for (forward, right, roll, pitch) in [
+        (0.0, 1.0, max, 0.0),
+        (1.0, 0.0, 0.0, -max),
+        (-0.5, 0.0, 0.0, max / 2.0),
+    ] {
+        c.manual_control(sticks(forward, right, 0.5, 0.0));
+        let (a, _) = attitude(&mut c, &hover(0.5, up, 0.0));
+        let heading =
+            UnitQuaternion::from_axis_angle(&Vector3::z_axis(), -a.q_d.unwrap().euler_angles().2);
+        let (r, p, _) = (heading * a.q_d.unwrap()).euler_angles();
+        assert!(
+            (r - roll).abs() < 1e-9 && (p - pitch).abs() < 1e-9,
+            "{r} {p}"
+        );
+    }
+    c.manual_control(sticks(1.0, 1.0, 0.5, 0.0));
+    let (a, _) = attitude(&mut c, &hover(0.6, up, 0.0));
+    let tilt = (a.q_d.unwrap() * Vector3::z()).angle(&Vector3::z());
+    assert!((tilt - max).abs() < 1e-9, "tilt {}", tilt.to_degrees());
+    // Manual is the same on a multicopter.
+    c.set_mode(FlightMode::Manual).unwrap();
+    let (b, armed) = attitude(&mut c, &hover(0.7, up, 0.0));
+    let b_tilt = (b.q_d.unwrap() * Vector3::z()).angle(&Vector3::z());
+    assert!(
+        armed && b.thrust == a.thrust && (b_tilt - max).abs() < 1e-9,
+        "{b:?}"
+    );
+}
+
+/// Touchdown in Stabilized: the throttle held low with the vehicle still for a second disarms
+/// (and stays in Stabilized, as PX4); sticks that stop arriving hand over to Hold.
+#[test]
+fn stabilized_lands_on_low_throttle_and_holds_without_sticks() {
+    let mut c = Commander::new(CommanderParams::default());
+    let z = Vector3::zeros();
+    step(&mut c, &at(0.0, z, z, 0.0));
+    let sticks = |throttle| Sticks {
+        throttle,
+        ..Sticks::CENTRED
+    };
+    c.manual_control(sticks(0.0));
+    c.set_mode(FlightMode::Stabilized).unwrap();
+    c.arm(false).unwrap();
+    let up = Vector3::new(0.0, 0.0, -3.0);
+    for t in [0.1, 0.2, 0.3] {
+        c.manual_control(sticks(0.8));
+        attitude(&mut c, &at(t, up, z, 0.0));
+    }
+    assert_eq!(c.landed(), LandedState::InAir);
+    // Throttle low, falling: not a touchdown.
+    for t in [0.4, 0.8, 1.2, 1.6] {
+        c.manual_control(sticks(0.0));
+        let (_, armed) = attitude(&mut c, &at(t, up, Vector3::new(0.0, 0.0, 2.0), 0.0));
+        assert!(armed);
+    }
+    // On the ground, still: disarmed after a second.
+    let mut disarmed_at = None;
+    for k in 0..20 {
+        let t = 1.7 + 0.1 * f64::from(k);
+        c.manual_control(sticks(0.0));
+        let (_, armed) = c.update(&at(t, z, z, 0.0)); // disarmed: a position set-point
+        if !armed && disarmed_at.is_none() {
+            disarmed_at = Some(t);
+        }
+    }
+    let t = disarmed_at.unwrap();
+    assert!((2.65..2.85).contains(&t), "disarmed at {t}");
+    assert_eq!(c.mode(), FlightMode::Stabilized);
+    // Again in the air, then the sticks stop: Hold.
+    c.arm(false).unwrap();
+    for t in [4.0, 4.1, 4.2] {
+        c.manual_control(sticks(0.8));
+        attitude(&mut c, &at(t, up, z, 0.0));
+    }
+    let (sp, armed) = step(&mut c, &at(4.8, up, z, 0.0));
+    assert!(armed && c.mode() == FlightMode::Loiter, "{:?}", c.mode());
+    assert_eq!(sp.pos_ned_m, up);
+    assert_eq!(c.status().manual_losses, 1);
 }
