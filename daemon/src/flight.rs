@@ -260,8 +260,12 @@ impl<'a> ControlLoop<'a> {
                 Command::Vehicle(c, reply) => {
                     let result = self.vehicle.command(c);
                     match &result {
-                        // Sticks arrive tens of times a second.
-                        Ok(()) if matches!(c, VehicleCommand::Sticks(_)) => {}
+                        // Sticks and offboard set-points arrive tens of times a second.
+                        Ok(())
+                            if matches!(
+                                c,
+                                VehicleCommand::Sticks(_) | VehicleCommand::Offboard(_)
+                            ) => {}
                         Ok(()) => tracing::info!(command = ?c, "accepted"),
                         Err(e) => tracing::warn!(command = ?c, "{e}"),
                     }

@@ -146,6 +146,7 @@ mod tests {
             ready: true,
             in_mode_s: 0.0,
             manual_losses: 0,
+            offboard_losses: 0,
             manual_control: None,
         };
         let hold = status(FlightMode::Loiter, LandedState::InAir);

@@ -3,7 +3,8 @@
 
 use anyhow::{Context, Result};
 use flight_core::commander::{
-    Commander, CommanderInput, CommanderStatus, Denial, FlightMode, LandedState, Sticks,
+    Commander, CommanderInput, CommanderStatus, Denial, FlightMode, LandedState, OffboardTarget,
+    Sticks,
 };
 use flight_core::control::Setpoint;
 use flight_core::control::position::PositionSetpoint;
@@ -56,6 +57,8 @@ pub enum VehicleCommand {
     SetHomeGlobal(LatLonAlt),
     /// Stick positions (`MANUAL_CONTROL`); never answered.
     Sticks(Sticks),
+    /// An offboard set-point (`SET_POSITION_TARGET_*`, `SET_ATTITUDE_TARGET`); never answered.
+    Offboard(OffboardTarget),
 }
 
 /// The vehicle: flight core, commander and what has arrived since the last frame.
@@ -239,6 +242,10 @@ impl Vehicle {
             }
             VehicleCommand::Sticks(s) => {
                 c_.manual_control(s);
+                Ok(())
+            }
+            VehicleCommand::Offboard(t) => {
+                c_.offboard_setpoint(t);
                 Ok(())
             }
         }

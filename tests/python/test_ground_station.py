@@ -498,6 +498,7 @@ class PtyLink:
         os.close(slave)  # the autopilot opens it by name
         self.mav = mavutil.mavlink.MAVLink(self, srcSystem=255, srcComponent=190)
         self.mav.robust_parsing = True
+        self.pending = []  # parsed, not yet looked at (one read may carry several messages)
 
     def write(self, data):
         os.write(self.master, data)
@@ -506,6 +507,10 @@ class PtyLink:
         """The first message of type `what` from component 1 for which condition(msg) holds."""
         end = time.monotonic() + timeout
         while time.monotonic() < end:
+            while self.pending:
+                m = self.pending.pop(0)
+                if m.get_type() == what and m.get_srcComponent() == 1 and condition(m):
+                    return m
             ready, _, _ = select.select([self.master], [], [], 0.2)
             if not ready:
                 continue
@@ -513,9 +518,7 @@ class PtyLink:
                 data = os.read(self.master, 4096)
             except OSError:  # nobody has the slave side open yet
                 continue
-            for m in self.mav.parse_buffer(data) or []:
-                if m.get_type() == what and m.get_srcComponent() == 1 and condition(m):
-                    return m
+            self.pending.extend(self.mav.parse_buffer(data) or [])
         pytest.fail(f"no {what} over the serial line within {timeout} s")
 
 

@@ -21,6 +21,10 @@
 //!   the throttle stick sets the collective thrust (its centre is hover thrust); the vehicle
 //!   levels itself when the sticks centre but holds neither altitude nor position. Touchdown
 //!   and disarm after the throttle has stayed low with the vehicle still for a second.
+//! - *Offboard*: the set-points a companion computer or script streams (position, velocity,
+//!   acceleration, yaw or yaw rate, or attitude and thrust), entered only while they arrive;
+//!   take-off when they ask to go up, touchdown and disarm when they rest it on the ground. A
+//!   stream that stops for `COM_OF_LOSS_T` hands over to `COM_OBL_RC_ACT`'s mode.
 //! - *Descend* (failsafe): when the estimate stops being fit to fly on, an armed vehicle on the
 //!   ground disarms and one in the air levels and descends on what estimate is left, until
 //!   touchdown; it is left only by landing.
@@ -53,7 +57,7 @@ pub enum FlightMode {
     Rtl,
     /// Land where it is.
     Land,
-    /// Follow set-points from a companion or script (not flown yet).
+    /// Follow set-points streamed by a companion computer or script.
     Offboard,
     /// Failsafe: level and descend on what estimate is left.
     Descend,
@@ -132,6 +136,10 @@ crate::params::param_group! {
         manual_loss_s: f64 = 0.5, "COM_RC_LOSS_T", "s", [0.1, 35.0], "Manual control lost after this long without MANUAL_CONTROL: manual modes switch to Hold";
         /// Thrust at zero throttle stick in the stick-to-attitude modes (fraction of full thrust).
         manual_thrust_min: f64 = 0.08, "MPC_MANTHR_MIN", "", [0.0, 0.3], "Thrust at zero throttle stick in Stabilized and Manual (fraction of full thrust)";
+        /// Offboard set-points older than this are lost (s).
+        offboard_loss_s: f64 = 0.5, "COM_OF_LOSS_T", "s", [0.05, 60.0], "Offboard set-points lost after this long without one: COM_OBL_RC_ACT takes over";
+        /// What flies when the offboard set-points stop.
+        offboard_loss_action: u32 = 0, "COM_OBL_RC_ACT", "", [0.0, 5.0], "Offboard loss: 0 Position, 1 Altitude, 2 Manual (each Hold without a joystick), 3 Return, 4 Land, 5 Hold";
     }
 }
 
@@ -204,6 +212,17 @@ pub struct CommanderInput {
     pub hover_thrust: f64,
 }
 
+/// A set-point streamed in Offboard (`SET_POSITION_TARGET_*`, `SET_ATTITUDE_TARGET`), already in
+/// the local NED frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OffboardTarget {
+    /// What to fly. A position set-point's NaN yaw holds the heading (or turns it at
+    /// `yaw_rate_rad_s`); an attitude target's NaN thrust is hover thrust.
+    pub setpoint: Setpoint,
+    /// Yaw rate (rad/s, clockwise) for a position set-point without a yaw.
+    pub yaw_rate_rad_s: Option<f64>,
+}
+
 /// Why a command was refused, in words for the operator (`STATUSTEXT`).
 pub type Denial = String;
 
@@ -228,6 +247,8 @@ pub struct CommanderStatus {
     pub manual_losses: u32,
     /// Manual control: never seen (`None`), arriving (`Some(true)`) or stale (`Some(false)`).
     pub manual_control: Option<bool>,
+    /// How often the offboard set-points were lost in Offboard (and `COM_OBL_RC_ACT` took over).
+    pub offboard_losses: u32,
 }
 
 /// A straight-line set-point profile from `from` to `to`: speed ramps up at `accel`, cruises
@@ -337,6 +358,12 @@ pub struct Commander {
     manual_yaw: Option<f64>,
     /// How often manual control was lost in a manual mode (and Hold took over).
     manual_losses: u32,
+    /// The last offboard set-point and the time it arrived (s, the commander's clock).
+    offboard: Option<(OffboardTarget, f64)>,
+    /// The heading Offboard holds or turns when its set-points give none (rad).
+    offboard_yaw: Option<f64>,
+    /// How often the offboard set-points were lost in Offboard.
+    offboard_losses: u32,
 }
 
 impl Commander {
@@ -363,7 +390,22 @@ impl Commander {
             sticks: None,
             manual_yaw: None,
             manual_losses: 0,
+            offboard: None,
+            offboard_yaw: None,
+            offboard_losses: 0,
         }
+    }
+
+    /// A new offboard set-point, at the time of the last update.
+    pub fn offboard_setpoint(&mut self, target: OffboardTarget) {
+        self.offboard = Some((target, self.now()));
+    }
+
+    /// The offboard set-point, if it arrived within `COM_OF_LOSS_T`.
+    fn fresh_offboard(&self) -> Option<OffboardTarget> {
+        self.offboard
+            .filter(|&(_, t)| self.now() - t <= self.params.offboard_loss_s)
+            .map(|(s, _)| s)
     }
 
     /// New stick positions (`MANUAL_CONTROL`), at the time of the last update.
@@ -401,6 +443,7 @@ impl Commander {
             in_mode_s: self.last.map_or(0.0, |i| (i.t_s - self.since_s).max(0.0)),
             manual_losses: self.manual_losses,
             manual_control: self.sticks.map(|_| self.fresh_sticks().is_some()),
+            offboard_losses: self.offboard_losses,
         }
     }
 
@@ -451,6 +494,7 @@ impl Commander {
         self.rtl = RtlStage::Climb;
         self.still_since_s = None;
         self.manual_yaw = None;
+        self.offboard_yaw = None;
     }
 
     /// Arms the motors. Refused while the estimator is not ready (unless `force`), in modes
@@ -482,6 +526,11 @@ impl Commander {
                 // The throttle is the thrust here: arming with it up would leap.
                 if s.throttle > LOW_THROTTLE && !force {
                     return Err("arming refused: throttle stick not low".into());
+                }
+            }
+            FlightMode::Offboard => {
+                if self.fresh_offboard().is_none() {
+                    return Err("arming refused: no offboard set-points".into());
                 }
             }
             FlightMode::Land | FlightMode::Rtl | FlightMode::Descend => {
@@ -565,6 +614,14 @@ impl Commander {
                     return Err(format!(
                         "{} refused: no manual control (MANUAL_CONTROL)",
                         mode.name()
+                    ));
+                }
+            }
+            FlightMode::Offboard => {
+                if self.fresh_offboard().is_none() {
+                    return Err(format!(
+                        "OFFBOARD refused: no set-point stream in the last {} s (COM_OF_LOSS_T)",
+                        self.params.offboard_loss_s
                     ));
                 }
             }
@@ -784,6 +841,10 @@ impl Commander {
                 },
                 None => self.manual_lost(i, yaw),
             },
+            FlightMode::Offboard => match self.fresh_offboard() {
+                Some(target) => return (self.offboard_flight(i, dt, target, home), self.armed),
+                None => self.offboard_lost(i, yaw),
+            },
             FlightMode::Manual | FlightMode::Stabilized => match self.fresh_sticks() {
                 Some(sticks) => {
                     let target = self.stabilized(i, sticks, home);
@@ -810,6 +871,98 @@ impl Commander {
                 yaw_rad: yaw,
             };
         }
+        self.loiter(i, yaw)
+    }
+
+    /// Offboard: the streamed set-point, with the landed state it implies (take-off when it
+    /// asks to go up; touchdown when it does not, below a metre, still for a second: disarm).
+    fn offboard_flight(
+        &mut self,
+        i: &CommanderInput,
+        dt: f64,
+        target: OffboardTarget,
+        home: Vector3<f64>,
+    ) -> Setpoint {
+        let hover = i.hover_thrust.clamp(0.05, 0.95);
+        let up_asked = match &target.setpoint {
+            Setpoint::Position(p) => {
+                p.pos_ned_m.z < home.z - 0.3
+                    || p.vel_ned_m_s.z < -0.1
+                    || (p.pos_ned_m.z.is_nan()
+                        && p.vel_ned_m_s.z.is_nan()
+                        && p.accel_ned_m_s2.z < -0.1)
+            }
+            Setpoint::Attitude(a) => a.thrust > hover,
+        };
+        let height = home.z - i.pos_ned_m.z;
+        match self.landed {
+            LandedState::OnGround => {
+                self.still_since_s = None;
+                if !up_asked {
+                    // Spooled up, kept on the ground until the set-points ask to leave it.
+                    return Setpoint::Position(PositionSetpoint {
+                        pos_ned_m: home + Vector3::new(0.0, 0.0, 0.5),
+                        vel_ned_m_s: Vector3::zeros(),
+                        accel_ned_m_s2: Vector3::zeros(),
+                        yaw_rad: i.yaw_rad,
+                    });
+                }
+                self.landed = LandedState::Takeoff;
+            }
+            LandedState::Takeoff if height > 1.0 => self.landed = LandedState::InAir,
+            _ => {
+                let still = !up_asked && height < 1.0 && i.vel_ned_m_s.norm() < 0.3;
+                self.touchdown_check(still, i.t_s);
+            }
+        }
+        match target.setpoint {
+            Setpoint::Position(mut p) => {
+                if !p.yaw_rad.is_finite() {
+                    // No yaw: hold the heading, or turn it at the yaw rate given.
+                    let yaw = self.offboard_yaw.get_or_insert(i.yaw_rad);
+                    if let Some(rate) = target.yaw_rate_rad_s.filter(|r| r.is_finite()) {
+                        *yaw = (*yaw + rate * dt + PI).rem_euclid(TAU) - PI;
+                    }
+                    p.yaw_rad = *yaw;
+                } else {
+                    self.offboard_yaw = Some(p.yaw_rad);
+                }
+                Setpoint::Position(p)
+            }
+            Setpoint::Attitude(mut a) => {
+                if !a.thrust.is_finite() {
+                    a.thrust = hover;
+                }
+                self.offboard_yaw = None;
+                Setpoint::Attitude(a)
+            }
+        }
+    }
+
+    /// The offboard set-points stopped: `COM_OBL_RC_ACT`'s mode takes over (a stick mode only
+    /// with a joystick, else Hold); this step holds.
+    fn offboard_lost(&mut self, i: &CommanderInput, yaw: f64) -> PositionSetpoint {
+        self.offboard_losses += 1;
+        let sticks = self.fresh_sticks().is_some();
+        let next = match self.params.offboard_loss_action {
+            0 if sticks => FlightMode::Posctl,
+            1 if sticks => FlightMode::Altctl,
+            2 if sticks => FlightMode::Stabilized,
+            3 if self.home.is_some() => FlightMode::Rtl,
+            4 => FlightMode::Land,
+            _ => FlightMode::Loiter,
+        };
+        if self.landed == LandedState::OnGround {
+            self.enter(FlightMode::Loiter);
+            let home = self.home.map_or(i.pos_ned_m, |h| h.0);
+            return PositionSetpoint {
+                pos_ned_m: home + Vector3::new(0.0, 0.0, 0.5),
+                vel_ned_m_s: Vector3::zeros(),
+                accel_ned_m_s2: Vector3::zeros(),
+                yaw_rad: yaw,
+            };
+        }
+        self.enter(next);
         self.loiter(i, yaw)
     }
 
@@ -913,46 +1066,56 @@ impl Commander {
         if !self.armed {
             return None;
         }
-        // The held point: set when a stick centres, forgotten when it moves.
-        let (hold_pos, _) = *self.hold.get_or_insert((i.pos_ned_m, yaw));
+        // The held point, per axis: forgotten (NaN) while its stick moves; when the stick
+        // centres the vehicle brakes (velocity zero) and the point is locked where it has
+        // slowed down, as PX4 does, rather than where the stick was let go (which it would
+        // overshoot and fly back to).
+        let hold = &mut self.hold.get_or_insert((i.pos_ned_m, yaw)).0;
+        let (fwd, right) = (deadzone(s.forward, dz), deadzone(s.right, dz));
+        let moving_h = self.mode == FlightMode::Posctl && (fwd != 0.0 || right != 0.0);
+        if vz != 0.0 {
+            hold.z = f64::NAN;
+        } else if hold.z.is_nan() && i.vel_ned_m_s.z.abs() < 0.2 {
+            hold.z = i.pos_ned_m.z;
+        }
+        if moving_h {
+            hold.x = f64::NAN;
+            hold.y = f64::NAN;
+        } else if hold.x.is_nan() && i.vel_ned_m_s.xy().norm() < 0.3 {
+            hold.x = i.pos_ned_m.x;
+            hold.y = i.pos_ned_m.y;
+        }
+        let hold_pos = *hold;
         let mut pos = Vector3::repeat(f64::NAN);
         let mut vel = Vector3::repeat(f64::NAN);
         let mut accel = Vector3::zeros();
-        if vz == 0.0 {
-            pos.z = hold_pos.z;
-        } else {
+        if vz != 0.0 {
             vel.z = vz;
+        } else if hold_pos.z.is_nan() {
+            vel.z = 0.0; // braking
+        } else {
+            pos.z = hold_pos.z;
         }
-        let (fwd, right) = (deadzone(s.forward, dz), deadzone(s.right, dz));
         // The stick in the frame of the vehicle's heading, to NED (as PX4).
         let (c, sn) = (i.yaw_rad.cos(), i.yaw_rad.sin());
         let north = fwd * c - right * sn;
         let east = fwd * sn + right * c;
         if self.mode == FlightMode::Posctl {
-            if fwd == 0.0 && right == 0.0 {
-                pos.x = hold_pos.x;
-                pos.y = hold_pos.y;
-            } else {
+            if moving_h {
                 vel.x = north * p.manual_speed_m_s;
                 vel.y = east * p.manual_speed_m_s;
+            } else if hold_pos.x.is_nan() {
+                vel.x = 0.0; // braking
+                vel.y = 0.0;
+            } else {
+                pos.x = hold_pos.x;
+                pos.y = hold_pos.y;
             }
         } else {
             // Altitude mode: the stick tilts the vehicle (its horizontal acceleration).
             let a = crate::GRAVITY_M_S2 * p.manual_tilt_deg.to_radians().tan();
             accel.x = north * a;
             accel.y = east * a;
-        }
-        let moving_h = self.mode == FlightMode::Posctl && (fwd != 0.0 || right != 0.0);
-        if vz != 0.0 || moving_h {
-            // Re-centre the hold on the next centred stick.
-            let h = self.hold.get_or_insert((i.pos_ned_m, yaw));
-            if vz != 0.0 {
-                h.0.z = i.pos_ned_m.z;
-            }
-            if moving_h {
-                h.0.x = i.pos_ned_m.x;
-                h.0.y = i.pos_ned_m.y;
-            }
         }
         Some(PositionSetpoint {
             pos_ned_m: pos,

@@ -360,7 +360,15 @@ mod tests {
             .filter(|(_, m)| m.kind == ParamKind::Int32)
             .map(|(_, m)| m.name)
             .collect();
-        assert_eq!(ints, ["ATT_ALIGN_N", "MC_ATT_LAW", "MC_RATE_CTRL"]);
+        assert_eq!(
+            ints,
+            [
+                "ATT_ALIGN_N",
+                "MC_ATT_LAW",
+                "MC_RATE_CTRL",
+                "COM_OBL_RC_ACT"
+            ]
+        );
         assert!(FlightParams::default().validate().is_empty());
     }
 

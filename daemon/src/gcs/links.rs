@@ -505,6 +505,10 @@ pub async fn run(endpoints: Vec<Endpoint>, vehicle: Vehicle) -> Option<Action> {
             // A full queue loses these sticks only: the next ones follow within 50 ms.
             let _ = commands.try_send(Command::Vehicle(VehicleCommand::Sticks(sticks), None));
         }
+        if let Some(target) = out.offboard.take() {
+            // Likewise a set-point of a stream.
+            let _ = commands.try_send(Command::Vehicle(VehicleCommand::Offboard(target), None));
+        }
         for action in std::mem::take(&mut out.actions) {
             match action {
                 Action::ParamsChanged => {

@@ -12,12 +12,13 @@
 
 pub mod links;
 pub mod modes;
+pub mod offboard;
 pub mod params;
 pub mod telemetry;
 
 use crate::flight::Telemetry;
 use crate::vehicle::VehicleCommand;
-use flight_core::commander::{FlightMode, LandedState, Sticks};
+use flight_core::commander::{FlightMode, LandedState, OffboardTarget, Sticks};
 use flight_core::geo::LatLonAlt;
 use flight_core::params::FlightParams;
 use mavlink::MavHeader;
@@ -100,6 +101,8 @@ pub struct Outbox {
     pub actions: Vec<Action>,
     /// The latest stick positions (`MANUAL_CONTROL`), for the control loop; never answered.
     pub sticks: Option<Sticks>,
+    /// The latest offboard set-point, for the control loop; never answered.
+    pub offboard: Option<OffboardTarget>,
 }
 
 impl Outbox {
@@ -145,6 +148,10 @@ pub struct GroundStation {
     base_params: FlightParams,
     /// Manual-control losses already reported.
     manual_losses_shown: u32,
+    /// Offboard losses already reported.
+    offboard_losses_shown: u32,
+    /// Offboard set-points dropped as malformed or unsupported.
+    pub offboard_refused: u64,
 }
 
 impl GroundStation {
@@ -172,6 +179,8 @@ impl GroundStation {
             params: Parameters::default(),
             base_params: FlightParams::default(),
             manual_losses_shown: 0,
+            offboard_losses_shown: 0,
+            offboard_refused: 0,
         }
     }
 
@@ -255,6 +264,15 @@ impl GroundStation {
             out.send(Self::statustext(
                 MavSeverity::MAV_SEVERITY_CRITICAL,
                 "manual control lost: Hold",
+            ));
+        }
+        let losses = t.status.map_or(0, |s| s.offboard_losses);
+        if losses > self.offboard_losses_shown {
+            self.offboard_losses_shown = losses;
+            let mode = t.status.map_or("Hold", |s| s.mode.name());
+            out.send(Self::statustext(
+                MavSeverity::MAV_SEVERITY_CRITICAL,
+                &format!("offboard set-points lost: {mode}"),
             ));
         }
         let home = t.status.and_then(|s| s.home).map(|h| [h.0.x, h.0.y, h.0.z]);
@@ -364,6 +382,18 @@ impl GroundStation {
 
     /// Whether a message addressed to (`system`, `component`) is ours: system 0 is everyone,
     /// component 0 every component of ours.
+    /// An offboard set-point for the control loop, or a refusal counted and logged (a stream
+    /// gets no answer either way, as in PX4).
+    fn offboard(&mut self, target: Result<OffboardTarget, offboard::Refusal>, out: &mut Outbox) {
+        match target {
+            Ok(t) => out.offboard = Some(t),
+            Err(why) => {
+                self.offboard_refused += 1;
+                tracing::debug!("offboard set-point dropped: {why}");
+            }
+        }
+    }
+
     fn for_us(&self, system: u8, component: Option<u8>) -> bool {
         (system == 0 || system == self.system_id)
             && component.is_none_or(|c| c == 0 || c == COMPONENT_ID)
@@ -453,6 +483,21 @@ impl GroundStation {
             }
             MavMessage::MANUAL_CONTROL(m) if self.for_us(m.target, None) => {
                 out.sticks = Some(sticks(m));
+            }
+            MavMessage::SET_POSITION_TARGET_LOCAL_NED(m)
+                if self.for_us(m.target_system, Some(m.target_component)) =>
+            {
+                self.offboard(offboard::local_ned(m, t), out);
+            }
+            MavMessage::SET_POSITION_TARGET_GLOBAL_INT(m)
+                if self.for_us(m.target_system, Some(m.target_component)) =>
+            {
+                self.offboard(offboard::global_int(m, t), out);
+            }
+            MavMessage::SET_ATTITUDE_TARGET(m)
+                if self.for_us(m.target_system, Some(m.target_component)) =>
+            {
+                self.offboard(offboard::attitude(m), out);
             }
             MavMessage::REQUEST_DATA_STREAM(r)
                 if self.for_us(r.target_system, Some(r.target_component)) =>

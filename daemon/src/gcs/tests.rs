@@ -26,6 +26,7 @@ fn telemetry(armed: bool, mode: FlightMode) -> Telemetry {
             ready: true,
             in_mode_s: 0.0,
             manual_losses: 0,
+            offboard_losses: 0,
             manual_control: None,
         }),
         battery_v: 16.0,

@@ -603,3 +603,92 @@ fn stabilized_lands_on_low_throttle_and_holds_without_sticks() {
     assert_eq!(sp.pos_ned_m, up);
     assert_eq!(c.status().manual_losses, 1);
 }
+
+/// Offboard as PX4: entered (and armed in) only while set-points arrive; a position set-point
+/// above the ground takes off, its NaN yaw holds the heading or turns it at the yaw rate given;
+/// an attitude target's NaN thrust is hover; the stream stopping for COM_OF_LOSS_T hands over to
+/// COM_OBL_RC_ACT's mode (Position without a joystick is Hold; Land when asked).
+#[test]
+fn offboard_flies_the_stream_and_fails_safe_when_it_stops() {
+    use crate::control::AttitudeTarget;
+    let mut c = Commander::new(CommanderParams::default());
+    let z = Vector3::zeros();
+    step(&mut c, &at(0.0, z, z, 0.0));
+    let err = c.set_mode(FlightMode::Offboard).unwrap_err();
+    assert!(err.contains("no set-point stream"), "{err}");
+    let target = |pos: Vector3<f64>, yaw: f64, rate: Option<f64>| OffboardTarget {
+        setpoint: Setpoint::Position(PositionSetpoint {
+            pos_ned_m: pos,
+            vel_ned_m_s: Vector3::repeat(f64::NAN),
+            accel_ned_m_s2: Vector3::zeros(),
+            yaw_rad: yaw,
+        }),
+        yaw_rate_rad_s: rate,
+    };
+    // On the ground, a set-point on the ground: spooled, staying there.
+    c.offboard_setpoint(target(z, f64::NAN, None));
+    c.set_mode(FlightMode::Offboard).unwrap();
+    c.arm(false).unwrap();
+    let (sp, armed) = step(&mut c, &at(0.1, z, z, 0.2));
+    assert!(armed && sp.pos_ned_m.z > 0.0 && c.landed() == LandedState::OnGround);
+    // 5 m up: taking off; no yaw given: the heading at that moment holds.
+    let up = Vector3::new(1.0, 2.0, -5.0);
+    c.offboard_setpoint(target(up, f64::NAN, None));
+    let (sp, _) = step(&mut c, &at(0.2, z, z, 0.2));
+    assert_eq!(c.landed(), LandedState::Takeoff);
+    assert_eq!((sp.pos_ned_m, sp.yaw_rad), (up, 0.2));
+    // A yaw rate turns it from there; a yaw is flown as given.
+    c.offboard_setpoint(target(up, f64::NAN, Some(0.5)));
+    let (sp, _) = step(&mut c, &at(0.4, up, z, 0.25));
+    assert!((sp.yaw_rad - 0.3).abs() < 1e-12, "{}", sp.yaw_rad);
+    assert_eq!(c.landed(), LandedState::InAir);
+    c.offboard_setpoint(target(up, -1.0, None));
+    let (sp, _) = step(&mut c, &at(0.5, up, z, 0.3));
+    assert_eq!(sp.yaw_rad, -1.0);
+    // An attitude target without a thrust: hover thrust.
+    c.offboard_setpoint(OffboardTarget {
+        setpoint: Setpoint::Attitude(AttitudeTarget {
+            q_d: None,
+            rate_frd_rad_s: Vector3::new(0.0, 0.0, 0.3),
+            thrust: f64::NAN,
+        }),
+        yaw_rate_rad_s: None,
+    });
+    match c.update(&at(0.6, up, z, 0.3)) {
+        (Setpoint::Attitude(a), true) => assert_eq!(a.thrust, 0.5),
+        other => panic!("{other:?}"),
+    }
+    // The stream stops: Hold after COM_OF_LOSS_T (0.5 s), no joystick for Position.
+    // (The last set-point arrived at the update of 0.5 s.)
+    match c.update(&at(0.95, up, z, 0.3)) {
+        (Setpoint::Attitude(_), true) => {}
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(c.mode(), FlightMode::Offboard);
+    let (sp, armed) = step(&mut c, &at(1.05, up, z, 0.3));
+    assert!(armed && c.mode() == FlightMode::Loiter && sp.pos_ned_m == up);
+    assert_eq!(c.status().offboard_losses, 1);
+    // COM_OBL_RC_ACT 4: Land.
+    c.set_params(CommanderParams {
+        offboard_loss_action: 4,
+        ..CommanderParams::default()
+    });
+    c.offboard_setpoint(target(up, f64::NAN, None));
+    c.set_mode(FlightMode::Offboard).unwrap();
+    step(&mut c, &at(1.2, up, z, 0.3));
+    step(&mut c, &at(1.8, up, z, 0.3));
+    assert_eq!(c.mode(), FlightMode::Land);
+    // Back on the ground through the stream: touchdown after a still second, disarmed.
+    c.offboard_setpoint(target(z, f64::NAN, None));
+    c.set_mode(FlightMode::Offboard).unwrap();
+    let mut t = 1.9;
+    while c.armed() && t < 5.0 {
+        c.offboard_setpoint(target(z, f64::NAN, None));
+        c.update(&at(t, Vector3::new(0.0, 0.0, -0.1), z, 0.3));
+        t += 0.1;
+    }
+    assert!(
+        !c.armed() && (2.85..3.05).contains(&t),
+        "disarmed at {t:.2}"
+    );
+}
