@@ -1,5 +1,6 @@
 """Helpers shared by the Python end-to-end tests: find the binaries, run them on free ports."""
 
+import asyncio
 import os
 import signal
 import socket
@@ -98,3 +99,17 @@ class Daemon:
             self.ap.kill()
             _, err = self.ap.communicate()
             assert "panicked" not in err, err
+
+
+async def first(stream, condition, timeout):
+    """The first item of an async stream for which condition(item) holds, within `timeout` s."""
+
+    async def scan():
+        async for item in stream:
+            if condition(item):
+                return item
+
+    try:
+        return await asyncio.wait_for(scan(), timeout)
+    except asyncio.TimeoutError:
+        pytest.fail(f"nothing as expected within {timeout} s")

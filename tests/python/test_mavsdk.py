@@ -10,27 +10,13 @@ import pytest
 from mavsdk_grpc.param import ParamError
 from mavsdk_grpc.telemetry import FlightMode, LandedState
 
-from conftest import Daemon
+from conftest import Daemon, first
 
 
 def free_tcp_port():
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
-
-
-async def first(stream, condition, timeout):
-    """The first item of an async stream for which condition(item) holds, within `timeout` s."""
-
-    async def scan():
-        async for item in stream:
-            if condition(item):
-                return item
-
-    try:
-        return await asyncio.wait_for(scan(), timeout)
-    except asyncio.TimeoutError:
-        pytest.fail(f"nothing as expected within {timeout} s")
 
 
 async def fly(gcs_port):

@@ -5,7 +5,6 @@ with a time-out."""
 
 import asyncio
 
-import pytest
 from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
 from mavsdk.asyncio.plugins.action import ActionAsync
 from mavsdk.asyncio.plugins.manual_control import ManualControlAsync
@@ -15,21 +14,7 @@ from mavsdk.autopilot import Autopilot
 from mavsdk.plugins.telemetry import FlightMode, LandedState
 from mavsdk.vehicle import Vehicle
 
-from conftest import Daemon
-
-
-async def first(stream, condition, timeout):
-    """The first item of an async stream for which condition(item) holds, within `timeout` s."""
-
-    async def scan():
-        async for item in stream:
-            if condition(item):
-                return item
-
-    try:
-        return await asyncio.wait_for(scan(), timeout)
-    except asyncio.TimeoutError:
-        pytest.fail(f"nothing as expected within {timeout} s")
+from conftest import Daemon, first
 
 
 async def joystick(manual, sticks):

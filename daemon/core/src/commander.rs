@@ -858,18 +858,23 @@ impl Commander {
         (Setpoint::Position(sp), self.armed)
     }
 
+    /// Armed on the ground: a set-point just below home keeps the thrust low (spooled up).
+    fn spooled(&self, i: &CommanderInput, yaw: f64) -> PositionSetpoint {
+        let home = self.home.map_or(i.pos_ned_m, |h| h.0);
+        PositionSetpoint {
+            pos_ned_m: home + Vector3::new(0.0, 0.0, 0.5),
+            vel_ned_m_s: Vector3::zeros(),
+            accel_ned_m_s2: Vector3::zeros(),
+            yaw_rad: yaw,
+        }
+    }
+
     /// PX4's manual-control-loss failsafe: hold where it is (on the ground: stay there).
     fn manual_lost(&mut self, i: &CommanderInput, yaw: f64) -> PositionSetpoint {
         self.manual_losses += 1;
         self.enter(FlightMode::Loiter);
         if self.landed == LandedState::OnGround {
-            let home = self.home.map_or(i.pos_ned_m, |h| h.0);
-            return PositionSetpoint {
-                pos_ned_m: home + Vector3::new(0.0, 0.0, 0.5),
-                vel_ned_m_s: Vector3::zeros(),
-                accel_ned_m_s2: Vector3::zeros(),
-                yaw_rad: yaw,
-            };
+            return self.spooled(i, yaw);
         }
         self.loiter(i, yaw)
     }
@@ -899,13 +904,8 @@ impl Commander {
             LandedState::OnGround => {
                 self.still_since_s = None;
                 if !up_asked {
-                    // Spooled up, kept on the ground until the set-points ask to leave it.
-                    return Setpoint::Position(PositionSetpoint {
-                        pos_ned_m: home + Vector3::new(0.0, 0.0, 0.5),
-                        vel_ned_m_s: Vector3::zeros(),
-                        accel_ned_m_s2: Vector3::zeros(),
-                        yaw_rad: i.yaw_rad,
-                    });
+                    // Kept on the ground until the set-points ask to leave it.
+                    return Setpoint::Position(self.spooled(i, i.yaw_rad));
                 }
                 self.landed = LandedState::Takeoff;
             }
@@ -954,13 +954,7 @@ impl Commander {
         };
         if self.landed == LandedState::OnGround {
             self.enter(FlightMode::Loiter);
-            let home = self.home.map_or(i.pos_ned_m, |h| h.0);
-            return PositionSetpoint {
-                pos_ned_m: home + Vector3::new(0.0, 0.0, 0.5),
-                vel_ned_m_s: Vector3::zeros(),
-                accel_ned_m_s2: Vector3::zeros(),
-                yaw_rad: yaw,
-            };
+            return self.spooled(i, yaw);
         }
         self.enter(next);
         self.loiter(i, yaw)

@@ -85,6 +85,23 @@ fn from_heading(v: Vector3<f64>, yaw: f64) -> Vector3<f64> {
     Vector3::new(c * v.x - s * v.y, s * v.x + c * v.y, v.z)
 }
 
+/// The target of a position set-point message.
+fn position_target(
+    [pos, vel, acc]: [Vector3<f64>; 3],
+    yaw: f64,
+    yaw_rate: Option<f64>,
+) -> OffboardTarget {
+    OffboardTarget {
+        setpoint: Setpoint::Position(PositionSetpoint {
+            pos_ned_m: pos,
+            vel_ned_m_s: vel,
+            accel_ned_m_s2: acc,
+            yaw_rad: yaw,
+        }),
+        yaw_rate_rad_s: yaw_rate,
+    }
+}
+
 /// `SET_POSITION_TARGET_LOCAL_NED` in frame LOCAL_NED, LOCAL_OFFSET_NED (relative to the
 /// vehicle), BODY_NED (velocity and acceleration in the heading's frame, position in NED) or
 /// BODY_OFFSET_NED (everything in the heading's frame, position relative to the vehicle); NaN
@@ -124,15 +141,7 @@ pub fn local_ned(
         }
         _ => return Err("unsupported coordinate frame"),
     }
-    Ok(OffboardTarget {
-        setpoint: Setpoint::Position(PositionSetpoint {
-            pos_ned_m: pos,
-            vel_ned_m_s: vel,
-            accel_ned_m_s2: acc,
-            yaw_rad: yaw,
-        }),
-        yaw_rate_rad_s: yaw_rate,
-    })
+    Ok(position_target([pos, vel, acc], yaw, yaw_rate))
 }
 
 /// `SET_POSITION_TARGET_GLOBAL_INT` in frame GLOBAL (AMSL) or GLOBAL_RELATIVE_ALT (above home),
@@ -182,15 +191,7 @@ pub fn global_int(
     };
     let [pos, vel, acc] = masked(pos_mask, pos, v3(m.vx, m.vy, m.vz), v3(m.afx, m.afy, m.afz))?;
     let (yaw, yaw_rate) = yaw_of(mask, m.yaw, m.yaw_rate)?;
-    Ok(OffboardTarget {
-        setpoint: Setpoint::Position(PositionSetpoint {
-            pos_ned_m: pos,
-            vel_ned_m_s: vel,
-            accel_ned_m_s2: acc,
-            yaw_rad: yaw,
-        }),
-        yaw_rate_rad_s: yaw_rate,
-    })
+    Ok(position_target([pos, vel, acc], yaw, yaw_rate))
 }
 
 /// `SET_ATTITUDE_TARGET`: the attitude q_d (`[w, x, y, z]`, NED from FRD, normalised here; or
