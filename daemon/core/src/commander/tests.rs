@@ -15,6 +15,16 @@ fn input(t: f64, down: f64, vd: f64) -> CommanderInput {
     }
 }
 
+/// Stick positions: forward, right, throttle, yaw.
+fn sticks(forward: f64, right: f64, throttle: f64, yaw: f64) -> Sticks {
+    Sticks {
+        forward,
+        right,
+        throttle,
+        yaw,
+    }
+}
+
 /// One update of a commander in a position mode.
 fn step(c: &mut Commander, i: &CommanderInput) -> (PositionSetpoint, bool) {
     match c.update(i) {
@@ -349,12 +359,6 @@ fn position_mode_flies_the_sticks_and_holds_when_they_centre() {
     step(&mut c, &at(0.0, z, z, 0.0));
     let err = c.set_mode(FlightMode::Posctl).unwrap_err();
     assert!(err.contains("no manual control"), "{err}");
-    let sticks = |forward, right, throttle, yaw| Sticks {
-        forward,
-        right,
-        throttle,
-        yaw,
-    };
     c.manual_control(sticks(0.0, 0.0, 1.0, 0.0));
     c.set_mode(FlightMode::Posctl).unwrap();
     assert!(
@@ -473,12 +477,6 @@ fn stabilized_turns_sticks_into_attitude_and_thrust() {
     step(&mut c, &hover(0.0, z, 0.0));
     let err = c.set_mode(FlightMode::Stabilized).unwrap_err();
     assert!(err.contains("no manual control"), "{err}");
-    let sticks = |forward, right, throttle, yaw| Sticks {
-        forward,
-        right,
-        throttle,
-        yaw,
-    };
     c.manual_control(sticks(0.0, 0.0, 0.5, 0.0));
     c.set_mode(FlightMode::Stabilized).unwrap();
     let err = c.arm(false).unwrap_err();
