@@ -147,6 +147,7 @@ mod tests {
             in_mode_s: 0.0,
             manual_losses: 0,
             offboard_losses: 0,
+            mission: Default::default(),
             manual_control: None,
         };
         let hold = status(FlightMode::Loiter, LandedState::InAir);

@@ -429,6 +429,7 @@ impl Vehicle {
                         let p = &self.core.config().position;
                         p.mass_kg * flight_core::GRAVITY_M_S2 / p.max_thrust_n.max(1e-9)
                     },
+                    origin: e.translation.origin,
                 });
                 self.check_end();
                 out

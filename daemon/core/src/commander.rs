@@ -31,6 +31,9 @@
 
 use crate::control::position::PositionSetpoint;
 use crate::control::{AttitudeTarget, Setpoint};
+use crate::geo::LatLonAlt;
+use crate::mission::MissionStatus;
+use mission::{MissionRun, Stage};
 use nalgebra::{UnitQuaternion, Vector2, Vector3};
 use std::f64::consts::{PI, TAU};
 
@@ -51,7 +54,7 @@ pub enum FlightMode {
     Takeoff,
     /// Hold position (PX4's AUTO.LOITER, "Hold").
     Loiter,
-    /// Fly the uploaded mission (not flown yet).
+    /// Fly the uploaded mission (PX4's AUTO.MISSION).
     Mission,
     /// Return to home and land.
     Rtl,
@@ -140,6 +143,16 @@ crate::params::param_group! {
         offboard_loss_s: f64 = 0.5, "COM_OF_LOSS_T", "s", [0.05, 60.0], "Offboard set-points lost after this long without one: COM_OBL_RC_ACT takes over";
         /// What flies when the offboard set-points stop.
         offboard_loss_action: u32 = 0, "COM_OBL_RC_ACT", "", [0.0, 5.0], "Offboard loss: 0 Position, 1 Altitude, 2 Manual (each Hold without a joystick), 3 Return, 4 Land, 5 Hold";
+        /// Horizontal acceptance radius of mission waypoints that give none (m).
+        acceptance_m: f64 = 2.0, "NAV_ACC_RAD", "m", [0.05, 200.0], "Horizontal acceptance radius of mission waypoints that give none";
+        /// Vertical acceptance of mission waypoints (m).
+        alt_acceptance_m: f64 = 0.8, "NAV_MC_ALT_RAD", "m", [0.05, 200.0], "Vertical acceptance radius of mission waypoints";
+        /// Climb speed of automatic flight (m/s).
+        auto_climb_m_s: f64 = 3.0, "MPC_Z_V_AUTO_UP", "m/s", [0.5, 8.0], "Climb speed of missions and repositions";
+        /// Descent speed of automatic flight (m/s).
+        auto_sink_m_s: f64 = 1.5, "MPC_Z_V_AUTO_DN", "m/s", [0.5, 4.0], "Descent speed of missions and repositions";
+        /// Yaw rate of automatic flight (deg/s).
+        auto_yaw_rate_deg_s: f64 = 45.0, "MPC_YAWRAUTO_MAX", "deg/s", [5.0, 360.0], "Yaw rate of missions, repositions and CONDITION_YAW";
     }
 }
 
@@ -210,6 +223,9 @@ pub struct CommanderInput {
     /// Thrust that holds the vehicle up, as a fraction of its full thrust (PX4's
     /// `MPC_THR_HOVER`): the centre of the throttle stick in the stick-to-attitude modes.
     pub hover_thrust: f64,
+    /// The estimate's local origin (where NED is anchored), once the GPS has set it: what
+    /// mission coordinates are resolved against.
+    pub origin: Option<LatLonAlt>,
 }
 
 /// A set-point streamed in Offboard (`SET_POSITION_TARGET_*`, `SET_ATTITUDE_TARGET`), already in
@@ -249,6 +265,8 @@ pub struct CommanderStatus {
     pub manual_control: Option<bool>,
     /// How often the offboard set-points were lost in Offboard (and `COM_OBL_RC_ACT` took over).
     pub offboard_losses: u32,
+    /// The mission's progress.
+    pub mission: MissionStatus,
 }
 
 /// A straight-line set-point profile from `from` to `to`: speed ramps up at `accel`, cruises
@@ -292,8 +310,10 @@ impl Line {
         let dt = if self.started { dt } else { 0.0 };
         self.started = true;
         let left = (self.length - self.s).max(0.0);
+        // A lower speed (a speed change on the way) is reached at the same deceleration.
         let v = (self.v + self.accel * dt)
             .min(self.speed)
+            .max(self.v - self.accel * dt)
             .min(braking_speed(left, self.accel, dt));
         let a = if dt > 0.0 { (v - self.v) / dt } else { 0.0 };
         self.v = v;
@@ -364,6 +384,15 @@ pub struct Commander {
     offboard_yaw: Option<f64>,
     /// How often the offboard set-points were lost in Offboard.
     offboard_losses: u32,
+    /// The uploaded mission and its progress.
+    mission: MissionRun,
+    /// The horizontal speed of automatic flight `DO_CHANGE_SPEED` set (m/s).
+    speed_override: Option<f64>,
+    /// The heading automatic flight turns (rad): set by missions and repositions, held by the
+    /// other automatic modes; cleared at arming (home's heading then).
+    auto_yaw: Option<f64>,
+    /// A `CONDITION_YAW` heading (rad) and rate (rad/s), until the mode or item changes.
+    yaw_goal: Option<(f64, Option<f64>)>,
 }
 
 impl Commander {
@@ -393,6 +422,10 @@ impl Commander {
             offboard: None,
             offboard_yaw: None,
             offboard_losses: 0,
+            mission: MissionRun::new(),
+            speed_override: None,
+            auto_yaw: None,
+            yaw_goal: None,
         }
     }
 
@@ -444,6 +477,7 @@ impl Commander {
             manual_losses: self.manual_losses,
             manual_control: self.sticks.map(|_| self.fresh_sticks().is_some()),
             offboard_losses: self.offboard_losses,
+            mission: self.mission.status(),
         }
     }
 
@@ -485,6 +519,11 @@ impl Commander {
         if mode != self.mode {
             self.changed = true;
         }
+        if self.mode == FlightMode::Mission {
+            self.mission.left();
+        }
+        self.mission.stage = Stage::Start;
+        self.yaw_goal = None;
         self.mode = mode;
         self.since_s = self.now();
         self.line = None;
@@ -505,6 +544,9 @@ impl Commander {
         }
         match self.mode {
             FlightMode::Takeoff | FlightMode::Loiter => {}
+            FlightMode::Mission => self
+                .mission_entry()
+                .map_err(|e| format!("arming refused: {e}"))?,
             FlightMode::Posctl | FlightMode::Altctl => {
                 let Some(s) = self.fresh_sticks() else {
                     return Err(format!(
@@ -539,7 +581,6 @@ impl Commander {
                     self.mode.name()
                 ));
             }
-            m => return Err(format!("arming refused: {} is not flown yet", m.name())),
         }
         let Some(i) = self.last else {
             return Err("arming refused: no sensor data yet".into());
@@ -559,6 +600,8 @@ impl Commander {
         }
         self.hold = None;
         self.line = None;
+        self.auto_yaw = None;
+        self.mission.stage = Stage::Start;
         Ok(())
     }
 
@@ -579,6 +622,7 @@ impl Commander {
     pub fn disarmed(&mut self) {
         if self.armed {
             self.changed = true;
+            self.mission_landed();
         }
         self.armed = false;
         self.landed = LandedState::OnGround;
@@ -625,8 +669,8 @@ impl Commander {
                     ));
                 }
             }
+            FlightMode::Mission => self.mission_entry()?,
             FlightMode::Descend => return Err("DESCEND is a failsafe, not a mode to select".into()),
-            m => return Err(format!("{} is not flown yet", m.name())),
         }
         if mode == FlightMode::Takeoff && self.armed && !self.ready() {
             return Err("take-off refused: estimator not ready".into());
@@ -738,7 +782,9 @@ impl Commander {
             // The same reaction as to silent sensors, at this update's time.
             self.sensors_stopped();
         }
-        let yaw = self.home.map_or(i.yaw_rad, |h| h.1);
+        let yaw = self
+            .auto_yaw
+            .unwrap_or_else(|| self.home.map_or(i.yaw_rad, |h| h.1));
         let hold = |pos: Vector3<f64>| PositionSetpoint {
             pos_ned_m: pos,
             vel_ned_m_s: Vector3::zeros(),
@@ -810,9 +856,28 @@ impl Commander {
                     return (Setpoint::Position(on_ground), true);
                 }
                 self.landed = LandedState::InAir;
-                self.loiter(i, yaw)
+                // A CONDITION_YAW turns the held heading; a reposition flies its leg first.
+                let yaw = if self.yaw_goal.is_some() {
+                    self.slew_yaw(None, i, dt)
+                } else {
+                    self.hold.map_or(yaw, |h| h.1)
+                };
+                if let Some(h) = self.hold.as_mut() {
+                    h.1 = yaw;
+                }
+                match self.line.as_mut() {
+                    Some(line) => {
+                        let (sp, arrived) = line.step(dt, yaw);
+                        if arrived {
+                            self.line = None;
+                        }
+                        sp
+                    }
+                    None => self.loiter(i, yaw),
+                }
             }
             FlightMode::Land => self.land_at(i, dt, yaw),
+            FlightMode::Mission => self.mission_flight(i, dt, home),
             FlightMode::Rtl => {
                 if self.landed == LandedState::OnGround {
                     return (Setpoint::Position(on_ground), true);
@@ -852,8 +917,6 @@ impl Commander {
                 }
                 None => self.manual_lost(i, yaw),
             },
-            // Not selectable yet (set_mode refuses them): hold.
-            _ => self.loiter(i, yaw),
         };
         (Setpoint::Position(sp), self.armed)
     }
@@ -1179,5 +1242,11 @@ impl Commander {
     }
 }
 
+/// An angle wrapped to [−π, π).
+fn wrap_pi(a: f64) -> f64 {
+    (a + PI).rem_euclid(TAU) - PI
+}
+
+mod mission;
 #[cfg(test)]
 mod tests;

@@ -10,6 +10,7 @@ pub mod core;
 pub mod estimator;
 pub mod failsafe;
 pub mod geo;
+pub mod mission;
 pub mod mixer;
 pub mod params;
 pub mod quat;

@@ -254,6 +254,7 @@ fn takeoff_hover_land_and_disarm() {
                 vel_ned_m_s: est.translation.vel_ned_m_s,
                 yaw_rad: est.attitude.map_or(0.0, |a| a.q.euler_angles().2),
                 hover_thrust: 0.5,
+                origin: est.translation.origin,
             });
             let out = core.step(&sample, &sp, armed);
             commands = out.commands;

@@ -27,6 +27,7 @@ fn telemetry(armed: bool, mode: FlightMode) -> Telemetry {
             in_mode_s: 0.0,
             manual_losses: 0,
             offboard_losses: 0,
+            mission: Default::default(),
             manual_control: None,
         }),
         battery_v: 16.0,

@@ -12,6 +12,7 @@ fn input(t: f64, down: f64, vd: f64) -> CommanderInput {
         vel_ned_m_s: Vector3::new(0.0, 0.0, vd),
         yaw_rad: 0.0,
         hover_thrust: 0.5,
+        origin: None,
     }
 }
 
@@ -111,7 +112,7 @@ fn commands_are_refused_with_a_reason_and_repeats_are_harmless() {
     assert!(
         c.set_mode(FlightMode::Mission)
             .unwrap_err()
-            .contains("not flown yet")
+            .contains("no mission uploaded")
     );
     assert!(c.set_mode(FlightMode::Descend).is_err());
     assert!(c.takeoff(Some(f64::NAN)).is_err() && c.takeoff(Some(-3.0)).is_err());
@@ -349,6 +350,7 @@ fn at(t: f64, pos: Vector3<f64>, vel: Vector3<f64>, yaw: f64) -> CommanderInput 
         vel_ned_m_s: vel,
         yaw_rad: yaw,
         hover_thrust: 0.5,
+        origin: None,
     }
 }
 
@@ -472,6 +474,7 @@ fn stabilized_turns_sticks_into_attitude_and_thrust() {
     let z = Vector3::zeros();
     let hover = |t, pos, yaw| CommanderInput {
         hover_thrust: 0.4,
+        origin: None,
         ..at(t, pos, z, yaw)
     };
     step(&mut c, &hover(0.0, z, 0.0));
@@ -690,3 +693,5 @@ fn offboard_flies_the_stream_and_fails_safe_when_it_stops() {
         "disarmed at {t:.2}"
     );
 }
+
+mod mission;

@@ -1,0 +1,371 @@
+//! Mission mode, repositions and the guided commands, flown by a vehicle that follows its
+//! set-point exactly (the commander's logic alone; closed-loop flights are in `tests/`).
+
+use super::*;
+use crate::geo::{LatLonAlt, LocalFrame};
+use crate::mission::{MissionAltitude, MissionItem, MissionPoint, MissionState};
+
+const ORIGIN: LatLonAlt = LatLonAlt {
+    lat_deg: 47.397742,
+    lon_deg: 8.545594,
+    alt_m: 488.0,
+};
+
+/// A point `north`, `east` of the origin, `up` above home.
+fn point(north: f64, east: f64, up: f64) -> MissionPoint {
+    let g = LocalFrame::new(ORIGIN).to_geodetic(&Vector3::new(north, east, 0.0));
+    MissionPoint {
+        lat_lon_deg: Some((g.lat_deg, g.lon_deg)),
+        alt: Some(MissionAltitude::AboveHome(up)),
+    }
+}
+
+fn waypoint(north: f64, east: f64, up: f64) -> MissionItem {
+    MissionItem::Waypoint {
+        at: point(north, east, up),
+        hold_s: 0.0,
+        acceptance_m: Some(0.5),
+        yaw_rad: None,
+    }
+}
+
+/// A vehicle that is where its set-point is (never below the ground), 50 Hz.
+struct Follower {
+    c: Commander,
+    t: f64,
+    pos: Vector3<f64>,
+    vel: Vector3<f64>,
+    yaw: f64,
+    /// The set-points flown.
+    path: Vec<PositionSetpoint>,
+}
+
+impl Follower {
+    fn new(params: CommanderParams) -> Self {
+        let mut f = Self {
+            c: Commander::new(params),
+            t: 0.0,
+            pos: Vector3::zeros(),
+            vel: Vector3::zeros(),
+            yaw: 0.0,
+            path: Vec::new(),
+        };
+        f.step();
+        f
+    }
+
+    fn input(&self) -> CommanderInput {
+        CommanderInput {
+            origin: Some(ORIGIN),
+            ..at(self.t, self.pos, self.vel, self.yaw)
+        }
+    }
+
+    fn step(&mut self) -> PositionSetpoint {
+        let i = self.input();
+        let (sp, armed) = step(&mut self.c, &i);
+        let dt = 0.02;
+        self.t += dt;
+        if armed {
+            let mut next = self.pos;
+            for k in 0..3 {
+                if sp.pos_ned_m[k].is_finite() {
+                    next[k] = sp.pos_ned_m[k];
+                } else if sp.vel_ned_m_s[k].is_finite() {
+                    next[k] += sp.vel_ned_m_s[k] * dt;
+                }
+            }
+            next.z = next.z.min(0.0);
+            self.vel = (next - self.pos) / dt;
+            self.pos = next;
+            self.yaw = sp.yaw_rad;
+            self.path.push(sp);
+        } else {
+            self.vel = Vector3::zeros();
+        }
+        sp
+    }
+
+    /// Steps until `done` or `limit_s` of time; returns whether `done` happened.
+    fn until(&mut self, limit_s: f64, mut done: impl FnMut(&Self) -> bool) -> bool {
+        let end = self.t + limit_s;
+        while self.t < end {
+            if done(self) {
+                return true;
+            }
+            self.step();
+        }
+        false
+    }
+
+    fn reached(&self) -> Vec<u16> {
+        self.c.mission_status().reached_since(0).collect()
+    }
+}
+
+#[test]
+fn a_mission_is_refused_until_there_is_one_and_a_global_position() {
+    let mut f = Follower::new(CommanderParams::default());
+    let err = f.c.set_mode(FlightMode::Mission).unwrap_err();
+    assert!(err.contains("no mission"), "{err}");
+    assert_eq!(f.c.mission_status().state, MissionState::NoMission);
+    f.c.set_mission(vec![waypoint(10.0, 0.0, 5.0)]);
+    assert_eq!(f.c.mission_status().state, MissionState::NotStarted);
+    assert_eq!(f.c.mission_status().total, 1);
+    let mut no_gps = Commander::new(CommanderParams::default());
+    step(&mut no_gps, &input(0.0, 0.0, 0.0));
+    no_gps.set_mission(vec![waypoint(10.0, 0.0, 5.0)]);
+    let err = no_gps.set_mode(FlightMode::Mission).unwrap_err();
+    assert!(err.contains("global position"), "{err}");
+    assert!(f.c.set_mission_current(1).is_err(), "no item 1");
+    f.c.set_mode(FlightMode::Mission).unwrap();
+    f.c.arm(false).unwrap();
+}
+
+/// Take-off item, a square with a speed change, a timed loiter and one repeat of two legs by
+/// a jump, then RTL: every item reached once (the jumped-over ones twice), in order, each
+/// waypoint within its acceptance radius, the legs straight, and landed at home.
+#[test]
+fn a_square_mission_is_flown_item_by_item_and_ends_landed_at_home() {
+    let mut f = Follower::new(CommanderParams {
+        cruise_speed_m_s: 5.0,
+        ..CommanderParams::default()
+    });
+    let items = vec![
+        MissionItem::Takeoff {
+            at: MissionPoint {
+                lat_lon_deg: None,
+                alt: Some(MissionAltitude::AboveHome(10.0)),
+            },
+            yaw_rad: None,
+        }, // 0
+        waypoint(20.0, 0.0, 10.0), // 1
+        MissionItem::ChangeSpeed {
+            speed_m_s: Some(3.0),
+        }, // 2
+        waypoint(20.0, 20.0, 10.0), // 3
+        waypoint(0.0, 20.0, 10.0), // 4
+        MissionItem::Jump {
+            to: 3,
+            repeat: Some(1),
+        }, // 5
+        MissionItem::LoiterTime {
+            at: point(0.0, 0.0, 12.0),
+            time_s: 3.0,
+        }, // 6
+        MissionItem::ReturnToLaunch, // 7
+    ];
+    f.c.set_mission(items.clone());
+    f.c.set_mode(FlightMode::Mission).unwrap();
+    f.c.arm(false).unwrap();
+    let mut reached_at: Vec<(u16, Vector3<f64>, f64)> = Vec::new();
+    let mut shown = 0;
+    let mut max_speed: f64 = 0.0;
+    let mut off_leg: f64 = 0.0;
+    while f.c.armed() && f.t < 300.0 {
+        let sp = f.step();
+        for seq in f.c.mission_status().reached_since(shown) {
+            reached_at.push((seq, f.pos, f.t));
+        }
+        shown = f.c.mission_status().reached_count;
+        let cur = f.c.mission_status().current;
+        max_speed = max_speed.max(sp.vel_ned_m_s.xy().norm());
+        // Between items 3 and 4 (north 20 → 0 at east 20), the path is the straight line.
+        if cur == 4 && f.pos.z < -9.0 {
+            off_leg = off_leg.max((f.pos.y - 20.0).abs());
+        }
+    }
+    let order: Vec<u16> = reached_at.iter().map(|r| r.0).collect();
+    assert_eq!(order, [0, 1, 2, 3, 4, 5, 3, 4, 5, 6, 7], "reached in order");
+    let status = f.c.mission_status();
+    assert_eq!(status.state, MissionState::Complete);
+    assert!(!f.c.armed(), "disarmed after RTL");
+    assert!(
+        f.pos.xy().norm() < 0.5 && f.pos.z.abs() < 1e-9,
+        "home: {:?}",
+        f.pos
+    );
+    for (seq, pos, _) in &reached_at {
+        if let MissionItem::Waypoint { at, .. } = items[*seq as usize] {
+            let target = at.to_ned(&ORIGIN, &Vector3::zeros(), pos);
+            assert!((pos - target).norm() <= 0.5, "item {seq} at {pos:?}");
+        }
+    }
+    assert!(max_speed <= 5.0 + 1e-9, "cruise speed kept: {max_speed}");
+    assert!(off_leg < 1e-3, "straight leg: {off_leg}");
+    // The speed change to 3 m/s: the legs after item 2 are flown at 3 m/s.
+    let leg4 = f.path.iter().map(|s| s.vel_ned_m_s.xy().norm());
+    assert!(leg4.clone().any(|v| (v - 3.0).abs() < 1e-9));
+    // The loiter held for its 3 s.
+    let t6 = reached_at.iter().find(|r| r.0 == 6).map(|r| r.2).unwrap();
+    let t5 = reached_at
+        .iter()
+        .rev()
+        .find(|r| r.0 == 5)
+        .map(|r| r.2)
+        .unwrap();
+    assert!(t6 - t5 > 3.0, "loitered {}", t6 - t5);
+    // Acceleration limited along the legs.
+    let accel = f
+        .path
+        .iter()
+        .map(|s| s.accel_ned_m_s2.norm())
+        .fold(0.0, f64::max);
+    assert!(accel <= 1.0 + 1e-9, "accel {accel}");
+    // A heading along each leg: flying east on item 3's leg.
+    assert!(f.path.iter().any(|s| (s.yaw_rad - FRAC_PI_2).abs() < 1e-6));
+}
+
+#[test]
+fn leaving_mission_pauses_it_and_coming_back_resumes_the_same_item() {
+    let mut f = Follower::new(CommanderParams::default());
+    f.c.set_mission(vec![waypoint(0.0, 0.0, 5.0), waypoint(40.0, 0.0, 5.0)]);
+    f.c.set_mode(FlightMode::Mission).unwrap();
+    f.c.arm(false).unwrap();
+    assert!(f.until(60.0, |f| f.pos.x > 10.0));
+    assert_eq!(f.c.mission_status().current, 1);
+    f.c.set_mode(FlightMode::Loiter).unwrap();
+    assert_eq!(f.c.mission_status().state, MissionState::Paused);
+    f.until(5.0, |_| false);
+    let held = f.pos;
+    f.until(2.0, |_| false);
+    assert!((f.pos - held).norm() < 1e-9, "holding");
+    f.c.set_mode(FlightMode::Mission).unwrap();
+    assert!(f.until(60.0, |f| f.c.mission_status().state
+        == MissionState::Complete));
+    assert_eq!(f.reached(), [0, 1], "resumed at item 1, not from the start");
+    assert!((f.pos - Vector3::new(40.0, 0.0, -5.0)).norm() < 0.5);
+    // Complete: hold there; entering Mission again starts over.
+    f.c.set_mode(FlightMode::Loiter).unwrap();
+    f.c.set_mode(FlightMode::Mission).unwrap();
+    assert_eq!(f.c.mission_status().state, MissionState::NotStarted);
+    assert!(f.until(60.0, |f| f.c.mission_status().reached_count == 3));
+    assert!(f.pos.xy().norm() < 0.5, "back at item 0");
+}
+
+#[test]
+fn set_current_jumps_and_a_jump_forever_keeps_looping() {
+    let mut f = Follower::new(CommanderParams::default());
+    f.c.set_mission(vec![
+        waypoint(0.0, 0.0, 5.0),
+        waypoint(10.0, 0.0, 5.0),
+        MissionItem::Jump {
+            to: 0,
+            repeat: None,
+        },
+        waypoint(99.0, 0.0, 5.0),
+    ]);
+    f.c.set_mission_current(1).unwrap();
+    f.c.set_mode(FlightMode::Mission).unwrap();
+    f.c.arm(false).unwrap();
+    assert!(f.until(200.0, |f| f.c.mission_status().reached_count >= 7));
+    let r = f.reached();
+    assert_eq!(&r[..6], [1, 2, 0, 1, 2, 0], "from item 1, round and round");
+    assert!(
+        f.path.iter().all(|s| s.pos_ned_m.x < 11.0),
+        "item 3 never flown"
+    );
+    // A jump-only loop holds instead of spinning.
+    let mut g = Follower::new(CommanderParams::default());
+    g.c.set_mission(vec![
+        waypoint(0.0, 0.0, 5.0),
+        MissionItem::Jump {
+            to: 2,
+            repeat: None,
+        },
+        MissionItem::Jump {
+            to: 1,
+            repeat: None,
+        },
+    ]);
+    g.c.set_mode(FlightMode::Mission).unwrap();
+    g.c.arm(false).unwrap();
+    assert!(g.until(30.0, |g| g.c.mission_status().reached_count >= 3));
+    let p = g.pos;
+    g.until(1.0, |_| false);
+    assert!((g.pos - p).norm() < 1e-6, "holds in a loop of jumps");
+}
+
+#[test]
+fn land_item_touches_down_where_it_says_and_a_delay_waits() {
+    let mut f = Follower::new(CommanderParams::default());
+    let g = point(10.0, 5.0, 0.0);
+    f.c.set_mission(vec![
+        MissionItem::Takeoff {
+            at: MissionPoint {
+                lat_lon_deg: None,
+                alt: Some(MissionAltitude::AboveHome(4.0)),
+            },
+            yaw_rad: None,
+        },
+        MissionItem::Delay { delay_s: 2.0 },
+        MissionItem::Land {
+            at: g,
+            yaw_rad: Some(1.0),
+        },
+    ]);
+    f.c.set_mode(FlightMode::Mission).unwrap();
+    f.c.arm(false).unwrap();
+    assert!(f.until(10.0, |f| f.c.mission_status().reached_count == 1));
+    assert!((f.pos.z + 4.0).abs() < 0.3, "took off to 4 m: {:?}", f.pos);
+    let t0 = f.t;
+    assert!(f.until(10.0, |f| f.c.mission_status().reached_count == 2));
+    assert!((f.t - t0 - 2.0).abs() < 0.1, "waited {}", f.t - t0);
+    assert!(f.until(60.0, |f| !f.c.armed()));
+    assert_eq!(f.reached(), [0, 1, 2]);
+    assert_eq!(f.c.mission_status().state, MissionState::Complete);
+    assert!(
+        (f.pos - Vector3::new(10.0, 5.0, 0.0)).norm() < 0.1,
+        "{:?}",
+        f.pos
+    );
+    assert!((f.yaw - 1.0).abs() < 1e-6, "the item's heading");
+    // Armed again in Mission: the mission starts over (a take-off first).
+    f.c.arm(false).unwrap();
+    assert_eq!(f.c.mission_status().state, MissionState::NotStarted);
+}
+
+#[test]
+fn reposition_flies_to_the_point_and_holds_and_yaw_and_speed_commands_apply() {
+    let mut f = Follower::new(CommanderParams::default());
+    let there = Vector3::new(30.0, -10.0, -8.0);
+    assert!(
+        f.c.reposition(there, None, None, true).is_err(),
+        "not flying"
+    );
+    f.c.takeoff(Some(5.0)).unwrap();
+    f.c.arm(false).unwrap();
+    assert!(f.until(20.0, |f| f.c.mode() == FlightMode::Loiter));
+    f.c.set_mode(FlightMode::Land).unwrap();
+    let err = f.c.reposition(there, None, None, false).unwrap_err();
+    assert!(err.contains("not in Hold"), "{err}");
+    f.c.reposition(there, Some(2.0), Some(-FRAC_PI_2), true)
+        .unwrap();
+    assert_eq!(f.c.mode(), FlightMode::Loiter);
+    let t0 = f.t;
+    assert!(f.until(60.0, |f| (f.pos - there).norm() < 1e-6));
+    let d = 30.0_f64.hypot(10.0).hypot(3.0);
+    assert!(f.t - t0 > d / 2.0, "at 2 m/s: {} s", f.t - t0);
+    assert!(
+        (f.yaw + FRAC_PI_2).abs() < 1e-6,
+        "turned to the heading asked"
+    );
+    f.until(2.0, |_| false);
+    assert!((f.pos - there).norm() < 1e-6, "holds there");
+    // CONDITION_YAW turns at its rate.
+    f.c.condition_yaw(0.0, Some(0.5)).unwrap();
+    let t0 = f.t;
+    assert!(f.until(10.0, |f| f.yaw.abs() < 1e-6));
+    assert!((f.t - t0 - FRAC_PI_2 / 0.5).abs() < 0.1, "{}", f.t - t0);
+    // DO_CHANGE_SPEED applies to the next leg and to the one in progress.
+    f.c.change_speed(Some(1.0)).unwrap();
+    assert!(f.c.change_speed(Some(-1.0)).is_err());
+    f.c.reposition(Vector3::new(30.0, 60.0, f64::NAN), None, None, false)
+        .unwrap();
+    f.until(10.0, |_| false);
+    assert!((f.vel.xy().norm() - 1.0).abs() < 1e-6, "{:?}", f.vel);
+    assert!((f.pos.z + 8.0).abs() < 1e-9, "altitude kept (NaN)");
+    f.c.change_speed(Some(4.0)).unwrap();
+    f.until(4.0, |_| false);
+    assert!((f.vel.xy().norm() - 4.0).abs() < 1e-6, "{:?}", f.vel);
+}
