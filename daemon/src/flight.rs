@@ -258,16 +258,19 @@ impl<'a> ControlLoop<'a> {
                 Command::Land => self.vehicle.request_land(),
                 Command::Stop => return Flow::Stop,
                 Command::Vehicle(c, reply) => {
+                    // Sticks and offboard set-points arrive tens of times a second: not logged.
+                    let what = match &c {
+                        VehicleCommand::Sticks(_) | VehicleCommand::Offboard(_) => None,
+                        VehicleCommand::SetMission(items) => {
+                            Some(format!("SetMission({} items)", items.len()))
+                        }
+                        c => Some(format!("{c:?}")),
+                    };
                     let result = self.vehicle.command(c);
-                    match &result {
-                        // Sticks and offboard set-points arrive tens of times a second.
-                        Ok(())
-                            if matches!(
-                                c,
-                                VehicleCommand::Sticks(_) | VehicleCommand::Offboard(_)
-                            ) => {}
-                        Ok(()) => tracing::info!(command = ?c, "accepted"),
-                        Err(e) => tracing::warn!(command = ?c, "{e}"),
+                    match (&result, what) {
+                        (_, None) => {}
+                        (Ok(()), Some(c)) => tracing::info!(command = c, "accepted"),
+                        (Err(e), Some(c)) => tracing::warn!(command = c, "{e}"),
                     }
                     if let Some(reply) = reply {
                         // The asker may have given up waiting: nothing to do then.

@@ -12,6 +12,7 @@ use flight_core::core::{FlightCore, FlightCoreConfig, SensorSample, StepOutput};
 use flight_core::estimator::translation::GpsMeasurement;
 use flight_core::failsafe::{BlindDescent, HoverCommands};
 use flight_core::geo::{LatLonAlt, LocalFrame};
+use flight_core::mission::{MissionItem, MissionPoint, SpeedChange};
 use flight_core::params::FlightParams;
 use hil::SensorUpdate;
 use mavlink::dialects::common::MavMessage;
@@ -32,7 +33,7 @@ pub struct AutoFlight {
 }
 
 /// What other tasks ask the vehicle (ground-station commands, Ctrl-C).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum VehicleCommand {
     /// Arm; `force` skips the estimator check.
     Arm {
@@ -59,6 +60,37 @@ pub enum VehicleCommand {
     Sticks(Sticks),
     /// An offboard set-point (`SET_POSITION_TARGET_*`, `SET_ATTITUDE_TARGET`); never answered.
     Offboard(OffboardTarget),
+    /// A new mission (an upload finished, or a clear); never answered.
+    SetMission(Vec<MissionItem>),
+    /// Go on at this mission item.
+    SetMissionCurrent(u16),
+    /// Mission mode, from this item if given (`MAV_CMD_MISSION_START`).
+    StartMission(Option<u16>),
+    /// The speed of automatic flight (`DO_CHANGE_SPEED`).
+    ChangeSpeed(SpeedChange),
+    /// Turn (`CONDITION_YAW`): to `angle_deg`, or by it when `relative` (clockwise for
+    /// `direction` ≥ 0, counter-clockwise for −1), at `rate_deg_s` or the automatic rate.
+    ConditionYaw {
+        /// The heading, or the turn (deg).
+        angle_deg: f64,
+        /// The turn rate (deg/s).
+        rate_deg_s: Option<f64>,
+        /// −1 counter-clockwise, 1 clockwise, 0 the shortest way (relative turns: clockwise).
+        direction: i8,
+        /// `angle_deg` is a turn from the current heading.
+        relative: bool,
+    },
+    /// Fly to a point and hold there (`DO_REPOSITION`).
+    Reposition {
+        /// Where; a part left open keeps the current one.
+        at: MissionPoint,
+        /// Horizontal speed (m/s), else the cruise speed.
+        speed_m_s: Option<f64>,
+        /// Heading (deg), else kept.
+        yaw_deg: Option<f64>,
+        /// Switch to Hold (else only in Hold already).
+        change_mode: bool,
+    },
 }
 
 /// The vehicle: flight core, commander and what has arrived since the last frame.
@@ -247,6 +279,44 @@ impl Vehicle {
             VehicleCommand::Offboard(t) => {
                 c_.offboard_setpoint(t);
                 Ok(())
+            }
+            VehicleCommand::SetMission(items) => {
+                c_.set_mission(items);
+                Ok(())
+            }
+            VehicleCommand::SetMissionCurrent(seq) => c_.set_mission_current(seq),
+            VehicleCommand::StartMission(first) => c_.start_mission(first),
+            VehicleCommand::ChangeSpeed(change) => c_.change_speed(change),
+            VehicleCommand::ConditionYaw {
+                angle_deg,
+                rate_deg_s,
+                direction,
+                relative,
+            } => {
+                let yaw = self
+                    .last
+                    .and_then(|o| o.attitude)
+                    .map_or(0.0, |a| a.q.euler_angles().2);
+                let target = if relative {
+                    yaw + angle_deg.to_radians() * if direction < 0 { -1.0 } else { 1.0 }
+                } else {
+                    angle_deg.to_radians()
+                };
+                c_.condition_yaw(target, rate_deg_s.map(f64::to_radians))
+            }
+            VehicleCommand::Reposition {
+                at,
+                speed_m_s,
+                yaw_deg,
+                change_mode,
+            } => {
+                let (Some(out), Some(origin)) = (self.last, origin) else {
+                    return Err("reposition refused: no global position yet".into());
+                };
+                let home = c_.home().unwrap_or(out.translation.pos_ned_m);
+                // The parts left open stay NaN: the commander keeps them.
+                let target = at.to_ned(&origin, &home, &Vector3::repeat(f64::NAN));
+                c_.reposition(target, speed_m_s, yaw_deg.map(f64::to_radians), change_mode)
             }
         }
     }

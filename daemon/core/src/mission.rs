@@ -57,6 +57,17 @@ impl MissionPoint {
     }
 }
 
+/// What a `DO_CHANGE_SPEED` asks.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SpeedChange {
+    /// This horizontal speed (m/s).
+    To(f64),
+    /// Back to `MPC_XY_CRUISE` (MAVLink's −2).
+    Default,
+    /// Nothing (MAVLink's −1).
+    Unchanged,
+}
+
 /// One mission item, in the terms of its `MAV_CMD`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum MissionItem {
@@ -106,10 +117,7 @@ pub enum MissionItem {
         delay_s: f64,
     },
     /// `MAV_CMD_DO_CHANGE_SPEED`: the horizontal speed of the legs that follow.
-    ChangeSpeed {
-        /// Speed (m/s); `None`: back to `MPC_XY_CRUISE`.
-        speed_m_s: Option<f64>,
-    },
+    ChangeSpeed(SpeedChange),
     /// `MAV_CMD_DO_JUMP`: go back (or forward) to item `to`, `repeat` times (`None`: forever).
     Jump {
         /// The item to continue at (its sequence number).
@@ -130,7 +138,7 @@ impl MissionItem {
     pub fn is_nav(&self) -> bool {
         !matches!(
             self,
-            Self::ChangeSpeed { .. } | Self::Jump { .. } | Self::SetHome { .. }
+            Self::ChangeSpeed(_) | Self::Jump { .. } | Self::SetHome { .. }
         )
     }
 }
@@ -157,7 +165,7 @@ pub const REACHED_KEPT: usize = 8;
 /// A mission's progress.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct MissionStatus {
-    /// The current item (its sequence number).
+    /// The current item (its sequence number); `total` once complete.
     pub current: u16,
     /// How many items.
     pub total: u16,

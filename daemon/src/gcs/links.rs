@@ -462,6 +462,7 @@ pub async fn run(endpoints: Vec<Endpoint>, vehicle: Vehicle) -> Option<Action> {
     let start = Instant::now();
     let mut malformed = 0u64;
     let mut exit = None;
+    let mut pending_mission = None;
     loop {
         tokio::select! {
             Some(i) = inbound.recv() => {
@@ -504,6 +505,21 @@ pub async fn run(endpoints: Vec<Endpoint>, vehicle: Vehicle) -> Option<Action> {
         if let Some(sticks) = out.sticks.take() {
             // A full queue loses these sticks only: the next ones follow within 50 ms.
             let _ = commands.try_send(Command::Vehicle(VehicleCommand::Sticks(sticks), None));
+        }
+        if let Some(items) = out.mission.take() {
+            pending_mission = Some(items);
+        }
+        if let Some(items) = pending_mission.take() {
+            // The mission must arrive (it was acknowledged): a full queue keeps it for the
+            // next turn of this loop.
+            let c = Command::Vehicle(VehicleCommand::SetMission(items), None);
+            if let Err(mpsc::error::TrySendError::Full(Command::Vehicle(
+                VehicleCommand::SetMission(items),
+                _,
+            ))) = commands.try_send(c)
+            {
+                pending_mission = Some(items);
+            }
         }
         if let Some(target) = out.offboard.take() {
             // Likewise a set-point of a stream.

@@ -11,6 +11,7 @@
 #![allow(deprecated)]
 
 pub mod links;
+pub mod mission;
 pub mod modes;
 pub mod offboard;
 pub mod params;
@@ -18,7 +19,7 @@ pub mod telemetry;
 
 use crate::flight::Telemetry;
 use crate::vehicle::VehicleCommand;
-use flight_core::commander::{FlightMode, LandedState, OffboardTarget, Sticks};
+use flight_core::commander::{CommanderStatus, FlightMode, LandedState, OffboardTarget, Sticks};
 use flight_core::geo::LatLonAlt;
 use flight_core::params::FlightParams;
 use mavlink::MavHeader;
@@ -73,6 +74,9 @@ pub struct AckTo {
     pub system: u8,
     /// The requester's component.
     pub component: u8,
+    /// No `COMMAND_ACK` (a message that is not a command, e.g. `MISSION_SET_CURRENT`): only a
+    /// refusal is said, in a `STATUSTEXT`.
+    pub quiet: bool,
 }
 
 /// Work for the links' task that is not a message: I/O and the process.
@@ -103,6 +107,8 @@ pub struct Outbox {
     pub sticks: Option<Sticks>,
     /// The latest offboard set-point, for the control loop; never answered.
     pub offboard: Option<OffboardTarget>,
+    /// A new mission for the commander (an upload finished, or the mission was cleared).
+    pub mission: Option<mission::NewMission>,
 }
 
 impl Outbox {
@@ -152,6 +158,13 @@ pub struct GroundStation {
     offboard_losses_shown: u32,
     /// Offboard set-points dropped as malformed or unsupported.
     pub offboard_refused: u64,
+    /// The mission, fence and rally plans and their transfers.
+    pub missions: mission::Missions,
+    /// The mission progress last shown (current item, state, items reached).
+    mission_shown: Option<(u16, flight_core::mission::MissionState)>,
+    reached_shown: u32,
+    /// When MISSION_CURRENT is next due (s).
+    mission_current_next_s: f64,
 }
 
 impl GroundStation {
@@ -181,6 +194,10 @@ impl GroundStation {
             manual_losses_shown: 0,
             offboard_losses_shown: 0,
             offboard_refused: 0,
+            missions: mission::Missions::default(),
+            mission_shown: None,
+            reached_shown: 0,
+            mission_current_next_s: 0.0,
         }
     }
 
@@ -282,6 +299,23 @@ impl GroundStation {
             out.messages
                 .extend(telemetry::build(HOME_POSITION_DATA::ID, t, unix).map(Outgoing::Message));
         }
+        self.missions.poll(now_s, out);
+        if let Some(status) = t.status {
+            let m = status.mission;
+            // MISSION_CURRENT at 1 Hz and on every change; MISSION_ITEM_REACHED once per item.
+            let shown = (m.current, m.state);
+            if self.mission_shown != Some(shown) || now_s >= self.mission_current_next_s {
+                self.mission_shown = Some(shown);
+                self.mission_current_next_s = now_s + 1.0;
+                out.send(self.mission_current(&status));
+            }
+            for seq in m.reached_since(self.reached_shown) {
+                out.send(MavMessage::MISSION_ITEM_REACHED(
+                    MISSION_ITEM_REACHED_DATA { seq },
+                ));
+            }
+            self.reached_shown = m.reached_count;
+        }
         for s in &mut self.streams {
             if now_s < s.next_s {
                 continue;
@@ -303,6 +337,33 @@ impl GroundStation {
             out.messages
                 .extend(self.one_off(id, param, t, unix).map(Outgoing::Message));
         }
+    }
+
+    /// `MISSION_CURRENT`: the mission's current item, size and state, and the plans' ids.
+    fn mission_current(&self, s: &CommanderStatus) -> MavMessage {
+        use flight_core::mission::MissionState as S;
+        let m = s.mission;
+        MavMessage::MISSION_CURRENT(MISSION_CURRENT_DATA {
+            seq: m.current,
+            total: if m.total == 0 { u16::MAX } else { m.total },
+            mission_state: match m.state {
+                S::NoMission => MissionState::MISSION_STATE_NO_MISSION,
+                S::NotStarted => MissionState::MISSION_STATE_NOT_STARTED,
+                S::Active => MissionState::MISSION_STATE_ACTIVE,
+                S::Paused => MissionState::MISSION_STATE_PAUSED,
+                S::Complete => MissionState::MISSION_STATE_COMPLETE,
+            },
+            mission_mode: if s.mode == FlightMode::Mission { 1 } else { 2 },
+            mission_id: self
+                .missions
+                .opaque_id(MavMissionType::MAV_MISSION_TYPE_MISSION),
+            fence_id: self
+                .missions
+                .opaque_id(MavMissionType::MAV_MISSION_TYPE_FENCE),
+            rally_points_id: self
+                .missions
+                .opaque_id(MavMissionType::MAV_MISSION_TYPE_RALLY),
+        })
     }
 
     /// A message sent once on request.
@@ -371,6 +432,12 @@ impl GroundStation {
     /// The control loop's answer to a command sent through [`Outbox::vehicle`]: the ack, and
     /// the reason in a `STATUSTEXT` when denied.
     pub fn answered(&mut self, to: AckTo, result: Result<(), String>, out: &mut Outbox) {
+        if to.quiet {
+            if let Err(reason) = result {
+                out.send(Self::statustext(MavSeverity::MAV_SEVERITY_WARNING, &reason));
+            }
+            return;
+        }
         match result {
             Ok(()) => out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED)),
             Err(reason) => {
@@ -411,7 +478,25 @@ impl GroundStation {
             command,
             system: from.system_id as u8,
             component: from.component_id,
+            quiet: false,
         };
+        if let Some((system, component)) = mission::target(msg) {
+            if self.for_us(system, Some(component)) {
+                if let MavMessage::MISSION_SET_CURRENT(m) = msg {
+                    let to = AckTo {
+                        quiet: true,
+                        ..requester(MavCmd::MAV_CMD_DO_SET_MISSION_CURRENT)
+                    };
+                    out.vehicle
+                        .push((VehicleCommand::SetMissionCurrent(m.seq), to));
+                } else {
+                    self.missions.on_message(from, msg, out);
+                }
+            } else {
+                self.dropped += 1;
+            }
+            return;
+        }
         if let Some(change) = self.on_param_message(msg, out) {
             if change.values {
                 out.actions.push(Action::ParamsChanged);
@@ -457,7 +542,7 @@ impl GroundStation {
                 // Latitude and longitude need their 1e-7 precision: the global commands read
                 // x and y from the message itself.
                 let global = (c.x != 0 || c.y != 0).then_some((c.x, c.y));
-                self.command_int(cmd, global, requester(c.command), t, out);
+                self.command_int(cmd, global, c.frame, requester(c.command), t, out);
             }
             MavMessage::SET_MODE(m) => {
                 if !self.for_us(m.target_system, None) {
@@ -606,10 +691,14 @@ impl GroundStation {
         &mut self,
         c: Command,
         global: Option<(i32, i32)>,
+        frame: MavFrame,
         to: AckTo,
         t: &Telemetry,
         out: &mut Outbox,
     ) {
+        if c.command == MavCmd::MAV_CMD_DO_REPOSITION {
+            return self.reposition(c, global, frame, to, out);
+        }
         if c.command == MavCmd::MAV_CMD_DO_SET_HOME && c.p[0] != 1.0 {
             let Some((x, y)) = global else {
                 return out.send(self.ack(to, MavResult::MAV_RESULT_DENIED));
@@ -622,6 +711,48 @@ impl GroundStation {
             return out.vehicle.push((VehicleCommand::SetHomeGlobal(p), to));
         }
         self.command(c, to, t, out);
+    }
+
+    /// `DO_REPOSITION`: param1 speed (−1 default), param2 bit 0 "switch to Hold", param4
+    /// yaw (deg, NaN keeps), x/y latitude and longitude (absent or `INT32_MAX`: keep), z the
+    /// altitude in `frame` (NaN: keep).
+    fn reposition(
+        &mut self,
+        c: Command,
+        global: Option<(i32, i32)>,
+        frame: MavFrame,
+        to: AckTo,
+        out: &mut Outbox,
+    ) {
+        let p = c.p;
+        let relative = match frame {
+            MavFrame::MAV_FRAME_GLOBAL | MavFrame::MAV_FRAME_GLOBAL_INT => false,
+            MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT
+            | MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT_INT => true,
+            f => {
+                out.send(self.ack(to, MavResult::MAV_RESULT_DENIED));
+                let why = format!("reposition: frame {f:?} not supported");
+                return out.send(Self::statustext(MavSeverity::MAV_SEVERITY_WARNING, &why));
+            }
+        };
+        let z = p[6] as f64;
+        let at = flight_core::mission::MissionPoint {
+            lat_lon_deg: global
+                .filter(|&(x, y)| x != i32::MAX && y != i32::MAX)
+                .map(|(x, y)| (x as f64 * 1e-7, y as f64 * 1e-7)),
+            alt: z.is_finite().then_some(if relative {
+                flight_core::mission::MissionAltitude::AboveHome(z)
+            } else {
+                flight_core::mission::MissionAltitude::Amsl(z)
+            }),
+        };
+        let cmd = VehicleCommand::Reposition {
+            at,
+            speed_m_s: (p[0].is_finite() && p[0] > 0.0).then_some(p[0] as f64),
+            yaw_deg: p[3].is_finite().then_some(p[3] as f64),
+            change_mode: (p[1] as u32) & 1 == 1,
+        };
+        out.vehicle.push((cmd, to));
     }
 
     /// A command: answered here, or passed to the vehicle (answered through
@@ -655,6 +786,54 @@ impl GroundStation {
                 }
             }
             MavCmd::MAV_CMD_NAV_LAND => vehicle(out, VehicleCommand::SetMode(FlightMode::Land)),
+            MavCmd::MAV_CMD_MISSION_START => {
+                // param1: the first item (0 and up); the last (param2) is not honoured.
+                let first = (p[0].is_finite() && p[0] >= 0.0).then_some(p[0] as u16);
+                vehicle(out, VehicleCommand::StartMission(first));
+            }
+            MavCmd::MAV_CMD_DO_SET_MISSION_CURRENT => {
+                if !(p[0].is_finite() && p[0] >= 0.0) {
+                    // −1: no change.
+                    return out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED));
+                }
+                vehicle(out, VehicleCommand::SetMissionCurrent(p[0] as u16));
+            }
+            MavCmd::MAV_CMD_DO_PAUSE_CONTINUE => match p[0] {
+                0.0 => vehicle(out, VehicleCommand::SetMode(FlightMode::Loiter)),
+                1.0 => vehicle(out, VehicleCommand::SetMode(FlightMode::Mission)),
+                x => deny(
+                    self,
+                    out,
+                    &format!("pause/continue: param1 {x} is not 0 or 1"),
+                ),
+            },
+            MavCmd::MAV_CMD_DO_CHANGE_SPEED => match mission::speed_change(p[1]) {
+                Ok(change) => vehicle(out, VehicleCommand::ChangeSpeed(change)),
+                Err(_) => deny(self, out, &format!("change speed: {} m/s refused", p[1])),
+            },
+            MavCmd::MAV_CMD_CONDITION_YAW => {
+                if !p[0].is_finite() {
+                    return deny(self, out, "yaw command: angle not finite");
+                }
+                let rate = (p[1].is_finite() && p[1] > 0.0).then_some(p[1] as f64);
+                vehicle(
+                    out,
+                    VehicleCommand::ConditionYaw {
+                        angle_deg: p[0] as f64,
+                        rate_deg_s: rate,
+                        direction: p[2].signum() as i8 * (p[2] != 0.0) as i8,
+                        relative: p[3] != 0.0,
+                    },
+                );
+            }
+            MavCmd::MAV_CMD_DO_REPOSITION => {
+                // COMMAND_LONG: latitude and longitude in degrees, altitude AMSL.
+                let global = (p[4].is_finite() && p[5].is_finite()).then_some((
+                    (p[4] as f64 * 1e7).round() as i32,
+                    (p[5] as f64 * 1e7).round() as i32,
+                ));
+                self.reposition(c, global, MavFrame::MAV_FRAME_GLOBAL, to, out);
+            }
             MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH => {
                 vehicle(out, VehicleCommand::SetMode(FlightMode::Rtl));
             }

@@ -150,6 +150,7 @@ fn every_command_gets_exactly_one_ack_addressed_to_the_requester() {
         command: MavCmd::MAV_CMD_NAV_LAND,
         system: 255,
         component: 190,
+        quiet: false,
     };
     let mut out = Outbox::default();
     g.answered(to, Err("not now".into()), &mut out);
@@ -717,4 +718,192 @@ fn on_request_messages_can_be_asked_for_and_say_which_set_point_axes_are_flown()
             | M::POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE
     );
     assert_eq!((target.z, target.vx, target.yaw), (-5.0, 3.0, 0.5));
+}
+
+#[test]
+fn mission_progress_is_streamed_and_each_reached_item_reported_once() {
+    use flight_core::mission::{MissionState as S, MissionStatus};
+    let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
+    let mut t = telemetry(true, FlightMode::Mission);
+    let with = |t: &mut Telemetry, current, state, reached: &[u16]| {
+        let mut m = MissionStatus {
+            current,
+            total: 4,
+            state,
+            ..Default::default()
+        };
+        for &seq in reached {
+            m.reached_recent[m.reached_count as usize % 8] = seq;
+            m.reached_count += 1;
+        }
+        t.status.as_mut().unwrap().mission = m;
+    };
+    let current = |out: &Outbox| -> Vec<MISSION_CURRENT_DATA> {
+        out.messages
+            .iter()
+            .filter_map(|m| match m {
+                Outgoing::Message(MavMessage::MISSION_CURRENT(c)) => Some(c.clone()),
+                _ => None,
+            })
+            .collect()
+    };
+    let reached = |out: &Outbox| -> Vec<u16> {
+        out.messages
+            .iter()
+            .filter_map(|m| match m {
+                Outgoing::Message(MavMessage::MISSION_ITEM_REACHED(r)) => Some(r.seq),
+                _ => None,
+            })
+            .collect()
+    };
+    with(&mut t, 0, S::Active, &[]);
+    let mut out = Outbox::default();
+    g.poll(0.0, &t, &mut out);
+    let c = current(&out);
+    assert_eq!(c.len(), 1);
+    assert_eq!((c[0].seq, c[0].total, c[0].mission_mode), (0, 4, 1));
+    assert_eq!(c[0].mission_state, MissionState::MISSION_STATE_ACTIVE);
+    // 1 Hz, and at once on a change.
+    let mut out = Outbox::default();
+    g.poll(0.5, &t, &mut out);
+    assert!(current(&out).is_empty());
+    g.poll(1.01, &t, &mut out);
+    assert_eq!(current(&out).len(), 1);
+    with(&mut t, 2, S::Active, &[0, 1]);
+    let mut out = Outbox::default();
+    g.poll(1.1, &t, &mut out);
+    assert_eq!(current(&out)[0].seq, 2);
+    assert_eq!(reached(&out), [0, 1]);
+    let mut out = Outbox::default();
+    with(&mut t, 4, S::Complete, &[0, 1, 2, 3]);
+    g.poll(1.2, &t, &mut out);
+    assert_eq!(reached(&out), [2, 3], "each once");
+    let c = current(&out);
+    assert_eq!(
+        (c[0].seq, c[0].mission_state),
+        (4, MissionState::MISSION_STATE_COMPLETE)
+    );
+    // No mission: total is UINT16_MAX.
+    with(&mut t, 0, S::NoMission, &[]);
+    t.status.as_mut().unwrap().mission.total = 0;
+    let mut out = Outbox::default();
+    g.poll(1.3, &t, &mut out);
+    assert_eq!(current(&out)[0].total, u16::MAX);
+}
+
+#[test]
+fn mission_and_guided_commands_reach_the_vehicle() {
+    use flight_core::mission::{MissionAltitude, SpeedChange};
+    let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
+    let t = telemetry(true, FlightMode::Loiter);
+    let run = |g: &mut GroundStation, m: MavMessage| {
+        let mut out = Outbox::default();
+        g.on_message(&gcs_header(), &m, &t, &mut out);
+        out
+    };
+    let one = |out: Outbox| {
+        assert_eq!(out.vehicle.len(), 1, "{:?}", out.messages);
+        out.vehicle[0].clone()
+    };
+    let long = |c, p| command_long(c, p, (1, 1));
+    let nan = f32::NAN;
+    let (v, _) = one(run(
+        &mut g,
+        long(
+            MavCmd::MAV_CMD_MISSION_START,
+            [2.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        ),
+    ));
+    assert_eq!(v, VehicleCommand::StartMission(Some(2)));
+    let (v, _) = one(run(
+        &mut g,
+        long(MavCmd::MAV_CMD_DO_PAUSE_CONTINUE, [0.0; 7]),
+    ));
+    assert_eq!(v, VehicleCommand::SetMode(FlightMode::Loiter));
+    let (v, _) = one(run(
+        &mut g,
+        long(
+            MavCmd::MAV_CMD_DO_CHANGE_SPEED,
+            [1.0, 7.5, -1.0, 0.0, 0.0, 0.0, 0.0],
+        ),
+    ));
+    assert_eq!(v, VehicleCommand::ChangeSpeed(SpeedChange::To(7.5)));
+    let (v, _) = one(run(
+        &mut g,
+        long(
+            MavCmd::MAV_CMD_CONDITION_YAW,
+            [90.0, 20.0, -1.0, 1.0, 0.0, 0.0, 0.0],
+        ),
+    ));
+    assert_eq!(
+        v,
+        VehicleCommand::ConditionYaw {
+            angle_deg: 90.0,
+            rate_deg_s: Some(20.0),
+            direction: -1,
+            relative: true
+        }
+    );
+    // MAVSDK's goto_location: COMMAND_INT, GLOBAL frame (AMSL), change-mode flag.
+    let (v, _) = one(run(
+        &mut g,
+        MavMessage::COMMAND_INT(COMMAND_INT_DATA {
+            param1: -1.0,
+            param2: 1.0,
+            param3: 0.0,
+            param4: 45.0,
+            x: 473_977_420,
+            y: 85_455_940,
+            z: 500.0,
+            command: MavCmd::MAV_CMD_DO_REPOSITION,
+            target_system: 1,
+            target_component: 1,
+            frame: MavFrame::MAV_FRAME_GLOBAL,
+            current: 0,
+            autocontinue: 0,
+        }),
+    ));
+    match v {
+        VehicleCommand::Reposition {
+            at,
+            speed_m_s: None,
+            yaw_deg: Some(45.0),
+            change_mode: true,
+        } => {
+            assert_eq!(at.lat_lon_deg, Some((47.397742, 8.545594)));
+            assert_eq!(at.alt, Some(MissionAltitude::Amsl(500.0)));
+        }
+        other => panic!("{other:?}"),
+    }
+    // COMMAND_LONG form, relative frame not expressible: AMSL; NaN altitude keeps it.
+    let (v, _) = one(run(
+        &mut g,
+        long(
+            MavCmd::MAV_CMD_DO_REPOSITION,
+            [3.0, 0.0, 0.0, nan, 47.0, 8.0, nan],
+        ),
+    ));
+    match v {
+        VehicleCommand::Reposition { at, speed_m_s, .. } => {
+            assert_eq!(at.alt, None);
+            assert_eq!(speed_m_s, Some(3.0));
+        }
+        other => panic!("{other:?}"),
+    }
+    // MISSION_SET_CURRENT: to the vehicle, never a COMMAND_ACK; a refusal is a STATUSTEXT.
+    let (v, to) = one(run(
+        &mut g,
+        MavMessage::MISSION_SET_CURRENT(MISSION_SET_CURRENT_DATA {
+            seq: 3,
+            target_system: 1,
+            target_component: 1,
+        }),
+    ));
+    assert_eq!(v, VehicleCommand::SetMissionCurrent(3));
+    let mut out = Outbox::default();
+    g.answered(to, Ok(()), &mut out);
+    assert!(out.messages.is_empty());
+    g.answered(to, Err("no item 3".into()), &mut out);
+    assert_eq!(statustexts(&out), ["no item 3"]);
+    assert!(acks(&out).is_empty());
 }

@@ -9,7 +9,9 @@
 use super::{Commander, FlightMode, LandedState, Line, wrap_pi};
 use super::{CommanderInput, Denial};
 use crate::control::position::PositionSetpoint;
-use crate::mission::{MissionItem, MissionPoint, MissionState, MissionStatus, REACHED_KEPT};
+use crate::mission::{
+    MissionItem, MissionPoint, MissionState, MissionStatus, REACHED_KEPT, SpeedChange,
+};
 use nalgebra::Vector3;
 
 /// Where the current item is.
@@ -85,7 +87,12 @@ impl MissionRun {
     pub(super) fn status(&self) -> MissionStatus {
         let total = self.items.len() as u16;
         MissionStatus {
-            current: (self.current as u16).min(total.saturating_sub(1)),
+            // Past the last item once complete, as MISSION_CURRENT says it.
+            current: if self.state == MissionState::Complete {
+                total
+            } else {
+                (self.current as u16).min(total.saturating_sub(1))
+            },
             total,
             state: self.state,
             reached_count: self.reached_count,
@@ -162,15 +169,20 @@ impl Commander {
     }
 
     /// `DO_CHANGE_SPEED`: the horizontal speed of automatic flight from now on (the leg in
-    /// progress too); `None`: back to `MPC_XY_CRUISE`.
-    pub fn change_speed(&mut self, speed_m_s: Option<f64>) -> Result<(), Denial> {
-        if let Some(s) = speed_m_s.filter(|s| !(s.is_finite() && *s > 0.0)) {
-            return Err(format!("speed {s} m/s refused"));
-        }
+    /// progress too).
+    pub fn change_speed(&mut self, change: SpeedChange) -> Result<(), Denial> {
+        let speed_m_s = match change {
+            SpeedChange::To(s) if s.is_finite() && s > 0.0 => Some(s),
+            SpeedChange::To(s) => return Err(format!("speed {s} m/s refused")),
+            SpeedChange::Default => None,
+            SpeedChange::Unchanged => return Ok(()),
+        };
         self.speed_override = speed_m_s.map(|s| s.min(20.0));
         // The horizontal leg in progress too (not a take-off's or a landing's climb).
         if let Some(line) = self.line.filter(|l| l.dir.xy().norm() > 0.5) {
-            let speed = self.leg(line.from, line.from + line.dir * line.length).speed;
+            let speed = self
+                .leg(line.from, line.from + line.dir * line.length)
+                .speed;
             if let Some(l) = self.line.as_mut() {
                 l.speed = speed;
             }
@@ -357,8 +369,9 @@ impl Commander {
         let resolve = |m: &MissionPoint| m.to_ned(&origin, &home, &i.pos_ned_m);
         // Done at once.
         match item {
-            MissionItem::ChangeSpeed { speed_m_s } => {
-                self.speed_override = speed_m_s;
+            MissionItem::ChangeSpeed(change) => {
+                // Checked at upload: a speed the command would refuse cannot be here.
+                let _ = self.change_speed(change);
                 return None;
             }
             MissionItem::SetHome { at } => {

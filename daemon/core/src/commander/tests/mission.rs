@@ -3,7 +3,7 @@
 
 use super::*;
 use crate::geo::{LatLonAlt, LocalFrame};
-use crate::mission::{MissionAltitude, MissionItem, MissionPoint, MissionState};
+use crate::mission::{MissionAltitude, MissionItem, MissionPoint, MissionState, SpeedChange};
 
 const ORIGIN: LatLonAlt = LatLonAlt {
     lat_deg: 47.397742,
@@ -139,12 +139,10 @@ fn a_square_mission_is_flown_item_by_item_and_ends_landed_at_home() {
             },
             yaw_rad: None,
         }, // 0
-        waypoint(20.0, 0.0, 10.0), // 1
-        MissionItem::ChangeSpeed {
-            speed_m_s: Some(3.0),
-        }, // 2
-        waypoint(20.0, 20.0, 10.0), // 3
-        waypoint(0.0, 20.0, 10.0), // 4
+        waypoint(20.0, 0.0, 10.0),                      // 1
+        MissionItem::ChangeSpeed(SpeedChange::To(3.0)), // 2
+        waypoint(20.0, 20.0, 10.0),                     // 3
+        waypoint(0.0, 20.0, 10.0),                      // 4
         MissionItem::Jump {
             to: 3,
             repeat: Some(1),
@@ -153,7 +151,7 @@ fn a_square_mission_is_flown_item_by_item_and_ends_landed_at_home() {
             at: point(0.0, 0.0, 12.0),
             time_s: 3.0,
         }, // 6
-        MissionItem::ReturnToLaunch, // 7
+        MissionItem::ReturnToLaunch,                    // 7
     ];
     f.c.set_mission(items.clone());
     f.c.set_mode(FlightMode::Mission).unwrap();
@@ -358,14 +356,14 @@ fn reposition_flies_to_the_point_and_holds_and_yaw_and_speed_commands_apply() {
     assert!(f.until(10.0, |f| f.yaw.abs() < 1e-6));
     assert!((f.t - t0 - FRAC_PI_2 / 0.5).abs() < 0.1, "{}", f.t - t0);
     // DO_CHANGE_SPEED applies to the next leg and to the one in progress.
-    f.c.change_speed(Some(1.0)).unwrap();
-    assert!(f.c.change_speed(Some(-1.0)).is_err());
+    f.c.change_speed(SpeedChange::To(1.0)).unwrap();
+    assert!(f.c.change_speed(SpeedChange::To(-1.0)).is_err());
     f.c.reposition(Vector3::new(30.0, 60.0, f64::NAN), None, None, false)
         .unwrap();
     f.until(10.0, |_| false);
     assert!((f.vel.xy().norm() - 1.0).abs() < 1e-6, "{:?}", f.vel);
     assert!((f.pos.z + 8.0).abs() < 1e-9, "altitude kept (NaN)");
-    f.c.change_speed(Some(4.0)).unwrap();
+    f.c.change_speed(SpeedChange::To(4.0)).unwrap();
     f.until(4.0, |_| false);
     assert!((f.vel.xy().norm() - 4.0).abs() < 1e-6, "{:?}", f.vel);
 }
