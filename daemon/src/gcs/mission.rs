@@ -209,7 +209,12 @@ pub fn decode(m: &MISSION_ITEM_INT_DATA) -> Result<MissionItem, MavMissionResult
     Ok(match m.command {
         MavCmd::MAV_CMD_NAV_WAYPOINT => MissionItem::Waypoint {
             at: point()?,
-            hold_s: seconds(m.param1, MAV_MISSION_INVALID_PARAM1)?,
+            // NaN: no hold.
+            hold_s: if m.param1.is_nan() {
+                0.0
+            } else {
+                seconds(m.param1, MAV_MISSION_INVALID_PARAM1)?
+            },
             acceptance_m: match m.param2 {
                 r if r.is_finite() && r > 0.0 => Some(r as f64),
                 r if r.is_nan() || r == 0.0 => None,

@@ -302,19 +302,20 @@ impl GroundStation {
         self.missions.poll(now_s, out);
         if let Some(status) = t.status {
             let m = status.mission;
-            // MISSION_CURRENT at 1 Hz and on every change; MISSION_ITEM_REACHED once per item.
-            let shown = (m.current, m.state);
-            if self.mission_shown != Some(shown) || now_s >= self.mission_current_next_s {
-                self.mission_shown = Some(shown);
-                self.mission_current_next_s = now_s + 1.0;
-                out.send(self.mission_current(&status));
-            }
+            // MISSION_ITEM_REACHED once per item, then MISSION_CURRENT (at 1 Hz and on every
+            // change) saying where the mission went on.
             for seq in m.reached_since(self.reached_shown) {
                 out.send(MavMessage::MISSION_ITEM_REACHED(
                     MISSION_ITEM_REACHED_DATA { seq },
                 ));
             }
             self.reached_shown = m.reached_count;
+            let shown = (m.current, m.state);
+            if self.mission_shown != Some(shown) || now_s >= self.mission_current_next_s {
+                self.mission_shown = Some(shown);
+                self.mission_current_next_s = now_s + 1.0;
+                out.send(self.mission_current(&status));
+            }
         }
         for s in &mut self.streams {
             if now_s < s.next_s {
