@@ -468,3 +468,137 @@ fn attitude_and_rate_targets_are_flown_without_the_position_loop() {
     );
     assert!(far < 0.3, "back home: {far:.2} m off the hover point");
 }
+
+/// Cross-track error along a mission's legs at 5 m/s (issue 6): `quad_x` flies a take-off and a
+/// 40 m square at 10 m through the commander's Mission mode, in still air and in a 10 m/s
+/// crosswind-and-headwind with light Dryden turbulence. Scored against the simulator's truth
+/// with the GPS's wander taken out (the autopilot's own part: estimation and control; the
+/// wander is the receiver's), over every leg from start to stop.
+#[test]
+fn mission_legs_at_5_m_s_track_the_straight_line() {
+    use flight_core::commander::{Commander, CommanderInput, CommanderParams, FlightMode};
+    use flight_core::geo::LocalFrame;
+    use flight_core::mission::{MissionAltitude, MissionItem, MissionPoint, MissionState};
+    use sitl_core::environment::WindConfig;
+    let corners = [
+        (0.0, 0.0),
+        (40.0, 0.0),
+        (40.0, 40.0),
+        (0.0, 40.0),
+        (0.0, 0.0),
+    ];
+    // Still air: the issue's 0.3 m. In wind the issue asks 1 m and this autopilot does not
+    // get there yet: the velocity loop's integral (PX4's MPC_XY_VEL_I_ACC 0.4) must relearn
+    // the drag at every turn (1.3 m RMS in a steady 10 m/s wind, 1.0 m with an integral gain of
+    // 1.5). A wind or disturbance estimate feeding the velocity loop is issue 7's (hover in
+    // wind); until then the bound is a regression guard on today's figure (3.3 m).
+    for (wind, turbulence, bound) in [(0.0, 0.0, 0.3), (10.0, 7.7, 4.0)] {
+        let a = airframe("quad_x");
+        let mut sim = Simulator::new(
+            &a,
+            SimConfig {
+                seed: 11,
+                // Blowing toward the south-east: across and along every leg.
+                wind: WindConfig {
+                    mean_ned_m_s: [-wind * 0.6, wind * 0.8, 0.0],
+                    turbulence_w20_m_s: turbulence,
+                },
+                ..SimConfig::default()
+            },
+            BodyState::default(),
+        )
+        .unwrap();
+        let mut core = FlightCore::new(&a, FlightCoreConfig::for_airframe(&a, false)).unwrap();
+        let mut cmd = Commander::new(CommanderParams {
+            cruise_speed_m_s: 5.0,
+            ..CommanderParams::default()
+        });
+        let n = a.rotors.len();
+        let mut commands = [0.0; 16];
+        let mut last: Option<flight_core::core::StepOutput> = None;
+        let mut gps_error_at_origin = None;
+        let (mut sum, mut count, mut worst) = (0.0, 0usize, 0.0f64);
+        let (mut sum_raw, mut done) = (0.0, false);
+        for _ in 0..(150 * 250) {
+            let sample = common::control_interval(&mut sim, &commands[..n]);
+            let Some(est) = last else {
+                last = Some(core.step(&sample, &hover_at(0.0), false));
+                continue;
+            };
+            let tr = &est.translation;
+            let ready =
+                est.attitude.is_some_and(|e| e.valid) && tr.horizontal_valid && tr.vertical_valid;
+            let (sp, armed) = cmd.update(&CommanderInput {
+                t_s: sim.time_s(),
+                ready,
+                horizontal_valid: tr.horizontal_valid,
+                pos_ned_m: tr.pos_ned_m,
+                vel_ned_m_s: tr.vel_ned_m_s,
+                yaw_rad: est.attitude.map_or(0.0, |a| a.q.euler_angles().2),
+                hover_thrust: 0.5,
+                origin: tr.origin,
+            });
+            if cmd.status().ready && !cmd.armed() && !done {
+                let frame = LocalFrame::new(tr.origin.unwrap());
+                let point = |(north, east): (f64, f64)| {
+                    let g = frame.to_geodetic(&Vector3::new(north, east, 0.0));
+                    MissionPoint {
+                        lat_lon_deg: Some((g.lat_deg, g.lon_deg)),
+                        alt: Some(MissionAltitude::AboveHome(10.0)),
+                    }
+                };
+                let mut items = vec![MissionItem::Takeoff {
+                    at: point(corners[0]),
+                    yaw_rad: None,
+                }];
+                items.extend(corners[1..].iter().map(|&c| MissionItem::Waypoint {
+                    at: point(c),
+                    hold_s: 0.0,
+                    acceptance_m: Some(1.0),
+                    yaw_rad: None,
+                }));
+                cmd.set_mission(items);
+                cmd.set_mode(FlightMode::Mission).unwrap();
+                cmd.arm(false).unwrap();
+            }
+            let out = core.step(&sample, &sp, armed);
+            commands = out.commands;
+            last = Some(out);
+            let gps_error = sim.sensors().gps_error_ned();
+            if tr.horizontal_valid && gps_error_at_origin.is_none() {
+                gps_error_at_origin = Some(gps_error);
+            }
+            let m = cmd.mission_status();
+            if m.state == MissionState::Complete {
+                done = true;
+                break;
+            }
+            // Item k (1..=4) is the leg from corner k−1 to corner k, once the climb is done.
+            let k = m.current as usize;
+            if !(1..=4).contains(&k) || m.state != MissionState::Active {
+                continue;
+            }
+            let truth = sim.truth().body.pos_ned_m;
+            let wander = gps_error - gps_error_at_origin.unwrap_or(gps_error);
+            let (from, to) = (corners[k - 1], corners[k]);
+            let dir = nalgebra::Vector2::new(to.0 - from.0, to.1 - from.1).normalize();
+            let across = |p: Vector3<f64>| {
+                let r = p.xy() - nalgebra::Vector2::new(from.0, from.1);
+                (r.x * dir.y - r.y * dir.x).abs()
+            };
+            let e = across(truth + wander);
+            sum += e * e;
+            sum_raw += across(truth).powi(2);
+            worst = worst.max(e);
+            count += 1;
+        }
+        assert!(done, "wind {wind}: mission not complete");
+        let rms = (sum / count as f64).sqrt();
+        println!(
+            "mission legs at 5 m/s, wind {wind} m/s, turbulence {turbulence} m/s: cross-track RMS {rms:.3} m (max {worst:.2} m; with the GPS wander {:.3} m) over {:.0} s of legs",
+            (sum_raw / count as f64).sqrt(),
+            count as f64 / 250.0
+        );
+        assert!(rms <= bound, "wind {wind}: cross-track RMS {rms:.3} m");
+    }
+}
