@@ -1,6 +1,7 @@
 """Helpers shared by the Python end-to-end tests: find the binaries, run them on free ports."""
 
 import asyncio
+import contextlib
 import os
 import signal
 import socket
@@ -113,3 +114,16 @@ async def first(stream, condition, timeout):
         return await asyncio.wait_for(scan(), timeout)
     except asyncio.TimeoutError:
         pytest.fail(f"nothing as expected within {timeout} s")
+
+
+@contextlib.asynccontextmanager
+async def mavsdk_autopilot(gcs_port):
+    """MAVSDK's native binding as a ground station on `gcs_port`, and the autopilot it found."""
+    from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
+
+    config = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
+    async with Mavsdk(config) as mavsdk:
+        await mavsdk.add_any_connection(f"udpin://127.0.0.1:{gcs_port}")
+        system = await mavsdk.first_autopilot(timeout_s=30.0)
+        assert system is not None, "no autopilot found"
+        yield system

@@ -5,7 +5,6 @@ with a time-out."""
 
 import asyncio
 
-from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
 from mavsdk.asyncio.plugins.action import ActionAsync
 from mavsdk.asyncio.plugins.manual_control import ManualControlAsync
 from mavsdk.asyncio.plugins.param import ParamAsync
@@ -14,7 +13,7 @@ from mavsdk.autopilot import Autopilot
 from mavsdk.plugins.telemetry import FlightMode, LandedState
 from mavsdk.vehicle import Vehicle
 
-from conftest import Daemon, first
+from conftest import Daemon, first, mavsdk_autopilot
 
 
 async def joystick(manual, sticks):
@@ -25,12 +24,8 @@ async def joystick(manual, sticks):
 
 
 async def fly(gcs_port):
-    config = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
-    async with Mavsdk(config) as mavsdk:
-        await mavsdk.add_any_connection(f"udpin://127.0.0.1:{gcs_port}")
+    async with mavsdk_autopilot(gcs_port) as system:
         # Component 1, autopilot PX4, a multicopter from the heartbeat's type.
-        system = await mavsdk.first_autopilot(timeout_s=30.0)
-        assert system is not None, "no autopilot found"
         assert await system.autopilot_type() == Autopilot.PX4
         assert await system.vehicle_type() == Vehicle.MULTICOPTER
         telemetry, action = TelemetryAsync(system), ActionAsync(system)

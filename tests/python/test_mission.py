@@ -7,7 +7,6 @@ import math
 import time
 
 import pytest
-from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
 from mavsdk.asyncio.plugins.action import ActionAsync
 from mavsdk.asyncio.plugins.mission import MissionAsync
 from mavsdk.asyncio.plugins.param import ParamAsync
@@ -15,7 +14,7 @@ from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
 from mavsdk.plugins.mission import MissionItem, MissionPlan
 from pymavlink import mavutil
 
-from conftest import Daemon, first
+from conftest import Daemon, first, mavsdk_autopilot
 from test_ground_station import ack, daemon, ready_to_arm, vehicle, wait  # noqa: F401
 
 ML = mavutil.mavlink
@@ -57,11 +56,7 @@ def same_item(a, b):
 
 
 async def fly_square(gcs_port):
-    config = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
-    async with Mavsdk(config) as mavsdk:
-        await mavsdk.add_any_connection(f"udpin://127.0.0.1:{gcs_port}")
-        system = await mavsdk.first_autopilot(timeout_s=30.0)
-        assert system is not None, "no autopilot found"
+    async with mavsdk_autopilot(gcs_port) as system:
         telemetry, action = TelemetryAsync(system), ActionAsync(system)
         mission, param = MissionAsync(system), ParamAsync(system)
         await first(telemetry.subscribe_health_all_ok(), bool, 60)
