@@ -86,8 +86,8 @@ pub enum VehicleCommand {
         at: MissionPoint,
         /// Horizontal speed (m/s), else the cruise speed.
         speed_m_s: Option<f64>,
-        /// Heading (deg), else kept.
-        yaw_deg: Option<f64>,
+        /// Heading (rad), else kept.
+        yaw_rad: Option<f64>,
         /// Switch to Hold (else only in Hold already).
         change_mode: bool,
     },
@@ -307,7 +307,7 @@ impl Vehicle {
             VehicleCommand::Reposition {
                 at,
                 speed_m_s,
-                yaw_deg,
+                yaw_rad,
                 change_mode,
             } => {
                 let (Some(out), Some(origin)) = (self.last, origin) else {
@@ -316,7 +316,7 @@ impl Vehicle {
                 let home = c_.home().unwrap_or(out.translation.pos_ned_m);
                 // The parts left open stay NaN: the commander keeps them.
                 let target = at.to_ned(&origin, &home, &Vector3::repeat(f64::NAN));
-                c_.reposition(target, speed_m_s, yaw_deg.map(f64::to_radians), change_mode)
+                c_.reposition(target, speed_m_s, yaw_rad, change_mode)
             }
         }
     }

@@ -1,4 +1,4 @@
-"""Missions end to end: uploaded, downloaded and flown, by MAVSDK's native binding (its Mission
+"""Missions end to end (and MAVSDK's goto_location): uploaded, downloaded and flown, by MAVSDK's native binding (its Mission
 plugin, as a user script would) and by hand with pymavlink (the protocol message by message).
 sitl + autopilot over UDP at 3x real time; every wait is on the vehicle's state with a time-out."""
 
@@ -12,6 +12,7 @@ from mavsdk.asyncio.plugins.mission import MissionAsync
 from mavsdk.asyncio.plugins.param import ParamAsync
 from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
 from mavsdk.plugins.mission import MissionItem, MissionPlan
+from mavsdk.plugins.telemetry import FlightMode
 from pymavlink import mavutil
 
 from conftest import Daemon, first, mavsdk_autopilot
@@ -227,3 +228,36 @@ def test_pymavlink_uploads_a_mission_by_hand_and_gets_each_item_reached(vehicle)
 
 if __name__ == "__main__":
     pytest.main([__file__, "-q", "-s"])
+
+
+async def goto(gcs_port):
+    async with mavsdk_autopilot(gcs_port) as system:
+        telemetry, action = TelemetryAsync(system), ActionAsync(system)
+        await first(telemetry.subscribe_health_all_ok(), bool, 60)
+        home = await first(telemetry.subscribe_home(), lambda h: True, 5)
+        await action.set_takeoff_altitude(5.0)
+        await action.arm()
+        await action.takeoff()
+        await first(telemetry.subscribe_flight_mode(), lambda m: m == FlightMode.HOLD, 30)
+        # 15 m north-east, 8 m above home (goto_location takes AMSL), facing east (MAVSDK sends
+        # the yaw in radians in DO_REPOSITION's param4, as PX4 reads it).
+        lat, lon = offset(15, 15)
+        await action.goto_location(lat, lon, home.absolute_altitude_m + 8.0, 90.0)
+        at = await first(
+            telemetry.subscribe_position(),
+            lambda p: horizontal_m(p.latitude_deg, p.longitude_deg, lat, lon) < 0.5
+            and abs(p.relative_altitude_m - 8.0) < 0.5, 60)
+        assert at is not None
+        heading = await first(telemetry.subscribe_heading(), lambda h: True, 5)
+        assert abs(heading.heading_deg - 90.0) < 5.0, heading
+        assert await first(telemetry.subscribe_flight_mode(), lambda m: True, 5) == FlightMode.HOLD
+        await action.land()
+        await first(telemetry.subscribe_armed(), lambda a: not a, 60)
+
+
+def test_mavsdk_goto_location_flies_there_and_holds(tmp_path):
+    daemon = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0", connect=False)
+    try:
+        asyncio.run(goto(daemon.gcs_port))
+    finally:
+        daemon.close()

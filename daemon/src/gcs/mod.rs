@@ -715,7 +715,8 @@ impl GroundStation {
     }
 
     /// `DO_REPOSITION`: param1 speed (−1 default), param2 bit 0 "switch to Hold", param4
-    /// yaw (deg, NaN keeps), x/y latitude and longitude (absent or `INT32_MAX`: keep), z the
+    /// yaw (NaN keeps; in radians, as PX4 reads it and MAVSDK's `goto_location` sends it,
+    /// although the MAVLink spec says degrees), x/y latitude and longitude (absent or `INT32_MAX`: keep), z the
     /// altitude in `frame` (NaN: keep).
     fn reposition(
         &mut self,
@@ -750,7 +751,7 @@ impl GroundStation {
         let cmd = VehicleCommand::Reposition {
             at,
             speed_m_s: (p[0].is_finite() && p[0] > 0.0).then_some(p[0] as f64),
-            yaw_deg: p[3].is_finite().then_some(p[3] as f64),
+            yaw_rad: p[3].is_finite().then_some(p[3] as f64),
             change_mode: (p[1] as u32) & 1 == 1,
         };
         out.vehicle.push((cmd, to));

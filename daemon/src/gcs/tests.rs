@@ -851,7 +851,7 @@ fn mission_and_guided_commands_reach_the_vehicle() {
             param1: -1.0,
             param2: 1.0,
             param3: 0.0,
-            param4: 45.0,
+            param4: 0.5,
             x: 473_977_420,
             y: 85_455_940,
             z: 500.0,
@@ -867,7 +867,7 @@ fn mission_and_guided_commands_reach_the_vehicle() {
         VehicleCommand::Reposition {
             at,
             speed_m_s: None,
-            yaw_deg: Some(45.0),
+            yaw_rad: Some(0.5),
             change_mode: true,
         } => {
             assert_eq!(at.lat_lon_deg, Some((47.397742, 8.545594)));
