@@ -395,18 +395,17 @@ impl Commander {
         match self.mission.stage {
             Stage::Start => None,
             Stage::Takeoff => {
+                let yaw = self.auto_yaw.unwrap_or(i.yaw_rad);
                 let line = self.line.as_mut()?;
                 let goal = line.from.z - line.length;
-                let yaw = self.auto_yaw.unwrap_or(i.yaw_rad);
-                let (sp, arrived) = self.line.as_mut()?.step(dt, yaw);
+                let (sp, arrived) = line.step(dt, yaw);
                 self.landed = LandedState::Takeoff;
                 if arrived && i.pos_ned_m.z - home.z <= 0.95 * (goal - home.z) {
                     self.landed = LandedState::InAir;
                     self.line = None;
                     // A take-off item is done when its altitude is; any other item starts now.
-                    if matches!(item, MissionItem::Takeoff { .. })
-                        && (sp.pos_ned_m.xy() - resolve_xy(&item, &resolve, i)).norm()
-                            <= self.acceptance(&item)
+                    if let MissionItem::Takeoff { at, .. } = item
+                        && (sp.pos_ned_m.xy() - resolve(&at).xy()).norm() <= self.acceptance(&item)
                     {
                         return None;
                     }
@@ -553,17 +552,5 @@ impl Commander {
             self.mission.reached();
             self.line = None;
         }
-    }
-}
-
-/// The horizontal position a take-off item asks for (where it is when it gives none).
-fn resolve_xy(
-    item: &MissionItem,
-    resolve: &dyn Fn(&MissionPoint) -> Vector3<f64>,
-    i: &CommanderInput,
-) -> nalgebra::Vector2<f64> {
-    match item {
-        MissionItem::Takeoff { at, .. } => resolve(at).xy(),
-        _ => i.pos_ned_m.xy(),
     }
 }
