@@ -226,9 +226,6 @@ def test_pymavlink_uploads_a_mission_by_hand_and_gets_each_item_reached(vehicle)
     assert d < 1.0, f"landed {d:.2f} m from home"
 
 
-if __name__ == "__main__":
-    pytest.main([__file__, "-q", "-s"])
-
 
 async def goto(gcs_port):
     async with mavsdk_autopilot(gcs_port) as system:
@@ -261,3 +258,7 @@ def test_mavsdk_goto_location_flies_there_and_holds(tmp_path):
         asyncio.run(goto(daemon.gcs_port))
     finally:
         daemon.close()
+
+
+if __name__ == "__main__":
+    pytest.main([__file__, "-q", "-s"])

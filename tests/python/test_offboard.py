@@ -1,14 +1,26 @@
-"""Offboard control as a companion-computer script drives it with pymavlink: set-points streamed at
-20 Hz (SET_POSITION_TARGET_LOCAL_NED, SET_ATTITUDE_TARGET), OFFBOARD refused without them, flown
-with them, and the failsafe when they stop. sitl + autopilot over UDP at 3x real time; every wait
-is on the vehicle's state with a time-out."""
+"""Offboard control as companion-computer scripts drive it: by hand with pymavlink (set-points
+streamed at 20 Hz, SET_POSITION_TARGET_LOCAL_NED and SET_ATTITUDE_TARGET; OFFBOARD refused without
+them) and with MAVSDK's native Offboard plugin (which streams at 20 Hz itself): position, velocity
+and attitude set-points flown, and the failsafe when the stream stops. sitl + autopilot over UDP
+at 3x real time; every wait is on the vehicle's state with a time-out."""
 
+import asyncio
+import json
 import math
 import threading
 import time
 
+import pytest
+from mavsdk.asyncio.plugins.action import ActionAsync
+from mavsdk.asyncio.plugins.mavlink_direct import MavlinkDirectAsync
+from mavsdk.asyncio.plugins.offboard import OffboardAsync
+from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
+from mavsdk.plugins.mavlink_direct import MavlinkMessage
+from mavsdk.plugins.offboard import Attitude, PositionNedYaw, VelocityNedYaw
+from mavsdk.plugins.telemetry import FlightMode
 from pymavlink import mavutil
 
+from conftest import Daemon, first, mavsdk_autopilot
 from test_ground_station import ack, armed, daemon, ready_to_arm, vehicle, wait  # noqa: F401
 
 ML = mavutil.mavlink
@@ -113,3 +125,84 @@ def test_offboard_flies_position_velocity_and_attitude_set_points_and_fails_safe
     gcs.set_mode("LAND")
     assert ack(gcs, ML.MAV_CMD_DO_SET_MODE) == 0
     wait(gcs, "HEARTBEAT", lambda m: not armed(m), timeout=60)
+
+
+async def hover_thrust(system):
+    """The collective thrust (fraction) the vehicle flies now, from ATTITUDE_TARGET (asked for
+    with SET_MESSAGE_INTERVAL through MAVSDK's MavlinkDirect, as a script would)."""
+    direct = MavlinkDirectAsync(system)
+    ask = {"target_system": 1, "target_component": 1, "confirmation": 0,
+           "command": ML.MAV_CMD_SET_MESSAGE_INTERVAL,
+           "param1": ML.MAVLINK_MSG_ID_ATTITUDE_TARGET, "param2": 50_000,
+           "param3": 0, "param4": 0, "param5": 0, "param6": 0, "param7": 0}
+    ack = await direct.send_command(MavlinkMessage("COMMAND_LONG", 255, 190, 1, 1, json.dumps(ask)))
+    assert json.loads(ack.fields_json)["result"] == ML.MAV_RESULT_ACCEPTED, ack
+    target = await first(direct.subscribe_message("ATTITUDE_TARGET"), lambda m: True, 5)
+    return json.loads(target.fields_json)["thrust"]
+
+
+async def fly_offboard(gcs_port):
+    async with mavsdk_autopilot(gcs_port) as system:
+        telemetry, action = TelemetryAsync(system), ActionAsync(system)
+        offboard = OffboardAsync(system)
+        await first(telemetry.subscribe_health_all_ok(), bool, 60)
+        await telemetry.set_rate_position_velocity_ned(20.0)
+        ned = telemetry.subscribe_position_velocity_ned()
+        here = (await first(ned, lambda p: True, 5)).position
+
+        async def settle_at(n, e, d, tol, timeout):
+            def still_there(p):
+                off = math.dist((p.position.north_m, p.position.east_m, p.position.down_m),
+                                (n, e, d))
+                return off < tol and math.hypot(p.velocity.north_m_s, p.velocity.east_m_s) < 0.2
+            await first(ned, still_there, timeout)
+
+        # Offboard entered with a set-point already streaming (MAVSDK refuses start() without).
+        await offboard.set_position_ned(PositionNedYaw(here.north_m, here.east_m, here.down_m, 0.0))
+        await offboard.start()
+        await first(telemetry.subscribe_flight_mode(), lambda m: m == FlightMode.OFFBOARD, 5)
+        await action.arm()
+        # Up 5 m, then a 10 m square: each corner within 0.3 m, at rest.
+        up = here.down_m - 5.0
+        for n, e in [(0, 0), (10, 0), (10, 10), (0, 10), (0, 0)]:
+            n, e = here.north_m + n, here.east_m + e
+            await offboard.set_position_ned(PositionNedYaw(n, e, up, 0.0))
+            await settle_at(n, e, up, 0.3, 40)
+        # Velocity: 2 m/s east, then stop.
+        await offboard.set_velocity_ned(VelocityNedYaw(0.0, 2.0, 0.0, 0.0))
+        await first(ned, lambda p: abs(p.velocity.east_m_s - 2.0) < 0.2
+                    and abs(p.velocity.north_m_s) < 0.2, 15)
+        await offboard.set_velocity_ned(VelocityNedYaw(0.0, 0.0, 0.0, 0.0))
+        await first(ned, lambda p: math.hypot(p.velocity.north_m_s, p.velocity.east_m_s) < 0.2, 15)
+        # Attitude: 10° of roll, the hover thrust tilted so the altitude holds roughly.
+        thrust = await hover_thrust(system)
+        assert 0.1 < thrust < 0.9, thrust
+        await offboard.set_attitude(Attitude(10.0, 0.0, 0.0, thrust / math.cos(math.radians(10))))
+        euler = telemetry.subscribe_attitude_euler()
+        await first(euler, lambda a: abs(a.roll_deg - 10.0) < 1.5 and abs(a.pitch_deg) < 1.5, 10)
+        back = await first(ned, lambda p: True, 5)
+        assert abs(back.position.down_m - up) < 2.0, back
+        await offboard.set_position_ned(PositionNedYaw(back.position.north_m, back.position.east_m,
+                                                       up, 0.0))
+        await first(euler, lambda a: abs(a.roll_deg) < 3.0, 10)
+        # The script stops streaming without leaving OFFBOARD (its offboard part gone): after
+        # COM_OF_LOSS_T the failsafe, Hold (COM_OBL_RC_ACT 0 without a joystick).
+        texts = telemetry.subscribe_status_text()
+        offboard.destroy()
+        await first(texts, lambda t: "offboard set-points lost" in t.text, 5)
+        await first(telemetry.subscribe_flight_mode(), lambda m: m == FlightMode.HOLD, 3)
+        assert await first(telemetry.subscribe_armed(), lambda a: True, 3)
+        await action.land()
+        await first(telemetry.subscribe_armed(), lambda a: not a, 60)
+
+
+def test_mavsdk_offboard_flies_a_square_velocity_and_attitude_and_fails_safe(tmp_path):
+    daemon = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0", connect=False)
+    try:
+        asyncio.run(fly_offboard(daemon.gcs_port))
+    finally:
+        daemon.close()
+
+
+if __name__ == "__main__":
+    pytest.main([__file__, "-q", "-s"])

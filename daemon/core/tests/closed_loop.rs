@@ -602,3 +602,99 @@ fn mission_legs_at_5_m_s_track_the_straight_line() {
         assert!(rms <= bound, "wind {wind}: cross-track RMS {rms:.3} m");
     }
 }
+
+/// Offboard position hold (issue 6): `quad_x` in Offboard, a ground-station script streaming one
+/// position set-point 5 m up at 20 Hz (as MAVSDK does), three seeds, still air. Scored over 40 s
+/// after 20 s to settle: the control part (estimate to set-point), and the whole of the
+/// autopilot's part (truth, with the GPS receiver's wander taken out, to set-point; horizontal,
+/// as the barometer's drift cannot be taken out the same way).
+#[test]
+fn offboard_position_hold_in_still_air() {
+    use flight_core::commander::{
+        Commander, CommanderInput, CommanderParams, FlightMode, OffboardTarget,
+    };
+    let target = Vector3::new(2.0, -1.0, -5.0);
+    let stream = OffboardTarget {
+        setpoint: Setpoint::Position(PositionSetpoint {
+            pos_ned_m: target,
+            vel_ned_m_s: Vector3::repeat(f64::NAN),
+            accel_ned_m_s2: Vector3::zeros(),
+            yaw_rad: 0.0,
+        }),
+        yaw_rate_rad_s: None,
+    };
+    for seed in [1, 2, 3] {
+        let a = airframe("quad_x");
+        let mut sim = Simulator::new(
+            &a,
+            SimConfig {
+                seed,
+                ..SimConfig::default()
+            },
+            BodyState::default(),
+        )
+        .unwrap();
+        let mut core = FlightCore::new(&a, FlightCoreConfig::for_airframe(&a, false)).unwrap();
+        let mut cmd = Commander::new(CommanderParams::default());
+        let n = a.rotors.len();
+        let mut commands = [0.0; 16];
+        let mut last: Option<flight_core::core::StepOutput> = None;
+        let (mut gps_error_at_origin, mut armed_at) = (None, None);
+        let (mut control, mut hold_h, mut count) = (0.0, 0.0, 0usize);
+        for k in 0..(90 * 250) {
+            let sample = common::control_interval(&mut sim, &commands[..n]);
+            let t = sim.time_s();
+            let Some(est) = last else {
+                last = Some(core.step(&sample, &hover_at(0.0), false));
+                continue;
+            };
+            let tr = &est.translation;
+            if k % 12 == 0 {
+                cmd.offboard_setpoint(stream); // 20.8 Hz at 250 Hz
+            }
+            if cmd.status().ready && !cmd.armed() && armed_at.is_none() {
+                cmd.set_mode(FlightMode::Offboard).unwrap();
+                cmd.arm(false).unwrap();
+                armed_at = Some(t);
+            }
+            let (sp, armed) = cmd.update(&CommanderInput {
+                t_s: t,
+                ready: est.attitude.is_some_and(|e| e.valid)
+                    && tr.horizontal_valid
+                    && tr.vertical_valid,
+                horizontal_valid: tr.horizontal_valid,
+                pos_ned_m: tr.pos_ned_m,
+                vel_ned_m_s: tr.vel_ned_m_s,
+                yaw_rad: est.attitude.map_or(0.0, |a| a.q.euler_angles().2),
+                hover_thrust: 0.5,
+                origin: tr.origin,
+            });
+            let out = core.step(&sample, &sp, armed);
+            commands = out.commands;
+            let gps_error = sim.sensors().gps_error_ned();
+            if out.translation.horizontal_valid && gps_error_at_origin.is_none() {
+                gps_error_at_origin = Some(gps_error);
+            }
+            if armed_at.is_some_and(|a| (a + 20.0..a + 60.0).contains(&t)) {
+                assert_eq!(cmd.mode(), FlightMode::Offboard);
+                control += (out.translation.pos_ned_m - target).norm_squared();
+                let wander = gps_error - gps_error_at_origin.unwrap();
+                hold_h += (sim.truth().body.pos_ned_m + wander - target)
+                    .xy()
+                    .norm_squared();
+                count += 1;
+            }
+            last = Some(out);
+        }
+        assert!(count > 0, "seed {seed}: never armed");
+        let c = count as f64;
+        let (control, hold_h) = ((control / c).sqrt(), (hold_h / c).sqrt());
+        println!(
+            "offboard position hold, quad_x seed {seed}: control (estimate to set-point) RMS {control:.3} m, horizontal hold (truth without GPS wander) RMS {hold_h:.3} m"
+        );
+        // The issue's 0.1 m, as a script sees it in LOCAL_POSITION_NED; the truth figure is about
+        // half estimation (GPS velocity noise and latency) and sits at 0.10 m: guarded, not hidden.
+        assert!(control <= 0.1, "seed {seed}: control RMS {control:.3} m");
+        assert!(hold_h <= 0.12, "seed {seed}: hold RMS {hold_h:.3} m");
+    }
+}
