@@ -64,16 +64,28 @@ fn fly_with(
     duration: f64,
     target_alt: f64,
 ) -> Flight {
-    let a = airframe(name);
-    let mut sim = Simulator::new(
-        &a,
+    fly_in(
+        name,
+        params,
         SimConfig {
             seed,
             ..SimConfig::default()
         },
-        BodyState::default(),
+        duration,
+        target_alt,
     )
-    .unwrap();
+}
+
+/// Flies in a given simulation (wind, sensors).
+fn fly_in(
+    name: &str,
+    params: &FlightParams,
+    sim_config: SimConfig,
+    duration: f64,
+    target_alt: f64,
+) -> Flight {
+    let a = airframe(name);
+    let mut sim = Simulator::new(&a, sim_config, BodyState::default()).unwrap();
     let mut core = FlightCore::new(&a, FlightCoreConfig::from_params(params, &a)).unwrap();
     let n = a.rotors.len();
     let mut commands = [0.0; 16];
@@ -487,12 +499,9 @@ fn mission_legs_at_5_m_s_track_the_straight_line() {
         (0.0, 40.0),
         (0.0, 0.0),
     ];
-    // Still air: the issue's 0.3 m. In wind the issue asks 1 m and this autopilot does not
-    // get there yet: the velocity loop's integral (PX4's MPC_XY_VEL_I_ACC 0.4) must relearn
-    // the drag at every turn (1.3 m RMS in a steady 10 m/s wind, 1.0 m with an integral gain of
-    // 1.5). A wind or disturbance estimate feeding the velocity loop is issue 7's (hover in
-    // wind); until then the bound is a regression guard on today's figure (3.3 m).
-    for (wind, turbulence, bound) in [(0.0, 0.0, 0.3), (10.0, 7.7, 4.0)] {
+    // The issue's targets: 0.3 m in still air, 1 m in wind. (The drag at 13.6 m/s of airspeed
+    // needs 6 m/s² of the velocity loop, beyond MPC_ACC_HOR_MAX: the integral carries it.)
+    for (wind, turbulence, bound) in [(0.0, 0.0, 0.3), (10.0, 7.7, 1.0)] {
         let a = airframe("quad_x");
         let mut sim = Simulator::new(
             &a,
@@ -696,5 +705,34 @@ fn offboard_position_hold_in_still_air() {
         // half estimation (GPS velocity noise and latency) and sits at 0.10 m: guarded, not hidden.
         assert!(control <= 0.1, "seed {seed}: control RMS {control:.3} m");
         assert!(hold_h <= 0.12, "seed {seed}: hold RMS {hold_h:.3} m");
+    }
+}
+
+/// Hover in a 10 m/s wind with light Dryden turbulence (W20 7.7 m/s), `quad_x`, three seeds:
+/// issue 7's target, horizontal RMS (truth from the take-off spot, GPS wander included) ≤ 1 m.
+/// The drag needs ~3.7 m/s² of the velocity loop (22° of tilt), more than a gust-free hover's
+/// `MPC_ACC_HOR_MAX` share: the integral carries it, bounded by the tilt limit and `MPC_I_MAX`.
+#[test]
+fn hover_in_10_m_s_wind_with_turbulence() {
+    use sitl_core::environment::WindConfig;
+    for seed in [1, 2, 3] {
+        let wind = SimConfig {
+            seed,
+            wind: WindConfig {
+                mean_ned_m_s: [-6.0, 8.0, 0.0],
+                turbulence_w20_m_s: 7.7,
+            },
+            ..SimConfig::default()
+        };
+        let f = fly_in("quad_x", &FlightParams::default(), wind, 80.0, 5.0);
+        println!(
+            "quad_x hover in 10 m/s wind, turbulence 7.7 m/s, seed {seed}: horizontal RMS {:.3} m (hold {:.3} m), alt RMS {:.3} m, max tilt {:.1} deg",
+            f.horizontal_rms_m, f.hold_rms_m, f.alt_rms_m, f.max_tilt_deg
+        );
+        assert!(f.horizontal_rms_m <= 1.0, "seed {seed}: {f:?}");
+        assert!(
+            f.alt_rms_m <= 0.3 && f.max_tilt_deg < 35.0,
+            "seed {seed}: {f:?}"
+        );
     }
 }

@@ -154,9 +154,11 @@ impl PositionController {
             }
         }
         self.vel_sp = Some(v_sp);
-        // Velocity PID → acceleration set-point.
+        // Velocity PID → acceleration set-point. The acceleration limits bound the manoeuvre (the
+        // proportional part and the trajectory's feed-forward), not the integral: it holds what
+        // the air does to the vehicle (drag in wind), which only the tilt limit may bound.
         let e = v_sp - vel;
-        let mut a_sp = e.component_mul(&p.k_vel) + self.integral + sp.accel_ned_m_s2;
+        let mut a_sp = e.component_mul(&p.k_vel) + sp.accel_ned_m_s2;
         let h = a_sp.xy().norm();
         let h_limited = h > p.max_accel_h;
         if h_limited {
@@ -165,6 +167,7 @@ impl PositionController {
         }
         let z_limited = a_sp.z.abs() > p.max_accel_v;
         a_sp.z = a_sp.z.clamp(-p.max_accel_v, p.max_accel_v);
+        a_sp += self.integral;
         // Thrust vector, tilt-limited: keep the vertical component, shorten the horizontal one.
         let mut t = (a_sp - Vector3::new(0.0, 0.0, G)) * p.mass_kg;
         t.z = t.z.min(-0.1 * p.mass_kg * G); // always some thrust up
@@ -175,10 +178,11 @@ impl PositionController {
             t.x *= max_h / horizontal;
             t.y *= max_h / horizontal;
         }
-        // Anti-windup: integrate unless that axis is being limited.
-        let freeze_h = h_limited || tilt_limited;
+        // Anti-windup: integrate unless the thrust is saturated on that axis (the tilt limit;
+        // the vertical acceleration limit). A limited manoeuvre does not stop it: the integral
+        // must still learn a push stronger than the manoeuvre limit.
         for i in 0..3 {
-            let frozen = free[i] || if i < 2 { freeze_h } else { z_limited };
+            let frozen = free[i] || if i < 2 { tilt_limited } else { z_limited };
             if !frozen {
                 self.integral[i] =
                     (self.integral[i] + p.k_vel_i[i] * e[i] * dt).clamp(-p.i_limit, p.i_limit);
@@ -293,7 +297,7 @@ crate::params::param_group! {
         /// Tilt limit.
         max_tilt_deg: f64 = 35.0, "MPC_TILTMAX_AIR", "deg", [5.0, 80.0], "Largest tilt in position and altitude modes";
         /// Integral bound.
-        i_limit: f64 = 3.0, "MPC_I_MAX", "m/s^2", [0.0, 10.0], "Bound on the velocity integral";
+        i_limit: f64 = 5.0, "MPC_I_MAX", "m/s^2", [0.0, 10.0], "Bound on the velocity integral";
         /// Rate of the position loop.
         loop_hz: f64 = 50.0, "MPC_LOOP_HZ", "Hz", [10.0, 1000.0], "Rate of the position and velocity loop (the attitude and rate loops run on every sensor sample)";
     }
@@ -390,6 +394,55 @@ mod tests {
         );
         // Going north means pitching nose down.
         assert!(out.q_d.euler_angles().1 < 0.0);
+    }
+
+    /// Drag in a strong wind needs more than `MPC_ACC_HOR_MAX`: the integral learns all of it
+    /// (the vehicle, pushed at 5 m/s² with a 4 m/s² manoeuvre limit, comes to rest on its
+    /// set-point), and only the tilt limit bounds it.
+    #[test]
+    fn a_push_beyond_the_acceleration_limit_is_held_by_the_integral() {
+        let params = || PositionParams {
+            i_limit: 7.0,
+            ..params()
+        };
+        let mut c = PositionController::new(params());
+        let sp = PositionSetpoint {
+            pos_ned_m: Vector3::new(0.0, 0.0, -5.0),
+            vel_ned_m_s: Vector3::zeros(),
+            accel_ned_m_s2: Vector3::zeros(),
+            yaw_rad: 0.0,
+        };
+        let push = Vector3::new(0.0, -5.0, 0.0); // m/s², toward the west
+        let (dt, mut pos, mut vel) = (0.01, sp.pos_ned_m, Vector3::zeros());
+        let mut out = None;
+        for _ in 0..6000 {
+            let o = c.update(&sp, &pos, &vel, &UnitQuaternion::identity(), dt);
+            // Point mass: the commanded horizontal acceleration plus the push.
+            vel += (Vector3::new(o.accel_ned_m_s2.x, o.accel_ned_m_s2.y, 0.0) + push) * dt;
+            pos += vel * dt;
+            out = Some(o);
+        }
+        let out = out.unwrap();
+        assert!((pos - sp.pos_ned_m).norm() < 0.01, "held at {pos:?}");
+        assert!(
+            (out.accel_ned_m_s2.y - 5.0).abs() < 0.01,
+            "{:?}",
+            out.accel_ned_m_s2
+        );
+        // Beyond the tilt limit the push wins, and the integral stops growing.
+        let mut c = PositionController::new(params());
+        let (mut pos, mut vel) = (sp.pos_ned_m, Vector3::zeros());
+        for _ in 0..3000 {
+            let o = c.update(&sp, &pos, &vel, &UnitQuaternion::identity(), dt);
+            let t = o.q_d * Vector3::new(0.0, 0.0, -1.0);
+            let tilt = t.angle(&Vector3::new(0.0, 0.0, -1.0));
+            assert!(tilt <= 35f64.to_radians() + 1e-9);
+            vel.y += (o.accel_ned_m_s2.y.min(35f64.to_radians().tan() * G) - 9.0) * dt;
+            pos += vel * dt;
+        }
+        let most = 35f64.to_radians().tan() * G;
+        assert!(c.integral.y <= most, "integral bounded: {}", c.integral.y);
+        assert!((pos - sp.pos_ned_m).norm() > 10.0, "pushed away");
     }
 
     #[test]
