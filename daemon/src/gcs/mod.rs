@@ -34,7 +34,7 @@ pub const COMPONENT_ID: u8 = 1;
 const FORCE_MAGIC: f32 = 21196.0;
 
 /// Messages sent without being asked, with their default rates (Hz), PX4-like.
-const DEFAULT_STREAMS: [(u32, f64); 14] = [
+const DEFAULT_STREAMS: [(u32, f64); 16] = [
     (HEARTBEAT_DATA::ID, 1.0),
     (SYS_STATUS_DATA::ID, 1.0),
     (EXTENDED_SYS_STATE_DATA::ID, 1.0),
@@ -49,6 +49,9 @@ const DEFAULT_STREAMS: [(u32, f64); 14] = [
     (ALTITUDE_DATA::ID, 1.0),
     (SYSTEM_TIME_DATA::ID, 1.0),
     (CURRENT_MODE_DATA::ID, 1.0),
+    // The set-points flown, echoed (PX4's normal stream set has them too).
+    (ATTITUDE_TARGET_DATA::ID, 2.0),
+    (POSITION_TARGET_LOCAL_NED_DATA::ID, 1.0),
 ];
 
 /// Slowest and fastest stream rates a ground station may ask for (Hz).

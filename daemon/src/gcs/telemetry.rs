@@ -303,15 +303,13 @@ pub fn build(id: u32, t: &Telemetry, unix_usec: u64) -> Option<MavMessage> {
 }
 
 /// Messages sent only when asked for (`REQUEST_MESSAGE`, or a rate through
-/// `SET_MESSAGE_INTERVAL`): sensor, estimator, output and target detail, and SITL's truth.
-pub const ON_REQUEST: [u32; 8] = [
+/// `SET_MESSAGE_INTERVAL`): sensor, estimator and output detail, and SITL's truth.
+pub const ON_REQUEST: [u32; 6] = [
     HIGHRES_IMU_DATA::ID,
     SCALED_IMU_DATA::ID,
     ESTIMATOR_STATUS_DATA::ID,
     SERVO_OUTPUT_RAW_DATA::ID,
     ACTUATOR_OUTPUT_STATUS_DATA::ID,
-    ATTITUDE_TARGET_DATA::ID,
-    POSITION_TARGET_LOCAL_NED_DATA::ID,
     HIL_STATE_QUATERNION_DATA::ID,
 ];
 
