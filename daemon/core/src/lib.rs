@@ -15,6 +15,7 @@ pub mod mixer;
 pub mod params;
 pub mod quat;
 pub mod replay;
+pub mod safety;
 
 /// Standard gravity (m/s²), along NED +z.
 pub const GRAVITY_M_S2: f64 = 9.806_65;

@@ -1,0 +1,684 @@
+//! Safety: the arming checks and the failsafe state machine. Pure: the commander feeds it what
+//! the vehicle knows each step and carries out what it decides.
+//!
+//! **Failsafes** follow PX4's framework. Each [`Condition`] has a rule: its [`Action`] (from a
+//! parameter), when it clears (when the condition goes away, or only at disarm), and whether the
+//! operator may take over with a mode change. Several at once: the most severe action wins.
+//! An action the vehicle cannot fly is degraded (Return without a home or a position: Land;
+//! Hold or Land without a position: Descend, the level descent on the altitude alone); on the
+//! ground, anything that would bring the vehicle down disarms instead. The ground-station link
+//! loss holds first for `COM_FAIL_ACT_T` seconds, waiting for the link to return, as PX4 does.
+//! A flight termination is latched until the daemon restarts.
+//!
+//! **Arming checks** ([`preflight`]) list every reason not to arm, each marked whether a forced
+//! arm (`MAV_CMD_COMPONENT_ARM_DISARM` param2 = 21196) may skip it.
+
+use std::fmt;
+
+/// What a failsafe does, in increasing severity (PX4's order).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Action {
+    /// Nothing.
+    None,
+    /// A warning to the operator, flight unchanged.
+    Warn,
+    /// Hold (Loiter) where the vehicle is.
+    Hold,
+    /// Return to launch and land there.
+    Return,
+    /// Land where the vehicle is.
+    Land,
+    /// Level descent on the altitude estimate alone, without a position (PX4's Descend).
+    Descend,
+    /// Motors off.
+    Disarm,
+    /// Motors off, and no re-arming until the daemon restarts.
+    Terminate,
+}
+
+impl Action {
+    /// Its name in messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::None => "none",
+            Self::Warn => "warning",
+            Self::Hold => "Hold",
+            Self::Return => "Return",
+            Self::Land => "Land",
+            Self::Descend => "Descend",
+            Self::Disarm => "disarm",
+            Self::Terminate => "flight termination",
+        }
+    }
+
+    /// `NAV_DLL_ACT` (PX4's values): 0 disabled, 1 Hold, 2 Return, 3 Land, 5 terminate, 6 disarm.
+    pub fn from_nav_dll_act(v: u32) -> Self {
+        match v {
+            1 => Self::Hold,
+            2 => Self::Return,
+            3 => Self::Land,
+            5 => Self::Terminate,
+            6 => Self::Disarm,
+            _ => Self::None,
+        }
+    }
+
+    /// `GF_ACTION` (PX4's values): 0 none, 1 warning, 2 Hold, 3 Return, 4 terminate, 5 Land.
+    pub fn from_gf_action(v: u32) -> Self {
+        match v {
+            1 => Self::Warn,
+            2 => Self::Hold,
+            3 => Self::Return,
+            4 => Self::Terminate,
+            5 => Self::Land,
+            _ => Self::None,
+        }
+    }
+}
+
+/// What can go wrong.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Condition {
+    /// No ground-station heartbeat for `COM_DL_LOSS_T` (after one was seen).
+    GcsLinkLost,
+    /// Battery below `BAT_LOW_THR`.
+    BatteryLow,
+    /// Battery below `BAT_CRIT_THR`.
+    BatteryCritical,
+    /// Battery below `BAT_EMERGEN_THR`.
+    BatteryEmergency,
+    /// Outside the geofence (a polygon or circle, `GF_MAX_HOR_DIST`, `GF_MAX_VER_DIST`).
+    GeofenceBreach,
+    /// The attitude estimate is invalid.
+    AttitudeInvalid,
+    /// The horizontal position estimate is invalid in a mode that needs it.
+    PositionInvalid,
+    /// The altitude estimate is invalid.
+    AltitudeInvalid,
+    /// The IMU stopped or froze.
+    ImuLost,
+    /// The magnetometer stopped or froze.
+    MagLost,
+    /// The barometer stopped or froze.
+    BaroLost,
+    /// The GPS stopped or lost its fix.
+    GpsLost,
+    /// Roll or pitch beyond `FD_FAIL_R`/`FD_FAIL_P` for `FD_FAIL_R_TTRI`: crashed or flipping.
+    Crash,
+}
+
+/// Every condition, in order.
+pub const CONDITIONS: [Condition; 13] = [
+    Condition::GcsLinkLost,
+    Condition::BatteryLow,
+    Condition::BatteryCritical,
+    Condition::BatteryEmergency,
+    Condition::GeofenceBreach,
+    Condition::AttitudeInvalid,
+    Condition::PositionInvalid,
+    Condition::AltitudeInvalid,
+    Condition::ImuLost,
+    Condition::MagLost,
+    Condition::BaroLost,
+    Condition::GpsLost,
+    Condition::Crash,
+];
+
+impl fmt::Display for Condition {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Self::GcsLinkLost => "ground-station link lost",
+            Self::BatteryLow => "battery low",
+            Self::BatteryCritical => "battery critical",
+            Self::BatteryEmergency => "battery emergency",
+            Self::GeofenceBreach => "geofence breached",
+            Self::AttitudeInvalid => "attitude estimate invalid",
+            Self::PositionInvalid => "position estimate invalid",
+            Self::AltitudeInvalid => "altitude estimate invalid",
+            Self::ImuLost => "IMU lost",
+            Self::MagLost => "magnetometer lost",
+            Self::BaroLost => "barometer lost",
+            Self::GpsLost => "GPS lost",
+            Self::Crash => "attitude beyond the failure limit",
+        })
+    }
+}
+
+/// When a triggered condition stops acting.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Clear {
+    /// As soon as the condition goes away (the vehicle stays in the mode it was put in).
+    WhenConditionClears,
+    /// At disarm only (a battery level, once reached, is not un-reached).
+    OnDisarm,
+}
+
+/// How one condition is handled.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Rule {
+    /// What it does.
+    pub action: Action,
+    /// When it stops.
+    pub clear: Clear,
+    /// The operator may take over with a mode change (which silences it until it clears).
+    pub takeover: bool,
+    /// Hold first for `COM_FAIL_ACT_T` before the action (waiting for the condition to clear).
+    pub delayed: bool,
+}
+
+crate::params::param_group! {
+    /// Failsafe and arming-check parameters, PX4's names and values.
+    SafetyParams, "safety", SAFETY_META {
+        /// Ground-station link loss time (s).
+        gcs_loss_s: f64 = 5.0, "COM_DL_LOSS_T", "s", [1.0, 300.0], "Ground-station link lost after this long without its heartbeat (wall-clock time)";
+        /// Ground-station link loss action.
+        gcs_loss_action: u32 = 0, "NAV_DLL_ACT", "", [0.0, 6.0], "Ground-station link loss: 0 disabled, 1 Hold, 2 Return, 3 Land, 5 terminate, 6 disarm";
+        /// Hold before a delayed failsafe action (s).
+        action_delay_s: f64 = 5.0, "COM_FAIL_ACT_T", "s", [0.0, 25.0], "Hold this long before a link-loss action, waiting for the link";
+        /// Battery failsafe action.
+        low_battery_action: u32 = 3, "COM_LOW_BAT_ACT", "", [0.0, 4.0], "Battery: 0 warn, 2 Land at critical, 3 Return at critical and Land at emergency, 4 Return at critical and terminate at emergency";
+        /// Low battery level (fraction).
+        battery_low: f64 = 0.15, "BAT_LOW_THR", "", [0.12, 0.5], "Battery level that warns (fraction of capacity)";
+        /// Critical battery level (fraction).
+        battery_critical: f64 = 0.07, "BAT_CRIT_THR", "", [0.05, 0.5], "Battery level of the critical action (fraction of capacity)";
+        /// Emergency battery level (fraction).
+        battery_emergency: f64 = 0.05, "BAT_EMERGEN_THR", "", [0.03, 0.5], "Battery level of the emergency action (fraction of capacity)";
+        /// Lowest battery level to arm (fraction).
+        arm_battery_min: f64 = 0.0, "COM_ARM_BAT_MIN", "", [0.0, 0.9], "Arming refused below this battery level (fraction; 0: the low level)";
+        /// Geofence action.
+        geofence_action: u32 = 2, "GF_ACTION", "", [0.0, 5.0], "Geofence breach: 0 none, 1 warning, 2 Hold, 3 Return, 4 terminate, 5 Land";
+        /// Largest horizontal distance from home (m; 0: no limit).
+        fence_max_horizontal_m: f64 = 0.0, "GF_MAX_HOR_DIST", "m", [0.0, 10000.0], "Largest horizontal distance from home (0: no limit)";
+        /// Largest height above home (m; 0: no limit).
+        fence_max_vertical_m: f64 = 0.0, "GF_MAX_VER_DIST", "m", [0.0, 10000.0], "Largest height above home (0: no limit)";
+        /// Roll beyond which the vehicle has failed (deg; 0: off).
+        fail_roll_deg: f64 = 60.0, "FD_FAIL_R", "deg", [0.0, 180.0], "Roll beyond which the vehicle has crashed or is flipping: disarm (0: off)";
+        /// Pitch beyond which the vehicle has failed (deg; 0: off).
+        fail_pitch_deg: f64 = 60.0, "FD_FAIL_P", "deg", [0.0, 180.0], "Pitch beyond which the vehicle has crashed or is flipping: disarm (0: off)";
+        /// How long beyond the limit before the failure (s).
+        fail_time_s: f64 = 0.3, "FD_FAIL_R_TTRI", "s", [0.02, 5.0], "Time beyond FD_FAIL_R or FD_FAIL_P before the failure is declared";
+        /// Largest tilt to arm (deg).
+        arm_tilt_deg: f64 = 20.0, "COM_ARM_TILT", "deg", [5.0, 90.0], "Arming refused beyond this tilt";
+    }
+}
+
+impl SafetyParams {
+    /// The rule of `c` under these parameters.
+    pub fn rule(&self, c: Condition) -> Rule {
+        use Condition as C;
+        let (action, clear, takeover, delayed) = match c {
+            C::GcsLinkLost => (
+                Action::from_nav_dll_act(self.gcs_loss_action),
+                Clear::WhenConditionClears,
+                true,
+                true,
+            ),
+            C::BatteryLow => (Action::Warn, Clear::OnDisarm, true, false),
+            C::BatteryCritical => {
+                let a = match self.low_battery_action {
+                    2 => Action::Land,
+                    3 | 4 => Action::Return,
+                    _ => Action::Warn,
+                };
+                (a, Clear::OnDisarm, true, false)
+            }
+            C::BatteryEmergency => {
+                let a = match self.low_battery_action {
+                    2 | 3 => Action::Land,
+                    4 => Action::Terminate,
+                    _ => Action::Warn,
+                };
+                (a, Clear::OnDisarm, false, false)
+            }
+            C::GeofenceBreach => (
+                Action::from_gf_action(self.geofence_action),
+                Clear::WhenConditionClears,
+                true,
+                false,
+            ),
+            C::AttitudeInvalid | C::AltitudeInvalid => {
+                (Action::Descend, Clear::OnDisarm, false, false)
+            }
+            // Without a position the vehicle descends; a mode that needs none (the sticks
+            // flying attitude or altitude) is the operator's way out.
+            C::PositionInvalid => (Action::Descend, Clear::WhenConditionClears, true, false),
+            // What a lost sensor costs shows in the estimate's validity; the loss itself warns.
+            C::ImuLost | C::MagLost | C::BaroLost | C::GpsLost => {
+                (Action::Warn, Clear::WhenConditionClears, true, false)
+            }
+            C::Crash => (Action::Disarm, Clear::OnDisarm, false, false),
+        };
+        Rule {
+            action,
+            clear,
+            takeover,
+            delayed,
+        }
+    }
+
+    /// Values that make no sense together (the levels out of order).
+    pub fn inconsistencies(&self) -> Vec<String> {
+        let mut v = Vec::new();
+        if !(self.battery_low > self.battery_critical
+            && self.battery_critical > self.battery_emergency)
+        {
+            v.push(format!(
+                "BAT_LOW_THR {} > BAT_CRIT_THR {} > BAT_EMERGEN_THR {} is required",
+                self.battery_low, self.battery_critical, self.battery_emergency
+            ));
+        }
+        v
+    }
+}
+
+/// Which sensors are missing, stale or frozen.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct SensorsLost {
+    /// Gyroscope and accelerometer.
+    pub imu: bool,
+    /// Magnetometer.
+    pub mag: bool,
+    /// Barometer.
+    pub baro: bool,
+    /// GPS (no solution, or no 3D fix).
+    pub gps: bool,
+}
+
+/// What the failsafe state machine watches, each step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SafetyInput {
+    /// Time (s; the flight's clock).
+    pub t_s: f64,
+    /// Motors armed.
+    pub armed: bool,
+    /// Flying (not on the ground).
+    pub in_air: bool,
+    /// The current mode flies on the position estimate.
+    pub mode_needs_position: bool,
+    /// Wall-clock time since the last ground-station heartbeat (s); `None` before the first.
+    pub gcs_link_age_s: Option<f64>,
+    /// Battery charge left (fraction), if known.
+    pub battery_remaining: Option<f64>,
+    /// Outside the geofence.
+    pub geofence_breached: bool,
+    /// Attitude estimate valid.
+    pub attitude_valid: bool,
+    /// Horizontal position estimate valid.
+    pub position_valid: bool,
+    /// Altitude estimate valid.
+    pub altitude_valid: bool,
+    /// Sensors lost.
+    pub sensors_lost: SensorsLost,
+    /// Roll and pitch (rad).
+    pub roll_pitch_rad: (f64, f64),
+    /// A home position is set (Return can fly).
+    pub home_set: bool,
+}
+
+/// A change the operator should hear of (`STATUSTEXT`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SafetyEvent {
+    /// The condition began, acting with this action (after degradation).
+    Triggered(Condition, Action),
+    /// The condition is over.
+    Cleared(Condition),
+    /// A delayed action's hold is over: the action begins.
+    Escalated(Condition, Action),
+}
+
+impl fmt::Display for SafetyEvent {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Triggered(c, Action::Warn | Action::None) => write!(f, "{c}"),
+            Self::Triggered(c, a) => write!(f, "failsafe: {c}: {}", a.name()),
+            Self::Cleared(c) => write!(f, "failsafe cleared: {c}"),
+            Self::Escalated(c, a) => write!(f, "failsafe: {c}: {} now", a.name()),
+        }
+    }
+}
+
+/// What the machine decided this step.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SafetyDecision {
+    /// What the vehicle must do now (`Action::None`: fly as the operator asked).
+    pub action: Action,
+    /// The condition behind it.
+    pub cause: Option<Condition>,
+    /// What changed, for the operator.
+    pub events: Vec<SafetyEvent>,
+}
+
+/// One condition's state.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct Tracked {
+    /// Triggered at this time (s), and acting.
+    since_s: Option<f64>,
+    /// The operator took over: silent until it clears.
+    overridden: bool,
+    /// A delayed action's hold is over.
+    escalated: bool,
+}
+
+/// The failsafe state machine.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Safety {
+    params: SafetyParams,
+    tracked: [Tracked; CONDITIONS.len()],
+    /// When the attitude went beyond the failure limit (s).
+    tilted_since_s: Option<f64>,
+    /// A flight termination happened: no arming until restart.
+    terminated: bool,
+}
+
+impl Safety {
+    /// A machine with nothing triggered.
+    pub fn new(params: SafetyParams) -> Self {
+        Self {
+            params,
+            tracked: [Tracked::default(); CONDITIONS.len()],
+            tilted_since_s: None,
+            terminated: false,
+        }
+    }
+
+    /// New parameters (the triggered conditions stay).
+    pub fn set_params(&mut self, params: SafetyParams) {
+        self.params = params;
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &SafetyParams {
+        &self.params
+    }
+
+    /// A flight termination happened (arming refused until restart).
+    pub fn terminated(&self) -> bool {
+        self.terminated
+    }
+
+    /// The conditions acting now (triggered, not overridden).
+    pub fn active(&self) -> Vec<Condition> {
+        CONDITIONS
+            .iter()
+            .zip(&self.tracked)
+            .filter(|(_, t)| t.since_s.is_some() && !t.overridden)
+            .map(|(c, _)| *c)
+            .collect()
+    }
+
+    /// Whether `c` is triggered (acting or overridden).
+    pub fn triggered(&self, c: Condition) -> bool {
+        self.tracked[index(c)].since_s.is_some()
+    }
+
+    /// The operator asks for a mode change while failsafes act. Refused (with the reason) while
+    /// a condition that allows no take-over acts; otherwise the acting conditions are overridden
+    /// (silent until they clear and trigger anew).
+    pub fn take_over(&mut self) -> Result<(), String> {
+        if let Some(c) = self
+            .active()
+            .into_iter()
+            .find(|c| !self.params.rule(*c).takeover && self.params.rule(*c).action > Action::Warn)
+        {
+            return Err(format!("mode change refused: failsafe in progress ({c})"));
+        }
+        for t in self.tracked.iter_mut().filter(|t| t.since_s.is_some()) {
+            t.overridden = true;
+        }
+        Ok(())
+    }
+
+    /// Which conditions hold now.
+    fn conditions_now(&mut self, i: &SafetyInput) -> [bool; CONDITIONS.len()] {
+        let p = &self.params;
+        let battery = |level: f64| i.battery_remaining.is_some_and(|r| r < level);
+        let (roll, pitch) = i.roll_pitch_rad;
+        let beyond =
+            |angle: f64, limit_deg: f64| limit_deg > 0.0 && angle.abs() > limit_deg.to_radians();
+        let tilted = i.armed && (beyond(roll, p.fail_roll_deg) || beyond(pitch, p.fail_pitch_deg));
+        if !tilted {
+            self.tilted_since_s = None;
+        } else if self.tilted_since_s.is_none() {
+            self.tilted_since_s = Some(i.t_s);
+        }
+        let crashed = self
+            .tilted_since_s
+            .is_some_and(|s| i.t_s - s >= p.fail_time_s);
+        let mut now = [false; CONDITIONS.len()];
+        for (k, c) in CONDITIONS.iter().enumerate() {
+            now[k] = match c {
+                Condition::GcsLinkLost => i.gcs_link_age_s.is_some_and(|a| a > p.gcs_loss_s),
+                Condition::BatteryLow => battery(p.battery_low),
+                Condition::BatteryCritical => battery(p.battery_critical),
+                Condition::BatteryEmergency => battery(p.battery_emergency),
+                Condition::GeofenceBreach => i.geofence_breached,
+                Condition::AttitudeInvalid => !i.attitude_valid,
+                Condition::PositionInvalid => i.mode_needs_position && !i.position_valid,
+                Condition::AltitudeInvalid => !i.altitude_valid,
+                Condition::ImuLost => i.sensors_lost.imu,
+                Condition::MagLost => i.sensors_lost.mag,
+                Condition::BaroLost => i.sensors_lost.baro,
+                Condition::GpsLost => i.sensors_lost.gps,
+                Condition::Crash => crashed,
+            };
+        }
+        now
+    }
+
+    /// What the vehicle can fly instead of `a` with what it knows now.
+    fn degrade(a: Action, i: &SafetyInput) -> Action {
+        let mut a = a;
+        if a == Action::Return && !(i.home_set && i.position_valid && i.altitude_valid) {
+            a = Action::Land;
+        }
+        if matches!(a, Action::Hold | Action::Land) && !(i.position_valid && i.altitude_valid) {
+            a = Action::Descend;
+        }
+        if !i.in_air && matches!(a, Action::Return | Action::Land | Action::Descend) {
+            // On the ground already: stop the motors.
+            a = Action::Disarm;
+        }
+        a
+    }
+
+    /// One step: conditions tracked, the action decided.
+    pub fn update(&mut self, i: &SafetyInput) -> SafetyDecision {
+        let now = self.conditions_now(i);
+        let mut events = Vec::new();
+        let (mut action, mut cause) = (Action::None, None);
+        for (k, &c) in CONDITIONS.iter().enumerate() {
+            let rule = self.params.rule(c);
+            let t = &mut self.tracked[k];
+            // Clearing.
+            if t.since_s.is_some() {
+                let clears = match rule.clear {
+                    Clear::WhenConditionClears => !now[k],
+                    Clear::OnDisarm => !i.armed && !now[k],
+                };
+                if clears {
+                    *t = Tracked::default();
+                    events.push(SafetyEvent::Cleared(c));
+                    continue;
+                }
+            }
+            if !now[k] && t.since_s.is_none() {
+                continue;
+            }
+            // Triggering: only armed, except the warnings (a low battery on the ground is news).
+            if t.since_s.is_none() {
+                if rule.action == Action::None || (!i.armed && rule.action > Action::Warn) {
+                    continue;
+                }
+                t.since_s = Some(i.t_s);
+                let first = if rule.delayed && self.params.action_delay_s > 0.0 {
+                    Action::Hold.min(rule.action)
+                } else {
+                    rule.action
+                };
+                events.push(SafetyEvent::Triggered(c, Self::degrade(first, i)));
+            }
+            if t.overridden {
+                continue;
+            }
+            let since = t.since_s.unwrap_or(i.t_s);
+            let mut a = rule.action;
+            if rule.delayed && i.t_s - since < self.params.action_delay_s {
+                a = a.min(Action::Hold);
+            } else if rule.delayed && a > Action::Hold && !t.escalated {
+                t.escalated = true;
+                if self.params.action_delay_s > 0.0 {
+                    events.push(SafetyEvent::Escalated(c, Self::degrade(a, i)));
+                }
+            }
+            if a > action {
+                action = a;
+                cause = Some(c);
+            }
+        }
+        let action = if action > Action::Warn && i.armed {
+            Self::degrade(action, i)
+        } else {
+            action.min(Action::Warn)
+        };
+        if action == Action::Terminate {
+            self.terminated = true;
+        }
+        SafetyDecision {
+            action,
+            cause,
+            events,
+        }
+    }
+}
+
+fn index(c: Condition) -> usize {
+    CONDITIONS.iter().position(|x| *x == c).unwrap_or(0)
+}
+
+/// What the arming checks look at.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PreflightInput {
+    /// Attitude estimate valid (converged).
+    pub attitude_valid: bool,
+    /// Horizontal position estimate valid.
+    pub position_valid: bool,
+    /// Altitude estimate valid.
+    pub altitude_valid: bool,
+    /// The mode to arm in flies on the position estimate.
+    pub mode_needs_position: bool,
+    /// Sensors missing, stale or frozen.
+    pub sensors_lost: SensorsLost,
+    /// The magnetometer's calibration is the default one (never calibrated).
+    pub mag_uncalibrated: bool,
+    /// The measured field strength disagrees with the expected one (gauss, measured and
+    /// expected), when it does by more than a third.
+    pub mag_inconsistent: Option<(f64, f64)>,
+    /// Battery charge left (fraction), if known.
+    pub battery_remaining: Option<f64>,
+    /// What is wrong with the parameters, if anything.
+    pub params_invalid: Option<String>,
+    /// Roll and pitch (rad).
+    pub roll_pitch_rad: (f64, f64),
+    /// Outside the geofence.
+    pub geofence_breached: bool,
+    /// A motor marked failed (1-based), if any.
+    pub motor_failed: Option<usize>,
+    /// A flight termination happened.
+    pub terminated: bool,
+}
+
+/// One reason not to arm.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PreflightFailure {
+    /// For the operator (`STATUSTEXT`, `COMMAND_ACK`).
+    pub text: String,
+    /// A forced arm may skip it.
+    pub skippable: bool,
+}
+
+/// Every reason not to arm, in order of importance. A forced arm may skip the estimator's
+/// convergence, the magnetometer's state, the battery above its emergency level and the
+/// geofence; never a missing IMU, a failed motor, a tilt beyond `COM_ARM_TILT`, an
+/// emergency-level battery or a terminated flight.
+pub fn preflight(i: &PreflightInput, p: &SafetyParams) -> Vec<PreflightFailure> {
+    let mut v = Vec::new();
+    let mut fail = |text: String, skippable: bool| v.push(PreflightFailure { text, skippable });
+    if i.terminated {
+        fail("flight terminated: restart the autopilot".into(), false);
+    }
+    if i.sensors_lost.imu {
+        fail("IMU missing or frozen".into(), false);
+    }
+    if let Some(m) = i.motor_failed {
+        fail(format!("motor {m} failed"), false);
+    }
+    let (roll, pitch) = i.roll_pitch_rad;
+    let tilt = (roll.cos() * pitch.cos()).clamp(-1.0, 1.0).acos();
+    if i.attitude_valid && tilt > p.arm_tilt_deg.to_radians() {
+        fail(
+            format!(
+                "tilted {:.0}° (COM_ARM_TILT {:.0}°)",
+                tilt.to_degrees(),
+                p.arm_tilt_deg
+            ),
+            false,
+        );
+    }
+    if let Some(r) = i.battery_remaining {
+        let min = if p.arm_battery_min > 0.0 {
+            p.arm_battery_min
+        } else {
+            p.battery_low
+        };
+        if r < p.battery_emergency {
+            fail(
+                format!("battery at emergency level ({:.0} %)", r * 100.0),
+                false,
+            );
+        } else if r < min {
+            fail(format!("battery low ({:.0} %)", r * 100.0), true);
+        }
+    }
+    if let Some(why) = &i.params_invalid {
+        fail(format!("parameters invalid: {why}"), false);
+    }
+    if !i.attitude_valid {
+        fail("attitude estimate not converged".into(), true);
+    }
+    if i.mode_needs_position && !i.position_valid {
+        fail(
+            "position estimate not valid (the mode needs it)".into(),
+            true,
+        );
+    }
+    if !i.altitude_valid {
+        fail("altitude estimate not valid".into(), true);
+    }
+    for (lost, name) in [
+        (i.sensors_lost.mag, "magnetometer"),
+        (i.sensors_lost.baro, "barometer"),
+        (i.sensors_lost.gps && i.mode_needs_position, "GPS"),
+    ] {
+        if lost {
+            fail(format!("{name} missing or stale"), true);
+        }
+    }
+    if i.mag_uncalibrated {
+        fail("magnetometer not calibrated".into(), true);
+    }
+    if let Some((measured, expected)) = i.mag_inconsistent {
+        fail(
+            format!(
+                "magnetometer inconsistent: {measured:.2} G measured, {expected:.2} G expected"
+            ),
+            true,
+        );
+    }
+    if i.geofence_breached {
+        fail("outside the geofence".into(), true);
+    }
+    v
+}
+
+#[cfg(test)]
+mod tests;
