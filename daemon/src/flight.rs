@@ -212,6 +212,8 @@ struct ControlLoop<'a> {
     loop_stats: Option<LoopSummary>,
     /// When telemetry was last published.
     published: Instant,
+    /// When the last ground-station heartbeat arrived (wall clock).
+    gcs_heartbeat: Option<Instant>,
 }
 
 impl<'a> ControlLoop<'a> {
@@ -241,6 +243,7 @@ impl<'a> ControlLoop<'a> {
             silent_done_at: None,
             loop_stats: None,
             published: Instant::now(),
+            gcs_heartbeat: None,
         }
     }
 
@@ -257,6 +260,9 @@ impl<'a> ControlLoop<'a> {
             match c {
                 Command::Land => self.vehicle.request_land(),
                 Command::Stop => return Flow::Stop,
+                Command::Vehicle(VehicleCommand::GcsHeartbeat, _) => {
+                    self.gcs_heartbeat = Some(Instant::now());
+                }
                 Command::Vehicle(c, reply) => {
                     // Sticks and offboard set-points arrive tens of times a second: not logged.
                     let what = match &c {
@@ -340,6 +346,8 @@ impl<'a> ControlLoop<'a> {
 
     /// Steps the vehicle on every complete sensor frame read, and answers each.
     fn frames(&mut self) -> Result<Flow> {
+        self.vehicle
+            .set_gcs_link_age(self.gcs_heartbeat.map(|t| t.elapsed().as_secs_f64()));
         for i in 0..self.decoded.messages.len() {
             let Some(step) = self.vehicle.on_message(&self.decoded.messages[i].1) else {
                 continue;

@@ -143,6 +143,7 @@ mod tests {
             landed,
             home: None,
             failsafe: false,
+            failsafe_action: None,
             ready: true,
             in_mode_s: 0.0,
             manual_losses: 0,

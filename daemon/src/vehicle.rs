@@ -3,8 +3,8 @@
 
 use anyhow::{Context, Result};
 use flight_core::commander::{
-    Commander, CommanderInput, CommanderStatus, Denial, FlightMode, LandedState, OffboardTarget,
-    Sticks,
+    Commander, CommanderInput, CommanderStatus, Denial, FlightMode, Health, LandedState,
+    OffboardTarget, Sticks,
 };
 use flight_core::control::Setpoint;
 use flight_core::control::position::PositionSetpoint;
@@ -58,6 +58,9 @@ pub enum VehicleCommand {
     SetHomeGlobal(LatLonAlt),
     /// Stick positions (`MANUAL_CONTROL`); never answered.
     Sticks(Sticks),
+    /// A ground station's heartbeat arrived; never answered (the control loop keeps its
+    /// wall-clock time: see [`Vehicle::set_gcs_link_age`]).
+    GcsHeartbeat,
     /// An offboard set-point (`SET_POSITION_TARGET_*`, `SET_ATTITUDE_TARGET`); never answered.
     Offboard(OffboardTarget),
     /// A new mission (an upload finished, or a clear); never answered.
@@ -121,6 +124,8 @@ pub struct Vehicle {
     last_t_usec: u64,
     gps: Option<hil::GpsReport>,
     battery_v: f64,
+    /// Wall-clock time since the last ground-station heartbeat (s), from the control loop.
+    gcs_link_age_s: Option<f64>,
 }
 
 /// One step's result.
@@ -147,7 +152,11 @@ impl Vehicle {
         Ok(Self {
             core: FlightCore::new(airframe, FlightCoreConfig::from_params(params, airframe))
                 .context("building the mixer")?,
-            commander: Commander::new(commander_params),
+            commander: {
+                let mut c = Commander::new(commander_params);
+                c.set_safety_params(params.safety);
+                c
+            },
             airframe: airframe.clone(),
             last_sample: None,
             last_setpoint: None,
@@ -169,6 +178,7 @@ impl Vehicle {
             last_t_usec: 0,
             gps: None,
             battery_v: 0.0,
+            gcs_link_age_s: None,
         })
     }
 
@@ -194,6 +204,7 @@ impl Vehicle {
         self.core
             .set_config(FlightCoreConfig::from_params(params, &self.airframe));
         self.commander.set_params(params.commander);
+        self.commander.set_safety_params(params.safety);
     }
 
     /// The last sensor sample stepped on.
@@ -276,6 +287,7 @@ impl Vehicle {
                 c_.manual_control(s);
                 Ok(())
             }
+            VehicleCommand::GcsHeartbeat => Ok(()),
             VehicleCommand::Offboard(t) => {
                 c_.offboard_setpoint(t);
                 Ok(())
@@ -319,6 +331,13 @@ impl Vehicle {
                 c_.reposition(target, speed_m_s, yaw_rad, change_mode)
             }
         }
+    }
+
+    /// The wall-clock time since the last ground-station heartbeat (s; `None` before the
+    /// first), for the link-loss failsafe: the control loop measures it, the vehicle has no
+    /// clock of its own.
+    pub fn set_gcs_link_age(&mut self, age_s: Option<f64>) {
+        self.gcs_link_age_s = age_s;
     }
 
     /// The flight's figures against the simulator's truth, where it sends one.
@@ -500,7 +519,20 @@ impl Vehicle {
                         p.mass_kg * flight_core::GRAVITY_M_S2 / p.max_thrust_n.max(1e-9)
                     },
                     origin: e.translation.origin,
+                    health: Health {
+                        attitude_valid: e.attitude.is_some_and(|a| a.valid),
+                        altitude_valid: e.translation.vertical_valid,
+                        roll_pitch_rad: e.attitude.map_or((0.0, 0.0), |a| {
+                            let (roll, pitch, _) = a.q.euler_angles();
+                            (roll, pitch)
+                        }),
+                        gcs_link_age_s: self.gcs_link_age_s,
+                        ..Health::default()
+                    },
                 });
+                for e in self.commander.take_safety_events() {
+                    tracing::warn!("{e}");
+                }
                 self.check_end();
                 out
             }

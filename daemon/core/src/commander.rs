@@ -28,11 +28,18 @@
 //! - *Descend* (failsafe): when the estimate stops being fit to fly on, an armed vehicle on the
 //!   ground disarms and one in the air levels and descends on what estimate is left, until
 //!   touchdown; it is left only by landing.
+//!
+//! Failsafes (link, battery, geofence, crash, estimator and sensors) are decided by the
+//! [`crate::safety`] state machine on every update and carried out here (Hold, Return, Land,
+//! Descend, disarm); arming asks its [`crate::safety::preflight`] checks.
 
 use crate::control::position::PositionSetpoint;
 use crate::control::{AttitudeTarget, Setpoint};
 use crate::geo::LatLonAlt;
 use crate::mission::MissionStatus;
+use crate::safety::{
+    Action, Condition, PreflightInput, Safety, SafetyEvent, SafetyInput, SafetyParams, SensorsLost,
+};
 use mission::{MissionRun, Stage};
 use nalgebra::{UnitQuaternion, Vector2, Vector3};
 use std::f64::consts::{PI, TAU};
@@ -67,6 +74,14 @@ pub enum FlightMode {
 }
 
 impl FlightMode {
+    /// Whether the mode flies on the horizontal position estimate.
+    pub fn needs_position(self) -> bool {
+        !matches!(
+            self,
+            Self::Manual | Self::Stabilized | Self::Altctl | Self::Descend
+        )
+    }
+
     /// The mode's name as PX4 reports it.
     pub fn name(self) -> &'static str {
         match self {
@@ -226,6 +241,46 @@ pub struct CommanderInput {
     /// The estimate's local origin (where NED is anchored), once the GPS has set it: what
     /// mission coordinates are resolved against.
     pub origin: Option<LatLonAlt>,
+    /// What else the failsafes and arming checks watch.
+    pub health: Health,
+}
+
+/// The vehicle's health beyond the position estimate: what the failsafes and arming checks
+/// watch ([`crate::safety`]). The default is a healthy vehicle that knows nothing of its link
+/// or battery.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Health {
+    /// Attitude estimate valid.
+    pub attitude_valid: bool,
+    /// Altitude estimate valid.
+    pub altitude_valid: bool,
+    /// Wall-clock time since the last ground-station heartbeat (s); `None` before the first.
+    pub gcs_link_age_s: Option<f64>,
+    /// Battery charge left (fraction), if known.
+    pub battery_remaining: Option<f64>,
+    /// Outside the geofence.
+    pub geofence_breached: bool,
+    /// Sensors missing, stale or frozen.
+    pub sensors_lost: SensorsLost,
+    /// Estimated roll and pitch (rad).
+    pub roll_pitch_rad: (f64, f64),
+    /// A motor marked failed (1-based), if any.
+    pub motor_failed: Option<usize>,
+}
+
+impl Default for Health {
+    fn default() -> Self {
+        Self {
+            attitude_valid: true,
+            altitude_valid: true,
+            gcs_link_age_s: None,
+            battery_remaining: None,
+            geofence_breached: false,
+            sensors_lost: SensorsLost::default(),
+            roll_pitch_rad: (0.0, 0.0),
+            motor_failed: None,
+        }
+    }
 }
 
 /// A set-point streamed in Offboard (`SET_POSITION_TARGET_*`, `SET_ATTITUDE_TARGET`), already in
@@ -255,6 +310,8 @@ pub struct CommanderStatus {
     pub home: Option<(Vector3<f64>, f64)>,
     /// A failsafe is flying the vehicle.
     pub failsafe: bool,
+    /// The failsafe's action and the condition behind it, while one acts (a warning included).
+    pub failsafe_action: Option<(Action, Condition)>,
     /// The estimator can be flown on.
     pub ready: bool,
     /// Time in the current mode (s).
@@ -393,6 +450,12 @@ pub struct Commander {
     auto_yaw: Option<f64>,
     /// A `CONDITION_YAW` heading (rad) and rate (rad/s), until the mode or item changes.
     yaw_goal: Option<(f64, Option<f64>)>,
+    /// The failsafe state machine.
+    safety: Safety,
+    /// Its last decision's action and cause.
+    failsafe: (Action, Option<Condition>),
+    /// What it said since the caller last asked.
+    safety_events: Vec<SafetyEvent>,
 }
 
 impl Commander {
@@ -426,7 +489,20 @@ impl Commander {
             speed_override: None,
             auto_yaw: None,
             yaw_goal: None,
+            safety: Safety::new(SafetyParams::default()),
+            failsafe: (Action::None, None),
+            safety_events: Vec::new(),
         }
+    }
+
+    /// New failsafe and arming-check parameters.
+    pub fn set_safety_params(&mut self, params: SafetyParams) {
+        self.safety.set_params(params);
+    }
+
+    /// What the failsafes said since the last call (for `STATUSTEXT`), oldest first.
+    pub fn take_safety_events(&mut self) -> Vec<SafetyEvent> {
+        std::mem::take(&mut self.safety_events)
     }
 
     /// A new offboard set-point, at the time of the last update.
@@ -471,7 +547,11 @@ impl Commander {
             mode: self.mode,
             landed: self.landed,
             home: self.home,
-            failsafe: self.mode == FlightMode::Descend,
+            failsafe: self.mode == FlightMode::Descend || self.failsafe.0 > Action::Warn,
+            failsafe_action: match self.failsafe {
+                (a, Some(c)) if a > Action::None => Some((a, c)),
+                _ => None,
+            },
             ready: self.last.is_some_and(|i| i.ready),
             in_mode_s: self.last.map_or(0.0, |i| (i.t_s - self.since_s).max(0.0)),
             manual_losses: self.manual_losses,
@@ -585,10 +665,39 @@ impl Commander {
         let Some(i) = self.last else {
             return Err("arming refused: no sensor data yet".into());
         };
-        if !i.ready && !force {
-            return Err(
-                "arming refused: estimator not ready (attitude or position invalid)".into(),
-            );
+        let h = i.health;
+        let mut failures = crate::safety::preflight(
+            &PreflightInput {
+                attitude_valid: h.attitude_valid,
+                position_valid: i.horizontal_valid,
+                altitude_valid: h.altitude_valid,
+                mode_needs_position: self.mode.needs_position(),
+                sensors_lost: h.sensors_lost,
+                mag_uncalibrated: false,
+                mag_inconsistent: None,
+                battery_remaining: h.battery_remaining,
+                params_invalid: self.safety.params().inconsistencies().first().cloned(),
+                roll_pitch_rad: h.roll_pitch_rad,
+                geofence_breached: h.geofence_breached,
+                motor_failed: h.motor_failed,
+                terminated: self.safety.terminated(),
+            },
+            self.safety.params(),
+        );
+        if !i.ready && self.mode.needs_position() && failures.is_empty() {
+            // The caller's verdict on the estimate, when its parts are not known here.
+            failures.push(crate::safety::PreflightFailure {
+                text: "estimator not ready (attitude or position invalid)".into(),
+                skippable: true,
+            });
+        }
+        failures.retain(|f| !(force && f.skippable));
+        if let Some(first) = failures.first() {
+            let more = match failures.len() {
+                1 => String::new(),
+                n => format!(" (and {} more)", n - 1),
+            };
+            return Err(format!("arming refused: {}{more}", first.text));
         }
         self.armed = true;
         self.changed = true;
@@ -642,6 +751,11 @@ impl Commander {
         }
         if self.mode == FlightMode::Descend && self.armed {
             return Err("mode change refused: failsafe descent in progress".into());
+        }
+        if self.armed && self.failsafe.0 > Action::Warn {
+            // The operator takes over (refused while a failsafe allows none).
+            self.safety.take_over()?;
+            self.failsafe = (Action::None, None);
         }
         match mode {
             FlightMode::Takeoff | FlightMode::Loiter | FlightMode::Land => {}
@@ -772,12 +886,60 @@ impl Commander {
         }
     }
 
+    /// One step of the failsafe state machine, its decision carried out when it changes.
+    fn failsafes(&mut self, i: &CommanderInput) {
+        let h = i.health;
+        // GF_MAX_HOR_DIST and GF_MAX_VER_DIST from home (0: no limit), with the caller's
+        // polygons and circles.
+        let sp = *self.safety.params();
+        let breached = self.home.is_some_and(|(home, _)| {
+            let off = i.pos_ned_m - home;
+            (sp.fence_max_horizontal_m > 0.0 && off.xy().norm() > sp.fence_max_horizontal_m)
+                || (sp.fence_max_vertical_m > 0.0 && -off.z > sp.fence_max_vertical_m)
+        });
+        let d = self.safety.update(&SafetyInput {
+            t_s: i.t_s,
+            armed: self.armed,
+            in_air: self.landed != LandedState::OnGround,
+            mode_needs_position: self.mode.needs_position(),
+            gcs_link_age_s: h.gcs_link_age_s,
+            battery_remaining: h.battery_remaining,
+            geofence_breached: h.geofence_breached || (breached && i.horizontal_valid),
+            attitude_valid: h.attitude_valid,
+            position_valid: i.horizontal_valid,
+            altitude_valid: h.altitude_valid,
+            sensors_lost: h.sensors_lost,
+            roll_pitch_rad: h.roll_pitch_rad,
+            home_set: self.home.is_some(),
+        });
+        self.safety_events.extend(d.events.iter().copied());
+        // Kept for a caller that drains them; bounded for one that does not.
+        let excess = self.safety_events.len().saturating_sub(64);
+        self.safety_events.drain(..excess);
+        let changed = d.action != self.failsafe.0;
+        self.failsafe = (d.action, d.cause);
+        if !changed || !self.armed {
+            return;
+        }
+        match d.action {
+            Action::None | Action::Warn => {}
+            Action::Hold => self.enter(FlightMode::Loiter),
+            Action::Return => self.enter(FlightMode::Rtl),
+            Action::Land => self.enter(FlightMode::Land),
+            Action::Descend => {
+                self.sensors_stopped();
+            }
+            Action::Disarm | Action::Terminate => self.disarmed(),
+        }
+    }
+
     /// Advances; returns the set-point and whether the motors are armed.
     pub fn update(&mut self, i: &CommanderInput) -> (Setpoint, bool) {
         let p = self.params;
         let t = i.t_s;
         let dt = self.last.map_or(0.0, |l| (t - l.t_s).max(0.0));
         self.last = Some(*i);
+        self.failsafes(i);
         if !i.ready {
             // The same reaction as to silent sensors, at this update's time.
             self.sensors_stopped();

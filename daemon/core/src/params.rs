@@ -150,6 +150,7 @@ pub use crate::control::position::{POSITION_META, PositionGroup};
 pub use crate::control::rate::{RATE_META, RateGroup};
 pub use crate::estimator::attitude::{ATTITUDE_META, AttitudeParams};
 pub use crate::estimator::translation::{TRANSLATION_META, TranslationGroup};
+pub use crate::safety::{SAFETY_META, SafetyParams};
 
 /// Every flight-core parameter, as in `params/flight.toml`.
 #[derive(Debug, Clone, Default, PartialEq, Deserialize)]
@@ -169,6 +170,8 @@ pub struct FlightParams {
     pub motor: MotorGroup,
     /// Commander: take-off, landing, return.
     pub commander: CommanderParams,
+    /// Failsafes and arming checks.
+    pub safety: SafetyParams,
 }
 
 /// Why a parameter value was refused (for the operator, `STATUSTEXT`).
@@ -200,6 +203,16 @@ impl FlightParams {
         v.extend(self.rate.validate());
         v.extend(self.motor.validate());
         v.extend(self.commander.validate());
+        v.extend(self.safety.validate());
+        v.extend(
+            self.safety
+                .inconsistencies()
+                .into_iter()
+                .map(|reason| ParamViolation {
+                    key: "safety.battery_low".into(),
+                    reason,
+                }),
+        );
         v
     }
 
@@ -227,6 +240,7 @@ impl FlightParams {
             "rate" => self.rate.get(key),
             "motor" => self.motor.get(key),
             "commander" => self.commander.get(key),
+            "safety" => self.safety.get(key),
             _ => None,
         }
     }
@@ -240,6 +254,7 @@ impl FlightParams {
             "rate" => self.rate.set(key, value),
             "motor" => self.motor.set(key, value),
             "commander" => self.commander.set(key, value),
+            "safety" => self.safety.set(key, value),
             _ => false,
         }
     }
@@ -287,6 +302,7 @@ impl FlightParams {
             ("rate", RATE_META),
             ("motor", MOTOR_META),
             ("commander", COMMANDER_META),
+            ("safety", SAFETY_META),
         ]
         .into_iter()
         .flat_map(|(g, m)| m.iter().map(move |p| (g, p)))
@@ -366,7 +382,10 @@ mod tests {
                 "ATT_ALIGN_N",
                 "MC_ATT_LAW",
                 "MC_RATE_CTRL",
-                "COM_OBL_RC_ACT"
+                "COM_OBL_RC_ACT",
+                "NAV_DLL_ACT",
+                "COM_LOW_BAT_ACT",
+                "GF_ACTION"
             ]
         );
         assert!(FlightParams::default().validate().is_empty());

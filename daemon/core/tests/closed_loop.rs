@@ -267,6 +267,7 @@ fn takeoff_hover_land_and_disarm() {
                 yaw_rad: est.attitude.map_or(0.0, |a| a.q.euler_angles().2),
                 hover_thrust: 0.5,
                 origin: est.translation.origin,
+                health: Default::default(),
             });
             let out = core.step(&sample, &sp, armed);
             commands = out.commands;
@@ -546,6 +547,7 @@ fn mission_legs_at_5_m_s_track_the_straight_line() {
                 yaw_rad: est.attitude.map_or(0.0, |a| a.q.euler_angles().2),
                 hover_thrust: 0.5,
                 origin: tr.origin,
+                health: Default::default(),
             });
             if cmd.status().ready && !cmd.armed() && !done {
                 let frame = LocalFrame::new(tr.origin.unwrap());
@@ -677,6 +679,7 @@ fn offboard_position_hold_in_still_air() {
                 yaw_rad: est.attitude.map_or(0.0, |a| a.q.euler_angles().2),
                 hover_thrust: 0.5,
                 origin: tr.origin,
+                health: Default::default(),
             });
             let out = core.step(&sample, &sp, armed);
             commands = out.commands;

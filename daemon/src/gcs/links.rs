@@ -502,6 +502,9 @@ pub async fn run(endpoints: Vec<Endpoint>, vehicle: Vehicle) -> Option<Action> {
                 let _ = answers.send((to, result)).await;
             });
         }
+        if std::mem::take(&mut out.gcs_heartbeat) {
+            let _ = commands.try_send(Command::Vehicle(VehicleCommand::GcsHeartbeat, None));
+        }
         if let Some(sticks) = out.sticks.take() {
             // A full queue loses these sticks only: the next ones follow within 50 ms.
             let _ = commands.try_send(Command::Vehicle(VehicleCommand::Sticks(sticks), None));

@@ -22,6 +22,7 @@ use crate::vehicle::VehicleCommand;
 use flight_core::commander::{CommanderStatus, FlightMode, LandedState, OffboardTarget, Sticks};
 use flight_core::geo::LatLonAlt;
 use flight_core::params::FlightParams;
+use flight_core::safety::{Action as FailsafeAction, Condition};
 use mavlink::MavHeader;
 use mavlink::MessageData;
 use mavlink::dialects::common::*;
@@ -112,6 +113,8 @@ pub struct Outbox {
     pub offboard: Option<OffboardTarget>,
     /// A new mission for the commander (an upload finished, or the mission was cleared).
     pub mission: Option<mission::NewMission>,
+    /// A ground station's heartbeat arrived (the link-loss failsafe's clock restarts).
+    pub gcs_heartbeat: bool,
 }
 
 impl Outbox {
@@ -159,6 +162,8 @@ pub struct GroundStation {
     manual_losses_shown: u32,
     /// Offboard losses already reported.
     offboard_losses_shown: u32,
+    /// The failsafe last reported (action and cause).
+    failsafe_shown: Option<(FailsafeAction, Condition)>,
     /// Offboard set-points dropped as malformed or unsupported.
     pub offboard_refused: u64,
     /// The mission, fence and rally plans and their transfers.
@@ -196,6 +201,7 @@ impl GroundStation {
             base_params: FlightParams::default(),
             manual_losses_shown: 0,
             offboard_losses_shown: 0,
+            failsafe_shown: None,
             offboard_refused: 0,
             missions: mission::Missions::default(),
             mission_shown: None,
@@ -294,6 +300,28 @@ impl GroundStation {
                 MavSeverity::MAV_SEVERITY_CRITICAL,
                 &format!("offboard set-points lost: {mode}"),
             ));
+        }
+        let failsafe = t.status.and_then(|s| s.failsafe_action);
+        if failsafe != self.failsafe_shown {
+            // Each failsafe's start, change and end, as PX4 announces them.
+            let text = match failsafe {
+                Some((FailsafeAction::Warn, c)) => {
+                    (MavSeverity::MAV_SEVERITY_WARNING, format!("{c}"))
+                }
+                Some((a, c)) => (
+                    MavSeverity::MAV_SEVERITY_CRITICAL,
+                    format!("failsafe: {c}: {}", a.name()),
+                ),
+                None => match self.failsafe_shown {
+                    Some((_, c)) => (
+                        MavSeverity::MAV_SEVERITY_NOTICE,
+                        format!("failsafe over: {c}"),
+                    ),
+                    None => (MavSeverity::MAV_SEVERITY_NOTICE, String::new()),
+                },
+            };
+            self.failsafe_shown = failsafe;
+            out.send(Self::statustext(text.0, &text.1));
         }
         let home = t.status.and_then(|s| s.home).map(|h| [h.0.x, h.0.y, h.0.z]);
         if home.is_some() && home != self.home_shown {
@@ -511,6 +539,9 @@ impl GroundStation {
             return;
         }
         match msg {
+            MavMessage::HEARTBEAT(h) if h.mavtype == MavType::MAV_TYPE_GCS => {
+                out.gcs_heartbeat = true;
+            }
             MavMessage::COMMAND_LONG(c) => {
                 if !self.for_us(c.target_system, Some(c.target_component)) {
                     self.dropped += 1;

@@ -23,6 +23,7 @@ fn telemetry(armed: bool, mode: FlightMode) -> Telemetry {
             landed: LandedState::OnGround,
             home: None,
             failsafe: false,
+            failsafe_action: None,
             ready: true,
             in_mode_s: 0.0,
             manual_losses: 0,
@@ -906,4 +907,57 @@ fn mission_and_guided_commands_reach_the_vehicle() {
     g.answered(to, Err("no item 3".into()), &mut out);
     assert_eq!(statustexts(&out), ["no item 3"]);
     assert!(acks(&out).is_empty());
+}
+
+/// A ground station's heartbeat restarts the link-loss clock (a vehicle's does not); each
+/// failsafe's start, change and end is announced once.
+#[test]
+fn gcs_heartbeats_are_forwarded_and_failsafes_announced() {
+    use flight_core::safety::{Action, Condition};
+    let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
+    let mut t = telemetry(true, FlightMode::Loiter);
+    let heartbeat = |mavtype| {
+        MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+            mavtype,
+            ..Default::default()
+        })
+    };
+    let mut out = Outbox::default();
+    g.on_message(
+        &gcs_header(),
+        &heartbeat(MavType::MAV_TYPE_QUADROTOR),
+        &t,
+        &mut out,
+    );
+    assert!(!out.gcs_heartbeat);
+    g.on_message(
+        &gcs_header(),
+        &heartbeat(MavType::MAV_TYPE_GCS),
+        &t,
+        &mut out,
+    );
+    assert!(out.gcs_heartbeat);
+
+    let mut out = Outbox::default();
+    g.poll(0.0, &t, &mut out);
+    let mut states = vec![
+        Some((Action::Warn, Condition::BatteryLow)),
+        Some((Action::Return, Condition::BatteryCritical)),
+        Some((Action::Return, Condition::BatteryCritical)),
+        None,
+    ];
+    for (k, s) in states.drain(..).enumerate() {
+        if let Some(st) = t.status.as_mut() {
+            st.failsafe_action = s;
+        }
+        g.poll(0.01 * (k + 1) as f64, &t, &mut out);
+    }
+    assert_eq!(
+        statustexts(&out),
+        [
+            "battery low",
+            "failsafe: battery critical: Return",
+            "failsafe over: battery critical"
+        ]
+    );
 }

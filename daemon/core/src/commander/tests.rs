@@ -13,6 +13,7 @@ fn input(t: f64, down: f64, vd: f64) -> CommanderInput {
         yaw_rad: 0.0,
         hover_thrust: 0.5,
         origin: None,
+        health: Health::default(),
     }
 }
 
@@ -351,6 +352,7 @@ fn at(t: f64, pos: Vector3<f64>, vel: Vector3<f64>, yaw: f64) -> CommanderInput 
         yaw_rad: yaw,
         hover_thrust: 0.5,
         origin: None,
+        health: Health::default(),
     }
 }
 
@@ -695,3 +697,145 @@ fn offboard_flies_the_stream_and_fails_safe_when_it_stops() {
 }
 
 mod mission;
+
+/// When [`hovering`] hands over (s): the tests' times count from here.
+const T0: f64 = 20.0;
+
+/// A commander flying at 10 m in Hold, home at the origin, at [`T0`].
+fn hovering(safety: crate::safety::SafetyParams) -> Commander {
+    let mut c = ready();
+    c.set_safety_params(safety);
+    c.takeoff(Some(10.0)).unwrap();
+    c.arm(false).unwrap();
+    // The vehicle where the set-point was a step before.
+    let (mut t, mut down) = (0.1, 0.0);
+    while c.mode() == FlightMode::Takeoff && t < 20.0 {
+        down = step(&mut c, &input(t, down, 0.0)).0.pos_ned_m.z;
+        t += 0.1;
+    }
+    step(&mut c, &input(T0, -10.0, 0.0));
+    assert_eq!(
+        (c.mode(), c.landed()),
+        (FlightMode::Loiter, LandedState::InAir)
+    );
+    c.take_safety_events();
+    c
+}
+
+/// At 10 m, `t` s after [`T0`], with the health `f` makes.
+fn with(t: f64, f: impl Fn(&mut Health)) -> CommanderInput {
+    let mut i = input(T0 + t, -10.0, 0.0);
+    f(&mut i.health);
+    i
+}
+
+/// The failsafe machine's decisions carried out: the link lost holds, then returns; the
+/// operator takes over with a mode change; each change is said once.
+#[test]
+fn link_loss_holds_then_returns_and_the_operator_can_take_over() {
+    use crate::safety::{Action, Condition, SafetyEvent, SafetyParams};
+    let mut c = hovering(SafetyParams {
+        gcs_loss_action: 2,
+        ..SafetyParams::default()
+    });
+    c.set_mode(FlightMode::Mission).unwrap_err(); // no mission: stays in Hold
+    c.manual_control(Sticks::CENTRED);
+    c.set_mode(FlightMode::Posctl).unwrap();
+    step(&mut c, &with(3.0, |h| h.gcs_link_age_s = Some(1.0)));
+    step(&mut c, &with(7.0, |h| h.gcs_link_age_s = Some(5.5)));
+    assert_eq!(c.mode(), FlightMode::Loiter, "Hold first");
+    assert_eq!(
+        c.status().failsafe_action,
+        Some((Action::Hold, Condition::GcsLinkLost))
+    );
+    assert_eq!(
+        c.take_safety_events(),
+        [SafetyEvent::Triggered(Condition::GcsLinkLost, Action::Hold)]
+    );
+    step(&mut c, &with(12.1, |h| h.gcs_link_age_s = Some(10.6)));
+    assert_eq!(c.mode(), FlightMode::Rtl, "then Return");
+    assert!(c.status().failsafe);
+    // The link back: the failsafe clears, the vehicle keeps returning until told otherwise.
+    step(&mut c, &with(13.0, |h| h.gcs_link_age_s = Some(0.2)));
+    assert_eq!((c.mode(), c.status().failsafe), (FlightMode::Rtl, false));
+    c.set_mode(FlightMode::Loiter).unwrap();
+    // Lost again, and the operator (on another link) takes over during the hold.
+    step(&mut c, &with(20.0, |h| h.gcs_link_age_s = Some(6.0)));
+    assert!(c.status().failsafe);
+    c.manual_control(Sticks::CENTRED);
+    c.set_mode(FlightMode::Posctl).unwrap();
+    for k in 1..=80 {
+        let dt = 0.1 * k as f64;
+        c.manual_control(Sticks::CENTRED);
+        step(
+            &mut c,
+            &with(20.0 + dt, |h| h.gcs_link_age_s = Some(6.0 + dt)),
+        );
+    }
+    assert_eq!(c.mode(), FlightMode::Posctl, "taken over: no Return");
+}
+
+/// A battery at its emergency level lands, and no mode change gets out of it; a forced arm
+/// skips a low battery but not an emergency one; a crash disarms.
+#[test]
+fn battery_emergency_lands_and_crash_disarms() {
+    use crate::safety::SafetyParams;
+    let mut c = hovering(SafetyParams::default());
+    step(&mut c, &with(3.0, |h| h.battery_remaining = Some(0.06)));
+    assert_eq!(c.mode(), FlightMode::Rtl, "critical: Return");
+    step(&mut c, &with(3.1, |h| h.battery_remaining = Some(0.04)));
+    assert_eq!(c.mode(), FlightMode::Land, "emergency: Land");
+    let refused = c.set_mode(FlightMode::Loiter).unwrap_err();
+    assert!(refused.contains("battery emergency"), "{refused}");
+    // Arming checks on the ground.
+    let mut c = ready();
+    step(&mut c, &with(0.1, |h| h.battery_remaining = Some(0.1)));
+    assert!(c.arm(false).unwrap_err().contains("battery low"));
+    c.arm(true).unwrap();
+    c.disarm(false).unwrap();
+    step(&mut c, &with(0.2, |h| h.battery_remaining = Some(0.04)));
+    assert!(c.arm(true).unwrap_err().contains("emergency"));
+    // Flipped in the air for FD_FAIL_R_TTRI: motors off.
+    let mut c = hovering(SafetyParams::default());
+    step(&mut c, &with(3.0, |h| h.roll_pitch_rad = (2.0, 0.0)));
+    assert!(c.armed());
+    step(&mut c, &with(3.35, |h| h.roll_pitch_rad = (2.5, 0.0)));
+    assert!(!c.armed(), "disarmed");
+}
+
+/// `GF_MAX_HOR_DIST` / `GF_MAX_VER_DIST` from home: Hold (`GF_ACTION` 2) on the breach.
+#[test]
+fn the_distance_and_height_fences_hold_the_vehicle() {
+    use crate::safety::{Action, Condition, SafetyParams};
+    let mut c = hovering(SafetyParams {
+        fence_max_horizontal_m: 20.0,
+        fence_max_vertical_m: 15.0,
+        ..SafetyParams::default()
+    });
+    c.set_mode(FlightMode::Rtl).unwrap();
+    step(
+        &mut c,
+        &CommanderInput {
+            pos_ned_m: Vector3::new(19.0, 0.0, -14.0),
+            ..with(1.0, |_| {})
+        },
+    );
+    assert_eq!(
+        (c.mode(), c.status().failsafe_action),
+        (FlightMode::Rtl, None)
+    );
+    step(
+        &mut c,
+        &CommanderInput {
+            pos_ned_m: Vector3::new(19.0, 0.0, -15.5),
+            ..with(2.0, |_| {})
+        },
+    );
+    assert_eq!(
+        (c.mode(), c.status().failsafe_action),
+        (
+            FlightMode::Loiter,
+            Some((Action::Hold, Condition::GeofenceBreach))
+        )
+    );
+}
