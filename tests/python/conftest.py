@@ -127,3 +127,19 @@ async def mavsdk_autopilot(gcs_port):
         system = await mavsdk.first_autopilot(timeout_s=30.0)
         assert system is not None, "no autopilot found"
         yield system
+
+
+def run_mavsdk_flight(tmp_path, flight):
+    """Runs the coroutine `flight(gcs_port)` against a fresh sitl + autopilot whose ground-station
+    endpoint sends to `gcs_port` (where MAVSDK listens), and stops them after."""
+    daemon = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0", connect=False)
+    try:
+        asyncio.run(flight(daemon.gcs_port))
+    finally:
+        daemon.close()
+
+
+async def land_and_disarm(action, telemetry):
+    """MAVSDK's land(), then the disarm that ends it."""
+    await action.land()
+    await first(telemetry.subscribe_armed(), lambda a: not a, 60)

@@ -2,7 +2,6 @@
 which ships and starts its own `mavsdk_server`) sees it: sitl + autopilot over UDP, MAVSDK on the
 port the autopilot pushes to. Every wait is on a telemetry stream with a time-out."""
 
-import asyncio
 import socket
 
 import mavsdk_grpc as mavsdk
@@ -10,7 +9,7 @@ import pytest
 from mavsdk_grpc.param import ParamError
 from mavsdk_grpc.telemetry import FlightMode, LandedState
 
-from conftest import Daemon, first
+from conftest import first, run_mavsdk_flight
 
 
 def free_tcp_port():
@@ -84,8 +83,4 @@ async def fly(gcs_port):
 
 
 def test_mavsdk_connects_reads_telemetry_and_parameters_and_flies(tmp_path):
-    daemon = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0", connect=False)
-    try:
-        asyncio.run(fly(daemon.gcs_port))
-    finally:
-        daemon.close()
+    run_mavsdk_flight(tmp_path, fly)

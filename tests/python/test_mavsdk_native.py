@@ -13,7 +13,7 @@ from mavsdk.autopilot import Autopilot
 from mavsdk.plugins.telemetry import FlightMode, LandedState
 from mavsdk.vehicle import Vehicle
 
-from conftest import Daemon, first, mavsdk_autopilot
+from conftest import first, mavsdk_autopilot, run_mavsdk_flight
 
 
 async def joystick(manual, sticks):
@@ -68,8 +68,4 @@ async def fly(gcs_port):
 
 
 def test_native_mavsdk_finds_the_autopilot_flies_and_takes_a_joystick(tmp_path):
-    daemon = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0", connect=False)
-    try:
-        asyncio.run(fly(daemon.gcs_port))
-    finally:
-        daemon.close()
+    run_mavsdk_flight(tmp_path, fly)

@@ -15,7 +15,7 @@ from mavsdk.plugins.mission import MissionItem, MissionPlan
 from mavsdk.plugins.telemetry import FlightMode
 from pymavlink import mavutil
 
-from conftest import Daemon, first, mavsdk_autopilot
+from conftest import Daemon, first, land_and_disarm, mavsdk_autopilot, run_mavsdk_flight
 from test_ground_station import ack, daemon, ready_to_arm, vehicle, wait  # noqa: F401
 
 ML = mavutil.mavlink
@@ -248,16 +248,11 @@ async def goto(gcs_port):
         heading = await first(telemetry.subscribe_heading(), lambda h: True, 5)
         assert abs(heading.heading_deg - 90.0) < 5.0, heading
         assert await first(telemetry.subscribe_flight_mode(), lambda m: True, 5) == FlightMode.HOLD
-        await action.land()
-        await first(telemetry.subscribe_armed(), lambda a: not a, 60)
+        await land_and_disarm(action, telemetry)
 
 
 def test_mavsdk_goto_location_flies_there_and_holds(tmp_path):
-    daemon = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0", connect=False)
-    try:
-        asyncio.run(goto(daemon.gcs_port))
-    finally:
-        daemon.close()
+    run_mavsdk_flight(tmp_path, goto)
 
 
 if __name__ == "__main__":

@@ -4,7 +4,6 @@ them) and with MAVSDK's native Offboard plugin (which streams at 20 Hz itself): 
 and attitude set-points flown, and the failsafe when the stream stops. sitl + autopilot over UDP
 at 3x real time; every wait is on the vehicle's state with a time-out."""
 
-import asyncio
 import json
 import math
 import threading
@@ -19,7 +18,7 @@ from mavsdk.plugins.offboard import Attitude, PositionNedYaw, VelocityNedYaw
 from mavsdk.plugins.telemetry import FlightMode
 from pymavlink import mavutil
 
-from conftest import Daemon, first, mavsdk_autopilot
+from conftest import first, land_and_disarm, mavsdk_autopilot, run_mavsdk_flight
 from test_ground_station import ack, armed, daemon, ready_to_arm, vehicle, wait  # noqa: F401
 
 ML = mavutil.mavlink
@@ -185,16 +184,11 @@ async def fly_offboard(gcs_port):
         await first(texts, lambda t: "offboard set-points lost" in t.text, 5)
         await first(telemetry.subscribe_flight_mode(), lambda m: m == FlightMode.HOLD, 3)
         assert await first(telemetry.subscribe_armed(), lambda a: True, 3)
-        await action.land()
-        await first(telemetry.subscribe_armed(), lambda a: not a, 60)
+        await land_and_disarm(action, telemetry)
 
 
 def test_mavsdk_offboard_flies_a_square_velocity_and_attitude_and_fails_safe(tmp_path):
-    daemon = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0", connect=False)
-    try:
-        asyncio.run(fly_offboard(daemon.gcs_port))
-    finally:
-        daemon.close()
+    run_mavsdk_flight(tmp_path, fly_offboard)
 
 
 if __name__ == "__main__":

@@ -35,6 +35,34 @@ fn hover_at(alt: f64) -> Setpoint {
     })
 }
 
+/// What the daemon's vehicle hands the commander from the flight core's last output, at `t`.
+fn commander_input(
+    t: f64,
+    est: &flight_core::core::StepOutput,
+) -> flight_core::commander::CommanderInput {
+    let tr = &est.translation;
+    let attitude_valid = est.attitude.is_some_and(|a| a.valid);
+    flight_core::commander::CommanderInput {
+        t_s: t,
+        ready: attitude_valid && tr.horizontal_valid && tr.vertical_valid,
+        horizontal_valid: tr.horizontal_valid,
+        pos_ned_m: tr.pos_ned_m,
+        vel_ned_m_s: tr.vel_ned_m_s,
+        yaw_rad: est.attitude.map_or(0.0, |a| a.q.euler_angles().2),
+        hover_thrust: 0.5,
+        origin: tr.origin,
+        health: flight_core::commander::Health {
+            attitude_valid,
+            altitude_valid: tr.vertical_valid,
+            roll_pitch_rad: est.attitude.map_or((0.0, 0.0), |a| {
+                let (roll, pitch, _) = a.q.euler_angles();
+                (roll, pitch)
+            }),
+            ..Default::default()
+        },
+    }
+}
+
 /// Flight-quality figures of one flight.
 #[derive(Debug)]
 struct Flight {
@@ -202,9 +230,7 @@ fn lewis_tilt_yaw_pd_flies_too() {
 /// land, detect the touchdown and disarm. Touchdown speed from the simulator's truth.
 #[test]
 fn takeoff_hover_land_and_disarm() {
-    use flight_core::commander::{
-        Commander, CommanderInput, CommanderParams, FlightMode, LandedState,
-    };
+    use flight_core::commander::{Commander, CommanderParams, FlightMode, LandedState};
     for name in ["quad_x", "hexa_x", "octa_x", "dodeca"] {
         let a = airframe(name);
         let mut sim = Simulator::new(
@@ -242,9 +268,6 @@ fn takeoff_hover_land_and_disarm() {
                     false,
                 )
             });
-            let ready = est.attitude.is_some_and(|e| e.valid)
-                && est.translation.horizontal_valid
-                && est.translation.vertical_valid;
             let t = sim.time_s();
             // Take off as soon as the estimator is ready, land after 10 s of hold.
             if cmd.status().ready && !cmd.armed() && !landing {
@@ -258,17 +281,7 @@ fn takeoff_hover_land_and_disarm() {
                 cmd.set_mode(FlightMode::Land).unwrap();
                 landing = true;
             }
-            let (sp, armed) = cmd.update(&CommanderInput {
-                t_s: t,
-                ready,
-                horizontal_valid: est.translation.horizontal_valid,
-                pos_ned_m: est.translation.pos_ned_m,
-                vel_ned_m_s: est.translation.vel_ned_m_s,
-                yaw_rad: est.attitude.map_or(0.0, |a| a.q.euler_angles().2),
-                hover_thrust: 0.5,
-                origin: est.translation.origin,
-                health: Default::default(),
-            });
+            let (sp, armed) = cmd.update(&commander_input(t, &est));
             let out = core.step(&sample, &sp, armed);
             commands = out.commands;
             last = Some(out);
@@ -489,7 +502,7 @@ fn attitude_and_rate_targets_are_flown_without_the_position_loop() {
 /// wander is the receiver's), over every leg from start to stop.
 #[test]
 fn mission_legs_at_5_m_s_track_the_straight_line() {
-    use flight_core::commander::{Commander, CommanderInput, CommanderParams, FlightMode};
+    use flight_core::commander::{Commander, CommanderParams, FlightMode};
     use flight_core::geo::LocalFrame;
     use flight_core::mission::{MissionAltitude, MissionItem, MissionPoint, MissionState};
     use sitl_core::environment::WindConfig;
@@ -536,19 +549,7 @@ fn mission_legs_at_5_m_s_track_the_straight_line() {
                 continue;
             };
             let tr = &est.translation;
-            let ready =
-                est.attitude.is_some_and(|e| e.valid) && tr.horizontal_valid && tr.vertical_valid;
-            let (sp, armed) = cmd.update(&CommanderInput {
-                t_s: sim.time_s(),
-                ready,
-                horizontal_valid: tr.horizontal_valid,
-                pos_ned_m: tr.pos_ned_m,
-                vel_ned_m_s: tr.vel_ned_m_s,
-                yaw_rad: est.attitude.map_or(0.0, |a| a.q.euler_angles().2),
-                hover_thrust: 0.5,
-                origin: tr.origin,
-                health: Default::default(),
-            });
+            let (sp, armed) = cmd.update(&commander_input(sim.time_s(), &est));
             if cmd.status().ready && !cmd.armed() && !done {
                 let frame = LocalFrame::new(tr.origin.unwrap());
                 let point = |(north, east): (f64, f64)| {
@@ -621,9 +622,7 @@ fn mission_legs_at_5_m_s_track_the_straight_line() {
 /// as the barometer's drift cannot be taken out the same way).
 #[test]
 fn offboard_position_hold_in_still_air() {
-    use flight_core::commander::{
-        Commander, CommanderInput, CommanderParams, FlightMode, OffboardTarget,
-    };
+    use flight_core::commander::{Commander, CommanderParams, FlightMode, OffboardTarget};
     let target = Vector3::new(2.0, -1.0, -5.0);
     let stream = OffboardTarget {
         setpoint: Setpoint::Position(PositionSetpoint {
@@ -659,7 +658,6 @@ fn offboard_position_hold_in_still_air() {
                 last = Some(core.step(&sample, &hover_at(0.0), false));
                 continue;
             };
-            let tr = &est.translation;
             if k % 12 == 0 {
                 cmd.offboard_setpoint(stream); // 20.8 Hz at 250 Hz
             }
@@ -668,19 +666,7 @@ fn offboard_position_hold_in_still_air() {
                 cmd.arm(false).unwrap();
                 armed_at = Some(t);
             }
-            let (sp, armed) = cmd.update(&CommanderInput {
-                t_s: t,
-                ready: est.attitude.is_some_and(|e| e.valid)
-                    && tr.horizontal_valid
-                    && tr.vertical_valid,
-                horizontal_valid: tr.horizontal_valid,
-                pos_ned_m: tr.pos_ned_m,
-                vel_ned_m_s: tr.vel_ned_m_s,
-                yaw_rad: est.attitude.map_or(0.0, |a| a.q.euler_angles().2),
-                hover_thrust: 0.5,
-                origin: tr.origin,
-                health: Default::default(),
-            });
+            let (sp, armed) = cmd.update(&commander_input(t, &est));
             let out = core.step(&sample, &sp, armed);
             commands = out.commands;
             let gps_error = sim.sensors().gps_error_ned();
