@@ -324,6 +324,16 @@ mod tests {
         }
     }
 
+    /// Hold `pos`, heading north.
+    fn hold_at(pos: Vector3<f64>) -> PositionSetpoint {
+        PositionSetpoint {
+            pos_ned_m: pos,
+            vel_ned_m_s: Vector3::zeros(),
+            accel_ned_m_s2: Vector3::zeros(),
+            yaw_rad: 0.0,
+        }
+    }
+
     #[test]
     fn attitude_from_thrust_points_body_down_axis_against_thrust() {
         let yaw = 0.7;
@@ -337,12 +347,7 @@ mod tests {
     #[test]
     fn hover_at_the_set_point_needs_exactly_the_weight() {
         let mut c = PositionController::new(params());
-        let sp = PositionSetpoint {
-            pos_ned_m: Vector3::new(0.0, 0.0, -5.0),
-            vel_ned_m_s: Vector3::zeros(),
-            accel_ned_m_s2: Vector3::zeros(),
-            yaw_rad: 0.0,
-        };
+        let sp = hold_at(Vector3::new(0.0, 0.0, -5.0));
         let out = c.update(
             &sp,
             &sp.pos_ned_m,
@@ -357,12 +362,7 @@ mod tests {
     #[test]
     fn far_set_points_are_limited_in_speed_tilt_and_slew() {
         let mut c = PositionController::new(params());
-        let sp = PositionSetpoint {
-            pos_ned_m: Vector3::new(100.0, 0.0, 0.0),
-            vel_ned_m_s: Vector3::zeros(),
-            accel_ned_m_s2: Vector3::zeros(),
-            yaw_rad: 0.0,
-        };
+        let sp = hold_at(Vector3::new(100.0, 0.0, 0.0));
         let first = c.update(
             &sp,
             &Vector3::zeros(),
@@ -406,12 +406,7 @@ mod tests {
             ..params()
         };
         let mut c = PositionController::new(params());
-        let sp = PositionSetpoint {
-            pos_ned_m: Vector3::new(0.0, 0.0, -5.0),
-            vel_ned_m_s: Vector3::zeros(),
-            accel_ned_m_s2: Vector3::zeros(),
-            yaw_rad: 0.0,
-        };
+        let sp = hold_at(Vector3::new(0.0, 0.0, -5.0));
         let push = Vector3::new(0.0, -5.0, 0.0); // m/s², toward the west
         let (dt, mut pos, mut vel) = (0.01, sp.pos_ned_m, Vector3::zeros());
         let mut out = None;
