@@ -891,11 +891,12 @@ impl Commander {
         let h = i.health;
         // GF_MAX_HOR_DIST and GF_MAX_VER_DIST from home (0: no limit), with the caller's
         // polygons and circles.
-        let sp = *self.safety.params();
+        let limits = *self.safety.params();
         let breached = self.home.is_some_and(|(home, _)| {
             let off = i.pos_ned_m - home;
-            (sp.fence_max_horizontal_m > 0.0 && off.xy().norm() > sp.fence_max_horizontal_m)
-                || (sp.fence_max_vertical_m > 0.0 && -off.z > sp.fence_max_vertical_m)
+            let beyond = |x: f64, limit: f64| limit > 0.0 && x > limit;
+            beyond(off.xy().norm(), limits.fence_max_horizontal_m)
+                || beyond(-off.z, limits.fence_max_vertical_m)
         });
         let d = self.safety.update(&SafetyInput {
             t_s: i.t_s,

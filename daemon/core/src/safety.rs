@@ -331,7 +331,7 @@ impl fmt::Display for SafetyEvent {
         match self {
             Self::Triggered(c, Action::Warn | Action::None) => write!(f, "{c}"),
             Self::Triggered(c, a) => write!(f, "failsafe: {c}: {}", a.name()),
-            Self::Cleared(c) => write!(f, "failsafe cleared: {c}"),
+            Self::Cleared(c) => write!(f, "failsafe over: {c}"),
             Self::Escalated(c, a) => write!(f, "failsafe: {c}: {} now", a.name()),
         }
     }
@@ -406,20 +406,14 @@ impl Safety {
             .collect()
     }
 
-    /// Whether `c` is triggered (acting or overridden).
-    pub fn triggered(&self, c: Condition) -> bool {
-        self.tracked[index(c)].since_s.is_some()
-    }
-
     /// The operator asks for a mode change while failsafes act. Refused (with the reason) while
     /// a condition that allows no take-over acts; otherwise the acting conditions are overridden
     /// (silent until they clear and trigger anew).
     pub fn take_over(&mut self) -> Result<(), String> {
-        if let Some(c) = self
-            .active()
-            .into_iter()
-            .find(|c| !self.params.rule(*c).takeover && self.params.rule(*c).action > Action::Warn)
-        {
+        if let Some(c) = self.active().into_iter().find(|&c| {
+            let rule = self.params.rule(c);
+            !rule.takeover && rule.action > Action::Warn
+        }) {
             return Err(format!("mode change refused: failsafe in progress ({c})"));
         }
         for t in self.tracked.iter_mut().filter(|t| t.since_s.is_some()) {
@@ -549,10 +543,6 @@ impl Safety {
             events,
         }
     }
-}
-
-fn index(c: Condition) -> usize {
-    CONDITIONS.iter().position(|x| *x == c).unwrap_or(0)
 }
 
 /// What the arming checks look at.

@@ -22,7 +22,7 @@ use crate::vehicle::VehicleCommand;
 use flight_core::commander::{CommanderStatus, FlightMode, LandedState, OffboardTarget, Sticks};
 use flight_core::geo::LatLonAlt;
 use flight_core::params::FlightParams;
-use flight_core::safety::{Action as FailsafeAction, Condition};
+use flight_core::safety::{Action as FailsafeAction, Condition, SafetyEvent};
 use mavlink::MavHeader;
 use mavlink::MessageData;
 use mavlink::dialects::common::*;
@@ -303,25 +303,21 @@ impl GroundStation {
         }
         let failsafe = t.status.and_then(|s| s.failsafe_action);
         if failsafe != self.failsafe_shown {
-            // Each failsafe's start, change and end, as PX4 announces them.
-            let text = match failsafe {
-                Some((FailsafeAction::Warn, c)) => {
-                    (MavSeverity::MAV_SEVERITY_WARNING, format!("{c}"))
-                }
-                Some((a, c)) => (
-                    MavSeverity::MAV_SEVERITY_CRITICAL,
-                    format!("failsafe: {c}: {}", a.name()),
-                ),
-                None => match self.failsafe_shown {
-                    Some((_, c)) => (
-                        MavSeverity::MAV_SEVERITY_NOTICE,
-                        format!("failsafe over: {c}"),
-                    ),
-                    None => (MavSeverity::MAV_SEVERITY_NOTICE, String::new()),
-                },
+            // Each failsafe's start, change and end, in the state machine's words.
+            let said = match (failsafe, self.failsafe_shown) {
+                (Some((a, c)), _) => Some((a, SafetyEvent::Triggered(c, a))),
+                (None, Some((_, c))) => Some((FailsafeAction::None, SafetyEvent::Cleared(c))),
+                (None, None) => None,
             };
             self.failsafe_shown = failsafe;
-            out.send(Self::statustext(text.0, &text.1));
+            if let Some((action, event)) = said {
+                let severity = match action {
+                    FailsafeAction::None => MavSeverity::MAV_SEVERITY_NOTICE,
+                    FailsafeAction::Warn => MavSeverity::MAV_SEVERITY_WARNING,
+                    _ => MavSeverity::MAV_SEVERITY_CRITICAL,
+                };
+                out.send(Self::statustext(severity, &event.to_string()));
+            }
         }
         let home = t.status.and_then(|s| s.home).map(|h| [h.0.x, h.0.y, h.0.z]);
         if home.is_some() && home != self.home_shown {
