@@ -144,6 +144,7 @@ mod tests {
             home: None,
             failsafe: false,
             failsafe_action: None,
+            motor_failed: None,
             ready: true,
             in_mode_s: 0.0,
             manual_losses: 0,

@@ -527,6 +527,12 @@ impl Vehicle {
                             (roll, pitch)
                         }),
                         gcs_link_age_s: self.gcs_link_age_s,
+                        motor_failed: self
+                            .core
+                            .failed_rotors()
+                            .iter()
+                            .position(|&f| f)
+                            .map(|i| i + 1),
                         ..Health::default()
                     },
                 });
@@ -552,7 +558,20 @@ impl Vehicle {
             self.core.reset_position_loop();
         }
         let truth = self.update.truth.take();
+        self.core.set_in_air(matches!(
+            status.landed,
+            LandedState::InAir | LandedState::Landing
+        ));
         let output = self.core.step(&sample, &setpoint, armed);
+        if let Some(f) = output.motor_failure {
+            tracing::error!(
+                motor = f.rotor + 1,
+                by = ?f.by,
+                lost = format!("{:.0} %", 100.0 * f.lost_fraction),
+                reallocated = self.core.config().motor_failure.reallocate,
+                "motor failure detected"
+            );
+        }
         // Magnetometer and barometer as last seen (a frame carries them only when fresh).
         let prev = self.last_sample;
         self.last_sample = Some(SensorSample {

@@ -324,6 +324,8 @@ pub struct CommanderStatus {
     pub offboard_losses: u32,
     /// The mission's progress.
     pub mission: MissionStatus,
+    /// A motor declared failed (1-based), if any.
+    pub motor_failed: Option<usize>,
 }
 
 /// A straight-line set-point profile from `from` to `to`: speed ramps up at `accel`, cruises
@@ -558,6 +560,7 @@ impl Commander {
             manual_control: self.sticks.map(|_| self.fresh_sticks().is_some()),
             offboard_losses: self.offboard_losses,
             mission: self.mission.status(),
+            motor_failed: self.last.and_then(|i| i.health.motor_failed),
         }
     }
 
@@ -912,6 +915,7 @@ impl Commander {
             sensors_lost: h.sensors_lost,
             roll_pitch_rad: h.roll_pitch_rad,
             home_set: self.home.is_some(),
+            motor_failed: h.motor_failed.is_some(),
         });
         self.safety_events.extend(d.events.iter().copied());
         // Kept for a caller that drains them; bounded for one that does not.

@@ -14,6 +14,7 @@ use crate::estimator::translation::{
     GpsMeasurement, TranslationEstimate, TranslationEstimator, TranslationParams,
 };
 use crate::mixer::{Mixer, MixerError, MixerInput, MixerOutput, WrenchRequest};
+use crate::motor_failure::{DetectorInput, MotorFailure, MotorFailureDetector, MotorFailureParams};
 use crate::params::{AttitudeParams, FlightParams};
 use airframe::{Airframe, MAX_ROTORS};
 use nalgebra::Vector3;
@@ -55,6 +56,8 @@ pub struct FlightCoreConfig {
     pub rate: RateLoopParams,
     /// Rotor-speed loop (used when the ESCs report rpm).
     pub motor: MotorLoopParams,
+    /// Motor-failure detection and re-allocation.
+    pub motor_failure: MotorFailureParams,
 }
 
 impl FlightCoreConfig {
@@ -162,6 +165,11 @@ impl FlightCoreConfig {
                 i_limit: m.i_limit,
                 gain_range: m.gain_range,
             },
+            motor_failure: MotorFailureParams {
+                enabled: p.safety.motor_failure_detection != 0,
+                timeout_s: p.safety.motor_failure_timeout_ms as f64 * 1e-3,
+                reallocate: p.safety.motor_failure_mode != 0,
+            },
         }
     }
 }
@@ -202,6 +210,8 @@ pub struct StepOutput {
     pub rate_reference: Vector3<f64>,
     /// The allocation (when flying).
     pub mixer: Option<MixerOutput>,
+    /// A rotor declared failed at this step.
+    pub motor_failure: Option<MotorFailure>,
 }
 
 enum RateAxis {
@@ -219,6 +229,10 @@ pub struct FlightCore {
     rate: [RateAxis; 3],
     mixer: Mixer,
     motor: MotorSpeedLoop,
+    motor_failure: MotorFailureDetector,
+    /// The allocation flown since the last sample (what the rotors were told).
+    last_mix: Option<MixerOutput>,
+    in_air: bool,
     last_t_usec: Option<u64>,
     flying: bool,
     /// The position loop's last output, the time since it ran (s), and the time since its
@@ -255,6 +269,9 @@ impl FlightCore {
             rate: rate_axes(&config.rate),
             mixer: Mixer::new(airframe)?,
             motor: MotorSpeedLoop::new(airframe, config.motor),
+            motor_failure: MotorFailureDetector::new(airframe, config.motor_failure),
+            last_mix: None,
+            in_air: false,
             last_t_usec: None,
             flying: false,
             position_output: None,
@@ -302,7 +319,35 @@ impl FlightCore {
             (axes, p) => *axes = rate_axes(p),
         }
         self.motor.set_params(config.motor);
+        self.motor_failure.set_params(config.motor_failure);
         self.config = config;
+    }
+
+    /// Tells the core whether the vehicle is flying (the commander's landed state): the
+    /// thrust-imbalance check of motor-failure detection runs only in the air.
+    pub fn set_in_air(&mut self, in_air: bool) {
+        self.in_air = in_air;
+    }
+
+    /// Rotors declared failed this flight (true = failed).
+    pub fn failed_rotors(&self) -> &[bool] {
+        self.motor_failure.failed()
+    }
+
+    /// Marks a rotor failed as if detected (a failure reported by the board, or injected), and
+    /// re-allocates without it when `CA_FAILURE_MODE` says so.
+    pub fn declare_motor_failure(&mut self, rotor: usize) -> Result<(), MixerError> {
+        self.motor_failure.declare(rotor);
+        self.reallocate()
+    }
+
+    fn reallocate(&mut self) -> Result<(), MixerError> {
+        if self.config.motor_failure.reallocate {
+            let failed = self.motor_failure.failed().to_vec();
+            self.mixer.set_failed(&failed)
+        } else {
+            Ok(())
+        }
     }
 
     /// The mixer (to mark failed rotors).
@@ -321,6 +366,12 @@ impl FlightCore {
     fn reset_controllers(&mut self) {
         self.reset_position_loop();
         self.rate = rate_axes(&self.config.rate);
+        // A new flight judges the rotors afresh.
+        self.motor_failure.reset();
+        self.last_mix = None;
+        let all_working = vec![false; self.motor_failure.failed().len()];
+        // Every rotor working is always allocatable.
+        let _ = self.mixer.set_failed(&all_working);
     }
 
     /// The position loop at its own, lower rate, on the first sample within half a sample of
@@ -409,6 +460,7 @@ impl FlightCore {
             attitude_setpoint: None,
             rate_reference: Vector3::zeros(),
             mixer: None,
+            motor_failure: None,
         };
         // Armed, the loops fly on any aligned attitude: one flagged invalid (no correction for
         // a while) is still the gyro's best, far better than stopping the motors in the air.
@@ -421,6 +473,24 @@ impl FlightCore {
             return out;
         };
         self.flying = true;
+        // Motor-failure detection on what the rotors were told over the interval just sampled.
+        if let Some(last) = &self.last_mix {
+            let n = self.motor_failure.failed().len();
+            out.motor_failure = self.motor_failure.step(&DetectorInput {
+                dt,
+                gyro: s.gyro,
+                accel: s.accel,
+                speed_setpoint: &last.speed_rad_s[..n],
+                thrust_setpoint: &last.thrust_n[..n],
+                measured_speed: s.rotor_speed_rad_s.as_ref().map(|r| &r[..n]),
+                in_air: self.in_air,
+            });
+            if out.motor_failure.is_some() {
+                // Uncontrollable without it (a quad's second rotor): the old allocation is the
+                // best left.
+                let _ = self.reallocate();
+            }
+        }
         // The position loop at its own, lower rate, on the first sample within half a sample of
         // its schedule; the schedule keeps its phase, so the mean rate is the configured one
         // (100 Hz over 250 Hz samples: 8 and 12 ms alternately), over the time since it last ran.
@@ -516,6 +586,7 @@ impl FlightCore {
         out.attitude_setpoint = Some(sp);
         out.rate_reference = rate_reference;
         out.mixer = Some(m);
+        self.last_mix = Some(m);
         out
     }
 }

@@ -12,6 +12,7 @@ pub mod failsafe;
 pub mod geo;
 pub mod mission;
 pub mod mixer;
+pub mod motor_failure;
 pub mod params;
 pub mod quat;
 pub mod replay;

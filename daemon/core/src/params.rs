@@ -385,7 +385,11 @@ mod tests {
                 "COM_OBL_RC_ACT",
                 "NAV_DLL_ACT",
                 "COM_LOW_BAT_ACT",
-                "GF_ACTION"
+                "GF_ACTION",
+                "FD_ACT_EN",
+                "FD_ACT_MOT_TOUT",
+                "CA_FAILURE_MODE",
+                "COM_ACT_FAIL_ACT"
             ]
         );
         assert!(FlightParams::default().validate().is_empty());

@@ -105,10 +105,12 @@ pub enum Condition {
     GpsLost,
     /// Roll or pitch beyond `FD_FAIL_R`/`FD_FAIL_P` for `FD_FAIL_R_TTRI`: crashed or flipping.
     Crash,
+    /// A motor was declared failed.
+    MotorFailure,
 }
 
 /// Every condition, in order.
-pub const CONDITIONS: [Condition; 13] = [
+pub const CONDITIONS: [Condition; 14] = [
     Condition::GcsLinkLost,
     Condition::BatteryLow,
     Condition::BatteryCritical,
@@ -122,6 +124,7 @@ pub const CONDITIONS: [Condition; 13] = [
     Condition::BaroLost,
     Condition::GpsLost,
     Condition::Crash,
+    Condition::MotorFailure,
 ];
 
 impl fmt::Display for Condition {
@@ -140,6 +143,7 @@ impl fmt::Display for Condition {
             Self::BaroLost => "barometer lost",
             Self::GpsLost => "GPS lost",
             Self::Crash => "attitude beyond the failure limit",
+            Self::MotorFailure => "motor failure",
         })
     }
 }
@@ -199,6 +203,14 @@ crate::params::param_group! {
         fail_time_s: f64 = 0.3, "FD_FAIL_R_TTRI", "s", [0.02, 5.0], "Time beyond FD_FAIL_R or FD_FAIL_P before the failure is declared";
         /// Largest tilt to arm (deg).
         arm_tilt_deg: f64 = 20.0, "COM_ARM_TILT", "deg", [5.0, 90.0], "Arming refused beyond this tilt";
+        /// Motor-failure detection on (1) or off (0).
+        motor_failure_detection: u32 = 1, "FD_ACT_EN", "", [0.0, 1.0], "Motor-failure detection (rotor speed and thrust imbalance): 1 on, 0 off";
+        /// Time a motor must look failed before it is declared (ms).
+        motor_failure_timeout_ms: u32 = 100, "FD_ACT_MOT_TOUT", "ms", [10.0, 2000.0], "A motor must look failed this long before the failure is declared";
+        /// Re-allocation on a motor failure.
+        motor_failure_mode: u32 = 1, "CA_FAILURE_MODE", "", [0.0, 1.0], "On a motor failure: 1 re-allocate without the failed rotor (yaw given up first when needed), 0 keep the allocation";
+        /// Motor-failure action.
+        motor_failure_action: u32 = 0, "COM_ACT_FAIL_ACT", "", [0.0, 4.0], "Motor failure: 0 warn and continue, 1 Hold, 2 Land, 3 Return, 4 terminate";
     }
 }
 
@@ -247,6 +259,16 @@ impl SafetyParams {
                 (Action::Warn, Clear::WhenConditionClears, true, false)
             }
             C::Crash => (Action::Disarm, Clear::OnDisarm, false, false),
+            C::MotorFailure => {
+                let a = match self.motor_failure_action {
+                    1 => Action::Hold,
+                    2 => Action::Land,
+                    3 => Action::Return,
+                    4 => Action::Terminate,
+                    _ => Action::Warn,
+                };
+                (a, Clear::OnDisarm, true, false)
+            }
         };
         Rule {
             action,
@@ -313,6 +335,8 @@ pub struct SafetyInput {
     pub roll_pitch_rad: (f64, f64),
     /// A home position is set (Return can fly).
     pub home_set: bool,
+    /// A motor was declared failed.
+    pub motor_failed: bool,
 }
 
 /// A change the operator should hear of (`STATUSTEXT`).
@@ -454,6 +478,7 @@ impl Safety {
                 Condition::BaroLost => i.sensors_lost.baro,
                 Condition::GpsLost => i.sensors_lost.gps,
                 Condition::Crash => crashed,
+                Condition::MotorFailure => i.motor_failed,
             };
         }
         now

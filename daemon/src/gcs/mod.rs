@@ -164,6 +164,8 @@ pub struct GroundStation {
     offboard_losses_shown: u32,
     /// The failsafe last reported (action and cause).
     failsafe_shown: Option<(FailsafeAction, Condition)>,
+    /// The failed motor last announced (1-based).
+    motor_failed_shown: Option<usize>,
     /// Offboard set-points dropped as malformed or unsupported.
     pub offboard_refused: u64,
     /// The mission, fence and rally plans and their transfers.
@@ -202,6 +204,7 @@ impl GroundStation {
             manual_losses_shown: 0,
             offboard_losses_shown: 0,
             failsafe_shown: None,
+            motor_failed_shown: None,
             offboard_refused: 0,
             missions: mission::Missions::default(),
             mission_shown: None,
@@ -300,6 +303,16 @@ impl GroundStation {
                 MavSeverity::MAV_SEVERITY_CRITICAL,
                 &format!("offboard set-points lost: {mode}"),
             ));
+        }
+        let motor = t.status.and_then(|s| s.motor_failed);
+        if motor != self.motor_failed_shown {
+            self.motor_failed_shown = motor;
+            if let Some(m) = motor {
+                out.send(Self::statustext(
+                    MavSeverity::MAV_SEVERITY_CRITICAL,
+                    &format!("motor {m} failed: flying on the others"),
+                ));
+            }
         }
         let failsafe = t.status.and_then(|s| s.failsafe_action);
         if failsafe != self.failsafe_shown {

@@ -24,6 +24,7 @@ fn telemetry(armed: bool, mode: FlightMode) -> Telemetry {
             home: None,
             failsafe: false,
             failsafe_action: None,
+            motor_failed: None,
             ready: true,
             in_mode_s: 0.0,
             manual_losses: 0,

@@ -22,6 +22,7 @@ fn flying() -> SafetyInput {
         sensors_lost: SensorsLost::default(),
         roll_pitch_rad: (0.0, 0.0),
         home_set: true,
+        motor_failed: false,
     }
 }
 
