@@ -373,6 +373,48 @@ fn crash_detection_disarms_after_the_trigger_time() {
     );
 }
 
+/// A motor failure: `COM_ACT_FAIL_ACT` 0 warns and flies on; 3 returns, the operator may take
+/// over, and it stays until disarm (the rotor does not come back).
+#[test]
+fn motor_failure_warns_or_returns_and_latches_until_disarm() {
+    run(
+        "warn",
+        SafetyParams::default(),
+        &[
+            row(
+                0.0,
+                |i| i.motor_failed = true,
+                A::Warn,
+                &[E::Triggered(C::MotorFailure, A::Warn)],
+            ),
+            row(5.0, same, A::Warn, &[]),
+        ],
+    );
+    let mut s = run(
+        "return",
+        params(|p| p.motor_failure_action = 3),
+        &[
+            row(
+                0.0,
+                |i| i.motor_failed = true,
+                A::Return,
+                &[E::Triggered(C::MotorFailure, A::Return)],
+            ),
+            row(0.1, same, A::Return, &[]),
+        ],
+    );
+    s.take_over().unwrap();
+    let mut i = flying();
+    i.motor_failed = true;
+    i.t_s = 0.2;
+    assert_eq!(s.update(&i).action, A::None, "taken over");
+    i.armed = false;
+    i.in_air = false;
+    i.motor_failed = false;
+    i.t_s = 0.3;
+    assert_eq!(s.update(&i).events, [E::Cleared(C::MotorFailure)]);
+}
+
 /// Estimator and sensor failures: the estimate's validity decides (Descend without position or
 /// altitude); a lost sensor warns; a position loss only matters to modes that fly on it.
 #[test]
