@@ -6,6 +6,7 @@
 
 mod config;
 mod deadline;
+mod failure_injection;
 mod flight;
 mod flight_csv;
 mod gcs;

@@ -1,6 +1,7 @@
 //! The autopilot's side of the HIL link: messages in, a flight-core step per sensor frame, the
 //! `HIL_ACTUATOR_CONTROLS` answer out. The same for the embedded simulator and the UDP link.
 
+use crate::failure_injection::{FailureInjector, Injection, Refusal};
 use anyhow::{Context, Result};
 use flight_core::commander::{
     Commander, CommanderInput, CommanderStatus, Denial, FlightMode, Health, LandedState,
@@ -94,6 +95,8 @@ pub enum VehicleCommand {
         /// Switch to Hold (else only in Hold already).
         change_mode: bool,
     },
+    /// Make a motor or sensor fail, or work again (`MAV_CMD_INJECT_FAILURE`).
+    InjectFailure(Injection),
 }
 
 /// The vehicle: flight core, commander and what has arrived since the last frame.
@@ -126,6 +129,10 @@ pub struct Vehicle {
     battery_v: f64,
     /// Wall-clock time since the last ground-station heartbeat (s), from the control loop.
     gcs_link_age_s: Option<f64>,
+    /// Failures injected by `MAV_CMD_INJECT_FAILURE`, and whether that is allowed
+    /// (`SYS_FAILURE_EN`).
+    injected: FailureInjector,
+    injection_enabled: bool,
 }
 
 /// One step's result.
@@ -179,6 +186,8 @@ impl Vehicle {
             gps: None,
             battery_v: 0.0,
             gcs_link_age_s: None,
+            injected: FailureInjector::new(airframe.rotors.len()),
+            injection_enabled: params.safety.failure_injection != 0,
         })
     }
 
@@ -205,6 +214,7 @@ impl Vehicle {
             .set_config(FlightCoreConfig::from_params(params, &self.airframe));
         self.commander.set_params(params.commander);
         self.commander.set_safety_params(params.safety);
+        self.injection_enabled = params.safety.failure_injection != 0;
     }
 
     /// The last sensor sample stepped on.
@@ -288,6 +298,14 @@ impl Vehicle {
                 Ok(())
             }
             VehicleCommand::GcsHeartbeat => Ok(()),
+            VehicleCommand::InjectFailure(_) if !self.injection_enabled => {
+                Err(Refusal::Disabled.to_string())
+            }
+            VehicleCommand::InjectFailure(i) => {
+                let said = self.injected.inject(i).map_err(|e| e.to_string())?;
+                tracing::warn!("{said}");
+                Ok(())
+            }
             VehicleCommand::Offboard(t) => {
                 c_.offboard_setpoint(t);
                 Ok(())
@@ -500,6 +518,8 @@ impl Vehicle {
             },
             rotor_speed_rad_s: u.rotor_speed_rad_s.take(),
         };
+        let mut sample = sample;
+        self.injected.apply_to_sample(&mut sample);
         let t_s = t_usec as f64 * 1e-6;
         let (setpoint, armed) = match self.last {
             Some(e) => {
@@ -611,7 +631,10 @@ impl Vehicle {
             self.csv = None;
             self.csv_error = Some(e);
         }
-        let message = hil::actuator_controls(t_usec, &output.commands[..self.rotors], armed);
+        let mut commands = output.commands;
+        self.injected
+            .apply_to_commands(&mut commands[..self.rotors]);
+        let message = hil::actuator_controls(t_usec, &commands[..self.rotors], armed);
         self.last_answer = Some((t_usec, message.clone()));
         Some(Step {
             message,

@@ -53,9 +53,10 @@ class Daemon:
     """sitl (real time x3) and an autopilot that can be stopped and started again on its ports,
     with its parameter store in a temporary directory."""
 
-    def __init__(self, tmp_path, mavlink, connect=True):
+    def __init__(self, tmp_path, mavlink, connect=True, airframe="quad_x"):
         """`mavlink`: the ground-station endpoint, `{port}` standing for a free UDP port (on which
-        a pymavlink connection listens when `connect`)."""
+        a pymavlink connection listens when `connect`); both processes fly `airframe`."""
+        self.airframe = airframe
         self.sim_port, self.gcs_port = free_udp_port(), free_udp_port()
         self.mavlink = mavlink.format(port=self.gcs_port)
         self.store = tmp_path / "params.toml"
@@ -69,6 +70,7 @@ class Daemon:
         self.sim = subprocess.Popen(
             [str(binary("sitl")), "--params-dir", str(ROOT / "params"), "--status-interval", "0",
              "--mode", "realtime", "--speed", "3", "--duration", "100000",
+             "--airframe", airframe,
              "--autopilot", f"127.0.0.1:{self.sim_port}"],
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
         )
@@ -77,6 +79,7 @@ class Daemon:
         self.ap = subprocess.Popen(
             [str(binary("autopilot")), "--params-dir", str(ROOT / "params"),
              "--source", f"udp://127.0.0.1:{self.sim_port}?lockstep=false", "--loop-hz", "500",
+             "--airframe", self.airframe,
              "--mavlink", self.mavlink,
              "--param-store", str(self.store)],
             stdout=open(self.out, "a"), stderr=subprocess.PIPE, text=True,
@@ -129,10 +132,11 @@ async def mavsdk_autopilot(gcs_port):
         yield system
 
 
-def run_mavsdk_flight(tmp_path, flight):
-    """Runs the coroutine `flight(gcs_port)` against a fresh sitl + autopilot whose ground-station
-    endpoint sends to `gcs_port` (where MAVSDK listens), and stops them after."""
-    daemon = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0", connect=False)
+def run_mavsdk_flight(tmp_path, flight, airframe="quad_x"):
+    """Runs the coroutine `flight(gcs_port)` against a fresh sitl + autopilot of `airframe` whose
+    ground-station endpoint sends to `gcs_port` (where MAVSDK listens), and stops them after."""
+    daemon = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0", connect=False,
+                    airframe=airframe)
     try:
         asyncio.run(flight(daemon.gcs_port))
     finally:

@@ -39,6 +39,10 @@ def test_gcs_link_loss_holds_then_returns_and_lands_at_home(vehicle):
     gcs = vehicle
     beats = Heartbeats(gcs)
     try:
+        # Failure injection is refused while SYS_FAILURE_EN is 0 (MAVSDK checks the parameter
+        # itself; a raw command must meet the autopilot's own refusal).
+        gcs.mav.command_long_send(1, 1, ML.MAV_CMD_INJECT_FAILURE, 0, 101, 1, 1, 0, 0, 0, 0)
+        assert ack(gcs, ML.MAV_CMD_INJECT_FAILURE) == ML.MAV_RESULT_DENIED
         set_param(gcs, "NAV_DLL_ACT", int_bits(2), INT32)
         set_param(gcs, "COM_DL_LOSS_T", 2.0)
         set_param(gcs, "COM_FAIL_ACT_T", 2.0)

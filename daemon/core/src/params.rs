@@ -389,7 +389,8 @@ mod tests {
                 "FD_ACT_EN",
                 "FD_ACT_MOT_TOUT",
                 "CA_FAILURE_MODE",
-                "COM_ACT_FAIL_ACT"
+                "COM_ACT_FAIL_ACT",
+                "SYS_FAILURE_EN"
             ]
         );
         assert!(FlightParams::default().validate().is_empty());

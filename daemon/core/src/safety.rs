@@ -211,6 +211,8 @@ crate::params::param_group! {
         motor_failure_mode: u32 = 1, "CA_FAILURE_MODE", "", [0.0, 1.0], "On a motor failure: 1 re-allocate without the failed rotor (yaw given up first when needed), 0 keep the allocation";
         /// Motor-failure action.
         motor_failure_action: u32 = 0, "COM_ACT_FAIL_ACT", "", [0.0, 4.0], "Motor failure: 0 warn and continue, 1 Hold, 2 Land, 3 Return, 4 terminate";
+        /// Failure injection allowed.
+        failure_injection: u32 = 0, "SYS_FAILURE_EN", "", [0.0, 1.0], "Allow MAV_CMD_INJECT_FAILURE (simulation and bench tests): 1 allowed, 0 refused";
     }
 }
 

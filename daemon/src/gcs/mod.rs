@@ -968,6 +968,18 @@ impl GroundStation {
                 out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED));
                 self.requested.push((id, p[1]));
             }
+            MavCmd::MAV_CMD_INJECT_FAILURE => {
+                match crate::failure_injection::Injection::decode(p[0], p[1], p[2]) {
+                    Ok(i) => vehicle(out, VehicleCommand::InjectFailure(i)),
+                    Err(why) => {
+                        out.send(self.ack(to, MavResult::MAV_RESULT_UNSUPPORTED));
+                        out.send(Self::statustext(
+                            MavSeverity::MAV_SEVERITY_WARNING,
+                            &why.to_string(),
+                        ));
+                    }
+                }
+            }
             MavCmd::MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES => {
                 out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED));
                 out.send(self.autopilot_version());
