@@ -145,6 +145,7 @@ mod tests {
             failsafe: false,
             failsafe_action: None,
             motor_failed: None,
+            failsafe_conditions: 0,
             ready: true,
             in_mode_s: 0.0,
             manual_losses: 0,

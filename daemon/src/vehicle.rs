@@ -15,6 +15,7 @@ use flight_core::failsafe::{BlindDescent, HoverCommands};
 use flight_core::geo::{LatLonAlt, LocalFrame};
 use flight_core::mission::{MissionItem, MissionPoint, SpeedChange};
 use flight_core::params::FlightParams;
+use flight_core::sensor_monitor::SensorMonitor;
 use hil::SensorUpdate;
 use mavlink::dialects::common::MavMessage;
 use nalgebra::Vector3;
@@ -133,6 +134,8 @@ pub struct Vehicle {
     /// (`SYS_FAILURE_EN`).
     injected: FailureInjector,
     injection_enabled: bool,
+    /// Silent and frozen sensors.
+    monitor: SensorMonitor,
 }
 
 /// One step's result.
@@ -188,6 +191,7 @@ impl Vehicle {
             gcs_link_age_s: None,
             injected: FailureInjector::new(airframe.rotors.len()),
             injection_enabled: params.safety.failure_injection != 0,
+            monitor: SensorMonitor::new(),
         })
     }
 
@@ -520,6 +524,8 @@ impl Vehicle {
         };
         let mut sample = sample;
         self.injected.apply_to_sample(&mut sample);
+        // Lost sensors are taken out: the estimators fall back as for a sensor that is off.
+        self.monitor.update(&mut sample);
         let t_s = t_usec as f64 * 1e-6;
         let (setpoint, armed) = match self.last {
             Some(e) => {
@@ -553,6 +559,7 @@ impl Vehicle {
                             .iter()
                             .position(|&f| f)
                             .map(|i| i + 1),
+                        sensors_lost: self.monitor.lost(),
                         ..Health::default()
                     },
                 });

@@ -326,6 +326,8 @@ pub struct CommanderStatus {
     pub mission: MissionStatus,
     /// A motor declared failed (1-based), if any.
     pub motor_failed: Option<usize>,
+    /// The failsafe conditions acting (bit k: `safety::CONDITIONS[k]`).
+    pub failsafe_conditions: u32,
 }
 
 /// A straight-line set-point profile from `from` to `to`: speed ramps up at `accel`, cruises
@@ -561,6 +563,7 @@ impl Commander {
             offboard_losses: self.offboard_losses,
             mission: self.mission.status(),
             motor_failed: self.last.and_then(|i| i.health.motor_failed),
+            failsafe_conditions: self.safety.active_mask(),
         }
     }
 

@@ -17,6 +17,7 @@ pub mod params;
 pub mod quat;
 pub mod replay;
 pub mod safety;
+pub mod sensor_monitor;
 
 /// Standard gravity (m/s²), along NED +z.
 pub const GRAVITY_M_S2: f64 = 9.806_65;

@@ -432,6 +432,16 @@ impl Safety {
             .collect()
     }
 
+    /// [`Safety::active`] as a bit mask (bit k: `CONDITIONS[k]`), without allocating.
+    pub fn active_mask(&self) -> u32 {
+        CONDITIONS
+            .iter()
+            .zip(&self.tracked)
+            .enumerate()
+            .filter(|(_, (_, t))| t.since_s.is_some() && !t.overridden)
+            .fold(0, |m, (k, _)| m | 1 << k)
+    }
+
     /// The operator asks for a mode change while failsafes act. Refused (with the reason) while
     /// a condition that allows no take-over acts; otherwise the acting conditions are overridden
     /// (silent until they clear and trigger anew).
@@ -677,7 +687,7 @@ pub fn preflight(i: &PreflightInput, p: &SafetyParams) -> Vec<PreflightFailure> 
         (i.sensors_lost.gps && i.mode_needs_position, "GPS"),
     ] {
         if lost {
-            fail(format!("{name} missing or stale"), true);
+            fail(format!("{name} silent or frozen"), true);
         }
     }
     if i.mag_uncalibrated {

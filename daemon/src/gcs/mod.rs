@@ -166,6 +166,8 @@ pub struct GroundStation {
     failsafe_shown: Option<(FailsafeAction, Condition)>,
     /// The failed motor last announced (1-based).
     motor_failed_shown: Option<usize>,
+    /// The failsafe conditions last announced (bit k: `CONDITIONS[k]`).
+    conditions_shown: u32,
     /// Offboard set-points dropped as malformed or unsupported.
     pub offboard_refused: u64,
     /// The mission, fence and rally plans and their transfers.
@@ -205,6 +207,7 @@ impl GroundStation {
             offboard_losses_shown: 0,
             failsafe_shown: None,
             motor_failed_shown: None,
+            conditions_shown: 0,
             offboard_refused: 0,
             missions: mission::Missions::default(),
             mission_shown: None,
@@ -315,6 +318,29 @@ impl GroundStation {
             }
         }
         let failsafe = t.status.and_then(|s| s.failsafe_action);
+        // Every other condition's start and end too (a second warning while one acts), each
+        // once: the leading one is said below.
+        let mask = t.status.map_or(0, |s| s.failsafe_conditions);
+        let leading_now = failsafe.filter(|_| failsafe != self.failsafe_shown);
+        let leading_cleared = self.failsafe_shown.filter(|_| failsafe.is_none());
+        for (k, c) in flight_core::safety::CONDITIONS.iter().enumerate() {
+            let bit = 1u32 << k;
+            let event = if mask & bit != 0 && self.conditions_shown & bit == 0 {
+                (leading_now.map(|l| l.1) != Some(*c))
+                    .then_some(SafetyEvent::Triggered(*c, FailsafeAction::Warn))
+            } else if mask & bit == 0 && self.conditions_shown & bit != 0 {
+                (leading_cleared.map(|l| l.1) != Some(*c)).then_some(SafetyEvent::Cleared(*c))
+            } else {
+                None
+            };
+            if let Some(e) = event {
+                out.send(Self::statustext(
+                    MavSeverity::MAV_SEVERITY_WARNING,
+                    &e.to_string(),
+                ));
+            }
+        }
+        self.conditions_shown = mask;
         if failsafe != self.failsafe_shown {
             // Each failsafe's start, change and end, in the state machine's words.
             let said = match (failsafe, self.failsafe_shown) {

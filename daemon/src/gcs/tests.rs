@@ -25,6 +25,7 @@ fn telemetry(armed: bool, mode: FlightMode) -> Telemetry {
             failsafe: false,
             failsafe_action: None,
             motor_failed: None,
+            failsafe_conditions: 0,
             ready: true,
             in_mode_s: 0.0,
             manual_losses: 0,
@@ -941,15 +942,42 @@ fn gcs_heartbeats_are_forwarded_and_failsafes_announced() {
 
     let mut out = Outbox::default();
     g.poll(0.0, &t, &mut out);
-    let mut states = vec![
-        Some((Action::Warn, Condition::BatteryLow)),
-        Some((Action::Return, Condition::BatteryCritical)),
-        Some((Action::Return, Condition::BatteryCritical)),
-        None,
+    // The leading failsafe, and every condition acting (bit k: CONDITIONS[k]).
+    let bit = |c: Condition| {
+        1u32 << flight_core::safety::CONDITIONS
+            .iter()
+            .position(|&x| x == c)
+            .unwrap()
+    };
+    let (low, critical, mag) = (
+        bit(Condition::BatteryLow),
+        bit(Condition::BatteryCritical),
+        bit(Condition::MagLost),
+    );
+    let states = [
+        (Some((Action::Warn, Condition::BatteryLow)), low),
+        (
+            Some((Action::Return, Condition::BatteryCritical)),
+            low | critical,
+        ),
+        (
+            Some((Action::Return, Condition::BatteryCritical)),
+            low | critical,
+        ),
+        (
+            Some((Action::Return, Condition::BatteryCritical)),
+            low | critical | mag,
+        ),
+        (
+            Some((Action::Return, Condition::BatteryCritical)),
+            low | critical,
+        ),
+        (None, 0),
     ];
-    for (k, s) in states.drain(..).enumerate() {
+    for (k, (s, mask)) in states.into_iter().enumerate() {
         if let Some(st) = t.status.as_mut() {
             st.failsafe_action = s;
+            st.failsafe_conditions = mask;
         }
         g.poll(0.01 * (k + 1) as f64, &t, &mut out);
     }
@@ -958,6 +986,9 @@ fn gcs_heartbeats_are_forwarded_and_failsafes_announced() {
         [
             "battery low",
             "failsafe: battery critical: Return",
+            "magnetometer lost",
+            "failsafe over: magnetometer lost",
+            "failsafe over: battery low",
             "failsafe over: battery critical"
         ]
     );

@@ -108,7 +108,14 @@ pub struct AttitudeStatus {
     /// Times the attitude was taken afresh from the measurement after a gap in the samples
     /// longer than `max_uncorrected_s`.
     pub realigned: u64,
+    /// Corrections made without a magnetometer (silent for [`MAG_SILENT_S`]): the tilt from
+    /// the accelerometer, the heading held on the gyro.
+    pub heading_held: u64,
 }
+
+/// A magnetometer silent this long (s) no longer corrects: the accelerometer corrects the tilt
+/// alone, against the magnetic field the estimate itself predicts, so the heading is the gyro's.
+pub const MAG_SILENT_S: f64 = 0.2;
 
 /// Smallest and largest time step accepted (s); outside, the step is clamped and counted.
 pub const DT_RANGE_S: (f64, f64) = (1.25e-4, 0.02);
@@ -122,6 +129,8 @@ pub struct AttitudeEstimator {
     observer: Option<AttitudeObserver>,
     align_sum: (Vector3<f64>, Vector3<f64>, Vector3<f64>, u32, u32),
     last_mag: Option<Vector3<f64>>,
+    /// Time since the last magnetometer reading (s).
+    since_mag_s: f64,
     /// The samples stopped for longer than `max_uncorrected_s`: the gyros saw nothing of what
     /// happened meanwhile, so the next measurement is taken as it is (the bias is kept).
     realign: bool,
@@ -139,6 +148,7 @@ impl AttitudeEstimator {
             observer: None,
             align_sum: (Vector3::zeros(), Vector3::zeros(), Vector3::zeros(), 0, 0),
             last_mag: None,
+            since_mag_s: 0.0,
             realign: false,
             status: AttitudeStatus::default(),
         }
@@ -199,10 +209,12 @@ impl AttitudeEstimator {
 
     /// The q-method attitude from one accelerometer and magnetometer sample, and how far to trust
     /// it (1: |a| matches the expected specific force; falling to 0 at the gate).
+    /// The q-method's attitude from the specific force and the calibrated magnetic field (both
+    /// body frame), and the trust in it.
     fn measure(
         &mut self,
         accel: &Vector3<f64>,
-        mag: &Vector3<f64>,
+        mag_body: &Vector3<f64>,
         accel_ned: Option<&Vector3<f64>>,
     ) -> Option<(UnitQuaternion<f64>, f64)> {
         // Specific force in NED: a − g. At rest: (0, 0, −g).
@@ -230,7 +242,7 @@ impl AttitudeEstimator {
                 weight: p.accel_weight,
             },
             VectorObservation {
-                body: self.mag_cal.apply(mag),
+                body: *mag_body,
                 reference: self.mag_ref_ned,
                 weight: p.mag_weight,
             },
@@ -290,9 +302,29 @@ impl AttitudeEstimator {
             self.align(input);
             return self.estimate(&input.gyro);
         }
+        if input.mag.is_some() {
+            self.since_mag_s = 0.0;
+        } else {
+            self.since_mag_s += dt;
+        }
+        let hint = input.accel_ned_hint.as_ref();
         let measured = match (self.last_mag, input.mag.is_some()) {
             // Correct at the magnetometer's rate, with the freshest accelerometer sample.
-            (Some(m), true) => self.measure(&input.accel, &m, input.accel_ned_hint.as_ref()),
+            (Some(m), true) => {
+                let body = self.mag_cal.apply(&m);
+                self.measure(&input.accel, &body, hint)
+            }
+            // The magnetometer is gone: the field where the estimate says it is, so the q-method
+            // corrects the tilt and leaves the heading to the gyro.
+            _ if self.since_mag_s > MAG_SILENT_S => {
+                let predicted = self
+                    .observer
+                    .as_ref()
+                    .map(|o| o.q.inverse() * self.mag_ref_ned);
+                let m = predicted.and_then(|body| self.measure(&input.accel, &body, hint));
+                self.status.heading_held += m.is_some() as u64;
+                m
+            }
             _ => None,
         };
         let observer = self.observer.as_mut()?;

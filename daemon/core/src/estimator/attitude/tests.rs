@@ -39,7 +39,10 @@ impl Trajectory {
     }
 }
 
+#[derive(Debug)]
 struct Run {
+    /// Samples flagged invalid after the settling time.
+    invalid: usize,
     roll_pitch_rms_deg: f64,
     yaw_rms_deg: f64,
     max_err_deg: f64,
@@ -49,6 +52,18 @@ struct Run {
 
 /// Flies `traj` for `duration` s with typical sensors at 250 Hz; scores after `settle` s.
 fn fly(traj: &Trajectory, duration: f64, settle: f64, with_hint: bool, seed: u64) -> Run {
+    fly_mag_off(traj, duration, settle, with_hint, seed, f64::INFINITY)
+}
+
+/// [`fly`] with the magnetometer silent from `mag_off_s` of flight on.
+fn fly_mag_off(
+    traj: &Trajectory,
+    duration: f64,
+    settle: f64,
+    with_hint: bool,
+    seed: u64,
+    mag_off_s: f64,
+) -> Run {
     let dt = 0.004;
     let cfg = SensorConfig::preset(SensorPreset::Typical);
     let mut sensors = SensorSuite::new(
@@ -63,7 +78,7 @@ fn fly(traj: &Trajectory, duration: f64, settle: f64, with_hint: bool, seed: u64
     let max = [950.0; 4];
     let air = isa(500.0);
     let (mut sum_tilt, mut sum_yaw, mut n, mut max_err) = (0.0, 0.0, 0usize, 0.0f64);
-    let mut bias_err = 0.0;
+    let (mut bias_err, mut invalid) = (0.0, 0usize);
     // One second at rest first: the initial alignment.
     let steps = ((duration + 1.0) / dt).round() as usize;
     for k in 1..=steps {
@@ -92,12 +107,14 @@ fn fly(traj: &Trajectory, duration: f64, settle: f64, with_hint: bool, seed: u64
         let input = AttitudeInput {
             gyro: f.gyro_frd_rad_s,
             accel: f.accel_frd_m_s2,
-            mag: (f.fields_updated & fields::MAG != 0).then_some(f.mag_frd_gauss),
+            mag: (f.fields_updated & fields::MAG != 0 && t_fly < mag_off_s)
+                .then_some(f.mag_frd_gauss),
             accel_ned_hint: with_hint.then_some(a_ned),
         };
         let e = est.update(&input, dt);
         if t_fly >= settle {
             let e = e.expect("aligned");
+            invalid += !e.valid as usize;
             let err = e.q.inverse() * q;
             // Tilt error: where NED-down points in the body; yaw: the rest.
             let tilt = (e.q.inverse() * Vector3::z()).angle(&(q.inverse() * Vector3::z()));
@@ -115,6 +132,7 @@ fn fly(traj: &Trajectory, duration: f64, settle: f64, with_hint: bool, seed: u64
         max_err_deg: max_err.to_degrees(),
         bias_err_deg_s: bias_err.to_degrees(),
         status: est.status(),
+        invalid,
     }
 }
 
@@ -182,6 +200,23 @@ fn spins() -> Trajectory {
         }),
         accelerating: false,
     }
+}
+
+/// The magnetometer lost after 5 s of 60° banks: the estimate stays valid on the accelerometer
+/// (the tilt corrected, the heading on the gyro), the tilt as good as with it, the heading
+/// drifting only with the remaining gyro bias.
+#[test]
+fn magnetometer_loss_keeps_the_tilt_and_holds_the_heading() {
+    let with = fly(&banks(), 40.0, 5.0, true, 3);
+    let without = fly_mag_off(&banks(), 40.0, 5.0, true, 3, 5.0);
+    report("banks, mag lost at 5 s", &without);
+    assert!(without.status.heading_held > 5000, "{:?}", without.status);
+    assert_eq!(without.invalid, 0, "{without:?}");
+    assert!(
+        without.roll_pitch_rms_deg < 1.5 * with.roll_pitch_rms_deg + 0.1,
+        "{without:?} vs {with:?}"
+    );
+    assert!(without.yaw_rms_deg < 3.0, "{without:?}");
 }
 
 #[test]
@@ -336,9 +371,21 @@ fn bad_samples_are_counted_not_flown() {
     );
     let e = est.estimate(&Vector3::zeros()).unwrap();
     assert!(e.q.angle() < 1e-9 && e.valid);
-    // A magnetometer that stops: the estimate goes invalid after max_uncorrected_s.
+    // A magnetometer that stops: the accelerometer keeps correcting, the heading held.
     for _ in 0..200 {
         est.update(&AttitudeInput { mag: None, ..good }, 0.004);
+    }
+    assert!(est.estimate(&Vector3::zeros()).unwrap().valid);
+    assert!(est.status().heading_held > 100);
+    // Nothing to correct with (no magnetometer, the accelerometer rejected): invalid after
+    // max_uncorrected_s.
+    for _ in 0..200 {
+        let shaken = AttitudeInput {
+            mag: None,
+            accel: Vector3::new(0.0, 0.0, -3.0 * G),
+            ..good
+        };
+        est.update(&shaken, 0.004);
     }
     assert!(!est.estimate(&Vector3::zeros()).unwrap().valid);
 }
