@@ -25,6 +25,19 @@ fn airframe(name: &str) -> Airframe {
     .unwrap()
 }
 
+/// The simulator with `a` resting at home, still air, typical sensors, seeded.
+fn resting(a: &Airframe, seed: u64) -> Simulator {
+    Simulator::new(
+        a,
+        SimConfig {
+            seed,
+            ..SimConfig::default()
+        },
+        BodyState::default(),
+    )
+    .unwrap()
+}
+
 /// Hold the take-off spot at `alt` m, heading north.
 fn hover_at(alt: f64) -> Setpoint {
     Setpoint::Position(PositionSetpoint {
@@ -243,15 +256,7 @@ fn takeoff_hover_land_and_disarm() {
     use flight_core::commander::{Commander, CommanderParams, FlightMode, LandedState};
     for name in ["quad_x", "hexa_x", "octa_x", "dodeca"] {
         let a = airframe(name);
-        let mut sim = Simulator::new(
-            &a,
-            SimConfig {
-                seed: 5,
-                ..SimConfig::default()
-            },
-            BodyState::default(),
-        )
-        .unwrap();
+        let mut sim = resting(&a, 5);
         let mut core = FlightCore::new(&a, FlightCoreConfig::for_airframe(&a, false)).unwrap();
         let mut cmd = Commander::new(CommanderParams {
             takeoff_alt_m: 5.0,
@@ -654,15 +659,7 @@ fn offboard_position_hold_in_still_air() {
     };
     for seed in [1, 2, 3] {
         let a = airframe("quad_x");
-        let mut sim = Simulator::new(
-            &a,
-            SimConfig {
-                seed,
-                ..SimConfig::default()
-            },
-            BodyState::default(),
-        )
-        .unwrap();
+        let mut sim = resting(&a, seed);
         let mut core = FlightCore::new(&a, FlightCoreConfig::for_airframe(&a, false)).unwrap();
         let mut cmd = Commander::new(CommanderParams::default());
         let n = a.rotors.len();
@@ -775,15 +772,7 @@ fn lose_motors(
 ) -> MotorLoss {
     use sitl_core::sim::Action;
     let a = airframe(name);
-    let mut sim = Simulator::new(
-        &a,
-        SimConfig {
-            seed,
-            ..SimConfig::default()
-        },
-        BodyState::default(),
-    )
-    .unwrap();
+    let mut sim = resting(&a, seed);
     let mut core = FlightCore::new(&a, FlightCoreConfig::from_params(params, &a)).unwrap();
     let n = a.rotors.len();
     let mut commands = [0.0; 16];

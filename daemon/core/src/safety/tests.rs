@@ -566,7 +566,11 @@ fn preflight_checks_each_reason_and_what_force_skips() {
         (|i| i.attitude_valid = false, "attitude", true),
         (|i| i.position_valid = false, "position", true),
         (|i| i.altitude_valid = false, "altitude", true),
-        (|i| i.sensors_lost.mag = true, "magnetometer silent or frozen", true),
+        (
+            |i| i.sensors_lost.mag = true,
+            "magnetometer silent or frozen",
+            true,
+        ),
         (|i| i.mag_uncalibrated = true, "not calibrated", true),
         (
             |i| i.mag_inconsistent = Some((0.9, 0.5)),
