@@ -497,7 +497,7 @@ impl Vehicle {
                 t_s: t_usec as f64 * 1e-6,
             });
         }
-        let sample = SensorSample {
+        let mut sample = SensorSample {
             t_usec,
             gyro,
             accel,
@@ -522,7 +522,6 @@ impl Vehicle {
             },
             rotor_speed_rad_s: u.rotor_speed_rad_s.take(),
         };
-        let mut sample = sample;
         self.injected.apply_to_sample(&mut sample);
         // Lost sensors are taken out: the estimators fall back as for a sensor that is off.
         self.monitor.update(&mut sample);

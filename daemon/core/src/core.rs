@@ -334,13 +334,6 @@ impl FlightCore {
         self.motor_failure.failed()
     }
 
-    /// Marks a rotor failed as if detected (a failure reported by the board, or injected), and
-    /// re-allocates without it when `CA_FAILURE_MODE` says so.
-    pub fn declare_motor_failure(&mut self, rotor: usize) -> Result<(), MixerError> {
-        self.motor_failure.declare(rotor);
-        self.reallocate()
-    }
-
     fn reallocate(&mut self) -> Result<(), MixerError> {
         if self.config.motor_failure.reallocate {
             let failed = self.motor_failure.failed().to_vec();

@@ -424,11 +424,12 @@ impl Safety {
 
     /// The conditions acting now (triggered, not overridden).
     pub fn active(&self) -> Vec<Condition> {
+        let mask = self.active_mask();
         CONDITIONS
             .iter()
-            .zip(&self.tracked)
-            .filter(|(_, t)| t.since_s.is_some() && !t.overridden)
-            .map(|(c, _)| *c)
+            .enumerate()
+            .filter(|(k, _)| mask & 1 << k != 0)
+            .map(|(_, c)| *c)
             .collect()
     }
 
