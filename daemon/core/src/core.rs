@@ -83,10 +83,10 @@ impl FlightCoreConfig {
         let rate = if r.controller == 1 {
             RateLoopParams::Pid([0, 1, 2].map(|i| {
                 let j = inertia[i];
-                let (kp, ki, kd) = if i < 2 {
-                    (r.pid_p_rp, r.pid_i_rp, r.pid_d_rp)
+                let (kp, ki, kd, imax) = if i < 2 {
+                    (r.pid_p_rp, r.pid_i_rp, r.pid_d_rp, r.pid_imax_rp)
                 } else {
-                    (r.pid_p_y, r.pid_i_y, 0.0)
+                    (r.pid_p_y, r.pid_i_y, 0.0, r.pid_imax_y)
                 };
                 PidParams {
                     k_p: kp * j,
@@ -94,7 +94,7 @@ impl FlightCoreConfig {
                     k_d: kd * j,
                     k_ff: 0.0,
                     d_cutoff_hz: r.pid_d_cutoff_hz,
-                    i_limit: 0.06 * a.weight_n(),
+                    i_limit: imax * j,
                     u_max: 1e3,
                 }
             }))

@@ -891,3 +891,118 @@ fn motor_failure_in_hover_and_forward_flight() {
         );
     }
 }
+
+/// What a torque disturbance did to one hover.
+#[derive(Debug)]
+struct Twist {
+    /// Largest roll from the start of the pulse to 2 s after its end (deg).
+    peak_roll_deg: f64,
+    /// RMS roll over the same span (deg).
+    roll_rms_deg: f64,
+    /// Mean roll moment the mixer allocated over the pulse's last second (N·m, FRD).
+    allocated_roll_n_m: f64,
+    /// Time from the end of the pulse until roll stays within 1° (s; 5 at most: the run's end).
+    recovery_s: f64,
+    /// Largest horizontal departure from the hover spot after the pulse began (m, truth).
+    departure_m: f64,
+}
+
+/// `name` hovers at 10 m; at 15 s a roll torque of `roll_accel` rad/s² × `I_xx` acts for `length_s`
+/// (the simulator's torque pulse: a body torque no rotor knows about).
+fn twist(name: &str, use_pid: bool, roll_accel: f64, length_s: f64, seed: u64) -> Twist {
+    use sitl_core::sim::Action;
+    let a = airframe(name);
+    let mut p = FlightParams::default();
+    p.rate.controller = use_pid as u32;
+    let mut sim = resting(&a, seed);
+    let mut core = FlightCore::new(&a, FlightCoreConfig::from_params(&p, &a)).unwrap();
+    let n = a.rotors.len();
+    let mut commands = [0.0; 16];
+    let (start_s, end_s) = (15.0, 15.0 + length_s);
+    let torque = a.inertia_kg_m2[(0, 0)] * roll_accel;
+    let sp = hover_at(10.0);
+    let (mut peak, mut sum_sq, mut count, mut moment, mut moment_n) = (0.0f64, 0.0, 0, 0.0, 0);
+    let (mut last_outside, mut departure, mut spot) = (end_s, 0.0f64, None);
+    let mut pulsed = false;
+    for _ in 0..((end_s + 5.0) * 1000.0) as usize / DECIMATION {
+        let sample = common::control_interval(&mut sim, &commands[..n]);
+        let t = sim.time_s();
+        let truth = sim.truth().body;
+        if t >= start_s && !pulsed {
+            sim.apply(Action::TorquePulse {
+                torque_frd_n_m: Vector3::new(torque, 0.0, 0.0),
+                duration_s: length_s,
+            });
+            pulsed = true;
+            spot = Some(truth.pos_ned_m.xy());
+        }
+        core.set_in_air(-truth.pos_ned_m.z > 1.0);
+        let out = core.step(&sample, &sp, t > 3.0);
+        commands = out.commands;
+        assert!(out.motor_failure.is_none(), "{name}: a torque is not a rotor");
+        if pulsed && t <= end_s + 2.0 {
+            let roll = truth.q_ned_from_frd.euler_angles().0.to_degrees();
+            peak = peak.max(roll.abs());
+            sum_sq += roll * roll;
+            count += 1;
+        }
+        if pulsed {
+            if truth.q_ned_from_frd.euler_angles().0.abs() > 1f64.to_radians() {
+                last_outside = t;
+            }
+            departure = departure.max((truth.pos_ned_m.xy() - spot.unwrap()).norm());
+        }
+        if t > end_s - 1.0 && t <= end_s {
+            if let Some(m) = &out.mixer {
+                moment += m.achieved.torque_frd_n_m.x;
+                moment_n += 1;
+            }
+        }
+    }
+    Twist {
+        peak_roll_deg: peak,
+        roll_rms_deg: (sum_sq / count as f64).sqrt(),
+        allocated_roll_n_m: moment / moment_n.max(1) as f64,
+        recovery_s: (last_outside - end_s).max(0.0),
+        departure_m: departure,
+    }
+}
+
+/// ArduPilot's twist test (issue 7): 40 rad/s² about roll for 3 s in hover; roll must stay within
+/// 10° (ArduPilot's own test allows 20°), every airframe, the ADRC rate loop (the default). The
+/// disturbance was felt: the mixer spent a roll moment equal and opposite to it while it acted,
+/// and the body moved before the loop caught it. Then the disturbance rejection of the ADRC rate
+/// loop (Castillo (69)–(72): the LESO's total disturbance) against the PID under the same torque
+/// step, same feedback gain (12/s) and same kinematic loop: the ESO cancels the step within its
+/// bandwidth, the PID's integral catches up only at its own pace. Both reported; ADRC must be
+/// the better of the two on peak and RMS roll.
+#[test]
+fn twist_test_and_torque_step_adrc_against_pid() {
+    for name in ["quad_x", "hexa_x", "octa_x", "dodeca"] {
+        let a = airframe(name);
+        let torque = a.inertia_kg_m2[(0, 0)] * 40.0;
+        let [adrc, pid] = [false, true].map(|use_pid| {
+            let loop_name = if use_pid { "PID" } else { "ADRC" };
+            let f = twist(name, use_pid, 40.0, 3.0, 1);
+            println!(
+                "twist test {name} {loop_name}: 40 rad/s² ({torque:.3} N·m) roll for 3 s: peak roll {:.2}°, RMS {:.2}°, back within 1° {:.2} s after its end (the release is a step too), drift {:.2} m; mixer's roll moment {:.3} N·m",
+                f.peak_roll_deg, f.roll_rms_deg, f.recovery_s, f.departure_m, f.allocated_roll_n_m
+            );
+            // Felt: the allocated moment cancels the disturbance (±15 %) ...
+            assert!(
+                (f.allocated_roll_n_m + torque).abs() <= 0.15 * torque,
+                "{name} {loop_name}: {f:?}"
+            );
+            // ... and the body moved before the loop caught it (a pulse that never acted would
+            // leave the roll at the noise floor, ~0.1°).
+            assert!(f.peak_roll_deg >= 0.5, "{name} {loop_name}: {f:?}");
+            f
+        });
+        assert!(adrc.peak_roll_deg <= 10.0, "{name}: {adrc:?}");
+        assert!(adrc.departure_m <= 1.0, "{name}: {adrc:?}");
+        assert!(
+            adrc.peak_roll_deg < pid.peak_roll_deg && adrc.roll_rms_deg < pid.roll_rms_deg,
+            "{name}: ADRC {adrc:?} against PID {pid:?}"
+        );
+    }
+}

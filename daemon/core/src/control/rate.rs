@@ -206,6 +206,10 @@ crate::params::param_group! {
         pid_p_y: f64 = 6.0, "MC_YAWRATE_P", "1/s", [0.0, 200.0], "PID proportional gain, yaw, per kg m^2 of inertia";
         /// PID integral gain, yaw.
         pid_i_y: f64 = 4.0, "MC_YAWRATE_I", "1/s^2", [0.0, 500.0], "PID integral gain, yaw, per kg m^2 of inertia";
+        /// PID integral bound, roll and pitch (per unit inertia).
+        pid_imax_rp: f64 = 60.0, "MC_RP_RATE_IMAX", "rad/s^2", [0.0, 500.0], "PID integral bound, roll and pitch, as an angular acceleration (x I: N m); PX4's MC_RR_INT_LIM 0.3 of a 450 quad's authority";
+        /// PID integral bound, yaw (per unit inertia).
+        pid_imax_y: f64 = 16.0, "MC_Y_RATE_IMAX", "rad/s^2", [0.0, 500.0], "PID integral bound, yaw, as an angular acceleration (x I: N m)";
         /// PID derivative low-pass cut-off.
         pid_d_cutoff_hz: f64 = 30.0, "MC_DTERM_CUTOFF", "Hz", [1.0, 500.0], "PID derivative low-pass cut-off";
     }
