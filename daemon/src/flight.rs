@@ -79,6 +79,8 @@ pub struct Telemetry {
     pub max_thrust_n: f64,
     /// Battery voltage (V).
     pub battery_v: f64,
+    /// The battery estimate (voltage, current, charge left).
+    pub battery: flight_core::battery::BatteryState,
     /// Sensor frames stepped.
     pub frames: u64,
     /// The deadline loop's timing over the last interval (none in lockstep).
@@ -270,6 +272,9 @@ impl<'a> ControlLoop<'a> {
                         VehicleCommand::SetMission(items) => {
                             Some(format!("SetMission({} items)", items.len()))
                         }
+                        VehicleCommand::SetFence(zones) => {
+                            Some(format!("SetFence({} zones)", zones.len()))
+                        }
                         c => Some(format!("{c:?}")),
                     };
                     let result = self.vehicle.command(c);
@@ -377,6 +382,7 @@ impl<'a> ControlLoop<'a> {
                     truth: self.vehicle.truth(),
                     max_thrust_n: self.vehicle.max_thrust_n(),
                     battery_v: self.vehicle.battery_v(),
+                    battery: self.vehicle.battery(),
                     output: Some(step.output),
                     frames: self.report.frames,
                     loop_stats: self.loop_stats,

@@ -3,6 +3,7 @@
 
 use crate::failure_injection::{FailureInjector, Injection, Refusal};
 use anyhow::{Context, Result};
+use flight_core::battery::{BatteryConfig, BatteryEstimator, BatteryState};
 use flight_core::commander::{
     Commander, CommanderInput, CommanderStatus, Denial, FlightMode, Health, LandedState,
     OffboardTarget, Sticks,
@@ -13,6 +14,7 @@ use flight_core::core::{FlightCore, FlightCoreConfig, SensorSample, StepOutput};
 use flight_core::estimator::translation::GpsMeasurement;
 use flight_core::failsafe::{BlindDescent, HoverCommands};
 use flight_core::geo::{LatLonAlt, LocalFrame};
+use flight_core::geofence::{FenceMonitor, GeoZone, Geofence};
 use flight_core::mission::{MissionItem, MissionPoint, SpeedChange};
 use flight_core::params::FlightParams;
 use flight_core::sensor_monitor::SensorMonitor;
@@ -67,6 +69,8 @@ pub enum VehicleCommand {
     Offboard(OffboardTarget),
     /// A new mission (an upload finished, or a clear); never answered.
     SetMission(Vec<MissionItem>),
+    /// A new geofence (an upload finished, or a clear); never answered.
+    SetFence(Vec<GeoZone>),
     /// Go on at this mission item.
     SetMissionCurrent(u16),
     /// Mission mode, from this item if given (`MAV_CMD_MISSION_START`).
@@ -128,6 +132,11 @@ pub struct Vehicle {
     last_t_usec: u64,
     gps: Option<hil::GpsReport>,
     battery_v: f64,
+    /// State of charge from the reported voltage and current.
+    battery: BatteryEstimator,
+    /// The uploaded fence, and the same placed in the estimator's frame once it has an origin.
+    fence_zones: Vec<GeoZone>,
+    fence: Option<FenceMonitor>,
     /// Wall-clock time since the last ground-station heartbeat (s), from the control loop.
     gcs_link_age_s: Option<f64>,
     /// Failures injected by `MAV_CMD_INJECT_FAILURE`, and whether that is allowed
@@ -188,7 +197,13 @@ impl Vehicle {
             last_t_usec: 0,
             gps: None,
             battery_v: 0.0,
+            battery: BatteryEstimator::new(BatteryConfig::from_params(
+                &params.battery,
+                &airframe.battery,
+            )),
             gcs_link_age_s: None,
+            fence_zones: Vec::new(),
+            fence: None,
             injected: FailureInjector::new(airframe.rotors.len()),
             injection_enabled: params.safety.failure_injection != 0,
             monitor: SensorMonitor::new(),
@@ -219,6 +234,10 @@ impl Vehicle {
         self.commander.set_params(params.commander);
         self.commander.set_safety_params(params.safety);
         self.injection_enabled = params.safety.failure_injection != 0;
+        self.battery.set_config(BatteryConfig::from_params(
+            &params.battery,
+            &self.airframe.battery,
+        ));
     }
 
     /// The last sensor sample stepped on.
@@ -260,6 +279,11 @@ impl Vehicle {
     /// The battery voltage (V): the board's report, else the pack's nominal voltage.
     pub fn battery_v(&self) -> f64 {
         self.battery_v
+    }
+
+    /// The battery as estimated from the board's (or simulator's) reports.
+    pub fn battery(&self) -> BatteryState {
+        self.battery.state()
     }
 
     /// The auto flight is waiting for the estimator before it takes off.
@@ -316,6 +340,12 @@ impl Vehicle {
             }
             VehicleCommand::SetMission(items) => {
                 c_.set_mission(items);
+                Ok(())
+            }
+            VehicleCommand::SetFence(zones) => {
+                self.fence =
+                    origin.map(|o| FenceMonitor::new(Geofence::new(&zones, &LocalFrame::new(o))));
+                self.fence_zones = zones;
                 Ok(())
             }
             VehicleCommand::SetMissionCurrent(seq) => c_.set_mission_current(seq),
@@ -522,6 +552,20 @@ impl Vehicle {
             },
             rotor_speed_rad_s: u.rotor_speed_rad_s.take(),
         };
+        if let Some(v) = u.battery_v {
+            let current = u
+                .esc_current_a
+                .map(|c| c[..self.rotors.min(c.len())].iter().sum::<f64>());
+            let throttle = self.last.map_or(0.0, |o| {
+                o.commands[..self.rotors].iter().sum::<f64>() / self.rotors.max(1) as f64
+            });
+            let dt = if self.last.is_some() {
+                t_usec.saturating_sub(self.last_t_usec) as f64 * 1e-6
+            } else {
+                0.0
+            };
+            self.battery.step(v, current, throttle, dt);
+        }
         self.injected.apply_to_sample(&mut sample);
         // Lost sensors are taken out: the estimators fall back as for a sensor that is off.
         self.monitor.update(&mut sample);
@@ -532,6 +576,21 @@ impl Vehicle {
                     && e.translation.horizontal_valid
                     && e.translation.vertical_valid;
                 self.fly_auto();
+                if self.fence.is_none()
+                    && let Some(o) = e.translation.origin
+                {
+                    let fence = Geofence::new(&self.fence_zones, &LocalFrame::new(o));
+                    self.fence = Some(FenceMonitor::new(fence));
+                }
+                // Outside the uploaded fence, or about to be: as PX4's GF_PREDICT, the point
+                // where a failsafe stop (MPC_ACC_FS_BRK) would come to rest must be inside too.
+                let in_air = self.commander.landed() == LandedState::InAir;
+                let brake = self.commander.params().failsafe_brake_m_s2;
+                let tr = &e.translation;
+                let outside_fence = tr.horizontal_valid
+                    && self.fence.as_mut().is_some_and(|f| {
+                        f.update(&tr.pos_ned_m.xy(), &tr.vel_ned_m_s.xy(), in_air, brake)
+                    });
                 let out = self.commander.update(&CommanderInput {
                     t_s,
                     ready,
@@ -559,7 +618,8 @@ impl Vehicle {
                             .position(|&f| f)
                             .map(|i| i + 1),
                         sensors_lost: self.monitor.lost(),
-                        ..Health::default()
+                        battery_remaining: self.battery.state().remaining,
+                        geofence_breached: outside_fence,
                     },
                 });
                 for e in self.commander.take_safety_events() {

@@ -9,7 +9,11 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from pymavlink import mavutil
+
+# pymavlink's MAVLink 2 dialect (extension fields such as MISSION_ITEM_INT.mission_type): chosen
+# by this variable when pymavlink is first imported.
+os.environ.setdefault("MAVLINK20", "1")
+from pymavlink import mavutil  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -53,9 +57,10 @@ class Daemon:
     """sitl (real time x3) and an autopilot that can be stopped and started again on its ports,
     with its parameter store in a temporary directory."""
 
-    def __init__(self, tmp_path, mavlink, connect=True, airframe="quad_x"):
+    def __init__(self, tmp_path, mavlink, connect=True, airframe="quad_x", scenario=None):
         """`mavlink`: the ground-station endpoint, `{port}` standing for a free UDP port (on which
-        a pymavlink connection listens when `connect`); both processes fly `airframe`."""
+        a pymavlink connection listens when `connect`); both processes fly `airframe`, the
+        simulator in `scenario` (a file) if given."""
         self.airframe = airframe
         self.sim_port, self.gcs_port = free_udp_port(), free_udp_port()
         self.mavlink = mavlink.format(port=self.gcs_port)
@@ -71,6 +76,7 @@ class Daemon:
             [str(binary("sitl")), "--params-dir", str(ROOT / "params"), "--status-interval", "0",
              "--mode", "realtime", "--speed", "3", "--duration", "100000",
              "--airframe", airframe,
+             *(["--scenario", str(scenario)] if scenario else []),
              "--autopilot", f"127.0.0.1:{self.sim_port}"],
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
         )

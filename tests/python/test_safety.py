@@ -9,8 +9,9 @@ import time
 import pytest
 from pymavlink import mavutil
 
+from conftest import Daemon
 from test_ground_station import (  # noqa: F401
-    INT32, ack, armed, daemon, int_bits, ready_to_arm, set_param, vehicle, wait)
+    INT32, PREARM_CHECK, ack, armed, daemon, int_bits, ready_to_arm, set_param, vehicle, wait)
 
 ML = mavutil.mavlink
 
@@ -112,3 +113,151 @@ def test_frozen_and_silent_sensors_warn_refuse_arming_and_clear(vehicle):
     assert ack(gcs, ML.MAV_CMD_COMPONENT_ARM_DISARM) == 0
     gcs.arducopter_disarm()
     assert ack(gcs, ML.MAV_CMD_COMPONENT_ARM_DISARM) == 0
+
+
+def test_battery_failsafe_warns_returns_lands_and_refuses_to_arm(tmp_path, scenario):
+    """A pack at 35 % (600 mAh, so it runs down in a minute of hover): the estimate (voltage at
+    rest, then the current counted) falls through BAT_LOW_THR (warn), BAT_CRIT_THR (Return, the
+    default COM_LOW_BAT_ACT 3) and BAT_EMERGEN_THR (Land); SYS_STATUS and BATTERY_STATUS carry the
+    charge, the current and the charge state; once landed, arming is refused for the battery."""
+    path = scenario('airframe = "quad_x"\nduration_s = 100000.0\n'
+                    '[battery]\ncharge = 0.35\ncapacity_mah = 600.0\n')
+    d = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0", scenario=path)
+    try:
+        gcs = d.gcs
+        assert gcs.wait_heartbeat(timeout=30), "no heartbeat"
+        set_param(gcs, "BAT1_CAPACITY", 600.0)
+        ready_to_arm(gcs)
+        first = wait(gcs, "BATTERY_STATUS", lambda m: m.battery_remaining >= 0)
+        assert 15 < first.battery_remaining < 40, first
+        assert first.charge_state == ML.MAV_BATTERY_CHARGE_STATE_OK, first
+        home = wait(gcs, "GLOBAL_POSITION_INT", lambda m: True)
+        gcs.set_mode("TAKEOFF")
+        assert ack(gcs, ML.MAV_CMD_DO_SET_MODE) == 0
+        gcs.arducopter_arm()
+        assert ack(gcs, ML.MAV_CMD_COMPONENT_ARM_DISARM) == 0
+        wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER" and armed(m), timeout=30)
+        gcs.mav.command_int_send(1, 1, ML.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+                                 ML.MAV_CMD_DO_REPOSITION, 0, 0, -1, 0, 0, math.nan,
+                                 home.lat + int(6 / 111_320 * 1e7), home.lon, 4.0)
+        assert ack(gcs, ML.MAV_CMD_DO_REPOSITION) == 0
+        # Everything in order until the vehicle is down and disarmed.
+        events, charge, states, current = [], [], set(), []
+        end = time.monotonic() + 120
+        while time.monotonic() < end:
+            m = gcs.recv_match(type=["STATUSTEXT", "HEARTBEAT", "SYS_STATUS", "BATTERY_STATUS"],
+                               blocking=True, timeout=0.5)
+            if m is None or m.get_srcComponent() != 1:
+                continue
+            kind = m.get_type()
+            if kind == "STATUSTEXT" and "battery" in m.text:
+                events.append(m.text)
+            elif kind == "HEARTBEAT":
+                if not events or events[-1] != gcs.flightmode:
+                    events.append(gcs.flightmode)
+                if not armed(m) and "RTL" in events:
+                    break
+            elif kind == "SYS_STATUS" and m.battery_remaining >= 0:
+                charge.append(m.battery_remaining)
+                current.append(m.current_battery)
+            elif kind == "BATTERY_STATUS":
+                states.add(m.charge_state)
+        else:
+            pytest.fail(f"not landed and disarmed in time: {events}")
+        print(f"battery failsafe: {events}; charge {charge[0]} % to {charge[-1]} %")
+        texts = [e for e in events if "battery" in e]
+        assert texts[:3] == ["battery low", "failsafe: battery critical: Return",
+                             "failsafe: battery emergency: Land"], events
+        modes = [e for e in events if e.isupper()]
+        assert modes.index("RTL") < modes.index("LAND"), events
+        # Falling (the lean toward the voltage may lift it by a percent), down to the emergency.
+        assert all(b <= a + 1 for a, b in zip(charge, charge[1:])) and charge[-1] <= 5, charge
+        assert max(current) > 500, f"hover current (cA): {max(current)}"
+        assert {ML.MAV_BATTERY_CHARGE_STATE_LOW, ML.MAV_BATTERY_CHARGE_STATE_CRITICAL,
+                ML.MAV_BATTERY_CHARGE_STATE_EMERGENCY} <= states, states
+        gcs.set_mode("TAKEOFF")
+        ack(gcs, ML.MAV_CMD_DO_SET_MODE)
+        gcs.arducopter_arm()
+        assert ack(gcs, ML.MAV_CMD_COMPONENT_ARM_DISARM) == ML.MAV_RESULT_DENIED
+        wait(gcs, "STATUSTEXT", lambda m: "battery" in m.text, 2)
+    finally:
+        d.close()
+
+
+def upload_fence(gcs, items):
+    """Uploads fence items (MISSION_ITEM_INT messages) by the mission protocol; the ack's type."""
+    gcs.mav.mission_count_send(1, 1, len(items), ML.MAV_MISSION_TYPE_FENCE)
+    for it in items:
+        wait(gcs, "MISSION_REQUEST_INT",
+             lambda m: m.seq == it.seq and m.mission_type == ML.MAV_MISSION_TYPE_FENCE, 5)
+        gcs.mav.send(it)
+    return wait(gcs, "MISSION_ACK", lambda m: m.mission_type == ML.MAV_MISSION_TYPE_FENCE, 5).type
+
+
+def fence_item(seq, command, p1, lat, lon):
+    return ML.MAVLink_mission_item_int_message(
+        1, 1, seq, ML.MAV_FRAME_GLOBAL_INT, command, 0, 1, p1, 0, 0, 0,
+        lat, lon, 0, mission_type=ML.MAV_MISSION_TYPE_FENCE)
+
+
+def test_uploaded_geofence_refuses_arming_outside_and_holds_at_the_breach(vehicle):
+    """A fence plan (MAV_MISSION_TYPE_FENCE): an exclusion circle around home refuses arming
+    ("outside the geofence"); replaced by an inclusion square of ±12 m, the vehicle arms, is sent
+    25 m north, is stopped at the square's edge by GF_ACTION 2 (Hold) — the breach predicted from
+    the stopping distance, announced, the SYS_STATUS geofence bit unhealthy — and is brought home by
+    RTL."""
+    gcs = vehicle
+    ready_to_arm(gcs)
+    home = wait(gcs, "GLOBAL_POSITION_INT", lambda m: True)
+    deg = 1e7 / 111_320  # 1e7 degrees per metre north
+    east = deg / math.cos(math.radians(home.lat * 1e-7))
+    circle = [fence_item(0, ML.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION, 5.0, home.lat, home.lon)]
+    assert upload_fence(gcs, circle) == ML.MAV_MISSION_ACCEPTED
+    # Not armable: the pre-arm bit of SYS_STATUS goes (it takes the vehicle's next step).
+    wait(gcs, "SYS_STATUS", lambda m: not m.onboard_control_sensors_health & PREARM_CHECK, 5)
+    gcs.set_mode("TAKEOFF")
+    assert ack(gcs, ML.MAV_CMD_DO_SET_MODE) == 0
+    gcs.arducopter_arm()
+    assert ack(gcs, ML.MAV_CMD_COMPONENT_ARM_DISARM) == ML.MAV_RESULT_DENIED
+    wait(gcs, "STATUSTEXT", lambda m: "outside the geofence" in m.text, 2)
+    corners = [(-12, -12), (-12, 12), (12, 12), (12, -12)]
+    square = [fence_item(k, ML.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION, 4,
+                         home.lat + int(n * deg), home.lon + int(e * east))
+              for k, (n, e) in enumerate(corners)]
+    assert upload_fence(gcs, square) == ML.MAV_MISSION_ACCEPTED
+    ready_to_arm(gcs)
+    gcs.arducopter_arm()
+    assert ack(gcs, ML.MAV_CMD_COMPONENT_ARM_DISARM) == 0
+    wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER" and armed(m), timeout=30)
+    start = wait(gcs, "LOCAL_POSITION_NED", lambda m: True)
+    gcs.mav.command_int_send(1, 1, ML.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+                             ML.MAV_CMD_DO_REPOSITION, 0, 0, -1, 0, 0, math.nan,
+                             home.lat + int(25 * deg), home.lon, 4.0)
+    assert ack(gcs, ML.MAV_CMD_DO_REPOSITION) == 0
+    breach, furthest, unhealthy = None, 0.0, False
+    end = time.monotonic() + 40
+    while time.monotonic() < end:
+        m = gcs.recv_match(type=["STATUSTEXT", "LOCAL_POSITION_NED", "SYS_STATUS"],
+                           blocking=True, timeout=0.5)
+        if m is None or m.get_srcComponent() != 1:
+            continue
+        if m.get_type() == "STATUSTEXT" and "geofence breached" in m.text:
+            breach = breach or m.text
+        elif m.get_type() == "LOCAL_POSITION_NED":
+            furthest = max(furthest, m.x - start.x)
+            if breach and abs(m.vx) < 0.2 and abs(m.vy) < 0.2:
+                break
+        elif m.get_type() == "SYS_STATUS":
+            unhealthy |= not m.onboard_control_sensors_health & ML.MAV_SYS_STATUS_GEOFENCE
+    else:
+        pytest.fail(f"no breach, or not stopped: {breach}, {furthest:.1f} m")
+    print(f"geofence: {breach!r}, stopped {furthest:.1f} m north of home (fence at 12 m)")
+    assert breach == "failsafe: geofence breached: Hold", breach
+    # Predicted (GF_PREDICT): the stop is ordered before the fence, so it is crossed by little.
+    assert 8.0 < furthest < 13.5, furthest
+    assert unhealthy
+    gcs.set_mode("RTL")
+    assert ack(gcs, ML.MAV_CMD_DO_SET_MODE) == 0
+    wait(gcs, "HEARTBEAT", lambda m: not armed(m), timeout=60)
+    down = wait(gcs, "LOCAL_POSITION_NED", lambda m: True)
+    assert math.hypot(down.x - start.x, down.y - start.y) < 1.5

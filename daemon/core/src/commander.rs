@@ -136,6 +136,8 @@ crate::params::param_group! {
         cruise_speed_m_s: f64 = 5.0, "MPC_XY_CRUISE", "m/s", [0.5, 20.0], "Horizontal speed of automatic flight";
         /// Acceleration of the automatic set-point profiles (m/s²).
         accel_m_s2: f64 = 1.0, "MPC_ACC_HOR", "m/s^2", [0.2, 15.0], "Acceleration of the automatic set-point profiles";
+        /// Deceleration of a failsafe's stop (m/s²).
+        failsafe_brake_m_s2: f64 = 2.5, "MPC_ACC_FS_BRK", "m/s^2", [0.5, 15.0], "Deceleration of a failsafe's Hold (a fence breach, a lost link): it holds where the vehicle stops at this rate, not at the gentle MPC_ACC_HOR";
         /// Disarm when armed on the ground this long without taking off (s; 0: never).
         disarm_preflight_s: f64 = 10.0, "COM_DISARM_PRFLT", "s", [0.0, 3600.0], "Disarm when armed on the ground this long without taking off (0: never)";
         /// Largest horizontal speed from the sticks in Posctl (m/s).
@@ -328,6 +330,8 @@ pub struct CommanderStatus {
     pub motor_failed: Option<usize>,
     /// The failsafe conditions acting (bit k: `safety::CONDITIONS[k]`).
     pub failsafe_conditions: u32,
+    /// Disarmed and every arming check passes (`SYS_STATUS`'s pre-arm bit).
+    pub prearm_ok: bool,
 }
 
 /// A straight-line set-point profile from `from` to `to`: speed ramps up at `accel`, cruises
@@ -564,6 +568,10 @@ impl Commander {
             mission: self.mission.status(),
             motor_failed: self.last.and_then(|i| i.health.motor_failed),
             failsafe_conditions: self.safety.active_mask(),
+            prearm_ok: !self.armed
+                && self
+                    .last
+                    .is_some_and(|i| self.preflight_failures(&i).is_empty()),
         }
     }
 
@@ -671,6 +679,32 @@ impl Commander {
         let Some(i) = self.last else {
             return Err("arming refused: no sensor data yet".into());
         };
+        let mut failures = self.preflight_failures(&i);
+        failures.retain(|f| !(force && f.skippable));
+        if let Some(first) = failures.first() {
+            let more = match failures.len() {
+                1 => String::new(),
+                n => format!(" (and {} more)", n - 1),
+            };
+            return Err(format!("arming refused: {}{more}", first.text));
+        }
+        self.armed = true;
+        self.changed = true;
+        self.armed_at_s = i.t_s;
+        self.since_s = i.t_s;
+        self.landed = LandedState::OnGround;
+        if !self.home_commanded {
+            self.home = Some((i.pos_ned_m, i.yaw_rad));
+        }
+        self.hold = None;
+        self.line = None;
+        self.auto_yaw = None;
+        self.mission.stage = Stage::Start;
+        Ok(())
+    }
+
+    /// The arming checks that fail now (whatever the mode asks for besides).
+    fn preflight_failures(&self, i: &CommanderInput) -> Vec<crate::safety::PreflightFailure> {
         let h = i.health;
         let mut failures = crate::safety::preflight(
             &PreflightInput {
@@ -697,27 +731,7 @@ impl Commander {
                 skippable: true,
             });
         }
-        failures.retain(|f| !(force && f.skippable));
-        if let Some(first) = failures.first() {
-            let more = match failures.len() {
-                1 => String::new(),
-                n => format!(" (and {} more)", n - 1),
-            };
-            return Err(format!("arming refused: {}{more}", first.text));
-        }
-        self.armed = true;
-        self.changed = true;
-        self.armed_at_s = i.t_s;
-        self.since_s = i.t_s;
-        self.landed = LandedState::OnGround;
-        if !self.home_commanded {
-            self.home = Some((i.pos_ned_m, i.yaw_rad));
-        }
-        self.hold = None;
-        self.line = None;
-        self.auto_yaw = None;
-        self.mission.stage = Stage::Start;
-        Ok(())
+        failures
     }
 
     /// Disarms. Refused in the air unless `force` (which stops the motors wherever it is).
@@ -931,7 +945,23 @@ impl Commander {
         }
         match d.action {
             Action::None | Action::Warn => {}
-            Action::Hold => self.enter(FlightMode::Loiter),
+            Action::Hold => {
+                self.enter(FlightMode::Loiter);
+                if self.landed == LandedState::InAir {
+                    // Stop firmly: a braking profile at MPC_ACC_FS_BRK from the present speed
+                    // (its velocity and deceleration fed forward), then hold where it ends.
+                    let v = Vector3::new(i.vel_ned_m_s.x, i.vel_ned_m_s.y, 0.0);
+                    let speed = v.norm();
+                    let a = self.params.failsafe_brake_m_s2.max(0.1);
+                    let stop = i.pos_ned_m + v * speed / (2.0 * a);
+                    if speed > 0.1 {
+                        let mut line = Line::new(i.pos_ned_m, stop, speed, a);
+                        line.v = speed;
+                        self.line = Some(line);
+                    }
+                    self.hold = Some((stop, self.auto_yaw.unwrap_or(i.yaw_rad)));
+                }
+            }
             Action::Return => self.enter(FlightMode::Rtl),
             Action::Land => self.enter(FlightMode::Land),
             Action::Descend => {

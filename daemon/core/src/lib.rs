@@ -4,12 +4,14 @@
 //! function of its inputs and the sample time. Conventions (NED/FRD, Hamilton quaternions
 //! `q_ned_from_frd`, SI units) are those of `ARCHITECTURE.md`.
 
+pub mod battery;
 pub mod commander;
 pub mod control;
 pub mod core;
 pub mod estimator;
 pub mod failsafe;
 pub mod geo;
+pub mod geofence;
 pub mod mission;
 pub mod mixer;
 pub mod motor_failure;

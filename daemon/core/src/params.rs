@@ -143,6 +143,7 @@ macro_rules! param_group_impl {
 }
 pub(crate) use param_group_impl as param_group;
 
+pub use crate::battery::{BATTERY_META, BatteryGroup};
 pub use crate::commander::{COMMANDER_META, CommanderParams};
 pub use crate::control::attitude::{ATTITUDE_CONTROL_META, AttitudeControlGroup};
 pub use crate::control::motor::{MOTOR_META, MotorGroup};
@@ -172,6 +173,8 @@ pub struct FlightParams {
     pub commander: CommanderParams,
     /// Failsafes and arming checks.
     pub safety: SafetyParams,
+    /// The flight battery.
+    pub battery: BatteryGroup,
 }
 
 /// Why a parameter value was refused (for the operator, `STATUSTEXT`).
@@ -204,6 +207,16 @@ impl FlightParams {
         v.extend(self.motor.validate());
         v.extend(self.commander.validate());
         v.extend(self.safety.validate());
+        v.extend(self.battery.validate());
+        v.extend(
+            self.battery
+                .inconsistencies()
+                .into_iter()
+                .map(|reason| ParamViolation {
+                    key: "battery.v_empty".into(),
+                    reason,
+                }),
+        );
         v.extend(
             self.safety
                 .inconsistencies()
@@ -241,6 +254,7 @@ impl FlightParams {
             "motor" => self.motor.get(key),
             "commander" => self.commander.get(key),
             "safety" => self.safety.get(key),
+            "battery" => self.battery.get(key),
             _ => None,
         }
     }
@@ -255,6 +269,7 @@ impl FlightParams {
             "motor" => self.motor.set(key, value),
             "commander" => self.commander.set(key, value),
             "safety" => self.safety.set(key, value),
+            "battery" => self.battery.set(key, value),
             _ => false,
         }
     }
@@ -303,6 +318,7 @@ impl FlightParams {
             ("motor", MOTOR_META),
             ("commander", COMMANDER_META),
             ("safety", SAFETY_META),
+            ("battery", BATTERY_META),
         ]
         .into_iter()
         .flat_map(|(g, m)| m.iter().map(move |p| (g, p)))
@@ -390,7 +406,8 @@ mod tests {
                 "FD_ACT_MOT_TOUT",
                 "CA_FAILURE_MODE",
                 "COM_ACT_FAIL_ACT",
-                "SYS_FAILURE_EN"
+                "SYS_FAILURE_EN",
+                "BAT1_N_CELLS"
             ]
         );
         assert!(FlightParams::default().validate().is_empty());

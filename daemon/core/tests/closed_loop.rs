@@ -939,7 +939,10 @@ fn twist(name: &str, use_pid: bool, roll_accel: f64, length_s: f64, seed: u64) -
         core.set_in_air(-truth.pos_ned_m.z > 1.0);
         let out = core.step(&sample, &sp, t > 3.0);
         commands = out.commands;
-        assert!(out.motor_failure.is_none(), "{name}: a torque is not a rotor");
+        assert!(
+            out.motor_failure.is_none(),
+            "{name}: a torque is not a rotor"
+        );
         if pulsed && t <= end_s + 2.0 {
             let roll = truth.q_ned_from_frd.euler_angles().0.to_degrees();
             peak = peak.max(roll.abs());
@@ -952,11 +955,12 @@ fn twist(name: &str, use_pid: bool, roll_accel: f64, length_s: f64, seed: u64) -
             }
             departure = departure.max((truth.pos_ned_m.xy() - spot.unwrap()).norm());
         }
-        if t > end_s - 1.0 && t <= end_s {
-            if let Some(m) = &out.mixer {
-                moment += m.achieved.torque_frd_n_m.x;
-                moment_n += 1;
-            }
+        if t > end_s - 1.0
+            && t <= end_s
+            && let Some(m) = &out.mixer
+        {
+            moment += m.achieved.torque_frd_n_m.x;
+            moment_n += 1;
         }
     }
     Twist {

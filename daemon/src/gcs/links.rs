@@ -463,6 +463,7 @@ pub async fn run(endpoints: Vec<Endpoint>, vehicle: Vehicle) -> Option<Action> {
     let mut malformed = 0u64;
     let mut exit = None;
     let mut pending_mission = None;
+    let mut pending_fence = None;
     loop {
         tokio::select! {
             Some(i) = inbound.recv() => {
@@ -522,6 +523,20 @@ pub async fn run(endpoints: Vec<Endpoint>, vehicle: Vehicle) -> Option<Action> {
             ))) = commands.try_send(c)
             {
                 pending_mission = Some(items);
+            }
+        }
+        if let Some(zones) = out.fence.take() {
+            pending_fence = Some(zones);
+        }
+        if let Some(zones) = pending_fence.take() {
+            // Likewise the fence.
+            let c = Command::Vehicle(VehicleCommand::SetFence(zones), None);
+            if let Err(mpsc::error::TrySendError::Full(Command::Vehicle(
+                VehicleCommand::SetFence(zones),
+                _,
+            ))) = commands.try_send(c)
+            {
+                pending_fence = Some(zones);
             }
         }
         if let Some(target) = out.offboard.take() {

@@ -12,6 +12,7 @@
 //! [`RETRIES`] tries.
 
 use super::Outbox;
+use flight_core::geofence::GeoZone;
 use flight_core::mission::{MissionAltitude, MissionItem, MissionPoint, SpeedChange};
 use mavlink::MavHeader;
 use mavlink::dialects::common::*;
@@ -287,8 +288,63 @@ pub fn speed_change(p: f32) -> Result<SpeedChange, MavMissionResult> {
     }
 }
 
-/// Whether a fence or rally item is one of its kind (they are stored for the safety issue's
-/// geofence; nothing flies them yet).
+/// A fence plan as zones: consecutive polygon vertices of one kind, as many as each one's
+/// param1 says, make one polygon; a circle is one item (param1 its radius); a return point is
+/// kept in the plan but not a zone. Coordinates in a global frame only.
+pub fn decode_fence(items: &[MISSION_ITEM_INT_DATA]) -> Result<Vec<GeoZone>, MavMissionResult> {
+    use MavCmd::*;
+    let mut zones = Vec::new();
+    let mut k = 0;
+    while k < items.len() {
+        let m = &items[k];
+        let latlon = |m: &MISSION_ITEM_INT_DATA| {
+            let (lat, lon) = (m.x as f64 * 1e-7, m.y as f64 * 1e-7);
+            if is_global(m.frame) && lat.abs() <= 90.0 && lon.abs() <= 180.0 {
+                Ok((lat, lon))
+            } else {
+                Err(MavMissionResult::MAV_MISSION_UNSUPPORTED_FRAME)
+            }
+        };
+        match m.command {
+            MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION
+            | MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION => {
+                let n = m.param1;
+                if !(n.is_finite() && n >= 3.0 && n.fract() == 0.0) || k + n as usize > items.len()
+                {
+                    return Err(MavMissionResult::MAV_MISSION_INVALID_PARAM1);
+                }
+                let vertices = &items[k..k + n as usize];
+                if vertices
+                    .iter()
+                    .any(|v| v.command != m.command || v.param1 != n)
+                {
+                    return Err(MavMissionResult::MAV_MISSION_INVALID_PARAM1);
+                }
+                zones.push(GeoZone::Polygon {
+                    inclusion: m.command == MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,
+                    vertices_deg: vertices.iter().map(latlon).collect::<Result<_, _>>()?,
+                });
+                k += n as usize;
+            }
+            MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION | MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION => {
+                if !(m.param1.is_finite() && m.param1 > 0.0) {
+                    return Err(MavMissionResult::MAV_MISSION_INVALID_PARAM1);
+                }
+                zones.push(GeoZone::Circle {
+                    inclusion: m.command == MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION,
+                    center_deg: latlon(m)?,
+                    radius_m: m.param1 as f64,
+                });
+                k += 1;
+            }
+            _ => k += 1,
+        }
+    }
+    Ok(zones)
+}
+
+/// Whether a fence or rally item is one of its kind (a fence is checked as a whole when the
+/// upload completes; rally points are stored, nothing flies them yet).
 fn fits(kind: MavMissionType, command: MavCmd) -> bool {
     use MavCmd::*;
     match kind {
@@ -378,8 +434,10 @@ impl Missions {
                 }
                 for k in kinds {
                     self.plans[k] = Plan::default();
-                    if k == 0 {
-                        out.mission = Some(Vec::new());
+                    match k {
+                        0 => out.mission = Some(Vec::new()),
+                        1 => out.fence = Some(Vec::new()),
+                        _ => {}
                     }
                 }
                 out.send(ack(
@@ -416,8 +474,10 @@ impl Missions {
         }
         if c.count == 0 {
             self.plans[k] = Plan::default();
-            if k == 0 {
-                out.mission = Some(Vec::new());
+            match k {
+                0 => out.mission = Some(Vec::new()),
+                1 => out.fence = Some(Vec::new()),
+                _ => {}
             }
             return out.send(ack(peer, kind, MavMissionResult::MAV_MISSION_ACCEPTED, 0));
         }
@@ -510,6 +570,20 @@ impl Missions {
             return;
         };
         let k = index(u.kind).unwrap_or(0);
+        if u.kind == MavMissionType::MAV_MISSION_TYPE_FENCE {
+            match decode_fence(&u.items) {
+                Ok(zones) => out.fence = Some(zones),
+                Err(why) => {
+                    tracing::warn!(?why, "fence upload refused");
+                    out.send(ack(peer, u.kind, why, 0));
+                    out.send(super::GroundStation::statustext(
+                        MavSeverity::MAV_SEVERITY_WARNING,
+                        &format!("fence refused: {why:?}"),
+                    ));
+                    return;
+                }
+            }
+        }
         let id = opaque_id(&u.items);
         tracing::info!(kind = ?u.kind, count = u.count, "plan uploaded");
         self.plans[k] = Plan {

@@ -113,6 +113,8 @@ pub struct Outbox {
     pub offboard: Option<OffboardTarget>,
     /// A new mission for the commander (an upload finished, or the mission was cleared).
     pub mission: Option<mission::NewMission>,
+    /// A new geofence (an upload finished, or the fence was cleared).
+    pub fence: Option<Vec<flight_core::geofence::GeoZone>>,
     /// A ground station's heartbeat arrived (the link-loss failsafe's clock restarts).
     pub gcs_heartbeat: bool,
 }

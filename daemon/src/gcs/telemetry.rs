@@ -5,6 +5,7 @@ use crate::flight::Telemetry;
 use crate::gcs::modes;
 use flight_core::commander::{FlightMode, LandedState};
 use flight_core::geo::{LatLonAlt, LocalFrame};
+use flight_core::safety::{CONDITIONS, Condition};
 use mavlink::MessageData;
 use mavlink::dialects::common::*;
 
@@ -16,6 +17,25 @@ fn e7(deg: f64) -> i32 {
 /// The vehicle's clock (`time_boot_ms`): its sensor time.
 fn boot_ms(t: &Telemetry) -> u32 {
     (t.t_s * 1e3) as u32
+}
+
+/// Whether the failsafe condition `c` is acting.
+fn acting(t: &Telemetry, c: Condition) -> bool {
+    let mask = t.status.map_or(0, |s| s.failsafe_conditions);
+    CONDITIONS
+        .iter()
+        .position(|k| *k == c)
+        .is_some_and(|k| mask & (1 << k) != 0)
+}
+
+/// Percent for MAVLink's `battery_remaining` (−1: unknown).
+fn percent(remaining: Option<f64>) -> i8 {
+    remaining.map_or(-1, |r| (r * 100.0).round().clamp(0.0, 100.0) as i8)
+}
+
+/// Centiamperes for MAVLink's `current_battery` (−1: not measured).
+fn centiamps(current_a: Option<f64>) -> i16 {
+    current_a.map_or(-1, |i| (i * 100.0).round().clamp(0.0, 32_767.0) as i16)
 }
 
 /// The sensors and loops `SYS_STATUS` reports, all present and enabled.
@@ -102,7 +122,48 @@ pub fn build(id: u32, t: &Telemetry, unix_usec: u64) -> Option<MavMessage> {
             if !tr.is_some_and(|t| t.vertical_valid) {
                 health -= MavSysStatusSensor::MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE;
             }
-            if status.is_some_and(|s| s.ready && !s.armed) {
+            // Each check's own bit, from the failsafe condition that watches it.
+            use MavSysStatusSensor as S;
+            for (c, bits) in [
+                (
+                    Condition::ImuLost,
+                    S::MAV_SYS_STATUS_SENSOR_3D_GYRO | S::MAV_SYS_STATUS_SENSOR_3D_ACCEL,
+                ),
+                (Condition::MagLost, S::MAV_SYS_STATUS_SENSOR_3D_MAG),
+                (
+                    Condition::BaroLost,
+                    S::MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE,
+                ),
+                (Condition::GpsLost, S::MAV_SYS_STATUS_SENSOR_GPS),
+                (Condition::AttitudeInvalid, S::MAV_SYS_STATUS_AHRS),
+                (
+                    Condition::PositionInvalid,
+                    S::MAV_SYS_STATUS_SENSOR_XY_POSITION_CONTROL,
+                ),
+                (
+                    Condition::AltitudeInvalid,
+                    S::MAV_SYS_STATUS_SENSOR_Z_ALTITUDE_CONTROL,
+                ),
+                (Condition::BatteryCritical, S::MAV_SYS_STATUS_SENSOR_BATTERY),
+                (
+                    Condition::BatteryEmergency,
+                    S::MAV_SYS_STATUS_SENSOR_BATTERY,
+                ),
+                (Condition::GeofenceBreach, S::MAV_SYS_STATUS_GEOFENCE),
+                (
+                    Condition::MotorFailure,
+                    S::MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS,
+                ),
+                (
+                    Condition::Crash,
+                    S::MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION,
+                ),
+            ] {
+                if acting(t, c) {
+                    health -= bits;
+                }
+            }
+            if status.is_some_and(|s| !s.armed && s.prearm_ok) {
                 health |= MavSysStatusSensor::MAV_SYS_STATUS_PREARM_CHECK;
             }
             // Manual control (a joystick through MANUAL_CONTROL) as PX4 reports its RC: present
@@ -121,8 +182,12 @@ pub fn build(id: u32, t: &Telemetry, unix_usec: u64) -> Option<MavMessage> {
                 onboard_control_sensors_enabled: present | extra,
                 onboard_control_sensors_health: health,
                 voltage_battery: (t.battery_v * 1e3).clamp(0.0, 65534.0) as u16,
-                current_battery: -1,
-                battery_remaining: -1,
+                current_battery: centiamps(t.battery.current_a),
+                battery_remaining: percent(t.battery.remaining),
+                // (The crate's default for these is its first flag, a recovery system.)
+                onboard_control_sensors_present_extended: MavSysStatusSensorExtended::empty(),
+                onboard_control_sensors_enabled_extended: MavSysStatusSensorExtended::empty(),
+                onboard_control_sensors_health_extended: MavSysStatusSensorExtended::empty(),
                 ..Default::default()
             })
         }
@@ -242,13 +307,27 @@ pub fn build(id: u32, t: &Telemetry, unix_usec: u64) -> Option<MavMessage> {
         BATTERY_STATUS_DATA::ID => {
             let mut voltages = [u16::MAX; 10];
             voltages[0] = (t.battery_v * 1e3).clamp(0.0, 65534.0) as u16;
+            let b = &t.battery;
+            let charge_state = if acting(t, Condition::BatteryEmergency) {
+                MavBatteryChargeState::MAV_BATTERY_CHARGE_STATE_EMERGENCY
+            } else if acting(t, Condition::BatteryCritical) {
+                MavBatteryChargeState::MAV_BATTERY_CHARGE_STATE_CRITICAL
+            } else if acting(t, Condition::BatteryLow) {
+                MavBatteryChargeState::MAV_BATTERY_CHARGE_STATE_LOW
+            } else if b.remaining.is_some() {
+                MavBatteryChargeState::MAV_BATTERY_CHARGE_STATE_OK
+            } else {
+                MavBatteryChargeState::MAV_BATTERY_CHARGE_STATE_UNDEFINED
+            };
             MavMessage::BATTERY_STATUS(BATTERY_STATUS_DATA {
                 voltages,
-                current_battery: -1,
-                current_consumed: -1,
+                current_battery: centiamps(b.current_a),
+                current_consumed: b.consumed_mah.map_or(-1, |q| q.round() as i32),
                 energy_consumed: -1,
                 temperature: i16::MAX,
-                battery_remaining: -1,
+                battery_remaining: percent(b.remaining),
+                time_remaining: b.time_remaining_s.map_or(0, |s| s.round().max(1.0) as i32),
+                charge_state,
                 battery_function: MavBatteryFunction::MAV_BATTERY_FUNCTION_ALL,
                 mavtype: MavBatteryType::MAV_BATTERY_TYPE_LIPO,
                 ..Default::default()

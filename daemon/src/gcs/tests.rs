@@ -26,6 +26,7 @@ fn telemetry(armed: bool, mode: FlightMode) -> Telemetry {
             failsafe_action: None,
             motor_failed: None,
             failsafe_conditions: 0,
+            prearm_ok: true,
             ready: true,
             in_mode_s: 0.0,
             manual_losses: 0,
@@ -992,4 +993,74 @@ fn gcs_heartbeats_are_forwarded_and_failsafes_announced() {
             "failsafe over: battery critical"
         ]
     );
+}
+
+/// `SYS_STATUS` health bits follow the checks (a lost magnetometer clears the magnetometer's bit,
+/// a critical battery the battery's, a motor failure the motor outputs'), the pre-arm bit the
+/// arming checks; the battery estimate reaches `SYS_STATUS` and `BATTERY_STATUS`.
+#[test]
+fn sys_status_health_bits_and_battery_follow_the_checks() {
+    use flight_core::battery::BatteryState;
+    use flight_core::safety::{CONDITIONS, Condition};
+    let bit = |c: Condition| 1u32 << CONDITIONS.iter().position(|k| *k == c).unwrap();
+    let mut t = telemetry(false, FlightMode::Loiter);
+    t.battery = BatteryState {
+        voltage_v: 15.1,
+        current_a: Some(12.34),
+        consumed_mah: Some(1234.4),
+        cell_v_at_rest: 3.8,
+        remaining: Some(0.123),
+        time_remaining_s: Some(95.2),
+    };
+    let health = |t: &Telemetry| {
+        let Some(MavMessage::SYS_STATUS(s)) = telemetry::build(SYS_STATUS_DATA::ID, t, 0) else {
+            panic!()
+        };
+        s
+    };
+    use MavSysStatusSensor as S;
+    let s = health(&t);
+    let all = S::MAV_SYS_STATUS_SENSOR_3D_MAG
+        | S::MAV_SYS_STATUS_SENSOR_BATTERY
+        | S::MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
+        | S::MAV_SYS_STATUS_PREARM_CHECK;
+    assert!(s.onboard_control_sensors_health.contains(all), "{s:?}");
+    assert_eq!((s.current_battery, s.battery_remaining), (1234, 12));
+    if let Some(st) = t.status.as_mut() {
+        st.failsafe_conditions = bit(Condition::MagLost)
+            | bit(Condition::BatteryLow)
+            | bit(Condition::BatteryCritical)
+            | bit(Condition::MotorFailure);
+        st.prearm_ok = false;
+    }
+    let s = health(&t);
+    assert!(!s.onboard_control_sensors_health.intersects(all), "{s:?}");
+    assert!(
+        s.onboard_control_sensors_health
+            .contains(S::MAV_SYS_STATUS_SENSOR_3D_GYRO | S::MAV_SYS_STATUS_SENSOR_3D_ACCEL),
+        "the others stay healthy: {s:?}"
+    );
+    assert!(s.onboard_control_sensors_present.contains(all));
+    assert!(
+        s.onboard_control_sensors_present_extended.is_empty(),
+        "no recovery system: {s:?}"
+    );
+    let Some(MavMessage::BATTERY_STATUS(b)) = telemetry::build(BATTERY_STATUS_DATA::ID, &t, 0)
+    else {
+        panic!()
+    };
+    assert_eq!(
+        (
+            b.current_battery,
+            b.current_consumed,
+            b.battery_remaining,
+            b.time_remaining
+        ),
+        (1234, 1234, 12, 95)
+    );
+    assert_eq!(
+        b.charge_state,
+        MavBatteryChargeState::MAV_BATTERY_CHARGE_STATE_CRITICAL
+    );
+    assert_eq!(b.voltages[0], 16000, "the reported voltage");
 }

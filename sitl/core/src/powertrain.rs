@@ -46,6 +46,14 @@ impl Battery {
         }
     }
 
+    /// A battery charged to `remaining` (0–1) of its capacity.
+    pub fn charged_to(spec: &BatterySpec, remaining: f64) -> Self {
+        Self {
+            consumed_mah: (1.0 - remaining.clamp(0.0, 1.0)) * spec.capacity_mah,
+            ..Self::new(spec)
+        }
+    }
+
     /// State of charge, 0–1.
     pub fn remaining(&self) -> f64 {
         (1.0 - self.consumed_mah / self.spec.capacity_mah).clamp(0.0, 1.0)

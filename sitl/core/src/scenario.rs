@@ -14,6 +14,9 @@
 //! [wind]
 //! mean_ned_m_s = [3.0, 0.0, 0.0]
 //! turbulence_w20_m_s = 7.7
+//! [battery]                   # the airframe's pack, changed
+//! charge = 0.3                 # at the start (0–1)
+//! capacity_mah = 500.0
 //! [[events]]
 //! t_s = 5.0
 //! kind = "motor_fail"
@@ -48,6 +51,14 @@ struct InitialFile {
     /// Start with the rotors already at hover speed (for scenarios that start in the air).
     #[serde(default)]
     rotors_at_hover: bool,
+}
+
+/// The `[battery]` table: the airframe's pack as charged and, optionally, of another capacity.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BatteryFile {
+    charge: Option<f64>,
+    capacity_mah: Option<f64>,
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -138,6 +149,8 @@ struct ScenarioFile {
     initial: InitialFile,
     #[serde(default)]
     wind: WindConfig,
+    #[serde(default)]
+    battery: BatteryFile,
     #[serde(default)]
     events: Vec<EventFile>,
     #[serde(default)]
@@ -238,6 +251,12 @@ impl Scenario {
             0.0,
             40.0,
         );
+        if let Some(q) = raw.battery.charge {
+            c.within("battery.charge", q, 0.0, 1.0);
+        }
+        if let Some(cap) = raw.battery.capacity_mah {
+            c.within("battery.capacity_mah", cap, 1.0, 1e6);
+        }
         let mut events = Vec::new();
         for (i, e) in raw.events.iter().enumerate() {
             resolve_event(&mut c, i, e, &mut events);
@@ -275,7 +294,10 @@ impl Scenario {
         c.finish(file)?;
 
         let airframe_path = resolve_airframe(&raw.airframe, base, airframe_dir);
-        let airframe = Airframe::load(&airframe_path)?;
+        let mut airframe = Airframe::load(&airframe_path)?;
+        if let Some(cap) = raw.battery.capacity_mah {
+            airframe.battery.capacity_mah = cap;
+        }
         let rotors = airframe.rotors.len();
         let mut c = Checker::default();
         for (i, e) in raw.events.iter().enumerate() {
@@ -338,6 +360,7 @@ impl Scenario {
                 earth_field: raw.earth_field.unwrap_or_default(),
                 home,
                 wind: raw.wind,
+                battery_charge: raw.battery.charge.unwrap_or(1.0),
             },
             initial,
             rotors_at_hover: ini.rotors_at_hover,
@@ -581,6 +604,9 @@ rotors_at_hover = true
 [wind]
 mean_ned_m_s = [3.0, 0.0, 0.0]
 turbulence_w20_m_s = 7.7
+[battery]
+charge = 0.3
+capacity_mah = 800.0
 [[events]]
 t_s = 5.0
 kind = "motor_fail"
@@ -611,6 +637,10 @@ throttle = 0.1
         assert!((s.sim.dt_s - 0.002).abs() < 1e-15);
         assert_eq!(s.sim.home.lat_deg, -33.9);
         assert!(s.rotors_at_hover);
+        assert_eq!(
+            (s.sim.battery_charge, s.airframe.battery.capacity_mah),
+            (0.3, 800.0)
+        );
         assert!(
             (s.initial.q_ned_from_frd.euler_angles().2 - std::f64::consts::FRAC_PI_2).abs() < 1e-12
         );
@@ -660,6 +690,11 @@ throttle = 0.1
         assert!(e.contains("`wind.turbulence_w20_m_s`"), "{e}");
         let e = err(&FULL.replace("integrator = \"exp_map\"", "integrator = \"verlet\""));
         assert!(e.contains("verlet"), "{e}");
+        let e = err(&FULL.replace("charge = 0.3", "charge = 1.3"));
+        assert!(
+            e.contains("`battery.charge`: must be within [0, 1], got 1.3"),
+            "{e}"
+        );
         let e = err(&FULL.replace("seed = 7", "seed = 7\ncolour = \"red\""));
         assert!(e.contains("colour"), "{e}");
     }

@@ -33,6 +33,8 @@ pub struct SimConfig {
     pub home: Geodetic,
     /// Wind and turbulence.
     pub wind: WindConfig,
+    /// The battery's charge at the start (0–1).
+    pub battery_charge: f64,
 }
 
 impl Default for SimConfig {
@@ -45,6 +47,7 @@ impl Default for SimConfig {
             earth_field: EarthField::default(),
             home: Geodetic::default(),
             wind: WindConfig::default(),
+            battery_charge: 1.0,
         }
     }
 }
@@ -248,7 +251,7 @@ impl Simulator {
             time_usec: 0,
             body: initial,
             rotors: Rotors::new(airframe),
-            battery: Battery::new(&airframe.battery),
+            battery: Battery::charged_to(&airframe.battery, cfg.battery_charge),
             wind,
             sensors,
             landed: false,

@@ -306,6 +306,8 @@ pub struct SensorUpdate {
     pub rotor_speed_rad_s: Option<[f64; 16]>,
     /// Battery voltage (V), from `ESC_STATUS`.
     pub battery_v: Option<f64>,
+    /// Current per ESC (A), from `ESC_STATUS`, by rotor (their sum is the pack's current).
+    pub esc_current_a: Option<[f64; 16]>,
     /// Ground truth from `HIL_STATE_QUATERNION` (for logs and scoring, never the estimator).
     pub truth: Option<TruthReport>,
 }
@@ -370,7 +372,18 @@ impl SensorUpdate {
                         *slot = *rpm as f64 * std::f64::consts::TAU / 60.0;
                     }
                 }
-                self.battery_v = Some(e.voltage[0] as f64);
+                let currents = self.esc_current_a.get_or_insert([0.0; 16]);
+                for (k, i) in e.current.iter().enumerate() {
+                    if let Some(slot) = currents.get_mut(e.index as usize + k) {
+                        // A NaN or negative report counts as nothing drawn.
+                        *slot = if i.is_finite() {
+                            (*i as f64).max(0.0)
+                        } else {
+                            0.0
+                        };
+                    }
+                }
+                self.battery_v = Some(e.voltage[0] as f64).filter(|v| v.is_finite());
                 false
             }
             MavMessage::HIL_STATE_QUATERNION(q) => {
@@ -538,5 +551,13 @@ mod tests {
         };
         assert_eq!((m.index, m.rpm[3]), (8, 1011));
         assert!((m.current[0] - 2.0).abs() < 1e-6);
+        // Read back: the pack's voltage, and the currents adding up to the pack's.
+        let mut u = SensorUpdate::default();
+        for m in &msgs {
+            assert!(!u.absorb(m));
+        }
+        let currents = u.esc_current_a.unwrap();
+        assert!((currents.iter().sum::<f64>() - 24.0).abs() < 1e-4);
+        assert_eq!(u.battery_v, Some(22.0));
     }
 }

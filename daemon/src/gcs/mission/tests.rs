@@ -535,6 +535,16 @@ fn fence_and_rally_are_stored_apart_and_cleared_apart() {
     let out = upload(&mut m, MavMissionType::MAV_MISSION_TYPE_FENCE, &fence);
     assert_eq!(acked(&out).0, MavMissionResult::MAV_MISSION_ACCEPTED);
     assert!(out.mission.is_none(), "a fence is not a mission");
+    assert_eq!(
+        out.fence,
+        Some(vec![GeoZone::Polygon {
+            inclusion: true,
+            vertices_deg: (0..3)
+                .map(|k| ((473_970_000 + k * 1000) as f64 * 1e-7, 8.545))
+                .collect(),
+        }]),
+        "the fence for the vehicle"
+    );
     let rally = [MISSION_ITEM_INT_DATA {
         mission_type: MavMissionType::MAV_MISSION_TYPE_RALLY,
         ..item(
@@ -634,4 +644,115 @@ fn the_old_mission_item_uploads_as_the_int_one() {
         (stored.x - 473_978_000).abs() <= 50 && (stored.y - 85_456_000).abs() <= 50,
         "{stored:?}"
     );
+}
+
+/// A fence plan decodes into zones: polygons of as many vertices as their param1 says,
+/// circles of a positive radius, in a global frame; anything else refuses the upload and keeps
+/// the previous fence. Clearing the fence clears the vehicle's.
+#[test]
+fn fence_plans_become_zones_or_are_refused() {
+    use MavCmd::*;
+    use MavFrame::*;
+    let kind = MavMissionType::MAV_MISSION_TYPE_FENCE;
+    let fence_item = |seq, command, p1: f32, frame, lat: i32| MISSION_ITEM_INT_DATA {
+        mission_type: kind,
+        ..item(
+            seq,
+            command,
+            frame,
+            [p1, 0.0, 0.0, 0.0],
+            (lat, 85_450_000, 0.0),
+        )
+    };
+    let mut good: Vec<_> = (0..4)
+        .map(|k| {
+            fence_item(
+                k,
+                MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION,
+                4.0,
+                MAV_FRAME_GLOBAL_INT,
+                473_970_000 + k as i32 * 100,
+            )
+        })
+        .collect();
+    good.push(fence_item(
+        4,
+        MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION,
+        120.0,
+        MAV_FRAME_GLOBAL_INT,
+        473_970_000,
+    ));
+    good.push(fence_item(
+        5,
+        MAV_CMD_NAV_FENCE_RETURN_POINT,
+        0.0,
+        MAV_FRAME_GLOBAL_INT,
+        473_970_000,
+    ));
+    let zones = decode_fence(&good).unwrap();
+    assert_eq!(zones.len(), 2);
+    assert!(
+        matches!(&zones[0], GeoZone::Polygon { inclusion: false, vertices_deg } if vertices_deg.len() == 4)
+    );
+    assert!(
+        matches!(zones[1], GeoZone::Circle { inclusion: true, radius_m, .. } if radius_m == 120.0)
+    );
+
+    let mut m = Missions::default();
+    let out = upload(&mut m, kind, &good);
+    assert_eq!(acked(&out).0, MavMissionResult::MAV_MISSION_ACCEPTED);
+    assert_eq!(out.fence.as_ref().map(Vec::len), Some(2));
+    let bad_cases = [
+        // A polygon one vertex short of its count.
+        (
+            good[..3].to_vec(),
+            MavMissionResult::MAV_MISSION_INVALID_PARAM1,
+        ),
+        // Two vertices.
+        (
+            (0..2)
+                .map(|k| {
+                    fence_item(
+                        k,
+                        MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,
+                        2.0,
+                        MAV_FRAME_GLOBAL_INT,
+                        473_970_000,
+                    )
+                })
+                .collect(),
+            MavMissionResult::MAV_MISSION_INVALID_PARAM1,
+        ),
+        // A circle of no radius.
+        (
+            vec![fence_item(
+                0,
+                MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION,
+                0.0,
+                MAV_FRAME_GLOBAL_INT,
+                473_970_000,
+            )],
+            MavMissionResult::MAV_MISSION_INVALID_PARAM1,
+        ),
+        // A circle in a local frame.
+        (
+            vec![fence_item(
+                0,
+                MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION,
+                5.0,
+                MAV_FRAME_LOCAL_NED,
+                10,
+            )],
+            MavMissionResult::MAV_MISSION_UNSUPPORTED_FRAME,
+        ),
+    ];
+    for (items, why) in bad_cases {
+        let out = upload(&mut m, kind, &items);
+        assert_eq!(acked(&out).0, why, "{items:?}");
+        assert!(out.fence.is_none());
+        assert_eq!(m.items(kind).len(), 6, "the previous fence is kept");
+    }
+    let out = send(&mut m, GCS, count(0, kind));
+    assert_eq!(acked(&out).0, MavMissionResult::MAV_MISSION_ACCEPTED);
+    assert_eq!(out.fence, Some(Vec::new()));
 }

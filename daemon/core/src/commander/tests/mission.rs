@@ -38,6 +38,8 @@ struct Follower {
     yaw: f64,
     /// The set-points flown.
     path: Vec<PositionSetpoint>,
+    /// North of this the vehicle is outside its geofence (what the caller's fence check says).
+    fence_north_m: f64,
 }
 
 impl Follower {
@@ -49,16 +51,19 @@ impl Follower {
             vel: Vector3::zeros(),
             yaw: 0.0,
             path: Vec::new(),
+            fence_north_m: f64::INFINITY,
         };
         f.step();
         f
     }
 
     fn input(&self) -> CommanderInput {
-        CommanderInput {
+        let mut i = CommanderInput {
             origin: Some(ORIGIN),
             ..at(self.t, self.pos, self.vel, self.yaw)
-        }
+        };
+        i.health.geofence_breached = self.pos.x > self.fence_north_m;
+        i
     }
 
     fn step(&mut self) -> PositionSetpoint {
@@ -366,4 +371,25 @@ fn reposition_flies_to_the_point_and_holds_and_yaw_and_speed_commands_apply() {
     f.c.change_speed(SpeedChange::To(4.0)).unwrap();
     f.until(4.0, |_| false);
     assert!((f.vel.xy().norm() - 4.0).abs() < 1e-6, "{:?}", f.vel);
+}
+
+/// An uploaded fence breached on a reposition leg (the caller's check): `GF_ACTION` Hold stops
+/// the leg at the breach, braking at `MPC_ACC_FS_BRK` (not the gentle `MPC_ACC_HOR`, which would
+/// carry it 12.5 m on), even though the vehicle was in Hold already.
+#[test]
+fn a_fence_breach_on_a_reposition_leg_stops_it() {
+    let mut f = Follower::new(CommanderParams::default());
+    f.fence_north_m = 12.0;
+    f.c.takeoff(Some(5.0)).unwrap();
+    f.c.arm(false).unwrap();
+    assert!(f.until(20.0, |f| f.c.mode() == FlightMode::Loiter));
+    f.c.reposition(Vector3::new(25.0, 0.0, -5.0), None, None, false)
+        .unwrap();
+    f.until(30.0, |_| false);
+    assert_eq!(f.c.mode(), FlightMode::Loiter);
+    assert!(
+        f.pos.x > 12.0 && f.pos.x < 17.5,
+        "stopped at {:?} (fence at 12 m, braking from 5 m/s at 2.5 m/s²: 5 m)",
+        f.pos
+    );
 }
