@@ -34,6 +34,24 @@ class Heartbeats:
         self.thread.join()
 
 
+def take_off(gcs):
+    """TAKEOFF mode, armed, in the air in Hold (LOITER) at the take-off altitude."""
+    gcs.set_mode("TAKEOFF")
+    assert ack(gcs, ML.MAV_CMD_DO_SET_MODE) == 0
+    gcs.arducopter_arm()
+    assert ack(gcs, ML.MAV_CMD_COMPONENT_ARM_DISARM) == 0
+    wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER" and armed(m), timeout=30)
+
+
+def reposition_north(gcs, home, metres):
+    """DO_REPOSITION `metres` north of `home` (GLOBAL_POSITION_INT) at 4 m: default speed, no
+    mode change (in Hold already), no yaw."""
+    gcs.mav.command_int_send(1, 1, ML.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+                             ML.MAV_CMD_DO_REPOSITION, 0, 0, -1, 0, 0, math.nan,
+                             home.lat + int(metres / 111_320 * 1e7), home.lon, 4.0)
+    assert ack(gcs, ML.MAV_CMD_DO_REPOSITION) == 0
+
+
 def test_gcs_link_loss_holds_then_returns_and_lands_at_home(vehicle):
     """NAV_DLL_ACT 2 (Return) after COM_DL_LOSS_T of wall time without a GCS heartbeat, Hold
     for COM_FAIL_ACT_T first; the return lands at home and disarms."""
@@ -49,17 +67,9 @@ def test_gcs_link_loss_holds_then_returns_and_lands_at_home(vehicle):
         set_param(gcs, "COM_FAIL_ACT_T", 2.0)
         ready_to_arm(gcs)
         home = wait(gcs, "GLOBAL_POSITION_INT", lambda m: True)
-        gcs.set_mode("TAKEOFF")
-        assert ack(gcs, ML.MAV_CMD_DO_SET_MODE) == 0
-        gcs.arducopter_arm()
-        assert ack(gcs, ML.MAV_CMD_COMPONENT_ARM_DISARM) == 0
-        wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER" and armed(m), timeout=30)
+        take_off(gcs)
         # Fly 8 m north so the return has somewhere to go.
-        # DO_REPOSITION: default speed, no mode change (in Hold already), no yaw.
-        gcs.mav.command_int_send(1, 1, ML.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
-                                 ML.MAV_CMD_DO_REPOSITION, 0, 0, -1, 0, 0, math.nan,
-                                 home.lat + int(8 / 111_320 * 1e7), home.lon, 4.0)
-        assert ack(gcs, ML.MAV_CMD_DO_REPOSITION) == 0
+        reposition_north(gcs, home, 8)
         start = wait(gcs, "HOME_POSITION", lambda m: True, timeout=5)
         wait(gcs, "LOCAL_POSITION_NED", lambda m: m.x - start.x > 7.0 and abs(m.vx) < 0.3, 30)
     finally:
@@ -132,15 +142,8 @@ def test_battery_failsafe_warns_returns_lands_and_refuses_to_arm(tmp_path, scena
         assert 15 < first.battery_remaining < 40, first
         assert first.charge_state == ML.MAV_BATTERY_CHARGE_STATE_OK, first
         home = wait(gcs, "GLOBAL_POSITION_INT", lambda m: True)
-        gcs.set_mode("TAKEOFF")
-        assert ack(gcs, ML.MAV_CMD_DO_SET_MODE) == 0
-        gcs.arducopter_arm()
-        assert ack(gcs, ML.MAV_CMD_COMPONENT_ARM_DISARM) == 0
-        wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER" and armed(m), timeout=30)
-        gcs.mav.command_int_send(1, 1, ML.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
-                                 ML.MAV_CMD_DO_REPOSITION, 0, 0, -1, 0, 0, math.nan,
-                                 home.lat + int(6 / 111_320 * 1e7), home.lon, 4.0)
-        assert ack(gcs, ML.MAV_CMD_DO_REPOSITION) == 0
+        take_off(gcs)
+        reposition_north(gcs, home, 6)
         # Everything in order until the vehicle is down and disarmed.
         events, charge, states, current = [], [], set(), []
         end = time.monotonic() + 120
@@ -226,14 +229,9 @@ def test_uploaded_geofence_refuses_arming_outside_and_holds_at_the_breach(vehicl
               for k, (n, e) in enumerate(corners)]
     assert upload_fence(gcs, square) == ML.MAV_MISSION_ACCEPTED
     ready_to_arm(gcs)
-    gcs.arducopter_arm()
-    assert ack(gcs, ML.MAV_CMD_COMPONENT_ARM_DISARM) == 0
-    wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER" and armed(m), timeout=30)
+    take_off(gcs)
     start = wait(gcs, "LOCAL_POSITION_NED", lambda m: True)
-    gcs.mav.command_int_send(1, 1, ML.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
-                             ML.MAV_CMD_DO_REPOSITION, 0, 0, -1, 0, 0, math.nan,
-                             home.lat + int(25 * deg), home.lon, 4.0)
-    assert ack(gcs, ML.MAV_CMD_DO_REPOSITION) == 0
+    reposition_north(gcs, home, 25)
     breach, furthest, unhealthy = None, 0.0, False
     end = time.monotonic() + 40
     while time.monotonic() < end:
