@@ -462,6 +462,8 @@ pub struct Commander {
     safety: Safety,
     /// Its last decision's action and cause.
     failsafe: (Action, Option<Condition>),
+    /// Every arming check passed at the last update (checked there once, not per status read).
+    prearm_ok: bool,
     /// What it said since the caller last asked.
     safety_events: Vec<SafetyEvent>,
 }
@@ -499,6 +501,7 @@ impl Commander {
             yaw_goal: None,
             safety: Safety::new(SafetyParams::default()),
             failsafe: (Action::None, None),
+            prearm_ok: false,
             safety_events: Vec::new(),
         }
     }
@@ -568,10 +571,7 @@ impl Commander {
             mission: self.mission.status(),
             motor_failed: self.last.and_then(|i| i.health.motor_failed),
             failsafe_conditions: self.safety.active_mask(),
-            prearm_ok: !self.armed
-                && self
-                    .last
-                    .is_some_and(|i| self.preflight_failures(&i).is_empty()),
+            prearm_ok: !self.armed && self.prearm_ok,
         }
     }
 
@@ -978,6 +978,7 @@ impl Commander {
         let dt = self.last.map_or(0.0, |l| (t - l.t_s).max(0.0));
         self.last = Some(*i);
         self.failsafes(i);
+        self.prearm_ok = !self.armed && self.preflight_failures(i).is_empty();
         if !i.ready {
             // The same reaction as to silent sensors, at this update's time.
             self.sensors_stopped();

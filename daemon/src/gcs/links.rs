@@ -462,8 +462,7 @@ pub async fn run(endpoints: Vec<Endpoint>, vehicle: Vehicle) -> Option<Action> {
     let start = Instant::now();
     let mut malformed = 0u64;
     let mut exit = None;
-    let mut pending_mission = None;
-    let mut pending_fence = None;
+    let mut pending = std::collections::VecDeque::new();
     loop {
         tokio::select! {
             Some(i) = inbound.recv() => {
@@ -510,33 +509,22 @@ pub async fn run(endpoints: Vec<Endpoint>, vehicle: Vehicle) -> Option<Action> {
             // A full queue loses these sticks only: the next ones follow within 50 ms.
             let _ = commands.try_send(Command::Vehicle(VehicleCommand::Sticks(sticks), None));
         }
+        // Plans must arrive (they were acknowledged): a full queue keeps them, in order, for the
+        // next turn of this loop; a newer plan of a kind replaces one still waiting.
         if let Some(items) = out.mission.take() {
-            pending_mission = Some(items);
-        }
-        if let Some(items) = pending_mission.take() {
-            // The mission must arrive (it was acknowledged): a full queue keeps it for the
-            // next turn of this loop.
-            let c = Command::Vehicle(VehicleCommand::SetMission(items), None);
-            if let Err(mpsc::error::TrySendError::Full(Command::Vehicle(
-                VehicleCommand::SetMission(items),
-                _,
-            ))) = commands.try_send(c)
-            {
-                pending_mission = Some(items);
-            }
+            pending.retain(|c| !matches!(c, VehicleCommand::SetMission(_)));
+            pending.push_back(VehicleCommand::SetMission(items));
         }
         if let Some(zones) = out.fence.take() {
-            pending_fence = Some(zones);
+            pending.retain(|c| !matches!(c, VehicleCommand::SetFence(_)));
+            pending.push_back(VehicleCommand::SetFence(zones));
         }
-        if let Some(zones) = pending_fence.take() {
-            // Likewise the fence.
-            let c = Command::Vehicle(VehicleCommand::SetFence(zones), None);
-            if let Err(mpsc::error::TrySendError::Full(Command::Vehicle(
-                VehicleCommand::SetFence(zones),
-                _,
-            ))) = commands.try_send(c)
+        while let Some(c) = pending.pop_front() {
+            if let Err(mpsc::error::TrySendError::Full(Command::Vehicle(c, _))) =
+                commands.try_send(Command::Vehicle(c, None))
             {
-                pending_fence = Some(zones);
+                pending.push_front(c);
+                break;
             }
         }
         if let Some(target) = out.offboard.take() {
