@@ -696,7 +696,8 @@ mod tests {
     fn fly_seed(fault: Fault, seed: u64) -> (FaultyLink, FlightReport, Vehicle) {
         let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../params");
         let airframe = Airframe::load(&dir.join("airframes/quad_x.toml")).unwrap();
-        let params = FlightParams::load(&dir.join("flight.toml")).unwrap();
+        let mut params = FlightParams::load(&dir.join("flight.toml")).unwrap();
+        crate::link::Source::Embedded.preset_params(&mut params);
         let auto = crate::vehicle::AutoFlight {
             takeoff_m: 5.0,
             hover_s: 30.0,

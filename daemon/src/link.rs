@@ -80,7 +80,28 @@ fn parse_bool(url: &str, key: &str, v: &str) -> Result<bool> {
     }
 }
 
+/// The simulated magnetometer's device id, PX4's (`DRV_MAG_DEVTYPE_MAGSIM`): what a
+/// simulator source presets `CAL_MAG0_ID` to, as PX4's SITL start-up does.
+pub const SIMULATED_MAG_ID: u32 = 197_388;
+
 impl Source {
+    /// The other end is a simulator: the embedded one, one over UDP, or one in lockstep on a
+    /// serial line.
+    pub fn is_simulator(&self) -> bool {
+        match self {
+            Self::Embedded | Self::Udp { .. } => true,
+            Self::Serial { lockstep, .. } => *lockstep,
+        }
+    }
+
+    /// Presets what a simulator's sensors need (PX4's `param set-default` in its SITL start-up):
+    /// the simulated magnetometer is calibrated by construction (`CAL_MAG0_ID`), unless the
+    /// parameter file says otherwise. A ground station may still clear it.
+    pub fn preset_params(&self, params: &mut flight_core::params::FlightParams) {
+        if self.is_simulator() && params.attitude.mag_calibration_id == 0 {
+            params.attitude.mag_calibration_id = SIMULATED_MAG_ID;
+        }
+    }
     /// Parses `sim`, `udp://HOST:PORT[?lockstep=false]` or
     /// `serial:///dev/ttyX[?baud=N&lockstep=true]`; a UDP port is offset by `instance`.
     pub fn parse(url: &str, instance: u16) -> Result<Self> {
@@ -377,6 +398,30 @@ impl SensorLink for SerialLink {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A simulator's magnetometer is calibrated by construction; a board's is not until its
+    /// owner calibrates it, and a calibration in the parameter file is kept.
+    #[test]
+    fn a_simulator_source_presets_the_magnetometer_calibration() {
+        use flight_core::params::FlightParams;
+        let preset = |url: &str, id: u32| {
+            let mut p = FlightParams::default();
+            p.attitude.mag_calibration_id = id;
+            Source::parse(url, 0).unwrap().preset_params(&mut p);
+            p.attitude.mag_calibration_id
+        };
+        assert_eq!(preset("sim", 0), SIMULATED_MAG_ID);
+        assert_eq!(
+            preset("udp://127.0.0.1:4560?lockstep=false", 0),
+            SIMULATED_MAG_ID
+        );
+        assert_eq!(
+            preset("serial:///dev/ttyACM0?lockstep=1", 0),
+            SIMULATED_MAG_ID
+        );
+        assert_eq!(preset("serial:///dev/ttyACM0", 0), 0, "a board");
+        assert_eq!(preset("sim", 42), 42);
+    }
 
     #[test]
     fn sources_parse_with_clear_errors() {

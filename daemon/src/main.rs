@@ -303,6 +303,7 @@ fn fly(cli: &Cli) -> Result<()> {
         .unwrap_or_else(|| dir.join("flight.toml"));
     // flight.toml, then what ground stations changed, then the command line.
     let mut base = FlightParams::load(&params_path)?;
+    source.preset_params(&mut base);
     let (params, store) = match &cfg.param_store {
         Some(path) => {
             let loaded = ParamStore::load(path, &base)?;

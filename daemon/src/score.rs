@@ -146,6 +146,7 @@ mod tests {
             failsafe_action: None,
             motor_failed: None,
             failsafe_conditions: 0,
+            safety_log: Default::default(),
             prearm_ok: true,
             ready: true,
             in_mode_s: 0.0,

@@ -15,6 +15,7 @@ use flight_core::estimator::translation::GpsMeasurement;
 use flight_core::failsafe::{BlindDescent, HoverCommands};
 use flight_core::geo::{LatLonAlt, LocalFrame};
 use flight_core::geofence::{FenceMonitor, GeoZone, Geofence};
+use flight_core::mag_check::MagFieldMonitor;
 use flight_core::mission::{MissionItem, MissionPoint, SpeedChange};
 use flight_core::params::FlightParams;
 use flight_core::sensor_monitor::SensorMonitor;
@@ -117,6 +118,8 @@ pub struct Vehicle {
     auto: Option<AutoFlight>,
     /// The auto flight has armed, or an operator asked to end: the run ends once disarmed.
     end_when_disarmed: bool,
+    /// Why the auto flight may not arm, as last said (said again only when it changes).
+    auto_denial: Option<String>,
     ended: bool,
     update: SensorUpdate,
     last: Option<StepOutput>,
@@ -145,6 +148,8 @@ pub struct Vehicle {
     injection_enabled: bool,
     /// Silent and frozen sensors.
     monitor: SensorMonitor,
+    /// The magnetometer's field at rest, for the arming checks.
+    mag_field: MagFieldMonitor,
 }
 
 /// One step's result.
@@ -182,6 +187,7 @@ impl Vehicle {
             last_truth: None,
             auto,
             end_when_disarmed: false,
+            auto_denial: None,
             ended: false,
             update: SensorUpdate::default(),
             last: None,
@@ -207,6 +213,7 @@ impl Vehicle {
             injected: FailureInjector::new(airframe.rotors.len()),
             injection_enabled: params.safety.failure_injection != 0,
             monitor: SensorMonitor::new(),
+            mag_field: MagFieldMonitor::default(),
         })
     }
 
@@ -478,7 +485,10 @@ impl Vehicle {
         if !self.end_when_disarmed {
             if s.ready && !s.armed {
                 if let Err(e) = c.takeoff(Some(a.takeoff_m)).and_then(|()| c.arm(false)) {
-                    tracing::warn!("auto flight: {e}");
+                    if self.auto_denial.as_ref() != Some(&e) {
+                        tracing::warn!("auto flight: {e}");
+                        self.auto_denial = Some(e);
+                    }
                     return;
                 }
                 tracing::info!(takeoff_m = a.takeoff_m, "auto flight: armed, taking off");
@@ -569,6 +579,11 @@ impl Vehicle {
         self.injected.apply_to_sample(&mut sample);
         // Lost sensors are taken out: the estimators fall back as for a sensor that is off.
         self.monitor.update(&mut sample);
+        if self.last.is_some() {
+            let dt = t_usec.saturating_sub(self.last_t_usec) as f64 * 1e-6;
+            let p = &self.core.config().attitude;
+            self.mag_field.update(sample.mag, &sample.accel, p, dt);
+        }
         let t_s = t_usec as f64 * 1e-6;
         let (setpoint, armed) = match self.last {
             Some(e) => {
@@ -620,6 +635,7 @@ impl Vehicle {
                         sensors_lost: self.monitor.lost(),
                         battery_remaining: self.battery.state().remaining,
                         geofence_breached: outside_fence,
+                        mag: self.mag_field.status(&self.core.config().attitude),
                     },
                 });
                 for e in self.commander.take_safety_events() {

@@ -86,10 +86,6 @@ def test_gcs_link_loss_holds_then_returns_and_lands_at_home(vehicle):
     assert off < 1.0, f"landed {off:.2f} m from home"
 
 
-if __name__ == "__main__":
-    pytest.main([__file__, "-q", "-s"])
-
-
 def inject(gcs, unit, kind, instance=0):
     """MAV_CMD_INJECT_FAILURE; its result."""
     gcs.mav.command_long_send(1, 1, ML.MAV_CMD_INJECT_FAILURE, 0, unit, kind, instance, 0, 0, 0, 0)
@@ -259,3 +255,75 @@ def test_uploaded_geofence_refuses_arming_outside_and_holds_at_the_breach(vehicl
     wait(gcs, "HEARTBEAT", lambda m: not armed(m), timeout=60)
     down = wait(gcs, "LOCAL_POSITION_NED", lambda m: True)
     assert math.hypot(down.x - start.x, down.y - start.y) < 1.5
+
+
+def test_magnet_under_the_board_refuses_arming_until_it_is_gone(tmp_path, scenario):
+    """A magnet under the board for the first 40 s (scenario `mag_disturbance`, 0.35 G up): the
+    field measured at rest is 0.23 G and 20° below the horizon where the site's is 0.48 G and 63°
+    (ATT_MAG_STR, ATT_MAG_INC): arming is refused naming the field (EKF2_MAG_CHK_STR), the pre-arm
+    bit stays down; once the magnet is gone the check passes and the vehicle arms."""
+    path = scenario('airframe = "quad_x"\nduration_s = 100000.0\n'
+                    '[[events]]\nkind = "mag_disturbance"\nt_s = 0.0\n'
+                    'field_ned_gauss = [0.0, 0.0, -0.35]\nduration_s = 40.0\n')
+    d = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0", scenario=path)
+    try:
+        gcs = d.gcs
+        assert gcs.wait_heartbeat(timeout=30), "no heartbeat"
+        wait(gcs, "GLOBAL_POSITION_INT", lambda m: True, 30)
+        # Until the estimate has converged its own reasons lead; then the magnetometer's.
+        end, text = time.monotonic() + 20, ""
+        while "mag field" not in text:
+            assert time.monotonic() < end, f"last refusal: {text!r}"
+            gcs.arducopter_arm()
+            assert ack(gcs, ML.MAV_CMD_COMPONENT_ARM_DISARM) == ML.MAV_RESULT_DENIED
+            text = wait(gcs, "STATUSTEXT", lambda m: "arming refused" in m.text, 2).text
+        assert "mag field 0.2" in text and "expected 0.48 G" in text, text
+        status = wait(gcs, "SYS_STATUS", lambda m: True)
+        assert not status.onboard_control_sensors_health & PREARM_CHECK
+        # The magnet goes at 40 s of simulated time (about 13 s here).
+        ready_to_arm(gcs)
+        gcs.set_mode("TAKEOFF")
+        assert ack(gcs, ML.MAV_CMD_DO_SET_MODE) == 0
+        gcs.arducopter_arm()
+        assert ack(gcs, ML.MAV_CMD_COMPONENT_ARM_DISARM) == 0
+    finally:
+        d.close()
+
+
+def test_a_quad_that_loses_both_front_rotors_flips_and_is_disarmed(vehicle):
+    """Crash detection: a quad_x in Hold at 15 m loses both front rotors
+    (motors 1 and 3, injected); nothing can hold its pitch, it goes over past FD_FAIL_P (60°) and
+    after FD_FAIL_R_TTRI (0.3 s) the motors are stopped: announced and disarmed."""
+    gcs = vehicle
+    set_param(gcs, "SYS_FAILURE_EN", int_bits(1), INT32)
+    set_param(gcs, "MIS_TAKEOFF_ALT", 15.0)  # high enough to go over before the ground
+    ready_to_arm(gcs)
+    take_off(gcs)
+    for motor in (1, 3):
+        assert inject(gcs, ML.FAILURE_UNIT_SYSTEM_MOTOR, ML.FAILURE_TYPE_OFF, motor) == 0
+    seen, pitch = [], 0.0
+    end = time.monotonic() + 20
+    while time.monotonic() < end:
+        m = gcs.recv_match(type=["STATUSTEXT", "HEARTBEAT", "ATTITUDE"], blocking=True,
+                           timeout=0.5)
+        if m is None or m.get_srcComponent() != 1:
+            continue
+        if m.get_type() == "ATTITUDE":
+            pitch = max(pitch, abs(math.degrees(m.pitch)))
+        elif m.get_type() == "STATUSTEXT":
+            seen.append(m.text)
+        elif not armed(m):
+            break
+    else:
+        pytest.fail(f"still armed: {seen}")
+    # The announcement may trail the heartbeat that shows the motors stopped.
+    crash = "failsafe: attitude failure (crash or flip): disarm"
+    if crash not in seen:
+        seen.append(wait(gcs, "STATUSTEXT", lambda m: "failsafe" in m.text, 2).text)
+    assert crash in seen, seen
+    assert pitch > 60, f"largest pitch seen {pitch:.0f}°"
+    print(f"crash: {seen}, pitch up to {pitch:.0f}°")
+
+
+if __name__ == "__main__":
+    pytest.main([__file__, "-q", "-s"])

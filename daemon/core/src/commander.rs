@@ -268,6 +268,8 @@ pub struct Health {
     pub roll_pitch_rad: (f64, f64),
     /// A motor marked failed (1-based), if any.
     pub motor_failed: Option<usize>,
+    /// The magnetometer's calibration and the field it measures.
+    pub mag: crate::mag_check::MagStatus,
 }
 
 impl Default for Health {
@@ -281,6 +283,7 @@ impl Default for Health {
             sensors_lost: SensorsLost::default(),
             roll_pitch_rad: (0.0, 0.0),
             motor_failed: None,
+            mag: crate::mag_check::MagStatus::default(),
         }
     }
 }
@@ -332,6 +335,8 @@ pub struct CommanderStatus {
     pub failsafe_conditions: u32,
     /// Disarmed and every arming check passes (`SYS_STATUS`'s pre-arm bit).
     pub prearm_ok: bool,
+    /// The failsafe machine's events, numbered: each to be said once.
+    pub safety_log: crate::safety::SafetyLog,
 }
 
 /// A straight-line set-point profile from `from` to `to`: speed ramps up at `accel`, cruises
@@ -466,6 +471,8 @@ pub struct Commander {
     prearm_ok: bool,
     /// What it said since the caller last asked.
     safety_events: Vec<SafetyEvent>,
+    /// What it said, numbered, for readers of [`Commander::status`].
+    safety_log: crate::safety::SafetyLog,
 }
 
 impl Commander {
@@ -503,6 +510,7 @@ impl Commander {
             failsafe: (Action::None, None),
             prearm_ok: false,
             safety_events: Vec::new(),
+            safety_log: crate::safety::SafetyLog::default(),
         }
     }
 
@@ -572,6 +580,7 @@ impl Commander {
             motor_failed: self.last.and_then(|i| i.health.motor_failed),
             failsafe_conditions: self.safety.active_mask(),
             prearm_ok: !self.armed && self.prearm_ok,
+            safety_log: self.safety_log,
         }
     }
 
@@ -713,8 +722,7 @@ impl Commander {
                 altitude_valid: h.altitude_valid,
                 mode_needs_position: self.mode.needs_position(),
                 sensors_lost: h.sensors_lost,
-                mag_uncalibrated: false,
-                mag_inconsistent: None,
+                mag: h.mag,
                 battery_remaining: h.battery_remaining,
                 params_invalid: self.safety.params().inconsistencies().first().cloned(),
                 roll_pitch_rad: h.roll_pitch_rad,
@@ -808,6 +816,10 @@ impl Commander {
         }
         if mode == FlightMode::Takeoff && self.armed && !self.ready() {
             return Err("take-off refused: estimator not ready".into());
+        }
+        if mode == FlightMode::Takeoff && self.mode != FlightMode::Takeoff {
+            // The mode selected by itself climbs to today's MIS_TAKEOFF_ALT.
+            self.takeoff_alt_m = self.params.takeoff_alt_m;
         }
         self.enter(mode);
         Ok(())
@@ -935,6 +947,9 @@ impl Commander {
             motor_failed: h.motor_failed.is_some(),
         });
         self.safety_events.extend(d.events.iter().copied());
+        for &e in &d.events {
+            self.safety_log.push(e);
+        }
         // Kept for a caller that drains them; bounded for one that does not.
         let excess = self.safety_events.len().saturating_sub(64);
         self.safety_events.drain(..excess);

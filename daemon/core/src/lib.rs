@@ -12,6 +12,7 @@ pub mod estimator;
 pub mod failsafe;
 pub mod geo;
 pub mod geofence;
+pub mod mag_check;
 pub mod mission;
 pub mod mixer;
 pub mod motor_failure;

@@ -396,6 +396,7 @@ mod tests {
             ints,
             [
                 "ATT_ALIGN_N",
+                "CAL_MAG0_ID",
                 "MC_ATT_LAW",
                 "MC_RATE_CTRL",
                 "COM_OBL_RC_ACT",

@@ -13,6 +13,7 @@
 //! **Arming checks** ([`preflight`]) list every reason not to arm, each marked whether a forced
 //! arm (`MAV_CMD_COMPONENT_ARM_DISARM` param2 = 21196) may skip it.
 
+use crate::mag_check::MagStatus;
 use std::fmt;
 
 /// What a failsafe does, in increasing severity (PX4's order).
@@ -142,7 +143,7 @@ impl fmt::Display for Condition {
             Self::MagLost => "magnetometer lost",
             Self::BaroLost => "barometer lost",
             Self::GpsLost => "GPS lost",
-            Self::Crash => "attitude beyond the failure limit",
+            Self::Crash => "attitude failure (crash or flip)",
             Self::MotorFailure => "motor failure",
         })
     }
@@ -201,6 +202,10 @@ crate::params::param_group! {
         fail_pitch_deg: f64 = 60.0, "FD_FAIL_P", "deg", [0.0, 180.0], "Pitch beyond which the vehicle has crashed or is flipping: disarm (0: off)";
         /// How long beyond the limit before the failure (s).
         fail_time_s: f64 = 0.3, "FD_FAIL_R_TTRI", "s", [0.02, 5.0], "Time beyond FD_FAIL_R or FD_FAIL_P before the failure is declared";
+        /// Magnetometer strength tolerance at arming (gauss; 0: off).
+        mag_strength_tolerance_gauss: f64 = 0.2, "EKF2_MAG_CHK_STR", "gauss", [0.0, 1.0], "Arming refused when the field measured at rest differs more from ATT_MAG_STR (0: off)";
+        /// Magnetometer inclination tolerance at arming (deg; 0: off).
+        mag_inclination_tolerance_deg: f64 = 20.0, "EKF2_MAG_CHK_INC", "deg", [0.0, 90.0], "Arming refused when the field's inclination at rest differs more from ATT_MAG_INC (0: off)";
         /// Largest tilt to arm (deg).
         arm_tilt_deg: f64 = 20.0, "COM_ARM_TILT", "deg", [5.0, 90.0], "Arming refused beyond this tilt";
         /// Motor-failure detection on (1) or off (0).
@@ -360,6 +365,36 @@ impl fmt::Display for SafetyEvent {
             Self::Cleared(c) => write!(f, "failsafe over: {c}"),
             Self::Escalated(c, a) => write!(f, "failsafe: {c}: {} now", a.name()),
         }
+    }
+}
+
+/// The last [`SafetyLog::LEN`] safety events, numbered. A reader of status snapshots taken
+/// now and then (a ground-station link) says each once, however short-lived its condition: a
+/// crash disarms within a step, and a snapshot of the acting failsafe would never show it.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct SafetyLog {
+    /// Events ever logged.
+    pub count: u64,
+    recent: [Option<SafetyEvent>; SafetyLog::LEN],
+}
+
+impl SafetyLog {
+    /// Events kept.
+    pub const LEN: usize = 16;
+
+    /// Logs `e` as number `count`.
+    pub fn push(&mut self, e: SafetyEvent) {
+        self.recent[(self.count % Self::LEN as u64) as usize] = Some(e);
+        self.count += 1;
+    }
+
+    /// The events from number `seen` on, oldest first, and how many of those are no longer
+    /// kept. A `seen` beyond `count` (a log started anew) reads from the start.
+    pub fn since(&self, seen: u64) -> (u64, impl Iterator<Item = SafetyEvent> + '_) {
+        let seen = if seen > self.count { 0 } else { seen };
+        let first = seen.max(self.count.saturating_sub(Self::LEN as u64));
+        let kept = (first..self.count).filter_map(|n| self.recent[(n % Self::LEN as u64) as usize]);
+        (first - seen, kept)
     }
 }
 
@@ -596,11 +631,8 @@ pub struct PreflightInput {
     pub mode_needs_position: bool,
     /// Sensors missing, stale or frozen.
     pub sensors_lost: SensorsLost,
-    /// The magnetometer's calibration is the default one (never calibrated).
-    pub mag_uncalibrated: bool,
-    /// The measured field strength disagrees with the expected one (gauss, measured and
-    /// expected), when it does by more than a third.
-    pub mag_inconsistent: Option<(f64, f64)>,
+    /// The magnetometer's calibration and the field it measures at rest.
+    pub mag: MagStatus,
     /// Battery charge left (fraction), if known.
     pub battery_remaining: Option<f64>,
     /// What is wrong with the parameters, if anything.
@@ -691,16 +723,31 @@ pub fn preflight(i: &PreflightInput, p: &SafetyParams) -> Vec<PreflightFailure> 
             fail(format!("{name} silent or frozen"), true);
         }
     }
-    if i.mag_uncalibrated {
+    if !i.mag.calibrated {
         fail("magnetometer not calibrated".into(), true);
     }
-    if let Some((measured, expected)) = i.mag_inconsistent {
-        fail(
-            format!(
-                "magnetometer inconsistent: {measured:.2} G measured, {expected:.2} G expected"
-            ),
-            true,
-        );
+    if let Some(m) = i.mag.measured.filter(|_| !i.sensors_lost.mag) {
+        let e = i.mag.expected;
+        let tol = p.mag_strength_tolerance_gauss;
+        if tol > 0.0 && (m.strength_gauss - e.strength_gauss).abs() > tol {
+            fail(
+                format!(
+                    "mag field {:.2} G, expected {:.2} G",
+                    m.strength_gauss, e.strength_gauss
+                ),
+                true,
+            );
+        }
+        let tol = p.mag_inclination_tolerance_deg;
+        if tol > 0.0 && (m.inclination_deg - e.inclination_deg).abs() > tol {
+            fail(
+                format!(
+                    "mag inclination {:.0}°, expected {:.0}°",
+                    m.inclination_deg, e.inclination_deg
+                ),
+                true,
+            );
+        }
     }
     if i.geofence_breached {
         fail("outside the geofence".into(), true);

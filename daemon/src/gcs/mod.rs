@@ -22,7 +22,7 @@ use crate::vehicle::VehicleCommand;
 use flight_core::commander::{CommanderStatus, FlightMode, LandedState, OffboardTarget, Sticks};
 use flight_core::geo::LatLonAlt;
 use flight_core::params::FlightParams;
-use flight_core::safety::{Action as FailsafeAction, Condition, SafetyEvent};
+use flight_core::safety::{Action as FailsafeAction, SafetyEvent};
 use mavlink::MavHeader;
 use mavlink::MessageData;
 use mavlink::dialects::common::*;
@@ -164,12 +164,10 @@ pub struct GroundStation {
     manual_losses_shown: u32,
     /// Offboard losses already reported.
     offboard_losses_shown: u32,
-    /// The failsafe last reported (action and cause).
-    failsafe_shown: Option<(FailsafeAction, Condition)>,
+    /// Failsafe events already said (the count of the commander's log).
+    safety_events_shown: u64,
     /// The failed motor last announced (1-based).
     motor_failed_shown: Option<usize>,
-    /// The failsafe conditions last announced (bit k: `CONDITIONS[k]`).
-    conditions_shown: u32,
     /// Offboard set-points dropped as malformed or unsupported.
     pub offboard_refused: u64,
     /// The mission, fence and rally plans and their transfers.
@@ -207,9 +205,8 @@ impl GroundStation {
             base_params: FlightParams::default(),
             manual_losses_shown: 0,
             offboard_losses_shown: 0,
-            failsafe_shown: None,
+            safety_events_shown: 0,
             motor_failed_shown: None,
-            conditions_shown: 0,
             offboard_refused: 0,
             missions: mission::Missions::default(),
             mission_shown: None,
@@ -319,46 +316,26 @@ impl GroundStation {
                 ));
             }
         }
-        let failsafe = t.status.and_then(|s| s.failsafe_action);
-        // Every other condition's start and end too (a second warning while one acts), each
-        // once: the leading one is said below.
-        let mask = t.status.map_or(0, |s| s.failsafe_conditions);
-        let leading_now = failsafe.filter(|_| failsafe != self.failsafe_shown);
-        let leading_cleared = self.failsafe_shown.filter(|_| failsafe.is_none());
-        for (k, c) in flight_core::safety::CONDITIONS.iter().enumerate() {
-            let bit = 1u32 << k;
-            let event = if mask & bit != 0 && self.conditions_shown & bit == 0 {
-                (leading_now.map(|l| l.1) != Some(*c))
-                    .then_some(SafetyEvent::Triggered(*c, FailsafeAction::Warn))
-            } else if mask & bit == 0 && self.conditions_shown & bit != 0 {
-                (leading_cleared.map(|l| l.1) != Some(*c)).then_some(SafetyEvent::Cleared(*c))
-            } else {
-                None
-            };
-            if let Some(e) = event {
+        if let Some(log) = t.status.map(|s| s.safety_log) {
+            // Each failsafe event once, in the state machine's words, however short-lived.
+            let (missed, events) = log.since(self.safety_events_shown);
+            if missed > 0 {
                 out.send(Self::statustext(
                     MavSeverity::MAV_SEVERITY_WARNING,
-                    &e.to_string(),
+                    &format!("{missed} failsafe messages missed"),
                 ));
             }
-        }
-        self.conditions_shown = mask;
-        if failsafe != self.failsafe_shown {
-            // Each failsafe's start, change and end, in the state machine's words.
-            let said = match (failsafe, self.failsafe_shown) {
-                (Some((a, c)), _) => Some((a, SafetyEvent::Triggered(c, a))),
-                (None, Some((_, c))) => Some((FailsafeAction::None, SafetyEvent::Cleared(c))),
-                (None, None) => None,
-            };
-            self.failsafe_shown = failsafe;
-            if let Some((action, event)) = said {
-                let severity = match action {
-                    FailsafeAction::None => MavSeverity::MAV_SEVERITY_NOTICE,
-                    FailsafeAction::Warn => MavSeverity::MAV_SEVERITY_WARNING,
+            for e in events {
+                let severity = match e {
+                    SafetyEvent::Cleared(_) => MavSeverity::MAV_SEVERITY_NOTICE,
+                    SafetyEvent::Triggered(_, FailsafeAction::None | FailsafeAction::Warn) => {
+                        MavSeverity::MAV_SEVERITY_WARNING
+                    }
                     _ => MavSeverity::MAV_SEVERITY_CRITICAL,
                 };
-                out.send(Self::statustext(severity, &event.to_string()));
+                out.send(Self::statustext(severity, &e.to_string()));
             }
+            self.safety_events_shown = log.count;
         }
         let home = t.status.and_then(|s| s.home).map(|h| [h.0.x, h.0.y, h.0.z]);
         if home.is_some() && home != self.home_shown {

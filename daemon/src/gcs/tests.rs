@@ -26,6 +26,7 @@ fn telemetry(armed: bool, mode: FlightMode) -> Telemetry {
             failsafe_action: None,
             motor_failed: None,
             failsafe_conditions: 0,
+            safety_log: Default::default(),
             prearm_ok: true,
             ready: true,
             in_mode_s: 0.0,
@@ -916,7 +917,7 @@ fn mission_and_guided_commands_reach_the_vehicle() {
 /// failsafe's start, change and end is announced once.
 #[test]
 fn gcs_heartbeats_are_forwarded_and_failsafes_announced() {
-    use flight_core::safety::{Action, Condition};
+    use flight_core::safety::{Action, Condition, SafetyEvent};
     let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
     let mut t = telemetry(true, FlightMode::Loiter);
     let heartbeat = |mavtype| {
@@ -943,42 +944,28 @@ fn gcs_heartbeats_are_forwarded_and_failsafes_announced() {
 
     let mut out = Outbox::default();
     g.poll(0.0, &t, &mut out);
-    // The leading failsafe, and every condition acting (bit k: CONDITIONS[k]).
-    let bit = |c: Condition| {
-        1u32 << flight_core::safety::CONDITIONS
-            .iter()
-            .position(|&x| x == c)
-            .unwrap()
-    };
-    let (low, critical, mag) = (
-        bit(Condition::BatteryLow),
-        bit(Condition::BatteryCritical),
-        bit(Condition::MagLost),
-    );
-    let states = [
-        (Some((Action::Warn, Condition::BatteryLow)), low),
-        (
-            Some((Action::Return, Condition::BatteryCritical)),
-            low | critical,
-        ),
-        (
-            Some((Action::Return, Condition::BatteryCritical)),
-            low | critical,
-        ),
-        (
-            Some((Action::Return, Condition::BatteryCritical)),
-            low | critical | mag,
-        ),
-        (
-            Some((Action::Return, Condition::BatteryCritical)),
-            low | critical,
-        ),
-        (None, 0),
+    // The state machine's events, as many as happened between two looks at the status: a
+    // crash that disarmed within the same step is said as surely as a battery running down.
+    use SafetyEvent::{Cleared, Triggered};
+    let steps: [&[SafetyEvent]; 5] = [
+        &[Triggered(Condition::BatteryLow, Action::Warn)],
+        &[Triggered(Condition::BatteryCritical, Action::Return)],
+        &[],
+        &[
+            Triggered(Condition::MagLost, Action::Warn),
+            Cleared(Condition::MagLost),
+        ],
+        &[
+            Triggered(Condition::Crash, Action::Disarm),
+            Cleared(Condition::Crash),
+            Cleared(Condition::BatteryLow),
+        ],
     ];
-    for (k, (s, mask)) in states.into_iter().enumerate() {
+    for (k, events) in steps.into_iter().enumerate() {
         if let Some(st) = t.status.as_mut() {
-            st.failsafe_action = s;
-            st.failsafe_conditions = mask;
+            for &e in events {
+                st.safety_log.push(e);
+            }
         }
         g.poll(0.01 * (k + 1) as f64, &t, &mut out);
     }
@@ -989,10 +976,24 @@ fn gcs_heartbeats_are_forwarded_and_failsafes_announced() {
             "failsafe: battery critical: Return",
             "magnetometer lost",
             "failsafe over: magnetometer lost",
+            "failsafe: attitude failure (crash or flip): disarm",
+            "failsafe over: attitude failure (crash or flip)",
             "failsafe over: battery low",
-            "failsafe over: battery critical"
         ]
     );
+    // More than the log keeps between two looks: what was lost is counted.
+    let mut out = Outbox::default();
+    if let Some(st) = t.status.as_mut() {
+        for _ in 0..10 {
+            st.safety_log
+                .push(Triggered(Condition::MagLost, Action::Warn));
+            st.safety_log.push(Cleared(Condition::MagLost));
+        }
+    }
+    g.poll(1.0, &t, &mut out);
+    let said = statustexts(&out);
+    assert_eq!(said.len(), 17, "{said:?}");
+    assert_eq!(said[0], "4 failsafe messages missed");
 }
 
 /// `SYS_STATUS` health bits follow the checks (a lost magnetometer clears the magnetometer's bit,

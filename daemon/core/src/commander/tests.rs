@@ -306,6 +306,29 @@ fn the_takeoff_set_point_climbs_smoothly_and_stops_at_the_altitude() {
     assert!((t - 1.0 - 4.83).abs() < 0.05, "arrived after {} s", t - 1.0);
 }
 
+/// Takeoff selected as a mode climbs to MIS_TAKEOFF_ALT as it is now, not as it was when the
+/// commander started (or at the last `MAV_CMD_NAV_TAKEOFF`).
+#[test]
+fn the_takeoff_mode_climbs_to_the_parameter_of_the_moment() {
+    let mut c = ready();
+    c.takeoff(Some(3.0)).unwrap();
+    c.set_mode(FlightMode::Loiter).unwrap();
+    c.set_params(CommanderParams {
+        takeoff_alt_m: 15.0,
+        ..params()
+    });
+    c.set_mode(FlightMode::Takeoff).unwrap();
+    c.arm(false).unwrap();
+    let mut t = 1.0;
+    let mut top = 0.0f64;
+    while t < 30.0 && c.mode() == FlightMode::Takeoff {
+        let (sp, _) = step(&mut c, &input(t, -top, 0.0));
+        top = -sp.pos_ned_m.z;
+        t += 0.01;
+    }
+    assert!((top - 15.0).abs() < 1e-6, "climbed to {top} m");
+}
+
 #[test]
 fn home_is_set_once_the_position_is_valid_and_again_at_arming_unless_commanded() {
     let mut c = Commander::new(params());

@@ -405,6 +405,10 @@ pub struct AttitudeParams {
     pub mag_inclination_deg: f64,
     /// Magnetic declination at the site (deg, positive east).
     pub mag_declination_deg: f64,
+    /// Magnetic field strength at the site (gauss), what a calibrated magnetometer reads.
+    pub mag_intensity_gauss: f64,
+    /// Set by a magnetometer calibration (PX4 stores the device id); 0: never calibrated.
+    pub mag_calibration_id: u32,
     /// Hard-iron offset, Castillo (75).
     pub mag_offset: [f64; 3],
     /// Ellipsoid scale E = diag(mag_scale), Castillo (75).
@@ -431,6 +435,8 @@ impl Default for AttitudeParams {
             max_uncorrected_s: 0.5,
             mag_inclination_deg: 63.3,
             mag_declination_deg: 3.0,
+            mag_intensity_gauss: 0.48,
+            mag_calibration_id: 0,
             mag_offset: [0.0; 3],
             mag_scale: [1.0; 3],
             mag_rotation_rad: [0.0; 3],
@@ -550,6 +556,26 @@ pub const ATTITUDE_META: &[ParamMeta] = &[
         max: 180.0,
         description: "Magnetic declination at the flying site",
     },
+    ParamMeta {
+        name: "ATT_MAG_STR",
+        key: "mag_intensity_gauss",
+        kind: ParamKind::Real32,
+        unit: "gauss",
+        default: 0.48,
+        min: 0.2,
+        max: 0.7,
+        description: "Magnetic field strength at the flying site (the pre-arm consistency check)",
+    },
+    ParamMeta {
+        name: "CAL_MAG0_ID",
+        key: "mag_calibration_id",
+        kind: ParamKind::Int32,
+        unit: "",
+        default: 0.0,
+        min: 0.0,
+        max: 2147483647.0,
+        description: "Set by a magnetometer calibration (a simulator presets its own); 0: never calibrated, arming refused",
+    },
 ];
 
 impl AttitudeParams {
@@ -567,6 +593,8 @@ impl AttitudeParams {
             "max_uncorrected_s" => self.max_uncorrected_s,
             "mag_inclination_deg" => self.mag_inclination_deg,
             "mag_declination_deg" => self.mag_declination_deg,
+            "mag_intensity_gauss" => self.mag_intensity_gauss,
+            "mag_calibration_id" => self.mag_calibration_id as f64,
             _ => return None,
         })
     }
@@ -589,6 +617,11 @@ impl AttitudeParams {
             "max_uncorrected_s" => &mut self.max_uncorrected_s,
             "mag_inclination_deg" => &mut self.mag_inclination_deg,
             "mag_declination_deg" => &mut self.mag_declination_deg,
+            "mag_intensity_gauss" => &mut self.mag_intensity_gauss,
+            "mag_calibration_id" => {
+                self.mag_calibration_id = value as u32;
+                return true;
+            }
             _ => return false,
         };
         *field = value;
@@ -645,6 +678,20 @@ impl AttitudeParams {
             m,
             "mag_declination_deg",
             self.mag_declination_deg,
+        );
+        check(
+            &mut v,
+            "attitude",
+            m,
+            "mag_intensity_gauss",
+            self.mag_intensity_gauss,
+        );
+        check(
+            &mut v,
+            "attitude",
+            m,
+            "mag_calibration_id",
+            self.mag_calibration_id as f64,
         );
         if self.accel_deweight_g >= self.accel_gate_g {
             v.push(ParamViolation {

@@ -2,6 +2,7 @@
 //! at each step (the action, and the events the operator hears).
 
 use super::*;
+use crate::mag_check::MagField;
 use Action as A;
 use Condition as C;
 use SafetyEvent as E;
@@ -535,8 +536,17 @@ fn preflight_checks_each_reason_and_what_force_skips() {
         altitude_valid: true,
         mode_needs_position: true,
         sensors_lost: SensorsLost::default(),
-        mag_uncalibrated: false,
-        mag_inconsistent: None,
+        mag: MagStatus {
+            calibrated: true,
+            measured: Some(MagField {
+                strength_gauss: 0.5,
+                inclination_deg: 60.0,
+            }),
+            expected: MagField {
+                strength_gauss: 0.48,
+                inclination_deg: 63.3,
+            },
+        },
         battery_remaining: Some(0.9),
         params_invalid: None,
         roll_pitch_rad: (0.0, 0.0),
@@ -547,7 +557,7 @@ fn preflight_checks_each_reason_and_what_force_skips() {
     let p = SafetyParams::default();
     assert!(preflight(&ok, &p).is_empty());
     type Change = fn(&mut PreflightInput);
-    let table: [(Change, &str, bool); 14] = [
+    let table: [(Change, &str, bool); 15] = [
         (|i| i.terminated = true, "flight terminated", false),
         (|i| i.sensors_lost.imu = true, "IMU", false),
         (|i| i.motor_failed = Some(3), "motor 3 failed", false),
@@ -571,10 +581,15 @@ fn preflight_checks_each_reason_and_what_force_skips() {
             "magnetometer silent or frozen",
             true,
         ),
-        (|i| i.mag_uncalibrated = true, "not calibrated", true),
+        (|i| i.mag.calibrated = false, "not calibrated", true),
         (
-            |i| i.mag_inconsistent = Some((0.9, 0.5)),
-            "0.90 G measured",
+            |i| i.mag.measured.as_mut().unwrap().strength_gauss = 0.72,
+            "mag field 0.72 G, expected 0.48 G",
+            true,
+        ),
+        (
+            |i| i.mag.measured.as_mut().unwrap().inclination_deg = 40.0,
+            "mag inclination 40°, expected 63°",
             true,
         ),
         (|i| i.geofence_breached = true, "geofence", true),
@@ -598,4 +613,28 @@ fn preflight_checks_each_reason_and_what_force_skips() {
     i.battery_remaining = Some(0.3);
     let strict = params(|p| p.arm_battery_min = 0.5);
     assert_eq!(preflight(&i, &strict).len(), 1);
+}
+
+/// The numbered log: read from any point, what fell out counted, a new log read from its start.
+#[test]
+fn the_safety_log_gives_each_event_once_and_counts_what_it_lost() {
+    let mut log = SafetyLog::default();
+    let e = |k: usize| E::Triggered(CONDITIONS[k % CONDITIONS.len()], A::Warn);
+    for k in 0..3 {
+        log.push(e(k));
+    }
+    let read = |log: &SafetyLog, seen| {
+        let (missed, events) = log.since(seen);
+        (missed, events.collect::<Vec<_>>())
+    };
+    assert_eq!(read(&log, 0), (0, vec![e(0), e(1), e(2)]));
+    assert_eq!(read(&log, 2), (0, vec![e(2)]));
+    assert_eq!(read(&log, 3), (0, vec![]));
+    for k in 3..20 {
+        log.push(e(k));
+    }
+    let (missed, events) = read(&log, 3);
+    assert_eq!((missed, events.len()), (1, SafetyLog::LEN));
+    assert_eq!(events[0], e(4));
+    assert_eq!(read(&SafetyLog::default(), 7), (0, vec![]), "a new log");
 }
