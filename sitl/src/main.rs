@@ -5,6 +5,7 @@
 //! port and steps physics on its `HIL_ACTUATOR_CONTROLS`, in lockstep (default) or real time. With
 //! `--open-loop` it flies the scenario's actuator script with no autopilot at all.
 
+mod control;
 mod run;
 
 use anyhow::{Context, Result, bail};
@@ -58,6 +59,11 @@ pub struct Cli {
     /// Baud rate of --serial (a pseudo-terminal ignores it).
     #[arg(long, default_value_t = 921_600)]
     pub baud: u32,
+    /// Also listen for a ground station or script on this UDP address (its port offset by
+    /// --instance) to change the weather while flying: SIM_WIND_SPD, SIM_WIND_DIR, SIM_WIND_TURB,
+    /// SIM_GUST_* through the MAVLink parameter protocol.
+    #[arg(long, value_name = "ADDR")]
+    pub control: Option<SocketAddr>,
     /// Local UDP address to bind.
     #[arg(long, default_value = "127.0.0.1:0", value_name = "ADDR")]
     pub bind: SocketAddr,

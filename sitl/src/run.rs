@@ -269,11 +269,29 @@ pub fn hil(
     let mut status = Status::new(cli.status_interval);
     let mut summary = Summary::default();
     let mut link = Link::new(transport);
+    let mut control = match cli.control {
+        Some(mut addr) => {
+            addr.set_port(
+                addr.port()
+                    .checked_add(cli.instance)
+                    .context("--instance pushes the --control port past 65535")?,
+            );
+            let c = crate::control::Control::bind(addr, &scenario.sim.wind)?;
+            tracing::info!(control = %c.local_addr()?, "weather control listening");
+            Some(c)
+        }
+        None => None,
+    };
     let mut connected = false;
     let timeout = Duration::from_millis(cli.timeout_ms.max(1));
     let mut last_timeout_log: Option<Instant> = None;
     while end.sim().time_s() < scenario.duration_s - 1e-9 && !stop.load(Ordering::Relaxed) {
         status.maybe_print(end.sim(), started);
+        if let Some(c) = control.as_mut() {
+            for action in c.poll(end.sim().time_s()) {
+                end.sim_mut().apply(action);
+            }
+        }
         link.out.clear();
         let time_usec = end.encode_frame(&mut link.out);
         link.send()?;

@@ -57,12 +57,15 @@ class Daemon:
     """sitl (real time x3) and an autopilot that can be stopped and started again on its ports,
     with its parameter store in a temporary directory."""
 
-    def __init__(self, tmp_path, mavlink, connect=True, airframe="quad_x", scenario=None):
+    def __init__(self, tmp_path, mavlink, connect=True, airframe="quad_x", scenario=None,
+                 control=False):
         """`mavlink`: the ground-station endpoint, `{port}` standing for a free UDP port (on which
         a pymavlink connection listens when `connect`); both processes fly `airframe`, the
-        simulator in `scenario` (a file) if given."""
+        simulator in `scenario` (a file) if given, its weather controlled on `control_port` if
+        `control` (sitl --control)."""
         self.airframe = airframe
         self.sim_port, self.gcs_port = free_udp_port(), free_udp_port()
+        self.control_port = free_udp_port() if control else None
         self.mavlink = mavlink.format(port=self.gcs_port)
         self.store = tmp_path / "params.toml"
         self.out = tmp_path / "autopilot.out"
@@ -77,6 +80,7 @@ class Daemon:
              "--mode", "realtime", "--speed", "3", "--duration", "100000",
              "--airframe", airframe,
              *(["--scenario", str(scenario)] if scenario else []),
+             *(["--control", f"127.0.0.1:{self.control_port}"] if control else []),
              "--autopilot", f"127.0.0.1:{self.sim_port}"],
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
         )

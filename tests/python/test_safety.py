@@ -325,5 +325,55 @@ def test_a_quad_that_loses_both_front_rotors_flips_and_is_disarmed(vehicle):
     print(f"crash: {seen}, pitch up to {pitch:.0f}°")
 
 
+def test_wind_set_at_run_time_is_flown_through(tmp_path):
+    """The weather changed while flying, through the simulator's own MAVLink endpoint (sitl
+    --control, ArduPilot's SIM_WIND_* names): in Hold at 2.5 m, an 8 m/s wind from the west with
+    light turbulence is set and confirmed (PARAM_VALUE); the vehicle leans into it (rolls left)
+    and keeps its position within 2 m (a step of wind). A speed out of range is refused, the old
+    value kept."""
+    d = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0", control=True)
+    try:
+        gcs = d.gcs
+        assert gcs.wait_heartbeat(timeout=30), "no heartbeat"
+        sim = mavutil.mavlink_connection(f"udpout:127.0.0.1:{d.control_port}",
+                                         source_system=255)
+        sim.mav.heartbeat_send(ML.MAV_TYPE_GCS, ML.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+        assert sim.wait_heartbeat(timeout=10), "no heartbeat from sitl --control"
+
+        def sim_param(name, value):
+            sim.mav.param_set_send(sim.target_system, sim.target_component, name.encode(), value,
+                                   ML.MAV_PARAM_TYPE_REAL32)
+            m = sim.recv_match(type="PARAM_VALUE", blocking=True, timeout=5,
+                               condition=f"PARAM_VALUE.param_id == '{name}'")
+            assert m is not None, f"no PARAM_VALUE for {name}"
+            return m.param_value
+
+        assert sim_param("SIM_WIND_SPD", 80.0) == 0.0, "out of range: refused"
+        ready_to_arm(gcs)
+        take_off(gcs)
+        hold = wait(gcs, "LOCAL_POSITION_NED", lambda m: True)
+        assert sim_param("SIM_WIND_DIR", 270.0) == 270.0
+        assert sim_param("SIM_WIND_TURB", 3.0) == pytest.approx(3.0)
+        assert sim_param("SIM_WIND_SPD", 8.0) == 8.0
+        # 20 s of simulated time (about 7 s here) in the wind.
+        end, rolls, off = time.monotonic() + 7, [], 0.0
+        while time.monotonic() < end:
+            m = gcs.recv_match(type=["ATTITUDE", "LOCAL_POSITION_NED"], blocking=True,
+                               timeout=0.5)
+            if m is None or m.get_srcComponent() != 1:
+                continue
+            if m.get_type() == "ATTITUDE":
+                rolls.append(math.degrees(m.roll))
+            else:
+                off = max(off, math.hypot(m.x - hold.x, m.y - hold.y))
+        lean = sum(rolls[len(rolls) // 2:]) / len(rolls[len(rolls) // 2:])
+        print(f"wind 8 m/s from the west set at run time: roll {lean:.1f}° (second half), "
+              f"largest offset {off:.2f} m")
+        assert lean < -2.0, f"not leaning into the wind: {lean:.1f}°"
+        assert off < 2.0, f"{off:.2f} m from the hold"
+    finally:
+        d.close()
+
+
 if __name__ == "__main__":
     pytest.main([__file__, "-q", "-s"])

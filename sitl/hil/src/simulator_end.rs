@@ -108,6 +108,11 @@ impl SimulatorEnd {
         &self.sim
     }
 
+    /// The simulator, to act on it between exchanges (run-time weather, injected faults).
+    pub fn sim_mut(&mut self) -> &mut Simulator {
+        &mut self.sim
+    }
+
     /// The frame that goes out next.
     pub fn frame(&self) -> &SensorFrame {
         self.acc.frame()
