@@ -530,6 +530,8 @@ mod tests {
         FramesOnGround,
         /// The GPS messages, two seconds into the hover, for good.
         Gps,
+        /// The IMU repeats one reading (gyro and accelerometer), two seconds into the hover.
+        ImuFrozen,
     }
 
     struct FaultyLink {
@@ -551,6 +553,8 @@ mod tests {
         max_height_m: f64,
         horizontal_at_fault: Vector3<f64>,
         max_drift_after_m: f64,
+        /// The reading a frozen IMU repeats.
+        frozen_imu: Option<[f32; 6]>,
     }
 
     impl FaultyLink {
@@ -574,6 +578,7 @@ mod tests {
                 max_height_m: 0.0,
                 horizontal_at_fault: Vector3::zeros(),
                 max_drift_after_m: 0.0,
+                frozen_imu: None,
             }
         }
 
@@ -602,7 +607,7 @@ mod tests {
                     self.lost_until_s = f64::INFINITY;
                     self.armed_at_s.map(|a| a + 0.5)
                 }
-                Fault::Gps => self.hover_from_s.map(|h| h + 2.0),
+                Fault::Gps | Fault::ImuFrozen => self.hover_from_s.map(|h| h + 2.0),
             };
             if self.began_s.is_none() && start.is_some_and(|s| t >= s) {
                 self.began_s = Some(t);
@@ -656,6 +661,17 @@ mod tests {
                         into.messages.remove(i);
                     } else {
                         i += 1;
+                    }
+                }
+            }
+            if matches!(self.fault, Fault::ImuFrozen) && self.began_s.is_some() {
+                for (_, m) in &mut into.messages[before..] {
+                    if let MavMessage::HIL_SENSOR(s) = m {
+                        let [ax, ay, az, gx, gy, gz] = *self
+                            .frozen_imu
+                            .get_or_insert([s.xacc, s.yacc, s.zacc, s.xgyro, s.ygyro, s.zgyro]);
+                        (s.xacc, s.yacc, s.zacc) = (ax, ay, az);
+                        (s.xgyro, s.ygyro, s.zgyro) = (gx, gy, gz);
                     }
                 }
             }
@@ -793,6 +809,32 @@ mod tests {
             "level a second after the frames came back: {:.1}°",
             link.max_tilt_closed_loop_deg
         );
+    }
+
+    /// A frozen IMU leaves the frames coming: the monitor finds the repeated reading (0.2 s),
+    /// the loops stop and the blind descent of silent frames flies the vehicle down. What is
+    /// asserted holds for the silent frames too: on the ground upright, motors stopped.
+    #[test]
+    fn an_imu_that_freezes_in_the_air_starts_the_blind_descent() {
+        for seed in 2..=6 {
+            let (link, report, vehicle) = fly_seed(Fault::ImuFrozen, seed);
+            let began = link.began_s.unwrap();
+            assert_eq!(report.sensor_timeouts, 0, "the frames kept coming");
+            assert!(link.max_height_m > 4.9, "was flying");
+            assert!(link.now_s() < began + 20.0, "seed {seed}: came down");
+            assert!(link.sim.truth().landed && vehicle.finished());
+            assert!(!link.last_answer_armed && report.disarmed);
+            assert!(
+                link.touchdown_m_s <= 3.0,
+                "seed {seed}: touchdown at {:.2} m/s",
+                link.touchdown_m_s
+            );
+            assert!(
+                link.max_tilt_after_deg <= 45.0,
+                "seed {seed}: upright: tilt up to {:.1}°",
+                link.max_tilt_after_deg
+            );
+        }
     }
 
     #[test]

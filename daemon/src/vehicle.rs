@@ -150,6 +150,9 @@ pub struct Vehicle {
     monitor: SensorMonitor,
     /// The magnetometer's field at rest, for the arming checks.
     mag_field: MagFieldMonitor,
+    /// When the IMU froze while armed (sensor time): the loops cannot fly without it, and it
+    /// is not trusted again before the motors stop.
+    imu_frozen_since_usec: Option<u64>,
 }
 
 /// One step's result.
@@ -214,6 +217,7 @@ impl Vehicle {
             injection_enabled: params.safety.failure_injection != 0,
             monitor: SensorMonitor::new(),
             mag_field: MagFieldMonitor::default(),
+            imu_frozen_since_usec: None,
         })
     }
 
@@ -431,6 +435,12 @@ impl Vehicle {
     /// stop; in the air an open-loop descent begins on the recent hover commands. Returns
     /// whether the vehicle is in the air.
     pub fn sensors_stopped(&mut self) -> bool {
+        self.blind_descent("sensor frames stopped")
+    }
+
+    /// The estimate is lost for `why`: on the ground the motors stop, in the air the blind
+    /// descent begins. Whether the vehicle is in the air.
+    fn blind_descent(&mut self, why: &str) -> bool {
         let in_air = self.commander.sensors_stopped();
         if in_air {
             let home_down = self.commander.home().map_or(0.0, |h| h.z);
@@ -441,12 +451,12 @@ impl Vehicle {
             let d = BlindDescent::new(self.hover.get(), height, down);
             tracing::error!(
                 height_m = format!("{height:.1}"),
-                "sensor frames stopped in the air: estimator invalid; descending open-loop on the hover commands, motors stop in {:.1} s",
+                "{why} in the air: estimator invalid; descending open-loop on the hover commands, motors stop in {:.1} s",
                 d.stop_after_s()
             );
             self.blind = Some(d);
         } else if !self.commander.armed() {
-            tracing::error!("sensor frames stopped on the ground: estimator invalid; disarmed");
+            tracing::error!("{why} on the ground: estimator invalid; disarmed");
             self.check_end();
         }
         in_air
@@ -466,6 +476,58 @@ impl Vehicle {
             self.check_end();
         }
         hil::actuator_controls(t_usec, &[0.0; airframe::MAX_ROTORS][..self.rotors], false)
+    }
+
+    /// A frozen IMU while armed: the estimator would integrate the same reading over and over
+    /// and the rate loop fight a rate that never changes. A repeated reading is suspect: that
+    /// frame is answered with the hover commands, the loops untouched. Repeated long enough
+    /// ([`SensorMonitor`]) it is lost: the frames are answered as if they had gone silent (the
+    /// blind descent in the air, motors off on the ground), and the IMU is not trusted again
+    /// before the motors stop. `None`: fly this frame as usual.
+    fn imu_frozen(&mut self, t_usec: u64) -> Option<Step> {
+        let commands = match self.imu_frozen_since_usec {
+            None if !(self.commander.armed() && self.monitor.imu_repeating()) => return None,
+            None if !self.monitor.lost().imu => Some(self.hover.get()),
+            _ => {
+                let since = match self.imu_frozen_since_usec {
+                    Some(s) => s,
+                    None => {
+                        self.blind_descent("IMU frozen");
+                        self.imu_frozen_since_usec = Some(t_usec);
+                        t_usec
+                    }
+                };
+                let t_s = t_usec.saturating_sub(since) as f64 * 1e-6;
+                match self.blind.as_ref().map(|d| d.commands(t_s)) {
+                    Some(Some(c)) => Some(c),
+                    Some(None) => {
+                        tracing::error!("blind descent over: motors stopped");
+                        self.blind = None;
+                        self.commander.disarmed();
+                        self.check_end();
+                        None
+                    }
+                    None => None,
+                }
+            }
+        };
+        let output = self.last?;
+        if !self.commander.armed() {
+            self.imu_frozen_since_usec = None;
+        }
+        let message = match commands {
+            Some(c) => hil::actuator_controls(t_usec, &c[..self.rotors], true),
+            None => {
+                hil::actuator_controls(t_usec, &[0.0; airframe::MAX_ROTORS][..self.rotors], false)
+            }
+        };
+        self.last_t_usec = t_usec;
+        self.last_answer = Some((t_usec, message.clone()));
+        Some(Step {
+            message,
+            output,
+            t_s: t_usec as f64 * 1e-6,
+        })
     }
 
     /// The run ends when disarmed after the auto flight (or an operator's Ctrl-C).
@@ -579,6 +641,9 @@ impl Vehicle {
         self.injected.apply_to_sample(&mut sample);
         // Lost sensors are taken out: the estimators fall back as for a sensor that is off.
         self.monitor.update(&mut sample);
+        if let Some(step) = self.imu_frozen(t_usec) {
+            return Some(step);
+        }
         if self.last.is_some() {
             let dt = t_usec.saturating_sub(self.last_t_usec) as f64 * 1e-6;
             let p = &self.core.config().attitude;
@@ -685,10 +750,12 @@ impl Vehicle {
         if truth.is_some() {
             self.last_truth = truth;
         }
-        if armed {
+        if armed && !self.monitor.imu_repeating() {
+            // Not while the IMU repeats itself: if it is freezing, the loops fly blind and the
+            // blind descent must not inherit what they command meanwhile.
             let dt = t_usec.saturating_sub(self.last_t_usec) as f64 * 1e-6;
             self.hover.update(&output.commands, dt);
-        } else {
+        } else if !armed {
             self.hover.reset();
         }
         self.last_t_usec = t_usec;

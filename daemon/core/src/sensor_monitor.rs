@@ -73,6 +73,11 @@ impl SensorMonitor {
         self.lost
     }
 
+    /// The IMU's last reading repeated the one before: suspect, not yet lost.
+    pub fn imu_repeating(&self) -> bool {
+        self.imu.repeats > 0
+    }
+
     /// Folds in one sample and takes the lost sensors' readings out of it; what is lost now.
     pub fn update(&mut self, s: &mut SensorSample) -> SensorsLost {
         let t = s.t_usec;
