@@ -376,6 +376,9 @@ fn fly(cli: &Cli) -> Result<()> {
                             cfg.sensors
                         )
                     })?;
+                    if sensors == SensorPreset::Ideal {
+                        vehicle.sensors_noise_free();
+                    }
                     let mut link = EmbeddedSim::new(
                         &airframe,
                         cfg.seed,

@@ -728,25 +728,32 @@ pub fn preflight(i: &PreflightInput, p: &SafetyParams) -> Vec<PreflightFailure> 
     }
     if let Some(m) = i.mag.measured.filter(|_| !i.sensors_lost.mag) {
         let e = i.mag.expected;
-        let tol = p.mag_strength_tolerance_gauss;
-        if tol > 0.0 && (m.strength_gauss - e.strength_gauss).abs() > tol {
-            fail(
-                format!(
-                    "mag field {:.2} G, expected {:.2} G",
-                    m.strength_gauss, e.strength_gauss
-                ),
-                true,
-            );
-        }
-        let tol = p.mag_inclination_tolerance_deg;
-        if tol > 0.0 && (m.inclination_deg - e.inclination_deg).abs() > tol {
-            fail(
-                format!(
-                    "mag inclination {:.0}°, expected {:.0}°",
-                    m.inclination_deg, e.inclination_deg
-                ),
-                true,
-            );
+        // EKF2_MAG_CHK_STR and EKF2_MAG_CHK_INC (0: off).
+        let checks = [
+            (
+                m.strength_gauss,
+                e.strength_gauss,
+                p.mag_strength_tolerance_gauss,
+                "field",
+                " G",
+                2,
+            ),
+            (
+                m.inclination_deg,
+                e.inclination_deg,
+                p.mag_inclination_tolerance_deg,
+                "inclination",
+                "°",
+                0,
+            ),
+        ];
+        for (got, want, tol, what, unit, digits) in checks {
+            if tol > 0.0 && (got - want).abs() > tol {
+                fail(
+                    format!("mag {what} {got:.digits$}{unit}, expected {want:.digits$}{unit}"),
+                    true,
+                );
+            }
         }
     }
     if i.geofence_breached {

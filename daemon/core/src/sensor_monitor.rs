@@ -60,12 +60,20 @@ pub struct SensorMonitor {
     baro: Watch,
     gps: Watch,
     lost: SensorsLost,
+    /// The sensors have no noise (a simulator's ideal preset): a repeated reading is no sign.
+    noise_free: bool,
 }
 
 impl SensorMonitor {
     /// Nothing heard yet.
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// The sensors have no noise (a simulator's ideal preset, whose readings at rest repeat
+    /// exactly): only silence counts, never a repeated reading.
+    pub fn noise_free(&mut self) {
+        self.noise_free = true;
     }
 
     /// What is lost as of the last update.
@@ -75,12 +83,13 @@ impl SensorMonitor {
 
     /// The IMU's last reading repeated the one before: suspect, not yet lost.
     pub fn imu_repeating(&self) -> bool {
-        self.imu.repeats > 0
+        !self.noise_free && self.imu.repeats > 0
     }
 
     /// Folds in one sample and takes the lost sensors' readings out of it; what is lost now.
     pub fn update(&mut self, s: &mut SensorSample) -> SensorsLost {
         let t = s.t_usec;
+        let frozen = |n: u32| if self.noise_free { u32::MAX } else { n };
         let (g, a) = (s.gyro, s.accel);
         self.imu.fresh(t, [g.x, g.y, g.z, a.x, a.y, a.z]);
         if let Some(m) = &s.mag {
@@ -97,10 +106,10 @@ impl SensorMonitor {
                 .fresh(t, [p.lat_deg, p.lon_deg, p.alt_m, v.x, v.y, v.z]);
         }
         self.lost = SensorsLost {
-            imu: self.imu.lost(t, u64::MAX, IMU_FROZEN),
-            mag: self.mag.lost(t, MAG_TIMEOUT_US, MAG_FROZEN),
-            baro: self.baro.lost(t, BARO_TIMEOUT_US, BARO_FROZEN),
-            gps: self.gps.lost(t, GPS_TIMEOUT_US, GPS_FROZEN),
+            imu: self.imu.lost(t, u64::MAX, frozen(IMU_FROZEN)),
+            mag: self.mag.lost(t, MAG_TIMEOUT_US, frozen(MAG_FROZEN)),
+            baro: self.baro.lost(t, BARO_TIMEOUT_US, frozen(BARO_FROZEN)),
+            gps: self.gps.lost(t, GPS_TIMEOUT_US, frozen(GPS_FROZEN)),
         };
         if self.lost.mag {
             s.mag = None;
@@ -179,6 +188,26 @@ mod tests {
         }
         // Last fresh readings at k 248 (mag), 245 (baro), 225 (GPS); 4 ms per sample.
         assert_eq!(lost_at, [Some(374), Some(371), Some(476)]);
+    }
+
+    /// Noise-free sensors (an ideal simulator at rest) repeat themselves exactly: only their
+    /// silence counts.
+    #[test]
+    fn noise_free_sensors_are_lost_only_to_silence() {
+        let mut m = SensorMonitor::new();
+        m.noise_free();
+        let still = sample(100);
+        for k in 0..600 {
+            let mut s = SensorSample {
+                t_usec: k * 4000,
+                mag: (k < 300).then_some(still.mag).flatten(),
+                ..still
+            };
+            let l = m.update(&mut s);
+            assert!(!l.imu && !l.baro && !m.imu_repeating(), "k {k}");
+            // Last heard at k 299; silent for more than 0.5 s (125 samples) from k 425.
+            assert_eq!(l.mag, k >= 425, "k {k}");
+        }
     }
 
     #[test]
