@@ -13,6 +13,7 @@ pub mod airframe {
 pub mod body;
 pub mod environment;
 pub mod geo;
+pub mod jsbsim;
 pub mod powertrain;
 pub mod quat;
 pub mod rng;
