@@ -6,6 +6,7 @@
 //! `--open-loop` it flies the scenario's actuator script with no autopilot at all.
 
 mod control;
+mod jsbsim;
 mod run;
 
 use anyhow::{Context, Result, bail};
@@ -25,6 +26,16 @@ pub enum Mode {
     Lockstep,
     /// Physics advances with the wall clock (times `--speed`); the latest actuator command is used.
     Realtime,
+}
+
+/// Who moves the rigid body.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Physics {
+    /// The built-in rigid body (the scenario's integrator), flat ground.
+    Builtin,
+    /// A JSBSim process (rigid body, gravity, Earth and ground contact), stepped in lockstep;
+    /// rotors, motors, battery, drag, wind and sensors stay the built-in models.
+    Jsbsim,
 }
 
 /// Multirotor simulator: physics, sensors and a MAVLink HIL link over UDP.
@@ -93,6 +104,12 @@ pub struct Cli {
     /// Sensor preset: ideal, typical or noisy (overrides the scenario).
     #[arg(long, value_name = "PRESET")]
     pub sensors: Option<String>,
+    /// Who moves the rigid body: the built-in physics or JSBSim (its rate is the physics rate).
+    #[arg(long, value_enum, default_value_t = Physics::Builtin)]
+    pub physics: Physics,
+    /// JSBSim's console program, for --physics jsbsim (PyPI `jsbsim` installs it).
+    #[arg(long, default_value = "jsbsim", value_name = "PROGRAM")]
+    pub jsbsim: PathBuf,
     /// Integrator: rk4, exp_map, hypersphere, euler_cromer, second_derivative (overrides the scenario).
     #[arg(long, value_name = "NAME")]
     pub integrator: Option<String>,

@@ -1,6 +1,7 @@
 //! The simulation loops: open-loop script, and the HIL link in lockstep or real time.
 
-use crate::{Cli, Mode};
+use crate::jsbsim::{Jsbsim, Launch};
+use crate::{Cli, Mode, Physics};
 use anyhow::{Context, Result, bail};
 use hil::{ActuatorCommand, Decoded, SimulatorEnd, StreamDecoder};
 use mavlink::dialects::common::MavMessage;
@@ -71,6 +72,49 @@ fn build(scenario: &Scenario) -> Result<Simulator> {
         sim.set_rotor_speeds(&hover);
     }
     Ok(sim)
+}
+
+/// Who moves the rigid body this run.
+enum Dynamics {
+    /// The simulator's own integrator.
+    Builtin,
+    /// A JSBSim process.
+    Jsbsim(Box<Jsbsim>),
+}
+
+impl Dynamics {
+    /// Starts what `--physics` names for `sim` (JSBSim at the physics rate, from the scenario's
+    /// initial state).
+    fn start(cli: &Cli, scenario: &Scenario, sim: &Simulator) -> Result<Self> {
+        match cli.physics {
+            Physics::Builtin => Ok(Self::Builtin),
+            Physics::Jsbsim => {
+                let rate_hz = 1.0 / sim.config().dt_s;
+                let jsb = Jsbsim::launch(&Launch {
+                    program: &cli.jsbsim,
+                    airframe: sim.airframe(),
+                    home: sim.config().home,
+                    initial: scenario.initial,
+                    rate_hz,
+                    startup_timeout: Duration::from_secs(60),
+                    step_timeout: Duration::from_secs(5),
+                })?;
+                tracing::info!(rate_hz, "JSBSim running");
+                Ok(Self::Jsbsim(Box::new(jsb)))
+            }
+        }
+    }
+
+    /// One physics step under `controls`.
+    fn step(&mut self, sim: &mut Simulator, controls: &[f64]) -> Result<()> {
+        match self {
+            Self::Builtin => {
+                sim.step(controls);
+                Ok(())
+            }
+            Self::Jsbsim(jsb) => Ok(sim.step_with(controls, jsb.as_mut())?),
+        }
+    }
 }
 
 fn finish(sim: &Simulator, started: Instant, mut s: Summary) -> Summary {
@@ -185,6 +229,7 @@ pub fn open_loop(
     stop: &AtomicBool,
 ) -> Result<Summary> {
     let mut sim = build(scenario)?;
+    let mut dynamics = Dynamics::start(cli, scenario, &sim)?;
     let mut truth = open_truth(cli, &sim)?;
     let started = Instant::now();
     let pacer = Pacer {
@@ -211,7 +256,7 @@ pub fn open_loop(
             Some(OpenLoopCommand::Controls(c)) => u[..n].copy_from_slice(c),
             None => u.fill(0.0),
         }
-        sim.step(&u[..n]);
+        dynamics.step(&mut sim, &u[..n])?;
         sim.sample_sensors();
         if let Some(csv) = truth.as_mut() {
             csv.record(&sim.truth(), sim.rotor_speeds())?;
@@ -233,6 +278,7 @@ pub fn hil(
     stop: &AtomicBool,
 ) -> Result<Summary> {
     let sim = build(scenario)?;
+    let mut dynamics = Dynamics::start(cli, scenario, &sim)?;
     let mut truth = open_truth(cli, &sim)?;
     let mut end = SimulatorEnd::new(sim, cli.hil_rate);
     let (transport, target): (Box<dyn Transport>, String) = match &cli.serial {
@@ -258,7 +304,7 @@ pub fn hil(
     };
     tracing::info!(
         airframe = %end.sim().airframe().name, autopilot = %target,
-        mode = ?cli.mode, physics_hz = 1.0 / end.sim().config().dt_s, exchange_hz = end.exchange_hz(),
+        mode = ?cli.mode, physics = ?cli.physics, physics_hz = 1.0 / end.sim().config().dt_s, exchange_hz = end.exchange_hz(),
         "simulator ready"
     );
     let started = Instant::now();
@@ -350,7 +396,7 @@ pub fn hil(
             }
         };
         match cli.mode {
-            Mode::Lockstep => end.advance(record)?,
+            Mode::Lockstep => end.advance_with(|sim, u| dynamics.step(sim, u), record)?,
             Mode::Realtime => {
                 // Each physics step at its own wall time, with the newest answer there is.
                 end.advance_live(
@@ -363,6 +409,7 @@ pub fn hil(
                         }
                         Ok(latest)
                     },
+                    |sim, u| dynamics.step(sim, u),
                     record,
                 )?;
                 pacer.wait_until(end.sim().time_s());

@@ -48,7 +48,7 @@ pub const KG_M3_PER_SLUG_FT3: f64 = 515.378_818_393_2;
 pub const MODEL_NAME: &str = "autopilot_multirotor";
 
 /// The properties JSBSim streams back each frame, in this order after its `Time` column.
-pub const STATE_PROPERTIES: [&str; 22] = [
+pub const STATE_PROPERTIES: [&str; 25] = [
     "simulation/frame",
     "position/lat-geod-deg",
     "position/long-gc-deg",
@@ -68,6 +68,9 @@ pub const STATE_PROPERTIES: [&str; 22] = [
     "forces/fbx-total-lbs",
     "forces/fby-total-lbs",
     "forces/fbz-total-lbs",
+    "forces/fbx-gear-lbs",
+    "forces/fby-gear-lbs",
+    "forces/fbz-gear-lbs",
     "atmosphere/P-psf",
     "atmosphere/T-R",
     "atmosphere/rho-slugs_ft3",
@@ -113,6 +116,67 @@ fn location(out: &mut String, indent: &str, p: [f64; 3]) {
         "{indent}<location unit=\"M\"><x>{:.6}</x><y>{:.6}</y><z>{:.6}</z></location>",
         p[0], p[1], p[2]
     );
+}
+
+/// What one foot's spring would sag under the whole weight (m): three share it.
+const FOOT_SAG_M: f64 = 0.005;
+
+/// How far the feet reach below the centre of mass (m): a tenth of a metre below the lowest hub.
+fn foot_depth_m(a: &Airframe) -> f64 {
+    let hub_down = a
+        .rotors
+        .iter()
+        .map(|r| r.position_frd_m.z)
+        .fold(f64::MIN, f64::max);
+    hub_down + 0.1
+}
+
+/// Height of the centre of mass above the ground when the vehicle rests on its feet (m). The
+/// bridge puts the local NED origin there, so that a vehicle at rest is at z = 0 in both
+/// back-ends (the built-in physics rests the centre of mass on the ground).
+pub fn rest_height_m(a: &Airframe) -> f64 {
+    foot_depth_m(a) - FOOT_SAG_M / 3.0
+}
+
+/// JSBSim's initialisation file for a vehicle of `a` starting in `initial` (local NED of
+/// `home`, which is the rest position of the centre of mass: see [`rest_height_m`]).
+pub fn init_xml(a: &Airframe, home: &Geodetic, initial: &crate::body::BodyState) -> String {
+    let rest = rest_height_m(a);
+    let start = home.offset_by_ned(&initial.pos_ned_m);
+    let (phi, theta, psi) = initial.q_ned_from_frd.euler_angles();
+    let v = initial.vel_ned_m_s / M_PER_FT;
+    let w = initial.rate_frd_rad_s;
+    let mut x = String::new();
+    let _ = writeln!(x, "<?xml version=\"1.0\"?>");
+    let _ = writeln!(x, "<initialize name=\"start\">");
+    let _ = writeln!(
+        x,
+        "  <latitude unit=\"DEG\" type=\"geodetic\">{:.12}</latitude><longitude unit=\"DEG\">{:.12}</longitude>",
+        start.lat_deg, start.lon_deg
+    );
+    // `altitude` is above the ground; the ground lies `rest` below the NED origin.
+    let _ = writeln!(
+        x,
+        "  <elevation unit=\"M\">{:.6}</elevation><altitude unit=\"M\">{:.6}</altitude>",
+        home.alt_m - rest,
+        rest - initial.pos_ned_m.z
+    );
+    let _ = writeln!(
+        x,
+        "  <phi unit=\"RAD\">{phi:.12}</phi><theta unit=\"RAD\">{theta:.12}</theta><psi unit=\"RAD\">{psi:.12}</psi>"
+    );
+    let _ = writeln!(
+        x,
+        "  <vnorth unit=\"FT/SEC\">{:.9}</vnorth><veast unit=\"FT/SEC\">{:.9}</veast><vdown unit=\"FT/SEC\">{:.9}</vdown>",
+        v.x, v.y, v.z
+    );
+    let _ = writeln!(
+        x,
+        "  <p unit=\"RAD/SEC\">{:.12}</p><q unit=\"RAD/SEC\">{:.12}</q><r unit=\"RAD/SEC\">{:.12}</r>",
+        w.x, w.y, w.z
+    );
+    let _ = writeln!(x, "</initialize>");
+    x
 }
 
 /// The aircraft file for `a`: mass, inertia, three ground contacts under the rotor disc, a
@@ -182,12 +246,7 @@ pub fn aircraft_xml(a: &Airframe, ports: BridgePorts, rate_hz: f64) -> String {
         .iter()
         .map(|r| r.position_frd_m.xy().norm())
         .fold(0.05, f64::max);
-    let hub_down = a
-        .rotors
-        .iter()
-        .map(|r| r.position_frd_m.z)
-        .fold(f64::MIN, f64::max);
-    let stiffness = a.mass_kg * crate::GRAVITY_M_S2 / 0.005; // 5 mm of sag at rest
+    let stiffness = a.mass_kg * crate::GRAVITY_M_S2 / FOOT_SAG_M;
     let damping = 2.0 * 0.7 * (stiffness * a.mass_kg).sqrt();
     let _ = writeln!(x, "  <ground_reactions>");
     for k in 0..3 {
@@ -195,7 +254,7 @@ pub fn aircraft_xml(a: &Airframe, ports: BridgePorts, rate_hz: f64) -> String {
         let foot = Vector3::new(
             0.5 * arm * angle.cos(),
             0.5 * arm * angle.sin(),
-            hub_down + 0.1,
+            foot_depth_m(a),
         );
         let _ = writeln!(x, "    <contact type=\"STRUCTURE\" name=\"foot{}\">", k + 1);
         location(&mut x, "      ", structural(&foot));
@@ -324,6 +383,16 @@ impl std::fmt::Display for NonFinite {
 impl std::error::Error for NonFinite {}
 
 impl BridgeInputs {
+    /// What a step's loads set on a vehicle of `rotors` rotors.
+    pub fn from_loads(loads: &crate::sim::StepLoads, rotors: usize) -> Self {
+        Self {
+            thrust_n: loads.rotor.thrust_n[..rotors].to_vec(),
+            yaw_moment_n_m: loads.rotor.yaw_moment_n_m[..rotors].to_vec(),
+            aero_force_frd_n: loads.aero_force_frd_n,
+            aero_moment_frd_n_m: loads.aero_moment_frd_n_m,
+        }
+    }
+
     /// The command batch: one `set` line per bridge property, then `iterate 1`. Refused whole
     /// if any value is not finite.
     pub fn encode(&self) -> Result<String, NonFinite> {
@@ -374,12 +443,37 @@ pub struct JsbsimState {
     /// Specific force (every force but gravity, over the mass), FRD (m/s²): what an
     /// accelerometer at the centre of mass measures.
     pub specific_force_frd_m_s2: Vector3<f64>,
+    /// What the ground pushes on the feet with, FRD (N): zero in the air.
+    pub ground_force_frd_n: Vector3<f64>,
     /// Air at the vehicle.
     pub air: AirState,
 }
 
+impl JsbsimState {
+    /// The ground pushes harder than this (N) on a vehicle that rests on it.
+    pub const GROUND_CONTACT_N: f64 = 1e-3;
+
+    /// The simulator's view: position in the local NED frame of `origin` (the rest position of
+    /// the centre of mass, see [`rest_height_m`]).
+    pub fn body_step(&self, origin: &Geodetic) -> crate::sim::ExternalBodyStep {
+        crate::sim::ExternalBodyStep {
+            body: crate::body::BodyState {
+                pos_ned_m: origin.ned_to(&self.position),
+                vel_ned_m_s: self.vel_ned_m_s,
+                q_ned_from_frd: self.q_ned_from_frd,
+                rate_frd_rad_s: self.rate_frd_rad_s,
+            },
+            specific_force_frd_m_s2: self.specific_force_frd_m_s2,
+            ang_accel_frd_rad_s2: self.ang_accel_frd_rad_s2,
+            on_ground: self.ground_force_frd_n.norm() > Self::GROUND_CONTACT_N,
+        }
+    }
+}
+
 /// A line of JSBSim's UDP output.
 #[derive(Debug, Clone, Copy, PartialEq)]
+// Read once per frame and consumed at once: kept on the stack, no allocation per step.
+#[allow(clippy::large_enum_variant)]
 pub enum OutputLine {
     /// The `<LABELS>` line that opens the stream.
     Labels,
@@ -453,6 +547,9 @@ pub fn parse_output(line: &str, mass_kg: f64) -> Result<OutputLine, BadOutput> {
         fx,
         fy,
         fz,
+        gx,
+        gy,
+        gz,
         p_psf,
         t_r,
         rho,
@@ -474,6 +571,7 @@ pub fn parse_output(line: &str, mass_kg: f64) -> Result<OutputLine, BadOutput> {
         rate_frd_rad_s: Vector3::new(p, q, r),
         ang_accel_frd_rad_s2: Vector3::new(pdot, qdot, rdot),
         specific_force_frd_m_s2: Vector3::new(fx, fy, fz) * (N_PER_LBF / mass_kg),
+        ground_force_frd_n: Vector3::new(gx, gy, gz) * N_PER_LBF,
         air: AirState {
             pressure_pa: p_psf * PA_PER_PSF,
             temperature_k: t_r * K_PER_R,

@@ -104,6 +104,11 @@ pub struct RotorWrench {
     pub rotor_momentum_frd: Vector3<f64>,
     /// Shaft power the motors deliver (W).
     pub shaft_power_w: f64,
+    /// Each rotor's thrust (N), along body −z at its hub: what an external flight-dynamics
+    /// model applies rotor by rotor.
+    pub thrust_n: [f64; MAX_ROTORS],
+    /// Each rotor's yaw moment on the body (N·m, about +z): drag and spin-up reaction.
+    pub yaw_moment_n_m: [f64; MAX_ROTORS],
 }
 
 /// Rotor speeds and the motor model `τ Ω̇ + Ω = a f(u, V_batt)` of Lewis (6.8), with
@@ -190,6 +195,8 @@ impl Rotors {
         let mut torque = Vector3::zeros();
         let mut momentum_z = 0.0;
         let mut power = 0.0;
+        let mut thrusts = [0.0; MAX_ROTORS];
+        let mut yaw_moments = [0.0; MAX_ROTORS];
         for (i, spec) in self.specs.iter().enumerate() {
             let eff = self.faults[i].effectiveness;
             let thrust = eff * spec.thrust_n(rho, w[i]); // Lewis (4.28)
@@ -202,7 +209,10 @@ impl Rotors {
             torque.y += p.x * thrust;
             // Reaction to the drag torque (+z for ccw) and to spinning the rotor up (a ccw rotor
             // spins about −z; the motor pushing it faster pushes the body about +z).
-            torque.z += s * (drag_torque + spec.inertia_kg_m2 * w_dot[i]);
+            let yaw = s * (drag_torque + spec.inertia_kg_m2 * w_dot[i]);
+            torque.z += yaw;
+            thrusts[i] = thrust;
+            yaw_moments[i] = yaw;
             // Rotor angular momentum: ccw spins about −z.
             momentum_z -= s * spec.inertia_kg_m2 * w[i];
             power += drag_torque * w[i];
@@ -212,6 +222,8 @@ impl Rotors {
             torque_frd_n_m: torque,
             rotor_momentum_frd: Vector3::new(0.0, 0.0, momentum_z),
             shaft_power_w: power,
+            thrust_n: thrusts,
+            yaw_moment_n_m: yaw_moments,
         }
     }
 }

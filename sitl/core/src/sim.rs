@@ -160,6 +160,46 @@ pub struct TruthState {
     pub battery_remaining: f64,
 }
 
+/// The loads of one step, taken at its start, for an external flight-dynamics model that has
+/// gravity and the ground of its own.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepLoads {
+    /// The step (s).
+    pub dt_s: f64,
+    /// The rotors: each one's thrust at its hub and yaw moment (and their totals).
+    pub rotor: RotorWrench,
+    /// Drag and external force at the centre of mass, FRD (N).
+    pub aero_force_frd_n: Vector3<f64>,
+    /// The rotors' gyroscopic torque, aerodynamic torque, damping and external torque, FRD
+    /// (N·m).
+    pub aero_moment_frd_n_m: Vector3<f64>,
+}
+
+/// The body after a step of an external model.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ExternalBodyStep {
+    /// Position (local NED of the simulator's home), velocity, attitude and rate.
+    pub body: BodyState,
+    /// Every force but gravity over the mass, FRD (m/s²): what an accelerometer at the centre
+    /// of mass measures.
+    pub specific_force_frd_m_s2: Vector3<f64>,
+    /// Angular acceleration, FRD (rad/s²).
+    pub ang_accel_frd_rad_s2: Vector3<f64>,
+    /// The ground bears (part of) the vehicle.
+    pub on_ground: bool,
+}
+
+/// A rigid body moved by someone else (JSBSim): see [`Simulator::step_with`].
+pub trait ExternalBody {
+    /// Applies `loads` over one step and returns the body after it.
+    fn advance(&mut self, loads: &StepLoads) -> Result<ExternalBodyStep, ExternalBodyError>;
+}
+
+/// Why an external model could not step: it died, stalled or answered nonsense.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{0}")]
+pub struct ExternalBodyError(pub String);
+
 #[derive(Debug, Clone, Copy)]
 struct Pulse {
     until_s: f64,
@@ -463,8 +503,9 @@ impl Simulator {
         u
     }
 
-    /// Advances the world by one step under actuator commands `controls[i]` ∈ [0, 1] for rotor i.
-    pub fn step(&mut self, controls: &[f64]) {
+    /// What acts this step, before the body moves: due events, the rotors over the step, the
+    /// air and the wind at the vehicle, the external pulses.
+    fn begin_step(&mut self, controls: &[f64]) -> Loads {
         let dt = self.cfg.dt_s;
         let t = self.time_s();
         while self.events.last().is_some_and(|e| e.t_s <= t + 1e-9) {
@@ -475,27 +516,42 @@ impl Simulator {
         let u = self.sanitise(controls);
         let altitude_agl = -self.body.pos_ned_m.z;
         self.air = isa(self.cfg.home.alt_m + altitude_agl);
-        let rho = self.air.density_kg_m3;
         let v_batt = self.battery.voltage();
-        let rotor = self.rotors.step(&u, v_batt, rho, dt);
+        let rotor = self.rotors.step(&u, v_batt, self.air.density_kg_m3, dt);
         self.wind_ned = self
             .wind
             .step(t, dt, &self.body.vel_ned_m_s, altitude_agl.max(0.0));
-        let mut ext_force = Vector3::zeros();
-        let mut ext_torque = Vector3::zeros();
+        let mut ext_force_ned = Vector3::zeros();
+        let mut ext_torque_frd = Vector3::zeros();
         self.pulses.retain(|p| t < p.until_s);
         for p in &self.pulses {
-            ext_force += p.force_ned_n;
-            ext_torque += p.torque_frd_n_m;
+            ext_force_ned += p.force_ned_n;
+            ext_torque_frd += p.torque_frd_n_m;
         }
-        let forces = Forces {
+        Loads {
             rotor,
+            rho: self.air.density_kg_m3,
+            wind_ned: self.wind_ned,
+            ext_force_ned,
+            ext_torque_frd,
+        }
+    }
+
+    /// The battery and the clock after the body has moved.
+    fn end_step(&mut self, rotor: &RotorWrench) {
+        self.battery.draw(rotor.shaft_power_w, self.cfg.dt_s);
+        self.time_usec += self.dt_usec;
+        self.stats.steps += 1;
+    }
+
+    /// Advances the world by one step under actuator commands `controls[i]` ∈ [0, 1] for rotor i.
+    pub fn step(&mut self, controls: &[f64]) {
+        let dt = self.cfg.dt_s;
+        let loads = self.begin_step(controls);
+        let forces = Forces {
+            loads: &loads,
             mass: &self.mass,
             drag: &self.airframe.drag,
-            rho,
-            wind_ned: self.wind_ned,
-            ext_force_ned: ext_force,
-            ext_torque_frd: ext_torque,
         };
         let before = self.body;
         if self.landed {
@@ -519,9 +575,46 @@ impl Simulator {
         }
         self.accel_ned = (self.body.vel_ned_m_s - before.vel_ned_m_s) / dt;
         self.ang_accel_frd = (self.body.rate_frd_rad_s - before.rate_frd_rad_s) / dt;
-        self.battery.draw(rotor.shaft_power_w, dt);
-        self.time_usec += self.dt_usec;
-        self.stats.steps += 1;
+        self.end_step(&loads.rotor);
+    }
+
+    /// Advances the world by one step as [`Simulator::step`] does, but the rigid body, gravity
+    /// and the ground are `body`'s (an external flight-dynamics model such as JSBSim): it gets
+    /// the loads of the step, taken at its start, and says where the body is after it. Rotors,
+    /// battery, air, wind, events and sensors stay this simulator's.
+    pub fn step_with(
+        &mut self,
+        controls: &[f64],
+        body: &mut dyn ExternalBody,
+    ) -> Result<(), ExternalBodyError> {
+        let loads = self.begin_step(controls);
+        let forces = Forces {
+            loads: &loads,
+            mass: &self.mass,
+            drag: &self.airframe.drag,
+        };
+        let (aero_force_frd_n, aero_moment_frd_n_m) = forces.body_loads(&self.body);
+        let after = body.advance(&StepLoads {
+            dt_s: self.cfg.dt_s,
+            rotor: loads.rotor,
+            aero_force_frd_n,
+            aero_moment_frd_n_m,
+        })?;
+        if after.on_ground && !self.landed {
+            self.stats.touchdowns += 1;
+            self.stats.last_touchdown_speed_m_s = self.body.vel_ned_m_s.z;
+        }
+        self.landed = after.on_ground;
+        self.body = after.body;
+        // What the accelerometer feels, as the acceleration the sensor models take: a = R f + g.
+        self.accel_ned = after
+            .body
+            .q_ned_from_frd
+            .transform_vector(&after.specific_force_frd_m_s2)
+            + Vector3::new(0.0, 0.0, GRAVITY_M_S2);
+        self.ang_accel_frd = after.ang_accel_frd_rad_s2;
+        self.end_step(&loads.rotor);
+        Ok(())
     }
 
     /// What the sensors report after the last step.
@@ -543,41 +636,58 @@ impl Simulator {
     }
 }
 
-/// The forces of one step, as a function of the state the integrator asks about.
-struct Forces<'a> {
+/// What acts on the body during one step, apart from gravity and the ground.
+struct Loads {
     rotor: RotorWrench,
-    mass: &'a MassProperties,
-    drag: &'a crate::airframe::DragSpec,
     rho: f64,
     wind_ned: Vector3<f64>,
     ext_force_ned: Vector3<f64>,
     ext_torque_frd: Vector3<f64>,
 }
 
+/// The forces of one step, as a function of the state the integrator asks about.
+struct Forces<'a> {
+    loads: &'a Loads,
+    mass: &'a MassProperties,
+    drag: &'a crate::airframe::DragSpec,
+}
+
 impl Forces<'_> {
-    fn accel(&self, s: &BodyState) -> Accel {
+    /// Everything but the rotors' thrust and yaw moments, gravity and the ground, at the
+    /// centre of mass in FRD: drag and the external force (N); the rotors' gyroscopic torque,
+    /// aerodynamic torque, damping and the external torque (N·m).
+    fn body_loads(&self, s: &BodyState) -> (Vector3<f64>, Vector3<f64>) {
+        let l = self.loads;
         let q = &s.q_ned_from_frd;
         let w = &s.rate_frd_rad_s;
-        let air_frd = q.inverse_transform_vector(&(s.vel_ned_m_s - self.wind_ned));
+        let air_frd = q.inverse_transform_vector(&(s.vel_ned_m_s - l.wind_ned));
         let lin = Vector3::from(self.drag.linear_n_s_m);
         let quad = Vector3::from(self.drag.quadratic_n_s2_m2);
         let drag_frd = -lin.component_mul(&air_frd)
             - quad.component_mul(&air_frd.component_mul(&air_frd.abs()));
-        let force_ned = q.transform_vector(&(self.rotor.force_frd_n + drag_frd))
-            + Vector3::new(0.0, 0.0, self.mass.mass_kg * GRAVITY_M_S2)
-            + self.ext_force_ned;
-        // Castillo (57)–(59): rotor moments, gyroscopic torque of the spinning rotors −ω × h,
-        // aerodynamic torque (signed so that it opposes the air-relative velocity), damping.
+        let force = drag_frd + q.inverse_transform_vector(&l.ext_force_ned);
+        // Castillo (57)–(59): gyroscopic torque of the spinning rotors −ω × h, aerodynamic
+        // torque (signed so that it opposes the air-relative velocity), damping.
         let aero = Vector3::from(self.drag.aero_torque_m3)
             .component_mul(&air_frd.component_mul(&air_frd.abs()))
-            * (0.5 * self.rho);
+            * (0.5 * l.rho);
         let damping = Vector3::from(self.drag.rotational_n_m_s_rad).component_mul(w);
-        let torque =
-            self.rotor.torque_frd_n_m - w.cross(&self.rotor.rotor_momentum_frd) - aero - damping
-                + self.ext_torque_frd;
+        let moment = -w.cross(&l.rotor.rotor_momentum_frd) - aero - damping + l.ext_torque_frd;
+        (force, moment)
+    }
+
+    fn accel(&self, s: &BodyState) -> Accel {
+        let (force_frd, moment_frd) = self.body_loads(s);
+        let rotor = &self.loads.rotor;
+        let force_ned = s
+            .q_ned_from_frd
+            .transform_vector(&(rotor.force_frd_n + force_frd))
+            + Vector3::new(0.0, 0.0, self.mass.mass_kg * GRAVITY_M_S2);
         Accel {
             lin_ned_m_s2: force_ned / self.mass.mass_kg,
-            ang_frd_rad_s2: self.mass.angular_accel(w, &torque),
+            ang_frd_rad_s2: self
+                .mass
+                .angular_accel(&s.rate_frd_rad_s, &(rotor.torque_frd_n_m + moment_frd)),
         }
     }
 }

@@ -69,12 +69,28 @@ impl SimulatorEnd {
     /// frame; `each_step` sees the simulator after every physics step (truth logs).
     pub fn advance<E>(
         &mut self,
+        each_step: impl FnMut(&Simulator) -> Result<(), E>,
+    ) -> Result<(), E> {
+        self.advance_with(
+            |sim, u| {
+                sim.step(u);
+                Ok(())
+            },
+            each_step,
+        )
+    }
+
+    /// [`SimulatorEnd::advance`] with the physics step given: `step(sim, controls)` moves the
+    /// world one step (e.g. with [`Simulator::step_with`] and an external flight-dynamics model).
+    pub fn advance_with<E>(
+        &mut self,
+        mut step: impl FnMut(&mut Simulator, &[f64]) -> Result<(), E>,
         mut each_step: impl FnMut(&Simulator) -> Result<(), E>,
     ) -> Result<(), E> {
         let n = self.sim.airframe().rotors.len();
         self.acc.start();
         for _ in 0..self.steps_per_exchange {
-            self.sim.step(&self.controls[..n]);
+            step(&mut self.sim, &self.controls[..n])?;
             self.acc.add(self.sim.sample_sensors());
             each_step(&self.sim)?;
         }
@@ -84,10 +100,12 @@ impl SimulatorEnd {
     /// Real time: steps physics over one exchange interval one step at a time. Before each step
     /// `before_step` gets the step's start time (s), waits for it on its own clock, and returns
     /// the newest answer that has arrived, which takes effect from that step on: a command acts
-    /// as soon as it is there, as on a real vehicle, not an exchange later.
+    /// as soon as it is there, as on a real vehicle, not an exchange later. `step` moves the
+    /// world as in [`SimulatorEnd::advance_with`].
     pub fn advance_live<E>(
         &mut self,
         mut before_step: impl FnMut(f64) -> Result<Option<ActuatorCommand>, E>,
+        mut step: impl FnMut(&mut Simulator, &[f64]) -> Result<(), E>,
         mut each_step: impl FnMut(&Simulator) -> Result<(), E>,
     ) -> Result<(), E> {
         let n = self.sim.airframe().rotors.len();
@@ -96,7 +114,7 @@ impl SimulatorEnd {
             if let Some(cmd) = before_step(self.sim.time_s())? {
                 self.apply(&cmd);
             }
-            self.sim.step(&self.controls[..n]);
+            step(&mut self.sim, &self.controls[..n])?;
             self.acc.add(self.sim.sample_sensors());
             each_step(&self.sim)?;
         }

@@ -137,6 +137,7 @@ fn output_lines_convert_to_si_ned_frd() {
         0.01, 0.02, 0.03, // p q r
         1.0, 2.0, 3.0, // pdot qdot rdot
         0.0, 0.0, -3.3069, // forces (lbf): 1.5 kg hovering
+        0.0, 0.5, -1.0, // of which the ground's (lbf)
         2116.22, 518.67, 0.0023769, // sea-level air
     ];
     let OutputLine::State(s) = parse_output(&line(&values), 1.5).unwrap() else {
@@ -149,6 +150,10 @@ fn output_lines_convert_to_si_ned_frd() {
     assert!((r - 0.1).abs() < 1e-12 && (p + 0.2).abs() < 1e-12 && (y - 1.5).abs() < 1e-12);
     assert_eq!(s.rate_frd_rad_s, Vector3::new(0.01, 0.02, 0.03));
     assert!((s.specific_force_frd_m_s2.z + 9.8066).abs() < 1e-3, "{s:?}");
+    assert_eq!(
+        s.ground_force_frd_n,
+        Vector3::new(0.0, 0.5, -1.0) * N_PER_LBF
+    );
     assert!((s.air.pressure_pa - 101_325.0).abs() < 1.0);
     assert!((s.air.temperature_k - 288.15).abs() < 1e-3);
     assert!((s.air.density_kg_m3 - 1.225).abs() < 1e-3);
@@ -158,14 +163,14 @@ fn output_lines_convert_to_si_ned_frd() {
         parse_output(&short, 1.5)
             .unwrap_err()
             .0
-            .contains("10 columns, 23 expected")
+            .contains("10 columns, 26 expected")
     );
     let long = format!("{},1", line(&values));
     assert!(
         parse_output(&long, 1.5)
             .unwrap_err()
             .0
-            .contains("more than 23")
+            .contains("more than 26")
     );
     let text = line(&values).replacen("125", "abc", 1);
     assert!(parse_output(&text, 1.5).unwrap_err().0.contains("column 2"));
@@ -209,4 +214,36 @@ fn replies_are_counted_and_errors_kept_across_reads() {
         assert_eq!((r.sets, r.iterations), (2, 1), "cut {cut}");
         assert_eq!(r.errors, ["Unknown property", "Not a leaf property"]);
     }
+}
+
+/// The start file puts the vehicle where the scenario says: the ground `rest_height_m` below
+/// the NED origin, the centre of mass above it by its height and altitude, in JSBSim's units.
+#[test]
+fn the_start_file_places_the_vehicle_in_the_scenarios_state() {
+    let a = shipped("quad_x");
+    let home = Geodetic {
+        lat_deg: 47.0,
+        lon_deg: 8.0,
+        alt_m: 500.0,
+    };
+    let initial = crate::body::BodyState {
+        pos_ned_m: Vector3::new(100.0, 0.0, -10.0),
+        vel_ned_m_s: Vector3::new(3.048, 0.0, -0.3048),
+        q_ned_from_frd: UnitQuaternion::from_euler_angles(0.1, -0.2, 1.0),
+        rate_frd_rad_s: Vector3::new(0.0, 0.0, 0.5),
+    };
+    let x = init_xml(&a, &home, &initial);
+    let rest = rest_height_m(&a);
+    assert!(rest > 0.05 && rest < 0.3, "{rest}");
+    assert!((number(&x, "", "elevation") - (500.0 - rest)).abs() < 1e-6);
+    assert!((number(&x, "", "altitude") - (10.0 + rest)).abs() < 1e-6);
+    let north = home.offset_by_ned(&initial.pos_ned_m).lat_deg;
+    assert!((number(&x, "", "latitude") - north).abs() < 1e-11);
+    assert!((number(&x, "", "longitude") - 8.0).abs() < 1e-11);
+    assert!((number(&x, "", "phi") - 0.1).abs() < 1e-9);
+    assert!((number(&x, "", "theta") + 0.2).abs() < 1e-9);
+    assert!((number(&x, "", "psi") - 1.0).abs() < 1e-9);
+    assert!((number(&x, "", "vnorth") - 10.0).abs() < 1e-9);
+    assert!((number(&x, "", "vdown") + 1.0).abs() < 1e-9);
+    assert!((number(&x, "", "r") - 0.5).abs() < 1e-9);
 }
