@@ -84,3 +84,8 @@ printf '%-50s %s Hz, jitter p50 %s us, p99 %s us, max %s us, overruns %s in 60 s
     "floor: the same deadline loop idle, no simulator" "$(echo "$idle" | field loop_hz)" \
     "$(echo "$idle" | field jitter_p50_us)" "$(echo "$idle" | field jitter_p99_us)" \
     "$(echo "$idle" | field jitter_max_us)" "$(echo "$idle" | field overruns)"
+
+# JSBSim's lockstep speed, when the test command's venv is there to supply it.
+if [ -x .venv/bin/jsbsim ]; then
+    .venv/bin/python tools/bench_jsbsim.py --sitl "$bin/sitl"
+fi

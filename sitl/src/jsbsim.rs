@@ -14,8 +14,8 @@ use sitl_core::Airframe;
 use sitl_core::body::BodyState;
 use sitl_core::geo::Geodetic;
 use sitl_core::jsbsim::{
-    BridgeInputs, BridgePorts, MODEL_NAME, OutputLine, Replies, aircraft_xml, init_xml,
-    parse_output,
+    BridgeInputs, BridgePorts, FRAME_MODULUS, FrameFilter, FrameVerdict, MODEL_NAME, OutputLine,
+    Replies, aircraft_xml, init_xml, parse_output,
 };
 use sitl_core::sim::{ExternalBody, ExternalBodyError, ExternalBodyStep, StepLoads};
 use std::collections::VecDeque;
@@ -61,7 +61,7 @@ pub struct Bridge {
     origin: Geodetic,
     mass_kg: f64,
     rotors: usize,
-    next_frame: u64,
+    frames: FrameFilter,
     replies: Replies,
     step_timeout: Duration,
     rx: Vec<u8>,
@@ -103,7 +103,7 @@ impl Bridge {
             origin,
             mass_kg: airframe.mass_kg,
             rotors: airframe.rotors.len(),
-            next_frame: 1,
+            frames: FrameFilter::default(),
             replies: Replies::default(),
             step_timeout,
             rx: vec![0; 65_536],
@@ -158,7 +158,8 @@ impl Bridge {
             if Instant::now() > deadline {
                 return Err(format!(
                     "no state for frame {} within {:?}",
-                    self.next_frame, self.step_timeout
+                    self.frames.next(),
+                    self.step_timeout
                 ));
             }
             let len = match self.state.recv(&mut self.rx) {
@@ -180,16 +181,20 @@ impl Bridge {
             };
             let text = String::from_utf8_lossy(&self.rx[..len]);
             for line in text.lines().filter(|l| !l.trim().is_empty()) {
-                match parse_output(line, self.mass_kg).map_err(|e| e.to_string())? {
-                    OutputLine::Labels => {}
-                    // Each iterate first re-sends the frame before: older frames are skipped.
-                    OutputLine::State(s) if s.frame < self.next_frame => {}
-                    OutputLine::State(s) if s.frame == self.next_frame => {
-                        self.next_frame += 1;
-                        return Ok(s.body_step(&self.origin));
-                    }
-                    OutputLine::State(s) => {
-                        return Err(format!("it ran ahead to frame {}", s.frame));
+                let OutputLine::State(s) =
+                    parse_output(line, self.mass_kg, &self.origin).map_err(|e| e.to_string())?
+                else {
+                    continue;
+                };
+                match self.frames.check(s.frame) {
+                    FrameVerdict::Next => return Ok(s.body_step(&self.origin)),
+                    // Each iterate first re-sends the frame before.
+                    FrameVerdict::Stale => {}
+                    FrameVerdict::Unexpected => {
+                        return Err(format!(
+                            "it sent frame {} (modulo {FRAME_MODULUS})",
+                            s.frame
+                        ));
                     }
                 }
             }
@@ -225,7 +230,8 @@ impl ExternalBody for Bridge {
             let _ = self.drain_replies();
             ExternalBodyError(format!(
                 "JSBSim at frame {}: {why}; its replies: {:?}",
-                self.next_frame, self.replies.errors
+                self.frames.next(),
+                self.replies.errors
             ))
         })
     }
@@ -325,7 +331,7 @@ impl Jsbsim {
             };
             std::fs::write(
                 dir.join(format!("{MODEL_NAME}.xml")),
-                aircraft_xml(l.airframe, ports, l.rate_hz),
+                aircraft_xml(l.airframe, &l.home, ports, l.rate_hz),
             )
             .context("writing JSBSim's aircraft model")?;
             match Self::start(l, root, ports, state) {

@@ -58,11 +58,11 @@ class Daemon:
     with its parameter store in a temporary directory."""
 
     def __init__(self, tmp_path, mavlink, connect=True, airframe="quad_x", scenario=None,
-                 control=False):
+                 control=False, sim_args=()):
         """`mavlink`: the ground-station endpoint, `{port}` standing for a free UDP port (on which
         a pymavlink connection listens when `connect`); both processes fly `airframe`, the
         simulator in `scenario` (a file) if given, its weather controlled on `control_port` if
-        `control` (sitl --control)."""
+        `control` (sitl --control), with `sim_args` added to its command line."""
         self.airframe = airframe
         self.sim_port, self.gcs_port = free_udp_port(), free_udp_port()
         self.control_port = free_udp_port() if control else None
@@ -81,9 +81,18 @@ class Daemon:
              "--airframe", airframe,
              *(["--scenario", str(scenario)] if scenario else []),
              *(["--control", f"127.0.0.1:{self.control_port}"] if control else []),
+             *sim_args,
              "--autopilot", f"127.0.0.1:{self.sim_port}"],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
         )
+
+    def stop_sim(self):
+        """Ctrl-C to the simulator: its run ends cleanly (truth CSV flushed); its summary."""
+        self.sim.send_signal(signal.SIGINT)
+        out, _ = self.sim.communicate(timeout=30)
+        assert self.sim.returncode == 0, out
+        line = next(l for l in out.splitlines() if l.startswith("sitl summary:"))
+        return dict(kv.split("=", 1) for kv in line.split()[2:])
 
     def start(self):
         self.ap = subprocess.Popen(

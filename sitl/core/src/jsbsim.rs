@@ -49,10 +49,10 @@ pub const MODEL_NAME: &str = "autopilot_multirotor";
 
 /// The properties JSBSim streams back each frame, in this order after its `Time` column.
 pub const STATE_PROPERTIES: [&str; 25] = [
-    "simulation/frame",
-    "position/lat-geod-deg",
-    "position/long-gc-deg",
-    "position/h-sl-ft",
+    "bridge/frame-mod",
+    "bridge/dlat-geod-deg",
+    "bridge/dlon-deg",
+    "bridge/dh-sl-ft",
     "velocities/v-north-fps",
     "velocities/v-east-fps",
     "velocities/v-down-fps",
@@ -75,6 +75,11 @@ pub const STATE_PROPERTIES: [&str; 25] = [
     "atmosphere/T-R",
     "atmosphere/rho-slugs_ft3",
 ];
+
+/// JSBSim's socket output prints 7 significant digits: the position goes out as offsets from the
+/// origin (computed inside JSBSim in double precision; `position/lat-geod-deg` itself would be
+/// a metre coarse) and the frame counter modulo this (it would be rounded past 10⁷ frames).
+pub const FRAME_MODULUS: u64 = 1_000_000;
 
 /// Where the bridge talks to JSBSim.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -181,8 +186,9 @@ pub fn init_xml(a: &Airframe, home: &Geodetic, initial: &crate::body::BodyState)
 
 /// The aircraft file for `a`: mass, inertia, three ground contacts under the rotor disc, a
 /// thrust force and a yaw moment per rotor, the aerodynamic force and moment, the command
-/// port and the state output (`rate_hz`: one datagram per frame at the simulation rate).
-pub fn aircraft_xml(a: &Airframe, ports: BridgePorts, rate_hz: f64) -> String {
+/// port and the state output (`rate_hz`: one datagram per frame at the simulation rate), its
+/// position as offsets from `origin`.
+pub fn aircraft_xml(a: &Airframe, origin: &Geodetic, ports: BridgePorts, rate_hz: f64) -> String {
     let j = &a.inertia_kg_m2;
     let mut x = String::new();
     let _ = writeln!(x, "<?xml version=\"1.0\"?>");
@@ -338,7 +344,45 @@ pub fn aircraft_xml(a: &Airframe, ports: BridgePorts, rate_hz: f64) -> String {
     let _ = writeln!(x, "  </external_reactions>");
     // Empty, but JSBSim wants them (without aerodynamics it refuses to initialise).
     let _ = writeln!(x, "  <propulsion/>");
-    let _ = writeln!(x, "  <flight_control name=\"bridge\"/>");
+    // The precise outputs: offsets from the origin and the frame counter modulo FRAME_MODULUS.
+    let _ = writeln!(x, "  <flight_control name=\"bridge\">");
+    let _ = writeln!(x, "    <channel name=\"output\">");
+    let function = |x: &mut String, name: &str, op: &str, property: &str, value: String| {
+        let _ = writeln!(
+            x,
+            "      <fcs_function name=\"{name}\"><function><{op}><property>{property}</property><value>{value}</value></{op}></function></fcs_function>"
+        );
+    };
+    function(
+        &mut x,
+        "bridge/frame-mod",
+        "mod",
+        "simulation/frame",
+        FRAME_MODULUS.to_string(),
+    );
+    function(
+        &mut x,
+        "bridge/dlat-geod-deg",
+        "difference",
+        "position/lat-geod-deg",
+        format!("{:.12}", origin.lat_deg),
+    );
+    function(
+        &mut x,
+        "bridge/dlon-deg",
+        "difference",
+        "position/long-gc-deg",
+        format!("{:.12}", origin.lon_deg),
+    );
+    function(
+        &mut x,
+        "bridge/dh-sl-ft",
+        "difference",
+        "position/h-sl-ft",
+        format!("{:.9}", origin.alt_m / M_PER_FT),
+    );
+    let _ = writeln!(x, "    </channel>");
+    let _ = writeln!(x, "  </flight_control>");
     let _ = writeln!(x, "  <aerodynamics/>");
     let _ = writeln!(x, "  <input port=\"{}\"/>", ports.command_tcp);
     let _ = writeln!(
@@ -428,7 +472,7 @@ impl BridgeInputs {
 pub struct JsbsimState {
     /// JSBSim's simulation time (s).
     pub time_s: f64,
-    /// Its frame counter (`simulation/frame`).
+    /// Its frame counter (`simulation/frame`) modulo [`FRAME_MODULUS`].
     pub frame: u64,
     /// Geodetic position of the centre of mass (altitude above mean sea level).
     pub position: Geodetic,
@@ -493,8 +537,9 @@ impl std::fmt::Display for BadOutput {
 
 impl std::error::Error for BadOutput {}
 
-/// Reads one output line (`Time` and the [`STATE_PROPERTIES`]) of a vehicle of `mass_kg`.
-pub fn parse_output(line: &str, mass_kg: f64) -> Result<OutputLine, BadOutput> {
+/// Reads one output line (`Time` and the [`STATE_PROPERTIES`]) of a vehicle of `mass_kg` whose
+/// model was written for `origin`.
+pub fn parse_output(line: &str, mass_kg: f64, origin: &Geodetic) -> Result<OutputLine, BadOutput> {
     let line = line.trim();
     if line.starts_with("<LABELS>") {
         return Ok(OutputLine::Labels);
@@ -562,9 +607,9 @@ pub fn parse_output(line: &str, mass_kg: f64) -> Result<OutputLine, BadOutput> {
         time_s,
         frame: frame as u64,
         position: Geodetic {
-            lat_deg: lat,
-            lon_deg: lon,
-            alt_m: ft(h_sl_ft),
+            lat_deg: origin.lat_deg + lat,
+            lon_deg: origin.lon_deg + lon,
+            alt_m: origin.alt_m + ft(h_sl_ft),
         },
         vel_ned_m_s: Vector3::new(ft(vn), ft(ve), ft(vd)),
         q_ned_from_frd: UnitQuaternion::from_euler_angles(phi, theta, psi),
@@ -580,22 +625,49 @@ pub fn parse_output(line: &str, mass_kg: f64) -> Result<OutputLine, BadOutput> {
     }))
 }
 
-/// Passes each frame once, in order: JSBSim answers every `iterate` with the frame it had
-/// before (stale) and then the new one, so counting datagrams is wrong; the frame counter is
-/// right.
-#[derive(Debug, Clone, Copy, Default)]
+/// What a datagram's frame is to the bridge waiting for the next one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FrameVerdict {
+    /// The frame asked for: take it.
+    Next,
+    /// The frame before, which JSBSim re-sends ahead of every new one: skip it.
+    Stale,
+    /// Neither: JSBSim stepped more or less than asked.
+    Unexpected,
+}
+
+/// Takes each frame once, in order, by its counter (modulo [`FRAME_MODULUS`]): JSBSim answers
+/// every `iterate` with the frame it had (stale) and then the new one, so counting datagrams
+/// is wrong.
+#[derive(Debug, Clone, Copy)]
 pub struct FrameFilter {
-    last: Option<u64>,
+    next: u64,
+}
+
+impl Default for FrameFilter {
+    /// JSBSim starts at frame 0: the first `iterate 1` gives frame 1.
+    fn default() -> Self {
+        Self { next: 1 }
+    }
 }
 
 impl FrameFilter {
-    /// Whether `frame` is newer than every frame passed so far (and takes it if so).
-    pub fn accept(&mut self, frame: u64) -> bool {
-        if self.last.is_some_and(|l| frame <= l) {
-            return false;
+    /// The frame waited for (the full count).
+    pub fn next(&self) -> u64 {
+        self.next
+    }
+
+    /// What `frame` (as sent, modulo [`FRAME_MODULUS`]) is; a [`FrameVerdict::Next`] moves on.
+    pub fn check(&mut self, frame: u64) -> FrameVerdict {
+        let expected = self.next % FRAME_MODULUS;
+        if frame == expected {
+            self.next += 1;
+            FrameVerdict::Next
+        } else if (frame + 1) % FRAME_MODULUS == expected {
+            FrameVerdict::Stale
+        } else {
+            FrameVerdict::Unexpected
         }
-        self.last = Some(frame);
-        true
     }
 }
 

@@ -59,9 +59,7 @@ fn fake(state_port: u16, fault: Fault) -> (u16, Arc<Mutex<Seen>>, JoinHandle<()>
             let mut v = vec![0.0; STATE_PROPERTIES.len() + 1];
             v[0] = frame as f64 * 0.004;
             v[1] = frame as f64;
-            v[2] = HOME.lat_deg;
-            v[3] = HOME.lon_deg;
-            v[4] = (HOME.alt_m + 0.01 * frame as f64) / M_PER_FT;
+            v[4] = 0.01 * frame as f64 / M_PER_FT; // offsets from the origin
             v[7] = -2.5 / M_PER_FT; // climbing
             v[19] = -thrust_lbf;
             v[23] = 2116.22;

@@ -7,6 +7,12 @@ fn shipped(name: &str) -> Airframe {
     Airframe::load(&dir.join(format!("{name}.toml"))).unwrap()
 }
 
+const ORIGIN: Geodetic = Geodetic {
+    lat_deg: 47.0,
+    lon_deg: 8.0,
+    alt_m: 500.0,
+};
+
 const PORTS: BridgePorts = BridgePorts {
     command_tcp: 5601,
     state_udp: 5602,
@@ -29,7 +35,7 @@ fn number(xml: &str, from: &str, tag: &str) -> f64 {
 fn the_model_carries_mass_inertia_a_reaction_per_rotor_and_the_ports() {
     for name in ["quad_x", "hexa_x", "dodeca"] {
         let a = shipped(name);
-        let xml = aircraft_xml(&a, PORTS, 250.0);
+        let xml = aircraft_xml(&a, &ORIGIN, PORTS, 250.0);
         assert!((number(&xml, "<mass_balance>", "emptywt") - a.mass_kg).abs() < 1e-6);
         assert!((number(&xml, "<mass_balance>", "izz") - a.inertia_kg_m2[(2, 2)]).abs() < 1e-9);
         let n = a.rotors.len();
@@ -55,7 +61,7 @@ fn the_model_carries_mass_inertia_a_reaction_per_rotor_and_the_ports() {
     }
     // quad_x's rotor 1, front right in FRD, is aft-negative, right-positive in the structural
     // frame; its thrust points up (body -z).
-    let xml = aircraft_xml(&shipped("quad_x"), PORTS, 250.0);
+    let xml = aircraft_xml(&shipped("quad_x"), &ORIGIN, PORTS, 250.0);
     assert!(xml.contains("<force name=\"rotor1\" frame=\"BODY\">"));
     assert!((number(&xml, "<force name=\"rotor1\"", "x") + 0.159).abs() < 1e-9);
     assert!((number(&xml, "<force name=\"rotor1\"", "y") - 0.159).abs() < 1e-9);
@@ -73,7 +79,7 @@ fn products_of_inertia_follow_jsbsims_signs() {
         0.002, 0.03, -0.001, //
         0.004, -0.001, 0.05,
     );
-    let xml = aircraft_xml(&a, PORTS, 250.0);
+    let xml = aircraft_xml(&a, &ORIGIN, PORTS, 250.0);
     assert!((number(&xml, "<mass_balance>", "ixy") + 0.002).abs() < 1e-12);
     assert!((number(&xml, "<mass_balance>", "ixz") - 0.004).abs() < 1e-12);
     assert!((number(&xml, "<mass_balance>", "iyz") - 0.001).abs() < 1e-12);
@@ -126,12 +132,12 @@ fn line(values: &[f64]) -> String {
 #[test]
 fn output_lines_convert_to_si_ned_frd() {
     assert_eq!(
-        parse_output("<LABELS> ,Time,frame,h-agl-ft\n", 1.5).unwrap(),
+        parse_output("<LABELS> ,Time,frame,h-agl-ft\n", 1.5, &ORIGIN).unwrap(),
         OutputLine::Labels
     );
     let values = [
         0.5, 125.0, // time, frame
-        47.4, 8.5, 1640.4199, // lat, lon, h-sl-ft (500 m)
+        0.001, -0.002, 32.8084, // from the origin: lat, lon (deg), height (ft, 10 m)
         10.0, -20.0, 1.0, // v north, east, down (ft/s)
         0.1, -0.2, 1.5, // phi, theta, psi
         0.01, 0.02, 0.03, // p q r
@@ -140,11 +146,13 @@ fn output_lines_convert_to_si_ned_frd() {
         0.0, 0.5, -1.0, // of which the ground's (lbf)
         2116.22, 518.67, 0.0023769, // sea-level air
     ];
-    let OutputLine::State(s) = parse_output(&line(&values), 1.5).unwrap() else {
+    let OutputLine::State(s) = parse_output(&line(&values), 1.5, &ORIGIN).unwrap() else {
         panic!()
     };
     assert_eq!((s.time_s, s.frame), (0.5, 125));
-    assert!((s.position.alt_m - 500.0).abs() < 1e-3);
+    assert!((s.position.alt_m - 510.0).abs() < 1e-3);
+    assert!((s.position.lat_deg - 47.001).abs() < 1e-12);
+    assert!((s.position.lon_deg - 7.998).abs() < 1e-12);
     assert!((s.vel_ned_m_s - Vector3::new(3.048, -6.096, 0.3048)).norm() < 1e-9);
     let (r, p, y) = s.q_ned_from_frd.euler_angles();
     assert!((r - 0.1).abs() < 1e-12 && (p + 0.2).abs() < 1e-12 && (y - 1.5).abs() < 1e-12);
@@ -160,23 +168,28 @@ fn output_lines_convert_to_si_ned_frd() {
     // Broken lines are refused with the reason.
     let short = line(&values[..10]);
     assert!(
-        parse_output(&short, 1.5)
+        parse_output(&short, 1.5, &ORIGIN)
             .unwrap_err()
             .0
             .contains("10 columns, 26 expected")
     );
     let long = format!("{},1", line(&values));
     assert!(
-        parse_output(&long, 1.5)
+        parse_output(&long, 1.5, &ORIGIN)
             .unwrap_err()
             .0
             .contains("more than 26")
     );
     let text = line(&values).replacen("125", "abc", 1);
-    assert!(parse_output(&text, 1.5).unwrap_err().0.contains("column 2"));
+    assert!(
+        parse_output(&text, 1.5, &ORIGIN)
+            .unwrap_err()
+            .0
+            .contains("column 2")
+    );
     let nan = line(&values).replacen("125", "nan", 1);
     assert!(
-        parse_output(&nan, 1.5)
+        parse_output(&nan, 1.5, &ORIGIN)
             .unwrap_err()
             .0
             .contains("not finite")
@@ -184,7 +197,7 @@ fn output_lines_convert_to_si_ned_frd() {
     let mut half = values;
     half[1] = 1.5;
     assert!(
-        parse_output(&line(&half), 1.5)
+        parse_output(&line(&half), 1.5, &ORIGIN)
             .unwrap_err()
             .0
             .contains("not a count")
@@ -193,13 +206,20 @@ fn output_lines_convert_to_si_ned_frd() {
 
 /// Each `iterate` first re-sends the frame JSBSim had: only a newer frame passes.
 #[test]
-fn the_frame_filter_passes_each_frame_once() {
+fn the_frame_filter_takes_each_frame_once_across_the_modulus() {
     let mut f = FrameFilter::default();
-    let passed: Vec<u64> = [0, 0, 1, 1, 2, 1, 2, 3]
-        .into_iter()
-        .filter(|&k| f.accept(k))
-        .collect();
-    assert_eq!(passed, [0, 1, 2, 3]);
+    let verdicts: Vec<FrameVerdict> = [0, 1, 1, 2, 5].into_iter().map(|k| f.check(k)).collect();
+    use FrameVerdict::*;
+    assert_eq!(verdicts, [Stale, Next, Stale, Next, Unexpected]);
+    assert_eq!(f.next(), 3);
+    // Past the modulus the counter wraps on the wire, not here.
+    let mut f = FrameFilter {
+        next: FRAME_MODULUS - 1,
+    };
+    assert_eq!(f.check(FRAME_MODULUS - 1), Next);
+    assert_eq!(f.check(FRAME_MODULUS - 1), Stale);
+    assert_eq!(f.check(0), Next);
+    assert_eq!(f.next(), FRAME_MODULUS + 1);
 }
 
 /// A recorded transcript of the command port, cut at arbitrary points.
