@@ -21,6 +21,7 @@ use sitl_core::sim::{ExternalBody, ExternalBodyError, ExternalBodyStep, StepLoad
 use std::collections::VecDeque;
 use std::io::{BufRead, BufReader, ErrorKind, Read, Write};
 use std::net::{Ipv4Addr, TcpListener, TcpStream, UdpSocket};
+use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::{Arc, Mutex, mpsc};
@@ -279,6 +280,31 @@ fn tail(console: &Mutex<VecDeque<String>>) -> String {
         .unwrap_or_default()
 }
 
+/// Runs JSBSim (`$0 $@`) under a small `sh` that holds the read end of a pipe from `sitl`: when
+/// `sitl` goes, however it goes (even SIGKILL, which no handler sees), the pipe closes and the
+/// guardian stops JSBSim, which would otherwise run on, polling at full speed. The guardian drops
+/// its own copies of the output pipes, so they close when JSBSim exits.
+const GUARDIAN: &str = r#""$0" "$@" &
+jsbsim=$!
+exec >/dev/null 2>&1
+read -r _ || true
+kill "$jsbsim" 2>/dev/null
+wait "$jsbsim""#;
+
+/// Stops JSBSim through its guardian (closing the pipe), waiting a little, then for good.
+fn stop(guardian: &mut Child) {
+    drop(guardian.stdin.take());
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while Instant::now() < deadline {
+        if matches!(guardian.try_wait(), Ok(Some(_))) {
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let _ = guardian.kill();
+    let _ = guardian.wait();
+}
+
 /// A free TCP port on the loopback (JSBSim binds it a moment later; a clash is retried).
 fn free_tcp_port() -> Result<u16> {
     let l = TcpListener::bind((Ipv4Addr::LOCALHOST, 0)).context("finding a free TCP port")?;
@@ -349,20 +375,25 @@ impl Jsbsim {
         ports: BridgePorts,
         state: UdpSocket,
     ) -> std::result::Result<Self, Start> {
-        let mut child = Command::new(l.program)
+        let mut child = Command::new("sh")
+            .arg("-c")
+            .arg(GUARDIAN)
+            .arg(l.program)
+            // Its own process group: a Ctrl-C at the terminal reaches only `sitl`, which ends
+            // its run cleanly and then stops JSBSim (SIGTERM and SIGHUP too).
+            .process_group(0)
             .arg("--root")
             .arg(root)
             .args(["--aircraft", MODEL_NAME, "--initfile", "start"])
             .arg(format!("--simulation-rate={}", l.rate_hz))
             .arg("--suspend")
-            .stdin(Stdio::null())
+            .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .spawn()
             .with_context(|| {
                 format!(
-                    "starting JSBSim ({}): install the pinned PyPI package (jsbsim==1.3.3) or \
-                     name its console program with --jsbsim",
+                    "starting the shell that runs JSBSim ({}) under guard",
                     l.program.display()
                 )
             })
@@ -376,8 +407,7 @@ impl Jsbsim {
             drain_console(err, console.clone(), tx);
         }
         let fail = |child: &mut Child, why: String| {
-            let _ = child.kill();
-            let _ = child.wait();
+            stop(child);
             anyhow::anyhow!("{why}; JSBSim said:\n  {}", tail(&console))
         };
         let deadline = Instant::now() + l.startup_timeout;
@@ -395,7 +425,11 @@ impl Jsbsim {
                     return Err(Start::Failed(fail(&mut child, why)));
                 }
                 Err(mpsc::RecvTimeoutError::Disconnected) => {
-                    let why = "JSBSim exited during start-up".to_owned();
+                    let why = format!(
+                        "JSBSim exited during start-up (is {} JSBSim's console program? The \
+                         pinned PyPI jsbsim==1.3.3 installs one; name it with --jsbsim)",
+                        l.program.display()
+                    );
                     return Err(Start::Failed(fail(&mut child, why)));
                 }
             }
@@ -441,8 +475,7 @@ impl Drop for Jsbsim {
     /// root goes.
     fn drop(&mut self) {
         self.bridge.close();
-        let _ = self.child.kill();
-        let _ = self.child.wait();
+        stop(&mut self.child);
         let _ = std::fs::remove_dir_all(&self.root);
     }
 }

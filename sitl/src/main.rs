@@ -221,7 +221,7 @@ fn try_main(cli: &Cli) -> Result<()> {
     {
         let stop = stop.clone();
         ctrlc::set_handler(move || stop.store(true, std::sync::atomic::Ordering::SeqCst))
-            .context("installing the Ctrl-C handler")?;
+            .context("installing the Ctrl-C (and SIGTERM, SIGHUP) handler")?;
     }
     let summary = if cli.open_loop {
         if scenario.open_loop.is_empty() {

@@ -1,6 +1,6 @@
 """JSBSim as the physics back-end (`sitl --physics jsbsim`), with the pinned PyPI jsbsim's console
 program: the two back-ends flown open loop on the same commands agree, one seed gives one
-trajectory, and the autopilot takes off, hovers and lands in JSBSim within the bounds it meets in
+trajectory (to a centimetre: JSBSim's runs are not bit-identical), and the autopilot takes off, hovers and lands in JSBSim within the bounds it meets in
 the built-in physics."""
 
 import csv
@@ -109,14 +109,45 @@ def test_open_loop_runs_of_both_back_ends_agree(tmp_path):
     assert position < 0.10 and velocity < 0.10 and attitude < 1.0
 
 
-def test_one_seed_gives_one_jsbsim_trajectory(tmp_path):
-    """Sensors and turbulence are seeded and JSBSim is deterministic: the same seed twice gives
-    the same truth, byte for byte; another seed another turbulence, so another path."""
-    _, _, first = open_loop(tmp_path, "jsbsim", seed=5, name="first")
-    _, _, again = open_loop(tmp_path, "jsbsim", seed=5, name="again")
-    _, _, other = open_loop(tmp_path, "jsbsim", seed=6, name="other")
-    assert first.read_text() == again.read_text()
-    assert first.read_text() != other.read_text()
+HOVER = """
+airframe = "quad_x"
+seed = {seed}
+duration_s = 5.0
+sensors = "typical"
+[initial]
+position_ned_m = [0.0, 0.0, -20.0]
+rotors_at_hover = true
+[wind]
+mean_ned_m_s = [2.0, 0.0, 0.0]
+turbulence_w20_m_s = 4.0
+[[open_loop]]
+t_s = 0.0
+hover_delta = 0.0
+"""
+
+
+def test_one_seed_gives_one_jsbsim_trajectory_to_within_a_centimetre(tmp_path):
+    """An open-loop hover in turbulence, seeded: the same seed twice flies the same path to
+    within a centimetre, another seed (another turbulence) a path decimetres away. Not to the bit,
+    as the built-in physics does: JSBSim runs differ from the first frames on by ~1e-5 m/s (see
+    the README: the moment a `set` takes effect depends on JSBSim's idle frames)."""
+    paths = {}
+    for name, seed in (("first", 5), ("again", 5), ("other", 6)):
+        scenario = tmp_path / f"{name}.toml"
+        scenario.write_text(HOVER.format(seed=seed))
+        truth = tmp_path / f"{name}.csv"
+        subprocess.run(
+            [str(binary("sitl")), "--params-dir", str(ROOT / "params"), "--open-loop",
+             "--scenario", str(scenario), "--rate", str(RATE_HZ), "--status-interval", "0",
+             "--physics", "jsbsim", "--jsbsim", str(JSBSIM), "--truth-csv", str(truth)],
+            capture_output=True, text=True, timeout=120, check=True)
+        with open(truth) as f:
+            paths[name] = [ned(r) for r in csv.DictReader(f)]
+    same = max(math.dist(a, b) for a, b in zip(paths["first"], paths["again"]))
+    other = max(math.dist(a, b) for a, b in zip(paths["first"], paths["other"]))
+    print(f"\nsame seed apart at worst {same * 1000:.2f} mm, another seed {other:.2f} m")
+    assert same < 0.01
+    assert other > 0.1
 
 
 @pytest.mark.parametrize("physics", ["builtin", "jsbsim"])
@@ -145,8 +176,14 @@ def test_the_autopilot_takes_off_hovers_and_lands(tmp_path, physics):
             held.append(wait(gcs, "LOCAL_POSITION_NED", lambda m: True, 2))
         gcs.set_mode("LAND")
         assert ack(gcs, ML.MAV_CMD_DO_SET_MODE) == 0
-        wait(gcs, "HEARTBEAT", lambda m: not armed(m), timeout=60)
-        summary = d.stop_sim()
+        try:
+            wait(gcs, "HEARTBEAT", lambda m: not armed(m), timeout=60)
+        finally:
+            summary = d.stop_sim()
+            if not truth.exists() or summary.get("landed") != "true":
+                rows = truth.read_text().splitlines() if truth.exists() else []
+                print("not down; the simulator's summary:", summary, "truth:", *rows[-20:],
+                      sep="\n")
     finally:
         d.close()
     spread = max(math.dist((a.x, a.y, a.z), (b.x, b.y, b.z)) for a in held for b in held)

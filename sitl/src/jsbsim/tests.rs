@@ -240,6 +240,7 @@ fn a_missing_program_says_how_to_get_one() {
         launch(Path::new("/nonexistent/jsbsim")).err().unwrap()
     );
     assert!(e.contains("jsbsim==1.3.3") && e.contains("--jsbsim"), "{e}");
+    assert!(e.contains("/nonexistent/jsbsim"), "{e}");
 }
 
 #[test]
