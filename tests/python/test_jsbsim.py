@@ -53,21 +53,23 @@ hover_delta = 0.0
 """
 
 
-def open_loop(tmp_path, physics, seed=3, name=None):
-    """Flies MANOEUVRE open loop in `physics`; the truth CSV's rows and the run's summary."""
-    scenario = tmp_path / "manoeuvre.toml"
-    scenario.write_text(MANOEUVRE.format(seed=seed))
-    truth = tmp_path / f"{name or physics}.csv"
+def open_loop(tmp_path, physics, scenario=MANOEUVRE, seed=3, name=None):
+    """Flies `scenario` (with `seed`) open loop in `physics`; the truth CSV's rows and the run's
+    summary."""
+    name = name or physics
+    path = tmp_path / f"{name}.toml"
+    path.write_text(scenario.format(seed=seed))
+    truth = tmp_path / f"{name}.csv"
     run = subprocess.run(
         [str(binary("sitl")), "--params-dir", str(ROOT / "params"), "--open-loop",
-         "--scenario", str(scenario), "--rate", str(RATE_HZ), "--status-interval", "0",
+         "--scenario", str(path), "--rate", str(RATE_HZ), "--status-interval", "0",
          "--physics", physics, "--jsbsim", str(JSBSIM), "--truth-csv", str(truth)],
         capture_output=True, text=True, timeout=120)
     assert run.returncode == 0, run.stderr
     line = next(l for l in run.stdout.splitlines() if l.startswith("sitl summary:"))
     with open(truth) as f:
         rows = list(csv.DictReader(f))
-    return rows, dict(kv.split("=", 1) for kv in line.split()[2:]), truth
+    return rows, dict(kv.split("=", 1) for kv in line.split()[2:])
 
 
 def ned(row):
@@ -91,8 +93,8 @@ def test_open_loop_runs_of_both_back_ends_agree(tmp_path):
     physics (RK4) stay within centimetres and a fraction of a degree through a manoeuvre that
     tilts the quad by tens of degrees. What differs: JSBSim's gravity model (WGS84 with the
     Earth's rotation) and its one-frame lag of the forces set before an `iterate`."""
-    builtin, _, _ = open_loop(tmp_path, "builtin")
-    jsbsim, summary, _ = open_loop(tmp_path, "jsbsim")
+    builtin, _ = open_loop(tmp_path, "builtin")
+    jsbsim, summary = open_loop(tmp_path, "jsbsim")
     assert summary["steps"] == str(5 * RATE_HZ) and summary["landed"] == "false"
     assert len(builtin) == len(jsbsim) > 400
     position = max(math.dist(ned(b), ned(j)) for b, j in zip(builtin, jsbsim))
@@ -131,18 +133,8 @@ def test_one_seed_gives_one_jsbsim_trajectory_to_within_a_centimetre(tmp_path):
     within a centimetre, another seed (another turbulence) a path decimetres away. Not to the bit,
     as the built-in physics does: JSBSim runs differ from the first frames on by ~1e-5 m/s (see
     the README: the moment a `set` takes effect depends on JSBSim's idle frames)."""
-    paths = {}
-    for name, seed in (("first", 5), ("again", 5), ("other", 6)):
-        scenario = tmp_path / f"{name}.toml"
-        scenario.write_text(HOVER.format(seed=seed))
-        truth = tmp_path / f"{name}.csv"
-        subprocess.run(
-            [str(binary("sitl")), "--params-dir", str(ROOT / "params"), "--open-loop",
-             "--scenario", str(scenario), "--rate", str(RATE_HZ), "--status-interval", "0",
-             "--physics", "jsbsim", "--jsbsim", str(JSBSIM), "--truth-csv", str(truth)],
-            capture_output=True, text=True, timeout=120, check=True)
-        with open(truth) as f:
-            paths[name] = [ned(r) for r in csv.DictReader(f)]
+    paths = {name: [ned(r) for r in open_loop(tmp_path, "jsbsim", HOVER, seed, name)[0]]
+             for name, seed in (("first", 5), ("again", 5), ("other", 6))}
     same = max(math.dist(a, b) for a, b in zip(paths["first"], paths["again"]))
     other = max(math.dist(a, b) for a, b in zip(paths["first"], paths["other"]))
     print(f"\nsame seed apart at worst {same * 1000:.2f} mm, another seed {other:.2f} m")
