@@ -86,6 +86,6 @@ printf '%-50s %s Hz, jitter p50 %s us, p99 %s us, max %s us, overruns %s in 60 s
     "$(echo "$idle" | field jitter_max_us)" "$(echo "$idle" | field overruns)"
 
 # JSBSim's lockstep speed, when the test command's venv is there to supply it.
-if [ -x .venv/bin/jsbsim ]; then
+if .venv/bin/python -c "import jsbsim" 2>/dev/null; then
     .venv/bin/python tools/bench_jsbsim.py --sitl "$bin/sitl"
 fi

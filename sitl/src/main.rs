@@ -81,9 +81,12 @@ pub struct Cli {
     /// Pacing: lockstep with the autopilot, or real time.
     #[arg(long, value_enum, default_value_t = Mode::Lockstep)]
     pub mode: Mode,
-    /// Real-time factor for --mode realtime (and --open-loop), e.g. 1, 20, or "max".
-    #[arg(long, default_value = "1", value_name = "FACTOR|max")]
-    pub speed: String,
+    /// Real-time factor, e.g. 1, 20, or "max": the pace of --mode realtime (default 1); in
+    /// lockstep and --open-loop a cap (default: as fast as the autopilot answers, or as the
+    /// physics goes), so that a lockstep run can be watched, or flown by a script that waits on
+    /// the wall clock, without the pace of either side changing the flight.
+    #[arg(long, value_name = "FACTOR|max")]
+    pub speed: Option<String>,
     /// HIL exchange rate (Hz): one sensor frame out and one actuator command in per exchange.
     /// Physics runs at the scenario's rate; the IMU is averaged over each exchange interval.
     #[arg(long, default_value_t = 250.0, value_name = "HZ")]
@@ -107,9 +110,10 @@ pub struct Cli {
     /// Who moves the rigid body: the built-in physics or JSBSim (its rate is the physics rate).
     #[arg(long, value_enum, default_value_t = Physics::Builtin)]
     pub physics: Physics,
-    /// JSBSim's console program, for --physics jsbsim (PyPI `jsbsim` installs it).
-    #[arg(long, default_value = "jsbsim", value_name = "PROGRAM")]
-    pub jsbsim: PathBuf,
+    /// For --physics jsbsim: a Python with the `jsbsim` module (the pinned PyPI jsbsim==1.3.3),
+    /// which runs the bridge that steps JSBSim in-process.
+    #[arg(long, default_value = "python3", value_name = "PYTHON")]
+    pub jsbsim_python: PathBuf,
     /// Integrator: rk4, exp_map, hypersphere, euler_cromer, second_derivative (overrides the scenario).
     #[arg(long, value_name = "NAME")]
     pub integrator: Option<String>,
@@ -178,17 +182,16 @@ fn load_scenario(cli: &Cli) -> Result<Scenario> {
     Ok(scenario)
 }
 
-/// Parsed `--speed`: `None` for as fast as possible.
+/// Parsed `--speed`: `None` for as fast as possible (lockstep and open loop unless told).
 fn speed(cli: &Cli) -> Result<Option<f64>> {
-    if cli.speed == "max" {
-        return Ok(None);
-    }
-    match cli.speed.parse::<f64>() {
+    let given = match cli.speed.as_deref() {
+        None if cli.mode == Mode::Realtime => return Ok(Some(1.0)),
+        None | Some("max") => return Ok(None),
+        Some(given) => given,
+    };
+    match given.parse::<f64>() {
         Ok(f) if f.is_finite() && f > 0.0 && f <= 10_000.0 => Ok(Some(f)),
-        _ => bail!(
-            "--speed must be a factor in (0, 10000] or \"max\", got {:?}",
-            cli.speed
-        ),
+        _ => bail!("--speed must be a factor in (0, 10000] or \"max\", got {given:?}"),
     }
 }
 

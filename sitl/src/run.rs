@@ -78,7 +78,7 @@ fn build(scenario: &Scenario) -> Result<Simulator> {
 enum Dynamics {
     /// The simulator's own integrator.
     Builtin,
-    /// A JSBSim process.
+    /// JSBSim, in its bridge process.
     Jsbsim(Box<Jsbsim>),
 }
 
@@ -91,7 +91,7 @@ impl Dynamics {
             Physics::Jsbsim => {
                 let rate_hz = 1.0 / sim.config().dt_s;
                 let jsb = Jsbsim::launch(&Launch {
-                    program: &cli.jsbsim,
+                    python: &cli.jsbsim_python,
                     airframe: sim.airframe(),
                     home: sim.config().home,
                     initial: scenario.initial,
@@ -99,7 +99,11 @@ impl Dynamics {
                     startup_timeout: Duration::from_secs(60),
                     step_timeout: Duration::from_secs(5),
                 })?;
-                tracing::info!(rate_hz, "JSBSim running");
+                tracing::info!(
+                    rate_hz,
+                    frames_per_step = sitl_core::jsbsim::frames_per_step(rate_hz),
+                    "JSBSim running"
+                );
                 Ok(Self::Jsbsim(Box::new(jsb)))
             }
         }
@@ -200,6 +204,17 @@ struct Pacer {
 }
 
 impl Pacer {
+    /// Paces from now on as if `sim_time_s` were due now (time spent waiting for an autopilot
+    /// is not caught up in a burst).
+    fn restart_at(&mut self, sim_time_s: f64) {
+        if let Some(f) = self.factor {
+            let now = Instant::now();
+            self.start = now
+                .checked_sub(Duration::from_secs_f64(sim_time_s / f))
+                .unwrap_or(now);
+        }
+    }
+
     fn wait_until(&self, sim_time_s: f64) {
         if let Some(f) = self.factor {
             let due = self.start + Duration::from_secs_f64(sim_time_s / f);
@@ -234,11 +249,7 @@ pub fn open_loop(
     let started = Instant::now();
     let pacer = Pacer {
         start: started,
-        factor: if cli.mode == Mode::Realtime {
-            speed
-        } else {
-            None
-        },
+        factor: speed,
     };
     let mut status = Status::new(cli.status_interval);
     let n = sim.airframe().rotors.len();
@@ -308,7 +319,7 @@ pub fn hil(
         "simulator ready"
     );
     let started = Instant::now();
-    let pacer = Pacer {
+    let mut pacer = Pacer {
         start: started,
         factor: speed,
     };
@@ -338,6 +349,10 @@ pub fn hil(
                 end.sim_mut().apply(action);
             }
         }
+        if cli.mode == Mode::Lockstep {
+            // A cap, if `--speed` gives one: the frame waits for its wall-clock time.
+            pacer.wait_until(end.sim().time_s());
+        }
         link.out.clear();
         let time_usec = end.encode_frame(&mut link.out);
         link.send()?;
@@ -359,6 +374,7 @@ pub fn hil(
             Some(cmd) => {
                 if !connected {
                     tracing::info!("autopilot answered: lockstep running");
+                    pacer.restart_at(end.sim().time_s());
                 }
                 connected = true;
                 end.apply(&cmd);

@@ -58,12 +58,15 @@ class Daemon:
     with its parameter store in a temporary directory."""
 
     def __init__(self, tmp_path, mavlink, connect=True, airframe="quad_x", scenario=None,
-                 control=False, sim_args=()):
+                 control=False, sim_args=(), lockstep=False):
         """`mavlink`: the ground-station endpoint, `{port}` standing for a free UDP port (on which
         a pymavlink connection listens when `connect`); both processes fly `airframe`, the
         simulator in `scenario` (a file) if given, its weather controlled on `control_port` if
-        `control` (sitl --control), with `sim_args` added to its command line."""
+        `control` (sitl --control), with `sim_args` added to its command line. `lockstep`: the
+        simulator waits for each answer (still no faster than x3), so that how the machine
+        schedules the processes cannot change the flight."""
         self.airframe = airframe
+        self.lockstep = lockstep
         self.sim_port, self.gcs_port = free_udp_port(), free_udp_port()
         self.control_port = free_udp_port() if control else None
         self.mavlink = mavlink.format(port=self.gcs_port)
@@ -77,7 +80,8 @@ class Daemon:
         self.start()
         self.sim = subprocess.Popen(
             [str(binary("sitl")), "--params-dir", str(ROOT / "params"), "--status-interval", "0",
-             "--mode", "realtime", "--speed", "3", "--duration", "100000",
+             "--mode", "lockstep" if lockstep else "realtime", "--speed", "3",
+             "--duration", "100000",
              "--airframe", airframe,
              *(["--scenario", str(scenario)] if scenario else []),
              *(["--control", f"127.0.0.1:{self.control_port}"] if control else []),
@@ -97,7 +101,8 @@ class Daemon:
     def start(self):
         self.ap = subprocess.Popen(
             [str(binary("autopilot")), "--params-dir", str(ROOT / "params"),
-             "--source", f"udp://127.0.0.1:{self.sim_port}?lockstep=false", "--loop-hz", "500",
+             "--source", f"udp://127.0.0.1:{self.sim_port}?lockstep={str(self.lockstep).lower()}",
+             "--loop-hz", "500",
              "--airframe", self.airframe,
              "--mavlink", self.mavlink,
              "--param-store", str(self.store)],

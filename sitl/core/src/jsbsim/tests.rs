@@ -13,11 +13,6 @@ const ORIGIN: Geodetic = Geodetic {
     alt_m: 500.0,
 };
 
-const PORTS: BridgePorts = BridgePorts {
-    command_tcp: 5601,
-    state_udp: 5602,
-};
-
 /// The text between `<tag…>` and `</tag>` of the first `tag` element after `from`.
 fn element<'a>(xml: &'a str, from: &str, tag: &str) -> &'a str {
     let at = xml.find(from).unwrap();
@@ -32,26 +27,30 @@ fn number(xml: &str, from: &str, tag: &str) -> f64 {
 }
 
 #[test]
-fn the_model_carries_mass_inertia_a_reaction_per_rotor_and_the_ports() {
+fn the_model_carries_mass_inertia_and_a_reaction_per_rotor_driven_by_the_inputs() {
     for name in ["quad_x", "hexa_x", "dodeca"] {
         let a = shipped(name);
-        let xml = aircraft_xml(&a, &ORIGIN, PORTS, 250.0);
+        let xml = aircraft_xml(&a);
         assert!((number(&xml, "<mass_balance>", "emptywt") - a.mass_kg).abs() < 1e-6);
         assert!((number(&xml, "<mass_balance>", "izz") - a.inertia_kg_m2[(2, 2)]).abs() < 1e-9);
         let n = a.rotors.len();
         assert_eq!(xml.matches("<force name=\"rotor").count(), n, "{name}");
         assert_eq!(xml.matches("<moment name=\"rotor").count(), n, "{name}");
         assert_eq!(xml.matches("<contact ").count(), 3);
-        // Every reaction's magnitude comes from a declared bridge property.
-        for i in 0..n {
-            let (t, q) = rotor_properties(i);
-            assert!(xml.contains(&format!("<property>{t}</property>")));
-            assert!(xml.contains(&format!("<function><property>{q}</property></function>")));
-        }
-        assert!(xml.contains("<input port=\"5601\"/>"));
-        assert!(xml.contains("port=\"5602\" rate=\"250\""));
-        for p in STATE_PROPERTIES {
-            assert!(xml.contains(&format!("<property>{p}</property>")), "{p}");
+        // Every input is declared and drives one reaction's magnitude.
+        let inputs = input_properties(n);
+        assert_eq!(inputs.len(), 2 * n + 6);
+        for p in &inputs {
+            assert!(
+                xml.contains(&format!("    <property>{p}</property>")),
+                "{p}"
+            );
+            assert_eq!(
+                xml.matches(&format!("<function><property>{p}</property></function>"))
+                    .count(),
+                1,
+                "{p}"
+            );
         }
         assert!(
             xml.contains("<aerodynamics/>"),
@@ -61,7 +60,7 @@ fn the_model_carries_mass_inertia_a_reaction_per_rotor_and_the_ports() {
     }
     // quad_x's rotor 1, front right in FRD, is aft-negative, right-positive in the structural
     // frame; its thrust points up (body -z).
-    let xml = aircraft_xml(&shipped("quad_x"), &ORIGIN, PORTS, 250.0);
+    let xml = aircraft_xml(&shipped("quad_x"));
     assert!(xml.contains("<force name=\"rotor1\" frame=\"BODY\">"));
     assert!((number(&xml, "<force name=\"rotor1\"", "x") + 0.159).abs() < 1e-9);
     assert!((number(&xml, "<force name=\"rotor1\"", "y") - 0.159).abs() < 1e-9);
@@ -79,65 +78,70 @@ fn products_of_inertia_follow_jsbsims_signs() {
         0.002, 0.03, -0.001, //
         0.004, -0.001, 0.05,
     );
-    let xml = aircraft_xml(&a, &ORIGIN, PORTS, 250.0);
+    let xml = aircraft_xml(&a);
     assert!((number(&xml, "<mass_balance>", "ixy") + 0.002).abs() < 1e-12);
     assert!((number(&xml, "<mass_balance>", "ixz") - 0.004).abs() < 1e-12);
     assert!((number(&xml, "<mass_balance>", "iyz") - 0.001).abs() < 1e-12);
 }
 
+/// The `f64`s of a request after its sequence number.
+fn request_values(bytes: &[u8]) -> Vec<f64> {
+    bytes[8..]
+        .chunks(8)
+        .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
+        .collect()
+}
+
 #[test]
-fn a_batch_sets_every_bridge_property_in_english_units_then_iterates_once() {
+fn a_request_carries_its_number_and_every_input_in_english_units_in_order() {
     let inputs = BridgeInputs {
         thrust_n: vec![N_PER_LBF, 2.0 * N_PER_LBF],
         yaw_moment_n_m: vec![N_PER_LBF * M_PER_FT, -N_PER_LBF * M_PER_FT],
         aero_force_frd_n: Vector3::new(N_PER_LBF, 0.0, -N_PER_LBF),
-        aero_moment_frd_n_m: Vector3::zeros(),
+        aero_moment_frd_n_m: Vector3::new(0.0, 0.0, 3.0 * N_PER_LBF * M_PER_FT),
     };
-    let batch = inputs.encode().unwrap();
-    let lines: Vec<&str> = batch.lines().collect();
-    assert_eq!(lines.len(), 2 * 2 + 6 + 1);
-    assert_eq!(*lines.last().unwrap(), "iterate 1");
-    let value = |name: &str| -> f64 {
-        let line = lines
-            .iter()
-            .find(|l| l.starts_with(&format!("set {name} ")))
-            .unwrap();
-        line.rsplit(' ').next().unwrap().parse().unwrap()
-    };
-    assert!((value("bridge/rotor1-thrust-lbs") - 1.0).abs() < 1e-9);
-    assert!((value("bridge/rotor2-thrust-lbs") - 2.0).abs() < 1e-9);
-    assert!((value("bridge/rotor2-torque-lbsft") + 1.0).abs() < 1e-9);
-    assert!((value("bridge/aero-x-lbs") - 1.0).abs() < 1e-9);
-    assert!((value("bridge/aero-z-lbs") + 1.0).abs() < 1e-9);
-    // A NaN would cancel the iterate without a word from JSBSim: refused here, named.
+    let mut out = vec![0xAA];
+    inputs.encode(7, &mut out).unwrap();
+    let bytes = &out[1..];
+    assert_eq!(bytes.len(), 8 * (1 + 2 * 2 + 6));
+    assert_eq!(u64::from_le_bytes(bytes[..8].try_into().unwrap()), 7);
+    let names = input_properties(2);
+    let values = request_values(bytes);
+    let value = |name: &str| values[names.iter().position(|n| n == name).unwrap()];
+    assert!((value("bridge/rotor1-thrust-lbs") - 1.0).abs() < 1e-12);
+    assert!((value("bridge/rotor2-thrust-lbs") - 2.0).abs() < 1e-12);
+    assert!((value("bridge/rotor1-torque-lbsft") - 1.0).abs() < 1e-12);
+    assert!((value("bridge/rotor2-torque-lbsft") + 1.0).abs() < 1e-12);
+    assert!((value("bridge/aero-x-lbs") - 1.0).abs() < 1e-12);
+    assert!((value("bridge/aero-z-lbs") + 1.0).abs() < 1e-12);
+    assert!((value("bridge/aero-n-lbsft") - 3.0).abs() < 1e-12);
+    // A NaN would poison JSBSim's state: refused here, named, nothing appended.
     let bad = BridgeInputs {
         thrust_n: vec![1.0, f64::NAN],
         ..inputs
     };
+    let mut out = vec![0xAA];
     assert_eq!(
-        bad.encode().unwrap_err().to_string(),
+        bad.encode(8, &mut out).unwrap_err().to_string(),
         "a non-finite value for bridge/rotor2-thrust-lbs"
     );
+    assert_eq!(out, [0xAA]);
 }
 
-/// A line as JSBSim sends it (recorded layout: right-aligned, comma-separated, `Time` first).
-fn line(values: &[f64]) -> String {
-    values
-        .iter()
-        .map(|v| format!("{v:>12}"))
-        .collect::<Vec<_>>()
-        .join(",")
+/// A reply as the bridge packs it.
+fn reply(sequence: u64, values: &[f64]) -> Vec<u8> {
+    let mut out = sequence.to_le_bytes().to_vec();
+    for v in values {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    out
 }
 
 #[test]
-fn output_lines_convert_to_si_ned_frd() {
-    assert_eq!(
-        parse_output("<LABELS> ,Time,frame,h-agl-ft\n", 1.5, &ORIGIN).unwrap(),
-        OutputLine::Labels
-    );
+fn replies_convert_to_si_ned_frd() {
     let values = [
-        0.5, 125.0, // time, frame
-        0.001, -0.002, 32.8084, // from the origin: lat, lon (deg), height (ft, 10 m)
+        0.5, // time
+        47.001, 7.998, 1673.2284, // lat, lon (deg), height (ft: 510 m)
         10.0, -20.0, 1.0, // v north, east, down (ft/s)
         0.1, -0.2, 1.5, // phi, theta, psi
         0.01, 0.02, 0.03, // p q r
@@ -146,13 +150,10 @@ fn output_lines_convert_to_si_ned_frd() {
         0.0, 0.5, -1.0, // of which the ground's (lbf)
         2116.22, 518.67, 0.0023769, // sea-level air
     ];
-    let OutputLine::State(s) = parse_output(&line(&values), 1.5, &ORIGIN).unwrap() else {
-        panic!()
-    };
-    assert_eq!((s.time_s, s.frame), (0.5, 125));
-    assert!((s.position.alt_m - 510.0).abs() < 1e-3);
-    assert!((s.position.lat_deg - 47.001).abs() < 1e-12);
-    assert!((s.position.lon_deg - 7.998).abs() < 1e-12);
+    let (sequence, s) = decode_reply(&reply(125, &values), 1.5).unwrap();
+    assert_eq!((sequence, s.time_s), (125, 0.5));
+    assert!((s.position.alt_m - 510.0).abs() < 1e-4);
+    assert_eq!((s.position.lat_deg, s.position.lon_deg), (47.001, 7.998));
     assert!((s.vel_ned_m_s - Vector3::new(3.048, -6.096, 0.3048)).norm() < 1e-9);
     let (r, p, y) = s.q_ned_from_frd.euler_angles();
     assert!((r - 0.1).abs() < 1e-12 && (p + 0.2).abs() < 1e-12 && (y - 1.5).abs() < 1e-12);
@@ -165,75 +166,25 @@ fn output_lines_convert_to_si_ned_frd() {
     assert!((s.air.pressure_pa - 101_325.0).abs() < 1.0);
     assert!((s.air.temperature_k - 288.15).abs() < 1e-3);
     assert!((s.air.density_kg_m3 - 1.225).abs() < 1e-3);
-    // Broken lines are refused with the reason.
-    let short = line(&values[..10]);
+    // The origin's local frame: 10 m up, a millidegree north.
+    let step = s.body_step(&ORIGIN);
+    assert!((step.body.pos_ned_m.z + 10.0).abs() < 1e-3);
+    assert!((step.body.pos_ned_m.x - 111.2).abs() < 0.5, "{step:?}");
+    assert!(step.on_ground);
+    // Broken replies are refused with the reason.
+    let short = reply(1, &values[..10]);
     assert!(
-        parse_output(&short, 1.5, &ORIGIN)
+        decode_reply(&short, 1.5)
             .unwrap_err()
             .0
-            .contains("10 columns, 26 expected")
+            .contains("88 bytes, 208 expected")
     );
-    let long = format!("{},1", line(&values));
-    assert!(
-        parse_output(&long, 1.5, &ORIGIN)
-            .unwrap_err()
-            .0
-            .contains("more than 26")
+    let mut nan = values;
+    nan[4] = f64::NAN;
+    assert_eq!(
+        decode_reply(&reply(2, &nan), 1.5).unwrap_err().0,
+        "velocities/v-north-fps is not finite in reply 2"
     );
-    let text = line(&values).replacen("125", "abc", 1);
-    assert!(
-        parse_output(&text, 1.5, &ORIGIN)
-            .unwrap_err()
-            .0
-            .contains("column 2")
-    );
-    let nan = line(&values).replacen("125", "nan", 1);
-    assert!(
-        parse_output(&nan, 1.5, &ORIGIN)
-            .unwrap_err()
-            .0
-            .contains("not finite")
-    );
-    let mut half = values;
-    half[1] = 1.5;
-    assert!(
-        parse_output(&line(&half), 1.5, &ORIGIN)
-            .unwrap_err()
-            .0
-            .contains("not a count")
-    );
-}
-
-/// Each `iterate` first re-sends the frame JSBSim had: only a newer frame passes.
-#[test]
-fn the_frame_filter_takes_each_frame_once_across_the_modulus() {
-    let mut f = FrameFilter::default();
-    let verdicts: Vec<FrameVerdict> = [0, 1, 1, 2, 5].into_iter().map(|k| f.check(k)).collect();
-    use FrameVerdict::*;
-    assert_eq!(verdicts, [Stale, Next, Stale, Next, Unexpected]);
-    assert_eq!(f.next(), 3);
-    // Past the modulus the counter wraps on the wire, not here.
-    let mut f = FrameFilter {
-        next: FRAME_MODULUS - 1,
-    };
-    assert_eq!(f.check(FRAME_MODULUS - 1), Next);
-    assert_eq!(f.check(FRAME_MODULUS - 1), Stale);
-    assert_eq!(f.check(0), Next);
-    assert_eq!(f.next(), FRAME_MODULUS + 1);
-}
-
-/// A recorded transcript of the command port, cut at arbitrary points.
-#[test]
-fn replies_are_counted_and_errors_kept_across_reads() {
-    let transcript = b"Connected to JSBSim server\r\nJSBSim> set successful\r\nJSBSim> set successful\r\nJSBSim> Iterations performed\r\nJSBSim> Unknown property\r\nJSBSim> Not a leaf property\r\nJSBSim> ";
-    for cut in [1, 7, 30, 61, 100] {
-        let mut r = Replies::default();
-        for chunk in transcript.chunks(cut) {
-            r.push(chunk);
-        }
-        assert_eq!((r.sets, r.iterations), (2, 1), "cut {cut}");
-        assert_eq!(r.errors, ["Unknown property", "Not a leaf property"]);
-    }
 }
 
 /// The start file puts the vehicle where the scenario says: the ground `rest_height_m` below
@@ -266,4 +217,16 @@ fn the_start_file_places_the_vehicle_in_the_scenarios_state() {
     assert!((number(&x, "", "vnorth") - 10.0).abs() < 1e-9);
     assert!((number(&x, "", "vdown") + 1.0).abs() < 1e-9);
     assert!((number(&x, "", "r") - 0.5).abs() < 1e-9);
+}
+
+#[test]
+fn jsbsim_runs_at_a_kilohertz_or_more_whatever_the_step_rate() {
+    assert_eq!(frames_per_step(250.0), 4);
+    assert_eq!(frames_per_step(400.0), 3);
+    assert_eq!(frames_per_step(1000.0), 1);
+    assert_eq!(frames_per_step(2000.0), 1);
+    assert_eq!(frames_per_step(1.0), 1000);
+    for rate in [100.0, 250.0, 333.0, 400.0, 500.0, 800.0] {
+        assert!(rate * f64::from(frames_per_step(rate)) >= MIN_FRAME_RATE_HZ);
+    }
 }
