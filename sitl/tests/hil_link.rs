@@ -9,7 +9,7 @@ use mavlink::dialects::common::{
 };
 use std::net::UdpSocket;
 use std::process::{Child, Command, Stdio};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 const HOVER_SCENARIO: &str = r#"
 airframe = "quad_x"
@@ -343,6 +343,38 @@ fn realtime_mode_does_not_wait_and_is_paced() {
     );
     assert_eq!(s["lockstep_timeouts"], "0");
     assert_eq!(s["actuator_messages"], "0");
+}
+
+/// Lockstep with `--speed`: still one interval per answer, and no faster than the cap, counted
+/// from the first answer (the wait for an autopilot is not caught up in a burst).
+#[test]
+fn lockstep_with_a_speed_is_capped_and_still_waits_for_each_answer() {
+    let mut ap = Autopilot::new();
+    let (child, _dir) = spawn(HOVER_SCENARIO, ap.port(), &["--speed", "2"]);
+    let (t0, _, _) = sensor_time(&ap.recv().unwrap());
+    std::thread::sleep(Duration::from_millis(300)); // an autopilot that starts late
+    let answered = Instant::now();
+    ap.reply(t0, 0.0, false);
+    let mut last = t0;
+    while let Some(msgs) = ap.recv() {
+        let (t, _, _) = sensor_time(&msgs);
+        if t == last {
+            continue; // a frame re-sent before the first answer arrived
+        }
+        assert_eq!(t, last + 4000, "one 250 Hz interval per answer");
+        last = t;
+        ap.reply(t, 0.0, false);
+        if t >= 396_000 {
+            break;
+        }
+    }
+    let wall = answered.elapsed().as_secs_f64();
+    let sim = (last - t0) as f64 * 1e-6;
+    assert!(
+        wall >= sim / 2.0 * 0.99,
+        "ran ahead of 2x: {wall} s for {sim} s"
+    );
+    assert_eq!(summary(child)["lockstep_timeouts"], "0");
 }
 
 #[test]
