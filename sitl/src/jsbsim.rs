@@ -21,8 +21,8 @@ use sitl_core::Airframe;
 use sitl_core::body::BodyState;
 use sitl_core::geo::Geodetic;
 use sitl_core::jsbsim::{
-    BridgeInputs, MODEL_NAME, STATE_PROPERTIES, aircraft_xml, decode_reply, frames_per_step,
-    init_xml, input_properties,
+    BridgeInputs, MODEL_NAME, REPLY_LEN, STATE_PROPERTIES, aircraft_xml, decode_reply,
+    frames_per_step, init_xml, input_properties,
 };
 use sitl_core::sim::{ExternalBody, ExternalBodyError, ExternalBodyStep, StepLoads};
 use std::collections::VecDeque;
@@ -97,7 +97,8 @@ impl Bridge {
             sequence: 0,
             step_timeout,
             request: Vec::with_capacity(8 * (1 + input_properties(airframe.rotors.len()).len())),
-            rx: vec![0; 65_536],
+            // One byte more than a reply: a longer datagram is refused, not cut to size.
+            rx: vec![0; REPLY_LEN + 1],
         })
     }
 
@@ -117,9 +118,9 @@ impl Bridge {
         self.socket
             .send(&self.request)
             .map_err(|e| format!("sending request {}: {e}", self.sequence))?;
-        loop {
-            let len = match self.socket.recv(&mut self.rx) {
-                Ok(len) => len,
+        let len = loop {
+            match self.socket.recv(&mut self.rx) {
+                Ok(len) => break len,
                 Err(e)
                     if matches!(
                         e.kind(),
@@ -133,7 +134,6 @@ impl Bridge {
                             self.sequence, self.step_timeout
                         ));
                     }
-                    continue;
                 }
                 // The bridge's port is closed: it has gone.
                 Err(e) if e.kind() == ErrorKind::ConnectionRefused => {
@@ -144,18 +144,18 @@ impl Bridge {
                     ));
                 }
                 Err(e) => return Err(format!("receiving reply {}: {e}", self.sequence)),
-            };
-            let (sequence, state) =
-                decode_reply(&self.rx[..len], self.mass_kg).map_err(|e| e.to_string())?;
-            if sequence == self.sequence {
-                return Ok(state.body_step(&self.origin));
             }
-            // Only the reply to this request can come: the ones before were all taken.
+        };
+        let (sequence, state) =
+            decode_reply(&self.rx[..len], self.mass_kg).map_err(|e| e.to_string())?;
+        // Only the reply to this request can come: the ones before were all taken.
+        if sequence != self.sequence {
             return Err(format!(
                 "reply {sequence} to request {}: the bridge is out of step",
                 self.sequence
             ));
         }
+        Ok(state.body_step(&self.origin))
     }
 }
 
