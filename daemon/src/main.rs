@@ -304,11 +304,15 @@ fn fly(cli: &Cli) -> Result<()> {
     // flight.toml, then what ground stations changed, then the command line.
     let mut base = FlightParams::load(&params_path)?;
     source.preset_params(&mut base);
+    let mut notices = Vec::new();
     let (params, store) = match &cfg.param_store {
         Some(path) => {
             let loaded = ParamStore::load(path, &base)?;
             for w in &loaded.warnings {
                 tracing::warn!("{w}");
+            }
+            if loaded.from_previous_copy {
+                notices.push("param store damaged: previous copy used".to_owned());
             }
             let names: Vec<&str> = loaded.store.names().collect();
             if !names.is_empty() {
@@ -431,6 +435,7 @@ fn fly(cli: &Cli) -> Result<()> {
                 parameters,
                 base_params: base,
                 params: params_tx,
+                notices,
             },
         ));
         tokio::spawn(interrupts(commands));

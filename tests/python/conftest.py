@@ -117,6 +117,7 @@ class Daemon:
         """Ctrl-C on a disarmed vehicle: the run ends cleanly, its store saved."""
         self.ap.send_signal(signal.SIGINT)
         _, err = self.ap.communicate(timeout=20)
+        self.ap_stderr = err
         assert self.ap.returncode == 0, err
         assert "panicked" not in err, err
 

@@ -7,6 +7,7 @@ commands (PX4's pre-flight auto-disarm, for one, counts simulated seconds).
 
 import math
 import os
+import random
 import select
 import struct
 import threading
@@ -322,6 +323,55 @@ def test_parameters_fetch_set_persist_across_restart_and_reboot(daemon):
     assert param(gcs, "MIS_TAKEOFF_ALT").param_value == 2.5
     daemon.stop()
     assert "MIS_TAKEOFF_ALT" not in daemon.store.read_text()
+
+
+def start_afresh(daemon):
+    """Starts the stopped daemon and waits for its first heartbeat. What the stopped process sent
+    is read away first: it is not the new one's answer, and pymavlink answers the address it
+    last heard from."""
+    while daemon.gcs.recv_match(blocking=False) is not None:
+        pass
+    daemon.start()
+    assert daemon.gcs.wait_heartbeat(timeout=30)
+
+
+def test_a_daemon_killed_while_saving_keeps_its_store_and_a_damaged_store_falls_back(daemon):
+    """SIGKILL at a random point of a burst of PARAM_SETs (each one saved): the daemon starts
+    again with one of the values sent; a store damaged on disk is replaced by its previous good
+    copy, and the ground station told."""
+    gcs = daemon.gcs
+    rng = random.Random(9)
+    sent = [2.5]
+    for burst in range(3):
+        values = [round(3.0 + burst + 0.05 * i, 2) for i in range(20)]
+        sent += values
+        for v in values:
+            gcs.param_set_send("MIS_TAKEOFF_ALT", v, REAL32)
+        # Killed once the vehicle has answered some of them (each answer follows its save's
+        # request: the saves are under way).
+        k = rng.randrange(1, 20)
+        wait(gcs, "PARAM_VALUE", lambda m: m.param_id == "MIS_TAKEOFF_ALT"
+             and m.param_value >= values[k] - 1e-3, 5)
+        daemon.ap.kill()
+        daemon.ap.wait()
+        start_afresh(daemon)
+        value = param(gcs, "MIS_TAKEOFF_ALT").param_value
+        assert any(abs(value - v) < 1e-4 for v in sent), (burst, value)
+    kept = param(gcs, "MIS_TAKEOFF_ALT").param_value
+    assert set_param(gcs, "MIS_TAKEOFF_ALT", 9.5).param_value == 9.5
+    daemon.stop()
+
+    # A bit gone bad on the disk.
+    text = daemon.store.read_text()
+    assert "MIS_TAKEOFF_ALT = 9.5" in text
+    daemon.store.write_text(text.replace("9.5", "9.6"))
+    start_afresh(daemon)
+    gcs.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID,
+                           0, 0, 0)
+    wait(gcs, "STATUSTEXT", lambda m: m.text == "param store damaged: previous copy used", 10)
+    assert param(gcs, "MIS_TAKEOFF_ALT").param_value == pytest.approx(kept, abs=1e-4)
+    daemon.stop()
+    assert "previous good copy" in daemon.ap_stderr
 
 
 class Sticks:

@@ -407,6 +407,9 @@ pub struct Vehicle {
     pub base_params: FlightParams,
     /// The parameters the control loop flies with.
     pub params: watch::Sender<FlightParams>,
+    /// What the first ground station to connect is told (`STATUSTEXT` warnings, ≤ 50 bytes
+    /// each), such as a damaged parameter store.
+    pub notices: Vec<String>,
 }
 
 /// Saves every store it is handed, the latest first (a burst of sets is one write), and says
@@ -442,6 +445,7 @@ pub async fn run(endpoints: Vec<Endpoint>, vehicle: Vehicle) -> Option<Action> {
         parameters,
         base_params,
         params,
+        notices: mut startup_notices,
     } = vehicle;
     let (frames, _) = broadcast::channel::<Arc<[u8]>>(1024);
     let (inbound_tx, mut inbound) = mpsc::channel::<Inbound>(256);
@@ -504,6 +508,12 @@ pub async fn run(endpoints: Vec<Endpoint>, vehicle: Vehicle) -> Option<Action> {
         }
         if std::mem::take(&mut out.gcs_heartbeat) {
             let _ = commands.try_send(Command::Vehicle(VehicleCommand::GcsHeartbeat, None));
+            for text in startup_notices.drain(..) {
+                out.send(GroundStation::statustext(
+                    MavSeverity::MAV_SEVERITY_WARNING,
+                    &text,
+                ));
+            }
         }
         if let Some(sticks) = out.sticks.take() {
             // A full queue loses these sticks only: the next ones follow within 50 ms.
@@ -547,6 +557,7 @@ pub async fn run(endpoints: Vec<Endpoint>, vehicle: Vehicle) -> Option<Action> {
                             store: gcs.parameters().store().clone(),
                             params: gcs.parameters().values().clone(),
                             warnings: Vec::new(),
+                            from_previous_copy: false,
                         }),
                     };
                     gcs.params_reloaded(to, loaded, &mut out);
