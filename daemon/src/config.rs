@@ -57,6 +57,8 @@ pub struct ConfigFile {
     pub mavlink: Option<Vec<String>>,
     /// File of the parameters changed from a ground station, or `"none"`.
     pub param_store: Option<PathBuf>,
+    /// File of the MAVLink signing key (64 hexadecimal digits).
+    pub signing_key_file: Option<PathBuf>,
 }
 
 /// Allowed take-off altitudes (m).
@@ -133,6 +135,7 @@ impl ConfigFile {
         rebase(&mut c.params_dir);
         rebase(&mut c.truth_csv);
         rebase(&mut c.flight_csv);
+        rebase(&mut c.signing_key_file);
         if c.param_store.as_deref() != Some(Path::new("none")) {
             rebase(&mut c.param_store);
         }

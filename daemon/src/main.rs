@@ -126,6 +126,12 @@ struct Cli {
     /// memory only [default: autopilot-params-N.toml in the working directory, N the instance].
     #[arg(long, value_name = "FILE|none")]
     param_store: Option<PathBuf>,
+    /// MAVLink 2 signing: the 32-byte secret key as 64 hexadecimal digits in FILE. With a key,
+    /// unsigned, wrongly signed and replayed frames are refused (but on endpoints marked
+    /// `?trusted`) and the vehicle signs what it sends. A missing FILE is no key (signing off)
+    /// until a `SETUP_SIGNING` on a trusted endpoint writes it [default: no key, not kept].
+    #[arg(long, value_name = "FILE")]
+    signing_key_file: Option<PathBuf>,
     #[command(subcommand)]
     command: Option<Command>,
 }
@@ -171,6 +177,7 @@ struct Settings {
     mavlink: Vec<String>,
     /// None: in memory only.
     param_store: Option<PathBuf>,
+    signing_key_file: Option<PathBuf>,
 }
 
 impl Settings {
@@ -280,6 +287,7 @@ impl Settings {
                     cli.instance.or(file.instance).unwrap_or(0)
                 ))),
             },
+            signing_key_file: cli.signing_key_file.clone().or(file.signing_key_file),
         })
     }
 
@@ -349,10 +357,21 @@ fn fly(cli: &Cli) -> Result<()> {
         .mavlink
         .iter()
         .filter(|u| u.as_str() != "none")
-        .map(|u| gcs::links::Endpoint::parse(u, cfg.instance))
+        .map(|u| gcs::links::EndpointSpec::parse(u, cfg.instance))
         .collect::<Result<Vec<_>>>()
         .context("--mavlink")?;
     let mav_type = gcs::GroundStation::mav_type(airframe.rotors.len());
+    let signing_key = match &cfg.signing_key_file {
+        Some(path) => match std::fs::read_to_string(path) {
+            Ok(text) => Some(
+                gcs::signing::SecretKey::from_hex(&text)
+                    .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?,
+            ),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
+            Err(e) => return Err(e).with_context(|| format!("reading {}", path.display())),
+        },
+        None => None,
+    };
     let deadlines = Pacing::Deadlines {
         period: Duration::from_secs_f64(1.0 / cfg.loop_hz),
         spin: Duration::from_secs_f64(cfg.loop_spin_us * 1e-6),
@@ -436,6 +455,8 @@ fn fly(cli: &Cli) -> Result<()> {
                 base_params: base,
                 params: params_tx,
                 notices,
+                signing_key,
+                signing_key_file: cfg.signing_key_file.clone(),
             },
         ));
         tokio::spawn(interrupts(commands));

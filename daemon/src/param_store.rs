@@ -218,6 +218,17 @@ impl ParamStore {
     }
 }
 
+/// Creates or truncates `path` for writing; a file it creates gets `mode` (Unix).
+fn open_truncated(path: &Path, mode: u32) -> std::io::Result<std::fs::File> {
+    let mut o = std::fs::OpenOptions::new();
+    o.write(true).create(true).truncate(true);
+    #[cfg(unix)]
+    std::os::unix::fs::OpenOptionsExt::mode(&mut o, mode);
+    #[cfg(not(unix))]
+    let _ = mode;
+    o.open(path)
+}
+
 /// The previous good copy of the store at `path`: `NAME.prev` beside it.
 pub fn previous_copy(path: &Path) -> PathBuf {
     let mut name = path.file_name().unwrap_or_default().to_os_string();
@@ -315,6 +326,15 @@ fn crc32(bytes: &[u8]) -> u32 {
 /// new one: write a temporary file in the same directory, flush it to the disk, rename it over
 /// `path`, and flush the directory entry.
 pub fn write_atomically(path: &Path, text: &str) -> Result<()> {
+    write_atomically_with(path, text, 0o644)
+}
+
+/// [`write_atomically`] for a secret: readable by its owner only (mode 0600).
+pub fn write_private(path: &Path, text: &str) -> Result<()> {
+    write_atomically_with(path, text, 0o600)
+}
+
+fn write_atomically_with(path: &Path, text: &str, mode: u32) -> Result<()> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
@@ -324,7 +344,7 @@ pub fn write_atomically(path: &Path, text: &str) -> Result<()> {
         .with_context(|| format!("{} is not a file name", path.display()))?;
     let tmp = dir.join(format!(".{}.tmp", name.to_string_lossy()));
     let write = || -> std::io::Result<()> {
-        let mut f = std::fs::File::create(&tmp)?;
+        let mut f = open_truncated(&tmp, mode)?;
         f.write_all(text.as_bytes())?;
         f.sync_all()?;
         drop(f);

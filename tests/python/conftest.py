@@ -58,13 +58,15 @@ class Daemon:
     with its parameter store in a temporary directory."""
 
     def __init__(self, tmp_path, mavlink, connect=True, airframe="quad_x", scenario=None,
-                 control=False, sim_args=(), lockstep=False):
+                 control=False, sim_args=(), lockstep=False, ap_args=()):
         """`mavlink`: the ground-station endpoint, `{port}` standing for a free UDP port (on which
         a pymavlink connection listens when `connect`); both processes fly `airframe`, the
         simulator in `scenario` (a file) if given, its weather controlled on `control_port` if
         `control` (sitl --control), with `sim_args` added to its command line. `lockstep`: the
         simulator waits for each answer (still no faster than x3), so that how the machine
-        schedules the processes cannot change the flight."""
+        schedules the processes cannot change the flight. `ap_args` are added to the autopilot's
+        command line."""
+        self.ap_args = list(ap_args)
         self.airframe = airframe
         self.lockstep = lockstep
         self.sim_port, self.gcs_port = free_udp_port(), free_udp_port()
@@ -105,7 +107,7 @@ class Daemon:
              "--loop-hz", "500",
              "--airframe", self.airframe,
              "--mavlink", self.mavlink,
-             "--param-store", str(self.store)],
+             "--param-store", str(self.store), *self.ap_args],
             stdout=open(self.out, "a"), stderr=subprocess.PIPE, text=True,
         )
 

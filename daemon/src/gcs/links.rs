@@ -7,10 +7,18 @@
 //! - `udpin://ADDR:PORT`: a bound port that answers every peer that writes to it.
 //! - `tcpin://ADDR:PORT`: a TCP server; every client gets the stream.
 //!
-//! A frame that does not parse is counted and dropped; it never closes a link. Sending never
-//! waits on a slow peer: a link that falls behind loses frames, not the vehicle's time.
+//! Every endpoint also takes `trusted` (a physically secure link, such as a USB cable: exempt
+//! from signing, and the only kind that may set the signing key) and `sysids=255,250` (only
+//! these systems are heard; others are refused).
+//!
+//! A frame that does not parse is counted and dropped; it never closes a link. With a signing
+//! key ([`super::signing`]) frames that are unsigned, wrongly signed or replayed are refused
+//! before they are parsed, and the vehicle's frames go out signed. A UDP peer is answered only
+//! once it has sent a frame that was accepted. Sending never waits on a slow peer: a link that
+//! falls behind loses frames, not the vehicle's time.
 
 use super::params::Parameters;
+use super::signing::{SecretKey, Signing};
 use super::{AckTo, Action, GroundStation, Outbox, Outgoing};
 use crate::flight::{Command, Telemetry};
 use crate::param_store::{Loaded, ParamStore};
@@ -21,7 +29,8 @@ use hil::{Decoded, Encoder, RawMessage, StreamDecoder};
 use mavlink::MavHeader;
 use mavlink::dialects::common::{MavMessage, MavSeverity, MavType};
 use std::net::SocketAddr;
-use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream, UdpSocket};
@@ -142,12 +151,99 @@ impl Endpoint {
     }
 }
 
+/// What every endpoint takes besides its address.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct LinkOptions {
+    /// A physically secure link: exempt from signing, may set the key (`SETUP_SIGNING`).
+    pub trusted: bool,
+    /// Only these systems are heard (empty: all).
+    pub allowed_systems: Vec<u8>,
+}
+
+/// An endpoint and its options, as written on the command line.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct EndpointSpec {
+    /// Where.
+    pub endpoint: Endpoint,
+    /// How it is guarded.
+    pub options: LinkOptions,
+}
+
+impl EndpointSpec {
+    /// Parses `URL[?options]`: the options every endpoint takes (`trusted`, `sysids=A,B`), the
+    /// rest as [`Endpoint::parse`].
+    pub fn parse(url: &str, instance: u16) -> Result<Self> {
+        let (base, query) = url.split_once('?').unwrap_or((url, ""));
+        let mut options = LinkOptions::default();
+        let mut rest = Vec::new();
+        for kv in query.split('&').filter(|s| !s.is_empty()) {
+            match kv.split_once('=') {
+                None if kv == "trusted" => options.trusted = true,
+                Some(("sysids", list)) => {
+                    for id in list.split(',') {
+                        let id: u8 = id.parse().ok().filter(|&i| i > 0).with_context(|| {
+                            format!("{url:?}: sysids={list}: {id:?} is not a system id 1-255")
+                        })?;
+                        options.allowed_systems.push(id);
+                    }
+                }
+                _ => rest.push(kv),
+            }
+        }
+        let url = if rest.is_empty() {
+            base.to_owned()
+        } else {
+            format!("{base}?{}", rest.join("&"))
+        };
+        Ok(Self {
+            endpoint: Endpoint::parse(&url, instance)?,
+            options,
+        })
+    }
+}
+
+/// Where a frame is checked before it is parsed: the endpoint's allow-list, then signing.
+#[derive(Debug, Clone)]
+struct Guard {
+    options: LinkOptions,
+    signing: Arc<Mutex<Signing>>,
+    /// Frames from systems not on an allow-list (all endpoints).
+    not_allowed: Arc<AtomicU64>,
+}
+
+impl Guard {
+    /// Splits a datagram into `out`, checking each frame.
+    fn decode(&self, datagram: &[u8], out: &mut Decoded) {
+        let mut signing = self.signing.lock().unwrap_or_else(|e| e.into_inner());
+        hil::decode_checked(datagram, out, &mut |f| self.check(&mut signing, f));
+    }
+
+    /// Adds a stream's bytes to `splitter`, checking each frame.
+    fn push(&self, splitter: &mut StreamDecoder, bytes: &[u8], out: &mut Decoded) {
+        let mut signing = self.signing.lock().unwrap_or_else(|e| e.into_inner());
+        splitter.push_checked(bytes, out, &mut |f| self.check(&mut signing, f));
+    }
+
+    fn check(&self, signing: &mut Signing, frame: &[u8]) -> bool {
+        let system = if frame[0] == 0xFE { frame[3] } else { frame[5] };
+        if !self.options.allowed_systems.is_empty()
+            && !self.options.allowed_systems.contains(&system)
+        {
+            self.not_allowed.fetch_add(1, Ordering::Relaxed);
+            return false;
+        }
+        signing.check(frame, self.options.trusted).accepted()
+    }
+}
+
 /// What an endpoint received: the messages of one datagram or read.
 #[derive(Debug)]
 struct Inbound {
     messages: Vec<(MavHeader, MavMessage)>,
     unparsed: Vec<RawMessage>,
     malformed: u32,
+    /// From a trusted endpoint.
+    trusted: bool,
 }
 
 /// The frames going out, shared by every endpoint.
@@ -161,7 +257,8 @@ fn new_decoded() -> Decoded {
 }
 
 /// Hands what `d` holds to the ground station (dropped if it is behind: never waits).
-fn deliver(d: &mut Decoded, inbound: &mpsc::Sender<Inbound>) {
+fn deliver(d: &mut Decoded, inbound: &mpsc::Sender<Inbound>, trusted: bool) {
+    d.refused = 0; // counted by the guard
     if d.messages.is_empty() && d.unparsed.is_empty() && d.malformed == 0 {
         return;
     }
@@ -169,6 +266,7 @@ fn deliver(d: &mut Decoded, inbound: &mpsc::Sender<Inbound>) {
         messages: std::mem::take(&mut d.messages),
         unparsed: std::mem::take(&mut d.unparsed),
         malformed: std::mem::take(&mut d.malformed),
+        trusted,
     };
     if inbound.try_send(i).is_err() {
         tracing::debug!("ground-station input behind: frames dropped");
@@ -178,6 +276,7 @@ fn deliver(d: &mut Decoded, inbound: &mpsc::Sender<Inbound>) {
 async fn udp(
     socket: UdpSocket,
     target: Option<SocketAddr>,
+    guard: Guard,
     inbound: mpsc::Sender<Inbound>,
     mut frames: broadcast::Receiver<Arc<[u8]>>,
 ) {
@@ -188,16 +287,18 @@ async fn udp(
         tokio::select! {
             r = socket.recv_from(&mut buf) => match r {
                 Ok((n, from)) => {
+                    guard.decode(&buf[..n], &mut decoded);
+                    // Only a peer that said something acceptable is answered.
+                    let heard = !decoded.messages.is_empty() || !decoded.unparsed.is_empty();
+                    deliver(&mut decoded, &inbound, guard.options.trusted);
                     let now = Instant::now();
                     peers.retain(|p| now - p.1 < PEER_TIMEOUT);
                     if let Some(p) = peers.iter_mut().find(|p| p.0 == from) {
                         p.1 = now;
-                    } else if peers.len() < MAX_PEERS && Some(from) != target {
+                    } else if heard && peers.len() < MAX_PEERS && Some(from) != target {
                         tracing::info!(peer = %from, "ground station connected");
                         peers.push((from, now));
                     }
-                    hil::decode_into(&buf[..n], &mut decoded);
-                    deliver(&mut decoded, &inbound);
                 }
                 // An ICMP "port unreachable" from an earlier push (nobody listening yet).
                 Err(e) => tracing::trace!("ground-station UDP: {e}"),
@@ -221,6 +322,7 @@ async fn udp(
 async fn tcp_client(
     stream: TcpStream,
     peer: SocketAddr,
+    guard: Guard,
     inbound: mpsc::Sender<Inbound>,
     mut frames: broadcast::Receiver<Arc<[u8]>>,
 ) {
@@ -234,8 +336,8 @@ async fn tcp_client(
             r = rd.read(&mut buf) => match r {
                 Ok(0) | Err(_) => break,
                 Ok(n) => {
-                    splitter.push(&buf[..n], &mut decoded);
-                    deliver(&mut decoded, &inbound);
+                    guard.push(&mut splitter, &buf[..n], &mut decoded);
+                    deliver(&mut decoded, &inbound, guard.options.trusted);
                 }
             },
             f = frames.recv() => match f {
@@ -254,7 +356,12 @@ async fn tcp_client(
     tracing::info!(%peer, "ground station disconnected (TCP)");
 }
 
-async fn tcp_server(listener: TcpListener, inbound: mpsc::Sender<Inbound>, frames: Frames) {
+async fn tcp_server(
+    listener: TcpListener,
+    guard: Guard,
+    inbound: mpsc::Sender<Inbound>,
+    frames: Frames,
+) {
     loop {
         match listener.accept().await {
             Ok((stream, peer)) => {
@@ -262,6 +369,7 @@ async fn tcp_server(listener: TcpListener, inbound: mpsc::Sender<Inbound>, frame
                 tokio::spawn(tcp_client(
                     stream,
                     peer,
+                    guard.clone(),
                     inbound.clone(),
                     frames.subscribe(),
                 ));
@@ -283,6 +391,7 @@ const SERIAL_POLL: Duration = Duration::from_millis(10);
 fn serial(
     path: std::path::PathBuf,
     baud: u32,
+    guard: Guard,
     inbound: mpsc::Sender<Inbound>,
     mut frames: broadcast::Receiver<Arc<[u8]>>,
 ) {
@@ -323,8 +432,8 @@ fn serial(
             match port.read(&mut buf) {
                 Ok(0) => {}
                 Ok(n) => {
-                    splitter.push(&buf[..n], &mut decoded);
-                    deliver(&mut decoded, &inbound);
+                    guard.push(&mut splitter, &buf[..n], &mut decoded);
+                    deliver(&mut decoded, &inbound, guard.options.trusted);
                 }
                 Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
                 Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
@@ -356,35 +465,46 @@ fn serial(
 
 /// Opens `endpoint`; its task runs until the frames channel closes. A port that cannot be
 /// bound is reported and skipped (another vehicle may hold it: give it `-i N`).
-async fn open(endpoint: &Endpoint, inbound: &mpsc::Sender<Inbound>, frames: &Frames) -> Result<()> {
-    match endpoint {
+async fn open(
+    spec: &EndpointSpec,
+    guard: Guard,
+    inbound: &mpsc::Sender<Inbound>,
+    frames: &Frames,
+) -> Result<()> {
+    match &spec.endpoint {
         Endpoint::UdpOut { target, bind } => {
             let s = UdpSocket::bind(bind)
                 .await
                 .with_context(|| format!("binding UDP {bind}"))?;
             tracing::info!(local = %s.local_addr()?, push_to = %target, "MAVLink UDP endpoint");
-            tokio::spawn(udp(s, Some(*target), inbound.clone(), frames.subscribe()));
+            tokio::spawn(udp(
+                s,
+                Some(*target),
+                guard,
+                inbound.clone(),
+                frames.subscribe(),
+            ));
         }
         Endpoint::UdpIn { bind } => {
             let s = UdpSocket::bind(bind)
                 .await
                 .with_context(|| format!("binding UDP {bind}"))?;
             tracing::info!(local = %s.local_addr()?, "MAVLink UDP endpoint");
-            tokio::spawn(udp(s, None, inbound.clone(), frames.subscribe()));
+            tokio::spawn(udp(s, None, guard, inbound.clone(), frames.subscribe()));
         }
         Endpoint::TcpIn { bind } => {
             let l = TcpListener::bind(bind)
                 .await
                 .with_context(|| format!("listening on TCP {bind}"))?;
             tracing::info!(local = %l.local_addr()?, "MAVLink TCP server");
-            tokio::spawn(tcp_server(l, inbound.clone(), frames.clone()));
+            tokio::spawn(tcp_server(l, guard, inbound.clone(), frames.clone()));
         }
         Endpoint::Serial { path, baud } => {
             let (path, baud, inbound, frames) =
                 (path.clone(), *baud, inbound.clone(), frames.subscribe());
             std::thread::Builder::new()
                 .name("gcs-serial".into())
-                .spawn(move || serial(path, baud, inbound, frames))
+                .spawn(move || serial(path, baud, guard, inbound, frames))
                 .context("starting the serial endpoint")?;
         }
     }
@@ -410,6 +530,75 @@ pub struct Vehicle {
     /// What the first ground station to connect is told (`STATUSTEXT` warnings, ≤ 50 bytes
     /// each), such as a damaged parameter store.
     pub notices: Vec<String>,
+    /// The MAVLink signing key (none: signing off), and the file a key set by `SETUP_SIGNING`
+    /// is kept in.
+    pub signing_key: Option<SecretKey>,
+    /// Where a key set by `SETUP_SIGNING` is saved (none: kept in memory only).
+    pub signing_key_file: Option<std::path::PathBuf>,
+}
+
+/// How often refused frames are reported in the log.
+const REFUSALS_REPORT: Duration = Duration::from_secs(5);
+
+/// Microseconds since the Unix epoch.
+fn unix_usec() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_micros() as u64)
+}
+
+/// `SETUP_SIGNING` (<https://mavlink.io/en/guide/message_signing.html>): only from a trusted
+/// link; the key is used at once and saved (mode 0600) where the daemon was told to keep it;
+/// an all-zero key turns signing off (and removes the file). Returns what to tell the sender.
+fn setup_signing(
+    signing: &Mutex<Signing>,
+    key_file: Option<&std::path::Path>,
+    data: &mavlink::dialects::common::SETUP_SIGNING_DATA,
+    trusted: bool,
+) -> (MavSeverity, String) {
+    if !trusted {
+        tracing::warn!("SETUP_SIGNING refused: it came over a link not marked trusted");
+        return (
+            MavSeverity::MAV_SEVERITY_WARNING,
+            "SETUP_SIGNING refused: link not trusted".into(),
+        );
+    }
+    let key = SecretKey(data.secret_key);
+    let on = key.0 != [0; 32];
+    let saved = match key_file {
+        Some(path) if on => crate::param_store::write_private(path, &format!("{}\n", key.to_hex())),
+        Some(path) => match std::fs::remove_file(path) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                Err(anyhow::Error::from(e).context(format!("removing {}", path.display())))
+            }
+            _ => Ok(()),
+        },
+        None => Ok(()),
+    };
+    let mut s = signing.lock().unwrap_or_else(|e| e.into_inner());
+    s.set_key(key, data.initial_timestamp);
+    let state = if s.active() {
+        "signing on"
+    } else {
+        "signing off"
+    };
+    drop(s);
+    match saved {
+        Ok(()) => {
+            tracing::info!(
+                file = ?key_file,
+                "SETUP_SIGNING from a trusted link: MAVLink {state}"
+            );
+            (MavSeverity::MAV_SEVERITY_INFO, format!("MAVLink {state}"))
+        }
+        Err(e) => {
+            tracing::error!("SETUP_SIGNING: MAVLink {state}, but the key is not kept: {e:#}");
+            (
+                MavSeverity::MAV_SEVERITY_ERROR,
+                format!("MAVLink {state}; key not saved"),
+            )
+        }
+    }
 }
 
 /// Saves every store it is handed, the latest first (a burst of sets is one write), and says
@@ -436,7 +625,7 @@ async fn saver(mut stores: watch::Receiver<Option<ParamStore>>, notices: mpsc::S
 /// arrives, streams telemetry, passes vehicle commands and parameters to the control loop and
 /// saves the parameter store. Returns the reboot or shutdown a ground station asked for, once
 /// the store is saved.
-pub async fn run(endpoints: Vec<Endpoint>, vehicle: Vehicle) -> Option<Action> {
+pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<Action> {
     let Vehicle {
         system_id,
         mav_type,
@@ -446,7 +635,19 @@ pub async fn run(endpoints: Vec<Endpoint>, vehicle: Vehicle) -> Option<Action> {
         base_params,
         params,
         notices: mut startup_notices,
+        signing_key,
+        signing_key_file,
     } = vehicle;
+    tracing::info!(
+        "MAVLink signing {}",
+        if signing_key.is_some() {
+            "on: unsigned, wrongly signed and replayed frames are refused"
+        } else {
+            "off"
+        }
+    );
+    let signing = Arc::new(Mutex::new(Signing::new(signing_key)));
+    let not_allowed = Arc::new(AtomicU64::new(0));
     let (frames, _) = broadcast::channel::<Arc<[u8]>>(1024);
     let (inbound_tx, mut inbound) = mpsc::channel::<Inbound>(256);
     let (answers_tx, mut answers) = mpsc::channel::<(AckTo, Result<(), String>)>(64);
@@ -454,7 +655,12 @@ pub async fn run(endpoints: Vec<Endpoint>, vehicle: Vehicle) -> Option<Action> {
     let (save_tx, save_rx) = watch::channel(None::<ParamStore>);
     let saving = tokio::spawn(saver(save_rx, notices_tx));
     for e in &endpoints {
-        if let Err(e) = open(e, &inbound_tx, &frames).await {
+        let guard = Guard {
+            options: e.options.clone(),
+            signing: signing.clone(),
+            not_allowed: not_allowed.clone(),
+        };
+        if let Err(e) = open(e, guard, &inbound_tx, &frames).await {
             tracing::warn!("ground-station endpoint not opened: {e:#}");
         }
     }
@@ -467,13 +673,22 @@ pub async fn run(endpoints: Vec<Endpoint>, vehicle: Vehicle) -> Option<Action> {
     let mut malformed = 0u64;
     let mut exit = None;
     let mut pending = std::collections::VecDeque::new();
+    let mut refusals_reported = (Default::default(), 0u64);
+    let mut refusals_next = Instant::now();
     loop {
         tokio::select! {
             Some(i) = inbound.recv() => {
                 malformed += i.malformed as u64;
                 let t = *telemetry.borrow();
                 for (h, m) in &i.messages {
-                    gcs.on_message(h, m, &t, &mut out);
+                    match m {
+                        MavMessage::SETUP_SIGNING(d) if d.target_system == system_id => {
+                            let (severity, text) =
+                                setup_signing(&signing, signing_key_file.as_deref(), d, i.trusted);
+                            out.send(GroundStation::statustext(severity, &text));
+                        }
+                        _ => gcs.on_message(h, m, &t, &mut out),
+                    }
                 }
                 for raw in &i.unparsed {
                     gcs.on_unparsed(raw, &mut out);
@@ -489,6 +704,24 @@ pub async fn run(endpoints: Vec<Endpoint>, vehicle: Vehicle) -> Option<Action> {
                     break;
                 }
                 gcs.poll(start.elapsed().as_secs_f64(), &t, &mut out);
+                if Instant::now() >= refusals_next {
+                    refusals_next = Instant::now() + REFUSALS_REPORT;
+                    let now = (
+                        signing.lock().unwrap_or_else(|e| e.into_inner()).refused,
+                        not_allowed.load(Ordering::Relaxed),
+                    );
+                    if now != refusals_reported {
+                        refusals_reported = now;
+                        let (r, n) = now;
+                        tracing::warn!(
+                            unsigned = r.unsigned,
+                            bad_signature = r.bad_signature,
+                            replayed = r.replayed,
+                            not_on_allow_list = n,
+                            "frames refused so far"
+                        );
+                    }
+                }
             }
         }
         for (cmd, to) in out.vehicle.drain(..) {
@@ -570,19 +803,34 @@ pub async fn run(endpoints: Vec<Endpoint>, vehicle: Vehicle) -> Option<Action> {
                 }
             }
         }
+        if !out.messages.is_empty() {
+            signing
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .tick(unix_usec());
+        }
         for m in out.messages.drain(..) {
             let mut bytes = Vec::with_capacity(64);
             match &m {
                 Outgoing::Message(m) => encoder.push(&mut bytes, m),
                 Outgoing::Raw(id, payload) => encoder.push_raw(&mut bytes, *id, payload),
             }
+            signing
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .sign(&mut bytes);
             // No endpoint listening is not an error.
             let _ = frames.send(bytes.into());
         }
     }
+    let refused = signing.lock().unwrap_or_else(|e| e.into_inner()).refused;
     tracing::info!(
         malformed,
         dropped = gcs.dropped,
+        refused_unsigned = refused.unsigned,
+        refused_bad_signature = refused.bad_signature,
+        refused_replayed = refused.replayed,
+        refused_not_on_allow_list = not_allowed.load(Ordering::Relaxed),
         "ground-station links closed"
     );
     drop(save_tx);

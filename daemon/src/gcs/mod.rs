@@ -15,6 +15,7 @@ pub mod mission;
 pub mod modes;
 pub mod offboard;
 pub mod params;
+pub mod signing;
 pub mod telemetry;
 
 use crate::flight::Telemetry;

@@ -8,7 +8,8 @@ mod simulator_end;
 pub use simulator_end::{STATE_INTERVAL_USEC, SimulatorEnd};
 mod wire;
 pub use wire::{
-    Decoded, Encoder, MAX_FRAME, RawMessage, StreamDecoder, checksum, decode, decode_into,
+    Decoded, Encoder, MAX_FRAME, RawMessage, StreamDecoder, checksum, decode, decode_checked,
+    decode_into,
 };
 
 use mavlink::dialects::common::{

@@ -194,11 +194,14 @@ pub struct RawMessage {
 enum Frame {
     Message(MavHeader, MavMessage),
     Unparsed(RawMessage),
+    /// Well-formed, but the link's check refused it.
+    Refused,
     Bad,
 }
 
-/// Parses one whole frame (`frame.len()` is its length): checksum, then payload.
-fn parse_frame(frame: &[u8]) -> Frame {
+/// Parses one whole frame (`frame.len()` is its length): checksum, then the link's `check`,
+/// then payload.
+fn parse_frame(frame: &[u8], check: &mut dyn FnMut(&[u8]) -> bool) -> Frame {
     let (version, header_len, msgid) = if frame[0] == STX_V1 {
         (MavlinkVersion::V1, V1_HEADER, frame[5] as u32)
     } else {
@@ -210,6 +213,9 @@ fn parse_frame(frame: &[u8]) -> Frame {
     let sent = u16::from_le_bytes([frame[payload_end], frame[payload_end + 1]]);
     if crc != sent {
         return Frame::Bad;
+    }
+    if !check(frame) {
+        return Frame::Refused;
     }
     let (seq, sys, comp) = if version == MavlinkVersion::V1 {
         (frame[2], frame[3], frame[4])
@@ -246,6 +252,9 @@ pub struct Decoded {
     pub keep_unparsed: bool,
     /// Those frames, when kept.
     pub unparsed: Vec<RawMessage>,
+    /// Well-formed frames the link's check refused ([`decode_checked`]: a signature, an
+    /// allow-list); not counted in `malformed`.
+    pub refused: u32,
 }
 
 /// Splits a datagram into MAVLink 1/2 frames; each bad frame or run of junk counts once.
@@ -257,7 +266,14 @@ pub fn decode(datagram: &[u8]) -> Decoded {
 
 /// [`decode`], appending to `out` (no allocation once `out` has grown to a datagram's worth).
 pub fn decode_into(datagram: &[u8], out: &mut Decoded) {
-    Splitter::default().split(datagram, true, out);
+    decode_checked(datagram, out, &mut |_| true);
+}
+
+/// [`decode_into`], handing each frame whose checksum is right to `check` (the whole frame,
+/// signature included) before its payload is parsed; a frame it refuses is counted in
+/// `out.refused` and dropped.
+pub fn decode_checked(datagram: &[u8], out: &mut Decoded, check: &mut dyn FnMut(&[u8]) -> bool) {
+    Splitter::default().split(datagram, true, out, check);
 }
 
 /// Splits a byte stream (a serial line) into MAVLink frames, keeping a partial frame until the
@@ -271,8 +287,18 @@ pub struct StreamDecoder {
 impl StreamDecoder {
     /// Adds the bytes just read; appends every complete message to `out`.
     pub fn push(&mut self, bytes: &[u8], out: &mut Decoded) {
+        self.push_checked(bytes, out, &mut |_| true);
+    }
+
+    /// [`StreamDecoder::push`] with a check of each well-formed frame, as [`decode_checked`].
+    pub fn push_checked(
+        &mut self,
+        bytes: &[u8],
+        out: &mut Decoded,
+        check: &mut dyn FnMut(&[u8]) -> bool,
+    ) {
         self.buf.extend_from_slice(bytes);
-        let used = self.splitter.split(&self.buf, false, out);
+        let used = self.splitter.split(&self.buf, false, out, check);
         self.buf.drain(..used);
     }
 
@@ -295,13 +321,21 @@ impl Splitter {
     /// Appends the messages of `buf` to `out`; returns the bytes used: all of a `whole` buffer
     /// (a datagram: a frame running past its end is truncated), all but an incomplete frame at
     /// the end of a stream's buffer.
-    fn split(&mut self, buf: &[u8], whole: bool, out: &mut Decoded) -> usize {
+    fn split(
+        &mut self,
+        buf: &[u8],
+        whole: bool,
+        out: &mut Decoded,
+        check: &mut dyn FnMut(&[u8]) -> bool,
+    ) -> usize {
         let mut i = 0;
         while i < buf.len() {
             let rest = &buf[i..];
             match frame_len(rest) {
                 Ok(Some(len)) if len <= rest.len() || whole => {
-                    let frame = rest.get(..len).map_or(Frame::Bad, parse_frame);
+                    let frame = rest
+                        .get(..len)
+                        .map_or(Frame::Bad, |f| parse_frame(f, check));
                     let good = !matches!(frame, Frame::Bad);
                     match frame {
                         Frame::Message(h, m) => out.messages.push((h, m)),
@@ -311,6 +345,7 @@ impl Splitter {
                                 out.unparsed.push(raw);
                             }
                         }
+                        Frame::Refused => out.refused += 1,
                         Frame::Bad => {}
                     }
                     if good {
@@ -470,5 +505,36 @@ mod tests {
         unknown[9] = 0x7F; // message id 0x7F0000
         let d = decode(&unknown);
         assert_eq!((d.messages.len(), d.malformed), (0, 1));
+    }
+
+    #[test]
+    fn a_check_sees_each_well_formed_frame_whole_and_its_refusals_are_counted_apart() {
+        let mut bytes = Vec::new();
+        let mut enc = Encoder::default();
+        for mode in 0..4 {
+            let hb = HEARTBEAT_DATA {
+                custom_mode: mode,
+                ..Default::default()
+            };
+            enc.push(&mut bytes, &MavMessage::HEARTBEAT(hb));
+        }
+        bytes.extend_from_slice(&[0xFD, 3, 0]); // junk
+        let frame_len = (bytes.len() - 3) / 4;
+        let mut seen = Vec::new();
+        let mut check = |f: &[u8]| {
+            seen.push(f.len());
+            f[4] % 2 == 0 // even sequence numbers only
+        };
+        let mut d = Decoded::default();
+        decode_checked(&bytes, &mut d, &mut check);
+        assert_eq!(seen, [frame_len; 4]);
+        assert_eq!((d.messages.len(), d.refused, d.malformed), (2, 2, 1));
+        // The same through a stream, a byte at a time.
+        let mut s = StreamDecoder::default();
+        let mut d = Decoded::default();
+        for b in &bytes {
+            s.push_checked(std::slice::from_ref(b), &mut d, &mut |f| f[4] % 2 == 1);
+        }
+        assert_eq!((d.messages.len(), d.refused), (2, 2));
     }
 }
