@@ -9,6 +9,8 @@ mod deadline;
 mod failure_injection;
 mod flight;
 mod flight_csv;
+#[cfg(test)]
+mod fuzz;
 mod gcs;
 mod link;
 mod param_store;

@@ -192,3 +192,25 @@ fn keys_are_read_from_64_hexadecimal_digits() {
     }
     assert_eq!(format!("{k:?}"), "SecretKey(…)");
 }
+
+proptest::proptest! {
+    /// Whatever a frame holds, judging it does not panic, and nothing unsigned passes but what
+    /// the spec lets through.
+    #[test]
+    fn any_bytes_are_judged_without_panic(
+        bytes in proptest::collection::vec(proptest::prelude::any::<u8>(), 0..300),
+        signed_flag in proptest::prelude::any::<bool>(),
+    ) {
+        let mut b = bytes;
+        if b.len() > 2 {
+            b[0] = STX_V2;
+            b[2] = u8::from(signed_flag);
+        }
+        let mut vehicle = signing(KEY);
+        let v = vehicle.check(&b, false);
+        proptest::prop_assert!(v != Verdict::Signed, "a random frame passed the signature");
+        if v == Verdict::Unsigned {
+            proptest::prop_assert!(unsigned_allowed(&b));
+        }
+    }
+}
