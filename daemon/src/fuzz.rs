@@ -12,7 +12,7 @@
 #![allow(clippy::unwrap_used)]
 use crate::gcs::{GroundStation, Outbox};
 use crate::vehicle::{Vehicle, VehicleCommand};
-use flight_core::commander::{CommanderStatus, FlightMode, LandedState};
+use flight_core::commander::FlightMode;
 use flight_core::params::FlightParams;
 use mavlink::dialects::common::{MavMessage, MavType};
 use mavlink::{MavHeader, MavlinkVersion, Message};
@@ -68,33 +68,9 @@ fn quad() -> airframe::Airframe {
     airframe::Airframe::load(std::path::Path::new(dir)).unwrap()
 }
 
+/// What the control loop shows: armed or not, in Hold.
 fn telemetry(armed: bool) -> crate::flight::Telemetry {
-    crate::flight::Telemetry {
-        t_s: 3.0,
-        status: Some(CommanderStatus {
-            armed,
-            mode: FlightMode::Loiter,
-            landed: if armed {
-                LandedState::InAir
-            } else {
-                LandedState::OnGround
-            },
-            home: None,
-            failsafe: false,
-            failsafe_action: None,
-            motor_failed: None,
-            failsafe_conditions: 0,
-            safety_log: Default::default(),
-            prearm_ok: true,
-            ready: true,
-            in_mode_s: 0.0,
-            manual_losses: 0,
-            offboard_losses: 0,
-            mission: Default::default(),
-            manual_control: None,
-        }),
-        ..Default::default()
-    }
+    crate::gcs::tests::telemetry(armed, FlightMode::Loiter)
 }
 
 /// The cases of a run: `FUZZ_CASES`, else `default`.

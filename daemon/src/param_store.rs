@@ -17,7 +17,8 @@
 //! - its last line is a CRC-32 (zlib's) of everything before it, so a file damaged afterwards
 //!   (a bad sector, a truncating copy, an edit that forgot the line) is recognised;
 //! - before each save the file on disk, if it checks out, becomes the previous good copy
-//!   (`NAME.prev`, written the same way). A damaged file at start is replaced by that copy in
+//!   (`NAME.prev`, written the same way; before the first save, an empty store: flight.toml's
+//!   values). A damaged file at start is replaced by that copy in
 //!   memory and the user told, in the log and to every ground station; with no good copy the
 //!   daemon refuses to start, naming the file (flying half of what the user set is worse).
 //!
@@ -209,10 +210,16 @@ impl ParamStore {
         let Some(path) = &self.path else {
             return Ok(());
         };
-        if let Some(current) = read_if_present(path)?.and_then(|b| checked_text(b).ok())
-            && current.parse::<toml::Table>().is_ok()
-        {
-            write_atomically(&previous_copy(path), &current)?;
+        match read_if_present(path)? {
+            // No store yet: the state before is flight.toml's values, an empty store.
+            None => write_atomically(&previous_copy(path), &Self::default().to_toml())?,
+            Some(bytes) => {
+                if let Ok(current) = checked_text(bytes)
+                    && current.parse::<toml::Table>().is_ok()
+                {
+                    write_atomically(&previous_copy(path), &current)?;
+                }
+            }
         }
         write_atomically(path, &self.to_toml())
     }
@@ -468,9 +475,11 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("store.toml");
         save_takeoff_alt(&path, 4.0);
-        assert!(
-            !previous_copy(&path).exists(),
-            "nothing before the first save"
+        let before = ParamStore::load(&previous_copy(&path), &FlightParams::default()).unwrap();
+        assert_eq!(
+            before.store.names().count(),
+            0,
+            "before the first save: an empty store"
         );
         let first = std::fs::read_to_string(&path).unwrap();
         assert!(first.starts_with(CHECKSUMMED), "{first}");
@@ -549,6 +558,11 @@ mod tests {
         save_takeoff_alt(&path, 4.0);
         let text = std::fs::read_to_string(&path).unwrap();
         std::fs::write(&path, text.replace("4.0", "5.0")).unwrap();
+        // The first store damaged: the copy before it, flight.toml's values.
+        let first = ParamStore::load(&path, &base).unwrap();
+        assert!(first.from_previous_copy);
+        assert_eq!(takeoff_alt(&first), base.commander.takeoff_alt_m);
+        std::fs::write(previous_copy(&path), "damaged too").unwrap();
         let err = format!("{:#}", ParamStore::load(&path, &base).unwrap_err());
         assert!(
             err.contains("store.toml: damaged: checksum") && err.contains("no good previous copy"),

@@ -16,7 +16,8 @@ from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mavlink2
 
 from conftest import Daemon, free_udp_port
-from test_ground_station import REAL32, ack, armed, param, ready_to_arm, wait
+from test_ground_station import (REAL32, ack, armed, param, ready_to_arm, take_off_and_land,
+                                 wait)
 
 KEY = bytes(range(1, 33))
 OTHER_KEY = bytes(range(2, 34))
@@ -101,15 +102,7 @@ def test_a_signed_session_flies_and_unsigned_wrong_and_replayed_frames_are_refus
         assert not armed(wait(gcs, "HEARTBEAT", lambda m: True, 5))
         gcs.arducopter_arm()
         assert ack(gcs, ARM) == 0
-        gcs.mav.command_long_send(1, 1, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF, 0,
-                                  0, 0, 0, math.nan, math.nan, math.nan, math.nan)
-        assert ack(gcs, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF) == 0
-        wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER" and armed(m), timeout=30)
-        p = wait(gcs, "GLOBAL_POSITION_INT", lambda m: True)
-        assert 2.5 < p.relative_alt / 1000 < 3.5, p
-        gcs.mav.command_long_send(1, 1, mavutil.mavlink.MAV_CMD_NAV_LAND, 0, 0, 0, 0, 0, 0, 0, 0)
-        assert ack(gcs, mavutil.mavlink.MAV_CMD_NAV_LAND) == 0
-        wait(gcs, "HEARTBEAT", lambda m: not armed(m), timeout=40)
+        take_off_and_land(gcs, math.nan, (2.5, 3.5))
         daemon.stop()
         closed = next(l for l in daemon.ap_stderr.splitlines()
                       if "ground-station links closed" in l)

@@ -1107,4 +1107,4 @@ fn ftp_nak(f: &FILE_TRANSFER_PROTOCOL_DATA, from: &MavHeader) -> MavMessage {
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

@@ -14,7 +14,7 @@ fn gcs_header() -> MavHeader {
     }
 }
 
-fn telemetry(armed: bool, mode: FlightMode) -> Telemetry {
+pub(crate) fn telemetry(armed: bool, mode: FlightMode) -> Telemetry {
     Telemetry {
         t_s: 12.0,
         status: Some(CommanderStatus {
