@@ -360,6 +360,42 @@ fn endpoints_parse_with_the_instance_offset() {
     }
 }
 
+#[test]
+fn endpoint_options_trusted_and_allow_lists_parse_on_every_kind() {
+    let e =
+        links::EndpointSpec::parse("udpin://127.0.0.1:14560?trusted&sysids=255,250", 1).unwrap();
+    assert_eq!(
+        e.endpoint,
+        links::Endpoint::UdpIn {
+            bind: "127.0.0.1:14561".parse().unwrap()
+        }
+    );
+    assert!(e.options.trusted);
+    assert_eq!(e.options.allowed_systems, [255, 250]);
+    let e =
+        links::EndpointSpec::parse("udpout://127.0.0.1:14550?sysids=255&bind=18570", 0).unwrap();
+    assert_eq!(
+        e.endpoint,
+        links::Endpoint::UdpOut {
+            target: "127.0.0.1:14550".parse().unwrap(),
+            bind: "0.0.0.0:18570".parse().unwrap(),
+        },
+        "the endpoint's own options are kept"
+    );
+    assert!(!e.options.trusted);
+    let e = links::EndpointSpec::parse("serial:///dev/ttyACM0?baud=115200&trusted", 0).unwrap();
+    assert!(e.options.trusted && e.options.allowed_systems.is_empty());
+    for bad in [
+        "udpin://0.0.0.0:1?sysids=0",
+        "udpin://0.0.0.0:1?sysids=256",
+        "udpin://0.0.0.0:1?sysids=255,x",
+        "udpin://0.0.0.0:1?trusted=yes",
+        "tcpin://0.0.0.0:1?sysids=",
+    ] {
+        assert!(links::EndpointSpec::parse(bad, 0).is_err(), "{bad}");
+    }
+}
+
 fn param_values(out: &Outbox) -> Vec<&PARAM_VALUE_DATA> {
     out.messages
         .iter()
