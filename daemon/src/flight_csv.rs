@@ -14,7 +14,14 @@ use std::path::Path;
 pub struct FlightCsv {
     out: BufWriter<std::fs::File>,
     rotors: usize,
+    /// Flight time of the last row on disk: see [`FLUSH_INTERVAL_S`].
+    flushed_t_s: f64,
 }
+
+/// Rows are flushed to disk whenever this much flight time has passed since the last flush, so
+/// a daemon killed outright (SIGKILL, power lost) loses at most the last half second of its log;
+/// one that is stopped (Ctrl-C, SIGTERM) flushes the rest.
+pub const FLUSH_INTERVAL_S: f64 = 0.5;
 
 /// Roll, pitch, yaw (deg) of an optional quaternion, or empty cells.
 fn euler_deg(q: Option<nalgebra::UnitQuaternion<f64>>) -> String {
@@ -44,7 +51,11 @@ impl FlightCsv {
             write!(out, ",motor{i}")?;
         }
         writeln!(out)?;
-        Ok(Self { out, rotors })
+        Ok(Self {
+            out,
+            rotors,
+            flushed_t_s: f64::NEG_INFINITY,
+        })
     }
 
     /// Writes one frame's row. True positions are relative to the take-off spot (empty before
@@ -107,7 +118,14 @@ impl FlightCsv {
         for c in &out.commands[..self.rotors] {
             write!(self.out, ",{c:.4}")?;
         }
-        writeln!(self.out)
+        writeln!(self.out)?;
+        // Not `>=` on the difference alone: a clock that steps back (a board restarted)
+        // flushes at once and starts counting again.
+        if !(t_s < self.flushed_t_s + FLUSH_INTERVAL_S && t_s >= self.flushed_t_s) {
+            self.flushed_t_s = t_s;
+            self.out.flush()?;
+        }
+        Ok(())
     }
 
     /// Writes what is buffered.

@@ -495,17 +495,48 @@ fn finish(mut vehicle: Vehicle, report: FlightReport) -> Result<FlightReport> {
     Ok(report)
 }
 
-/// Ctrl-C: the first lands, the second stops the loop at once.
+/// Ctrl-C: the first lands, the second stops the loop at once. SIGTERM (a service manager, `kill`)
+/// stops it at once. Either way the run ends as every run does: logs flushed, parameters saved.
 async fn interrupts(commands: mpsc::Sender<LoopCommand>) {
-    if tokio::signal::ctrl_c().await.is_err() {
-        return;
-    }
-    eprintln!("\nautopilot: landing (Ctrl-C again to stop at once)");
-    if commands.send(LoopCommand::Land).await.is_err() {
-        return;
-    }
-    if tokio::signal::ctrl_c().await.is_ok() {
-        let _ = commands.send(LoopCommand::Stop).await;
+    use tokio::signal::unix::{SignalKind, signal};
+    let mut terminate = match signal(SignalKind::terminate()) {
+        Ok(s) => Some(s),
+        Err(e) => {
+            tracing::warn!("SIGTERM not handled: {e}");
+            None
+        }
+    };
+    let terminated = async {
+        match terminate.as_mut() {
+            Some(s) => s.recv().await,
+            None => std::future::pending().await,
+        }
+    };
+    tokio::pin!(terminated);
+    let mut interrupts = 0;
+    loop {
+        tokio::select! {
+            Some(()) = &mut terminated => {
+                tracing::info!("SIGTERM: stopping");
+                let _ = commands.send(LoopCommand::Stop).await;
+                return;
+            }
+            r = tokio::signal::ctrl_c() => {
+                if r.is_err() {
+                    return;
+                }
+                interrupts += 1;
+                let command = if interrupts == 1 {
+                    eprintln!("\nautopilot: landing (Ctrl-C again to stop at once)");
+                    LoopCommand::Land
+                } else {
+                    LoopCommand::Stop
+                };
+                if commands.send(command).await.is_err() {
+                    return;
+                }
+            }
+        }
     }
 }
 

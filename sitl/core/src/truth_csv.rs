@@ -8,7 +8,14 @@ pub struct TruthCsv {
     out: BufWriter<std::fs::File>,
     interval_usec: u64,
     next_usec: u64,
+    /// Simulation time of the last row on disk: see [`FLUSH_INTERVAL_USEC`].
+    flushed_usec: u64,
 }
+
+/// Rows are flushed to disk whenever this much simulation time has passed since the last flush,
+/// so a process killed outright loses at most the last half second of its log (and a stopped
+/// one nothing: it flushes the rest).
+pub const FLUSH_INTERVAL_USEC: u64 = 500_000;
 
 impl TruthCsv {
     /// Creates `path` and writes the header for `rotors` rotors.
@@ -26,6 +33,7 @@ impl TruthCsv {
             out,
             interval_usec: (1e6 / rate_hz.max(0.1)) as u64,
             next_usec: 0,
+            flushed_usec: 0,
         })
     }
 
@@ -60,11 +68,58 @@ impl TruthCsv {
         for w in rotor_speeds {
             write!(self.out, ",{w:.3}")?;
         }
-        writeln!(self.out)
+        writeln!(self.out)?;
+        if t.time_usec >= self.flushed_usec + FLUSH_INTERVAL_USEC {
+            self.flushed_usec = t.time_usec;
+            self.out.flush()?;
+        }
+        Ok(())
     }
 
     /// Flushes buffered rows to disk.
     pub fn flush(&mut self) -> std::io::Result<()> {
         self.out.flush()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+    use crate::sim::{SimConfig, Simulator};
+    use crate::{Airframe, BodyState};
+
+    /// What a process killed outright leaves on disk: every row but those of the last half
+    /// second of simulation time (read through another handle, nothing flushed by hand). Rows
+    /// at 10 Hz: the write buffer alone would hold seconds of them.
+    #[test]
+    fn a_killed_writer_leaves_all_but_the_last_half_second_on_disk() {
+        let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+        let airframe = Airframe::load(&dir.join("../../params/airframes/quad_x.toml")).unwrap();
+        let mut sim =
+            Simulator::new(&airframe, SimConfig::default(), BodyState::default()).unwrap();
+        let path = std::env::temp_dir().join(format!("truth-flush-{}.csv", std::process::id()));
+        let mut csv = TruthCsv::create(&path, 10.0, 4).unwrap();
+        while sim.truth().time_usec < 7_300_000 {
+            sim.step(&[0.0; 4]);
+            let t = sim.truth();
+            csv.record(&t, sim.rotor_speeds()).unwrap();
+            let latest_s = t.time_usec as f64 * 1e-6;
+            let on_disk = std::fs::read_to_string(&path).unwrap();
+            let last_on_disk = on_disk
+                .lines()
+                .filter(|l| l.ends_with(char::is_numeric) && !l.starts_with('t'))
+                .filter_map(|l| l.split(',').next()?.parse::<f64>().ok())
+                .next_back()
+                .unwrap_or(0.0);
+            assert!(
+                latest_s - last_on_disk <= FLUSH_INTERVAL_USEC as f64 * 1e-6 + 0.101,
+                "at {latest_s:.3} s only rows up to {last_on_disk:.3} s are on disk"
+            );
+        }
+        drop(csv);
+        let rows = std::fs::read_to_string(&path).unwrap().lines().count() - 1;
+        assert!((73..=74).contains(&rows), "{rows} rows at 10 Hz over 7.3 s");
+        std::fs::remove_file(&path).unwrap();
     }
 }
