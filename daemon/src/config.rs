@@ -53,6 +53,8 @@ pub struct ConfigFile {
     pub loop_spin_us: Option<f64>,
     /// CPU the control loop is pinned to.
     pub loop_cpu: Option<usize>,
+    /// Interval of the control loop's timing report (s).
+    pub loop_stats_s: Option<f64>,
     /// Ground-station endpoints (URLs), or `["none"]`.
     pub mavlink: Option<Vec<String>>,
     /// File of the parameters changed from a ground station, or `"none"`.
@@ -71,6 +73,8 @@ pub const INSTANCE_RANGE: RangeInclusive<u16> = 0..=250;
 pub const LOOP_HZ_RANGE: RangeInclusive<f64> = 50.0..=2000.0;
 /// Allowed spins before a deadline (µs).
 pub const LOOP_SPIN_RANGE_US: RangeInclusive<f64> = 0.0..=1000.0;
+/// Accepted intervals of the control loop's timing report (s).
+pub const LOOP_STATS_RANGE_S: RangeInclusive<f64> = 0.5..=3600.0;
 /// Allowed real-time factors.
 pub const SPEED_RANGE: RangeInclusive<f64> = 0.01..=10_000.0;
 
@@ -91,6 +95,7 @@ impl ConfigFile {
             ("hover_s", c.hover_s, &HOVER_RANGE_S, "s"),
             ("loop_hz", c.loop_hz, &LOOP_HZ_RANGE, "Hz"),
             ("loop_spin_us", c.loop_spin_us, &LOOP_SPIN_RANGE_US, "µs"),
+            ("loop_stats_s", c.loop_stats_s, &LOOP_STATS_RANGE_S, "s"),
         ] {
             if let Some(x) = value
                 && let Err(e) = in_range(x, range, unit)

@@ -43,9 +43,6 @@ const MAX_READS_PER_TICK: usize = 32;
 /// about a thousand a second when lockstep runs faster (each wakes nobody but costs a notify).
 const TELEMETRY_INTERVAL: Duration = Duration::from_millis(1);
 
-/// How often the deadline loop logs its timing.
-const STATS_INTERVAL: Duration = Duration::from_secs(10);
-
 /// What other tasks ask of the control loop.
 #[derive(Debug)]
 pub enum Command {
@@ -129,6 +126,8 @@ pub enum Pacing {
         period: Duration,
         /// Spin before each deadline.
         spin: Duration,
+        /// How often the loop's timing is logged.
+        stats: Duration,
     },
 }
 
@@ -437,7 +436,7 @@ impl<'a> ControlLoop<'a> {
     }
 
     /// Ticks at absolute deadlines, never waiting on the link.
-    fn run_deadlines(&mut self, period: Duration, spin: Duration) -> Result<()> {
+    fn run_deadlines(&mut self, period: Duration, spin: Duration, stats: Duration) -> Result<()> {
         let start = Instant::now();
         let mut deadlines = Deadlines::new(start, period);
         let (mut interval, mut whole) = (LoopStats::default(), LoopStats::default());
@@ -450,7 +449,7 @@ impl<'a> ControlLoop<'a> {
             let end = Instant::now();
             let missed = deadlines.advance(end);
             interval.record(woke - due, end - woke, missed);
-            if end >= interval_start + STATS_INTERVAL || flow == Flow::Stop {
+            if end >= interval_start + stats || flow == Flow::Stop {
                 let s = interval.summary();
                 let elapsed = (end - interval_start).as_secs_f64();
                 tracing::info!(
@@ -491,7 +490,11 @@ pub fn fly(
     let mut l = ControlLoop::new(link, vehicle, ports, system_id);
     let result = match pacing {
         Pacing::Lockstep => l.run_lockstep(),
-        Pacing::Deadlines { period, spin } => l.run_deadlines(period, spin),
+        Pacing::Deadlines {
+            period,
+            spin,
+            stats,
+        } => l.run_deadlines(period, spin, stats),
     };
     l.ports.telemetry.send_modify(|t| t.finished = true);
     result?;

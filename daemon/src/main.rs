@@ -47,7 +47,7 @@ use vehicle::{AutoFlight, Vehicle};
 struct Cli {
     /// Settings file (TOML): every key mirrors a flag below (source, instance, airframe,
     /// params, params_dir, takeoff_m, hover_s, speed, seed, sensors, truth_csv, flight_csv,
-    /// loop_hz, loop_spin_us, loop_cpu,
+    /// loop_hz, loop_spin_us, loop_cpu, loop_stats_s,
     /// mavlink, param_store); flags given here win. Paths in it are relative to its directory.
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
@@ -115,6 +115,10 @@ struct Cli {
     /// interrupts [default: not pinned].
     #[arg(long, value_name = "N")]
     loop_cpu: Option<usize>,
+    /// With deadline pacing: how often the control loop logs its rate, jitter (p50, p99, max)
+    /// and overruns (s, 0.5 to 3600) [default: 10].
+    #[arg(long, value_name = "S")]
+    loop_stats_s: Option<f64>,
     /// A ground-station endpoint; repeat for several, `none` for none. `udpout://HOST:PORT?bind=LOCAL`
     /// pushes to HOST:PORT from the LOCAL port and answers every peer writing to it;
     /// `udpin://ADDR:PORT` answers every peer writing to it; `tcpin://ADDR:PORT` is a TCP
@@ -175,6 +179,7 @@ struct Settings {
     flight_csv: Option<PathBuf>,
     loop_hz: f64,
     loop_spin_us: f64,
+    loop_stats_s: f64,
     loop_cpu: Option<usize>,
     mavlink: Vec<String>,
     /// None: in memory only.
@@ -246,6 +251,14 @@ impl Settings {
             file.loop_spin_us,
             150.0,
         )?;
+        let loop_stats_s = number(
+            cli.loop_stats_s,
+            "loop-stats-s",
+            &config::LOOP_STATS_RANGE_S,
+            "s",
+            file.loop_stats_s,
+            10.0,
+        )?;
         let sensors = cli
             .sensors
             .clone()
@@ -270,6 +283,7 @@ impl Settings {
             flight_csv: cli.flight_csv.clone().or(file.flight_csv),
             loop_hz,
             loop_spin_us,
+            loop_stats_s,
             loop_cpu: cli.loop_cpu.or(file.loop_cpu),
             mavlink: if cli.mavlink.is_empty() {
                 file.mavlink.unwrap_or_else(|| {
@@ -377,6 +391,7 @@ fn fly(cli: &Cli) -> Result<()> {
     let deadlines = Pacing::Deadlines {
         period: Duration::from_secs_f64(1.0 / cfg.loop_hz),
         spin: Duration::from_secs_f64(cfg.loop_spin_us * 1e-6),
+        stats: Duration::from_secs_f64(cfg.loop_stats_s),
     };
     let (mut ports, commands, telemetry) = Ports::new(16);
     let (params_tx, params_rx) = watch::channel(params.clone());
