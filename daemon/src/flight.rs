@@ -84,6 +84,10 @@ pub struct Telemetry {
     pub loop_stats: Option<LoopSummary>,
     /// The loop has ended.
     pub finished: bool,
+    /// The sensor frames have stopped (the watchdog has fired; the vehicle is reacting).
+    pub sensors_silent: bool,
+    /// Times the sensor source started again from an earlier time (the vehicle with it).
+    pub source_restarts: u32,
 }
 
 /// The control loop's side of its channels.
@@ -334,6 +338,13 @@ impl<'a> ControlLoop<'a> {
             self.silent = true;
             self.report.sensor_timeouts += 1;
             self.vehicle.sensors_stopped();
+            // No step publishes while the frames are silent: the ground station hears of it
+            // (and of the failsafe) now.
+            let status = self.vehicle.status();
+            self.ports.telemetry.send_modify(|t| {
+                t.status = Some(status);
+                t.sensors_silent = true;
+            });
         }
         // Keep the motors on the failsafe's command (a board wants a steady stream).
         let message = self.vehicle.silent_answer(now - last);
@@ -386,6 +397,8 @@ impl<'a> ControlLoop<'a> {
                     frames: self.report.frames,
                     loop_stats: self.loop_stats,
                     finished: false,
+                    sensors_silent: false,
+                    source_restarts: self.vehicle.source_restarts(),
                 });
             }
             if self.vehicle.awaiting_takeoff() && self.t_s > READY_TIMEOUT_S {
@@ -535,6 +548,9 @@ mod tests {
         Gps,
         /// The IMU repeats one reading (gyro and accelerometer), two seconds into the hover.
         ImuFrozen,
+        /// The simulator stops two seconds into the hover and a new one (a new world, the
+        /// vehicle on the ground, its clock from zero) starts a second later.
+        SimRestart,
     }
 
     struct FaultyLink {
@@ -558,6 +574,10 @@ mod tests {
         max_drift_after_m: f64,
         /// The reading a frozen IMU repeats.
         frozen_imu: Option<[f32; 6]>,
+        /// The seed and airframe of a simulator started again, and whether it has been.
+        seed: u64,
+        airframe: Airframe,
+        restarted: bool,
     }
 
     impl FaultyLink {
@@ -566,6 +586,9 @@ mod tests {
             let airframe = Airframe::load(&dir.join("airframes/quad_x.toml")).unwrap();
             Self {
                 sim: EmbeddedSim::new(&airframe, seed, SensorPreset::Typical, None, None).unwrap(),
+                seed,
+                airframe,
+                restarted: false,
                 fault,
                 began_s: None,
                 lost_until_s: 0.0,
@@ -610,9 +633,11 @@ mod tests {
                     self.lost_until_s = f64::INFINITY;
                     self.armed_at_s.map(|a| a + 0.5)
                 }
-                Fault::Gps | Fault::ImuFrozen => self.hover_from_s.map(|h| h + 2.0),
+                Fault::Gps | Fault::ImuFrozen | Fault::SimRestart => {
+                    self.hover_from_s.map(|h| h + 2.0)
+                }
             };
-            if self.began_s.is_none() && start.is_some_and(|s| t >= s) {
+            if self.began_s.is_none() && !self.restarted && start.is_some_and(|s| t >= s) {
                 self.began_s = Some(t);
                 self.horizontal_at_fault = truth.body.pos_ned_m;
             }
@@ -634,6 +659,9 @@ mod tests {
         }
 
         fn frames_lost(&self) -> bool {
+            if matches!(self.fault, Fault::SimRestart) {
+                return !self.restarted && self.began_s.is_some();
+            }
             matches!(self.fault, Fault::Frames { .. } | Fault::FramesOnGround)
                 && self
                     .began_s
@@ -645,6 +673,23 @@ mod tests {
         fn receive(&mut self, timeout: Duration, into: &mut Decoded) -> io::Result<bool> {
             if self.now_s() > 300.0 {
                 return Err(io::Error::other("the flight did not end within 300 s"));
+            }
+            if matches!(self.fault, Fault::SimRestart)
+                && self.frames_lost()
+                && self.began_s.is_some_and(|b| self.now_s() >= b + 1.0)
+            {
+                // A new world: the vehicle on the ground, the clock from zero.
+                self.sim = EmbeddedSim::new(
+                    &self.airframe,
+                    self.seed + 1,
+                    SensorPreset::Typical,
+                    None,
+                    None,
+                )
+                .map_err(|e| io::Error::other(format!("{e:#}")))?;
+                self.restarted = true;
+                self.max_height_m = 0.0;
+                self.touchdown_m_s = 0.0;
             }
             if self.frames_lost() {
                 // The world goes on for the wait; no frame reaches the autopilot.
@@ -820,6 +865,30 @@ mod tests {
             "level a second after the frames came back: {:.1}°",
             link.max_tilt_closed_loop_deg
         );
+    }
+
+    /// A simulator that stops in the air and starts again (a new world, its clock from zero):
+    /// the silence is met by the blind descent; the frames of the new world make the vehicle
+    /// start afresh (disarmed, estimator aligning) and fly again — here the auto flight: take
+    /// off, hover, land — without the daemon restarting.
+    #[test]
+    fn a_simulator_restarted_in_flight_restarts_the_vehicle_which_flies_again() {
+        let (link, report, vehicle) = fly_with(Fault::SimRestart);
+        assert!(link.restarted, "the simulator was restarted");
+        assert!(link.reaction_s.is_some(), "the silence was answered");
+        assert_eq!(report.sensor_timeouts, 1);
+        assert_eq!(vehicle.source_restarts(), 1);
+        assert!(
+            link.max_height_m > 4.5,
+            "flew again: {:.2} m",
+            link.max_height_m
+        );
+        let truth = link.sim.truth();
+        assert!(
+            truth.landed && report.disarmed,
+            "landed and disarmed in the new world"
+        );
+        assert!(link.touchdown_m_s < 1.0, "{:.2} m/s", link.touchdown_m_s);
     }
 
     /// A frozen IMU leaves the frames coming: the monitor finds the repeated reading (0.2 s),

@@ -105,12 +105,21 @@ pub enum VehicleCommand {
     InjectFailure(Injection),
 }
 
+/// How far back the sensor clock must jump for the source to count as started again (s): more
+/// than a lockstep resend or a serial line's backlog, less than any flight.
+pub const SOURCE_RESTART_S: f64 = 1.0;
+const SOURCE_RESTART_USEC: u64 = (SOURCE_RESTART_S * 1e6) as u64;
+
 /// The vehicle: flight core, commander and what has arrived since the last frame.
 pub struct Vehicle {
     core: FlightCore,
     commander: Commander,
     /// For new parameters: the configuration is derived from them and the airframe.
     airframe: Airframe,
+    /// The parameters flown (to start afresh when the sensor source does).
+    params: FlightParams,
+    /// Times the sensor source started again from an earlier time.
+    source_restarts: u32,
     /// The last sensor sample stepped on, set-point flown and ground truth received.
     last_sample: Option<SensorSample>,
     last_setpoint: Option<Setpoint>,
@@ -185,6 +194,8 @@ impl Vehicle {
                 c
             },
             airframe: airframe.clone(),
+            params: params.clone(),
+            source_restarts: 0,
             last_sample: None,
             last_setpoint: None,
             last_truth: None,
@@ -240,6 +251,7 @@ impl Vehicle {
     /// Flies with new parameters from the next step on (a ground station's PARAM_SET); the
     /// estimates, integrators and the flight in progress are kept.
     pub fn set_params(&mut self, params: &FlightParams) {
+        self.params = params.clone();
         self.core
             .set_config(FlightCoreConfig::from_params(params, &self.airframe));
         self.commander.set_params(params.commander);
@@ -580,10 +592,59 @@ impl Vehicle {
         }
     }
 
+    /// Times the sensor source started again from an earlier time (see
+    /// [`Vehicle::on_message`]).
+    pub fn source_restarts(&self) -> u32 {
+        self.source_restarts
+    }
+
+    /// The sensor source started again (its clock went back by more than
+    /// [`SOURCE_RESTART_S`]): a simulator restarted, a flight board rebooted. Whatever the
+    /// vehicle believed is of another world: it starts afresh — disarmed, estimator aligning
+    /// again, commander on the ground —, as a board does when it boots. Kept, as a board's
+    /// storage keeps them: the parameters, the mission, the fence, the flight log.
+    fn source_restarted(&mut self, back_s: f64) {
+        let mut fresh = match Vehicle::new(&self.airframe, &self.params, self.auto) {
+            Ok(v) => v,
+            Err(e) => {
+                // Built from the same airframe and parameters before: not expected.
+                tracing::error!("sensor source restarted, the vehicle not rebuilt: {e:#}");
+                return;
+            }
+        };
+        tracing::warn!(
+            back_s = format!("{back_s:.1}"),
+            was_armed = self.commander.armed(),
+            "sensor source restarted (its clock went back): the vehicle starts afresh"
+        );
+        let _ = fresh.command(VehicleCommand::SetMission(
+            self.commander.mission_items().to_vec(),
+        ));
+        let _ = fresh.command(VehicleCommand::SetFence(std::mem::take(
+            &mut self.fence_zones,
+        )));
+        fresh.csv = self.csv.take();
+        fresh.csv_error = self.csv_error.take();
+        fresh.update = std::mem::take(&mut self.update);
+        fresh.repeated_frames = self.repeated_frames;
+        fresh.source_restarts = self.source_restarts + 1;
+        fresh.injection_enabled = self.injection_enabled;
+        *self = fresh;
+    }
+
     /// Folds one message in; a complete sensor frame runs a step and returns the answer.
+    /// A frame more than [`SOURCE_RESTART_S`] older than the last one is a source that
+    /// started again: the vehicle does too.
     pub fn on_message(&mut self, msg: &MavMessage) -> Option<Step> {
         if !self.update.absorb(msg) {
             return None;
+        }
+        let t_usec = self.update.time_usec?;
+        if let Some((t_last, _)) = &self.last_answer
+            && t_usec.saturating_add(SOURCE_RESTART_USEC) < *t_last
+        {
+            let back_s = (*t_last - t_usec) as f64 * 1e-6;
+            self.source_restarted(back_s);
         }
         let u = &mut self.update;
         let (t_usec, gyro, accel) = (u.time_usec?, u.gyro_frd?, u.accel_frd?);

@@ -80,15 +80,22 @@ class Daemon:
                                                   source_system=255)
         self.ap = None
         self.start()
+        self.sim_args = [
+            "--mode", "lockstep" if lockstep else "realtime", "--speed", "3",
+            "--duration", "100000",
+            "--airframe", airframe,
+            *(["--scenario", str(scenario)] if scenario else []),
+            *(["--control", f"127.0.0.1:{self.control_port}"] if control else []),
+            *sim_args,
+        ]
+        self.sim = None
+        self.start_sim()
+
+    def start_sim(self):
+        """Starts the simulator (again): a new world, the vehicle on the ground."""
         self.sim = subprocess.Popen(
             [str(binary("sitl")), "--params-dir", str(ROOT / "params"), "--status-interval", "0",
-             "--mode", "lockstep" if lockstep else "realtime", "--speed", "3",
-             "--duration", "100000",
-             "--airframe", airframe,
-             *(["--scenario", str(scenario)] if scenario else []),
-             *(["--control", f"127.0.0.1:{self.control_port}"] if control else []),
-             *sim_args,
-             "--autopilot", f"127.0.0.1:{self.sim_port}"],
+             *self.sim_args, "--autopilot", f"127.0.0.1:{self.sim_port}"],
             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
         )
 

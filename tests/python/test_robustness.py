@@ -17,7 +17,8 @@ from pathlib import Path
 from pymavlink import mavutil
 
 from conftest import ROOT, Daemon
-from test_ground_station import ack, armed, ready_to_arm, start_afresh, wait
+from test_ground_station import (ack, armed, ready_to_arm, start_afresh, take_off_and_land,
+                                 wait)
 
 
 def csv_rows(path):
@@ -233,3 +234,38 @@ def heartbeats_until(gcs, end):
             gcs.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS,
                                    mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
         gcs.recv_match(blocking=True, timeout=min(0.1, end - now))
+
+
+def test_a_simulator_restarted_in_flight_is_met_by_a_failsafe_then_flown_again(tmp_path):
+    """The simulator process dies in the air: the ground station is told the sensor frames
+    stopped and the vehicle descends blind; a new simulator (a new world, the vehicle on the
+    ground) is started: the vehicle starts afresh, says so, and takes off and lands again — the
+    daemon never restarted."""
+    daemon = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0")
+    try:
+        gcs = daemon.gcs
+        assert gcs.wait_heartbeat(timeout=30), "no heartbeat"
+        ready_to_arm(gcs)
+        home = wait(gcs, "GLOBAL_POSITION_INT", lambda m: True)
+        gcs.arducopter_arm()
+        assert ack(gcs, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM) == 0
+        gcs.mav.command_long_send(1, 1, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF, 0,
+                                  0, 0, 0, math.nan, math.nan, math.nan, math.nan)
+        wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER" and armed(m), timeout=30)
+
+        daemon.sim.kill()
+        daemon.sim.wait()
+        wait(gcs, "STATUSTEXT", lambda m: m.text == "sensor frames stopped: DESCEND", 5)
+        daemon.start_sim()
+        wait(gcs, "STATUSTEXT", lambda m: m.text == "sensor source restarted: vehicle reset", 20)
+        wait(gcs, "STATUSTEXT", lambda m: m.text == "sensor frames back", 5)
+        wait(gcs, "HEARTBEAT", lambda m: not armed(m), 5)
+        ready_to_arm(gcs)
+        gcs.arducopter_arm()
+        assert ack(gcs, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM) == 0
+        take_off_and_land(gcs, home.alt / 1000 + 3.0, (2.6, 3.4))
+        assert daemon.ap.poll() is None, "the daemon kept running"
+        daemon.stop()
+        assert "sensor source restarted" in daemon.ap_stderr
+    finally:
+        daemon.close()

@@ -169,6 +169,9 @@ pub struct GroundStation {
     safety_events_shown: u64,
     /// The failed motor last announced (1-based).
     motor_failed_shown: Option<usize>,
+    /// The sensor link's state as last said: frames silent, source restarts.
+    sensors_silent_shown: bool,
+    source_restarts_shown: u32,
     /// Offboard set-points dropped as malformed or unsupported.
     pub offboard_refused: u64,
     /// The mission, fence and rally plans and their transfers.
@@ -208,6 +211,8 @@ impl GroundStation {
             offboard_losses_shown: 0,
             safety_events_shown: 0,
             motor_failed_shown: None,
+            sensors_silent_shown: false,
+            source_restarts_shown: 0,
             offboard_refused: 0,
             missions: mission::Missions::default(),
             mission_shown: None,
@@ -316,6 +321,29 @@ impl GroundStation {
                     &format!("motor {m} failed: flying on the others"),
                 ));
             }
+        }
+        // Said before the frames are back: it is why.
+        if t.source_restarts > self.source_restarts_shown {
+            self.source_restarts_shown = t.source_restarts;
+            out.send(Self::statustext(
+                MavSeverity::MAV_SEVERITY_WARNING,
+                "sensor source restarted: vehicle reset",
+            ));
+        }
+        if t.sensors_silent != self.sensors_silent_shown {
+            self.sensors_silent_shown = t.sensors_silent;
+            out.send(if t.sensors_silent {
+                Self::statustext(
+                    MavSeverity::MAV_SEVERITY_CRITICAL,
+                    &format!(
+                        "sensor frames stopped: {}",
+                        t.status
+                            .map_or("-", |s| if s.armed { s.mode.name() } else { "disarmed" })
+                    ),
+                )
+            } else {
+                Self::statustext(MavSeverity::MAV_SEVERITY_NOTICE, "sensor frames back")
+            });
         }
         if let Some(log) = t.status.map(|s| s.safety_log) {
             // Each failsafe event once, in the state machine's words, however short-lived.

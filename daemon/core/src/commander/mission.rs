@@ -110,6 +110,11 @@ impl MissionRun {
 }
 
 impl Commander {
+    /// The mission flown (as last set).
+    pub fn mission_items(&self) -> &[MissionItem] {
+        &self.mission.items
+    }
+
     /// A new mission (an upload finished): replaces the old one and starts at its first item.
     /// Flying in Mission mode, the vehicle goes on with the new mission's first item; an empty
     /// mission there means Hold.
