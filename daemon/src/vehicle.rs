@@ -628,7 +628,6 @@ impl Vehicle {
         fresh.update = std::mem::take(&mut self.update);
         fresh.repeated_frames = self.repeated_frames;
         fresh.source_restarts = self.source_restarts + 1;
-        fresh.injection_enabled = self.injection_enabled;
         *self = fresh;
     }
 
