@@ -83,35 +83,42 @@ class LoopTiming:
     (arrival time, rate Hz, jitter p99 µs, overruns) each."""
 
     def __init__(self, process):
-        self.reports, self.lines = [], []
+        self.reports, self.taken = [], 0
         self.thread = threading.Thread(target=self._read, args=(process.stderr,), daemon=True)
         self.thread.start()
 
     def _read(self, stream):
         for line in stream:
-            self.lines.append(line)
             if "control loop" in line and "jitter_p99_us=" in line:
                 f = dict(kv.split("=", 1) for kv in line.split() if "=" in kv)
                 self.reports.append((time.monotonic(), float(f["rate_hz"].strip('"')),
                                      int(f["jitter_p99_us"]), int(f["overruns"])))
 
+    def pending(self):
+        """Reports arrived and not yet taken."""
+        return len(self.reports) - self.taken
+
+    def take(self, n):
+        new = self.reports[self.taken:self.taken + n]
+        self.taken += len(new)
+        return new
+
     def next_reports(self, gcs, n, timeout=30):
-        """The next `n` reports, the ground station's heartbeat kept going meanwhile."""
-        self.reports_seen = list(self.reports)
+        """The next `n` reports to arrive (those already in are skipped), the ground station's
+        heartbeat kept going meanwhile."""
+        self.taken = len(self.reports)
         end = time.monotonic() + timeout
-        while len(self.reports) < len(self.reports_seen) + n:
+        while self.pending() < n:
             assert time.monotonic() < end, "no control-loop reports"
             heartbeats_until(gcs, time.monotonic() + 0.1)
-        new = self.reports[len(self.reports_seen):][:n]
-        self.reports_seen = self.reports[:len(self.reports_seen) + n]
-        return new
+        return self.take(n)
 
 
 # How often the daemon reports its loop's timing in the flood test (s).
 REPORT_S = 5
 
 # The least unloaded p99 jitter the flood test compares with (µs): see there.
-NOISE_FLOOR_US = 100
+NOISE_FLOOR_US = 200
 
 # The control loop's own CPU in the flood test: the first (on this VM the second serves the
 # virtio balloon's statistics interrupt, a 3 ms stall every 5 s; see the README).
@@ -195,19 +202,20 @@ def test_a_flood_at_the_ground_station_port_neither_starves_the_loop_nor_the_gro
         wait(gcs, "PARAM_VALUE", lambda m: m.param_id == "MPC_XY_CRUISE" and m.param_value == 4.0,
              timeout=5)
         track = []
-        while len(timing.reports) < len(timing.reports_seen) + 2:
+        while timing.pending() < 2:
             heartbeats_until(gcs, time.monotonic() + 0.05)
             p = wait(gcs, "LOCAL_POSITION_NED", lambda m: True, timeout=2)
             track.append((time.monotonic() - flood_start, p.x, p.y, -p.z))
-        flooded = timing.reports[len(timing.reports_seen):][:2]
+        flooded = timing.take(2)
         rss_during, cpu_during = rss_kib(daemon.ap.pid), cpu_s(daemon.ap.pid)
         flood_s = time.monotonic() - flood_start
         out, _ = flooder.communicate(timeout=10)
         sent = json.loads(out)
 
         assert sent["rate"] >= 50_000, sent
-        # This VM's timer noise: an unloaded loop's p99 ranges from 0 to ~90 µs from one
-        # interval to the next, so the baseline is never taken below NOISE_FLOOR_US.
+        # This VM's timer noise: an unloaded loop's p99 ranges from 0 to ~350 µs from one
+        # interval to the next (the host's doing), so the baseline is never taken below
+        # NOISE_FLOOR_US (a tenth of the period). A loop without its own CPU: 560-680 µs.
         baseline = max(NOISE_FLOOR_US, *(r[2] for r in quiet))
         for _, rate, p99, overruns in flooded:
             assert rate >= 495, flooded  # 500 Hz kept
