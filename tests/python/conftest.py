@@ -6,6 +6,7 @@ import os
 import signal
 import socket
 import subprocess
+import time
 from pathlib import Path
 
 import pytest
@@ -31,6 +32,19 @@ def free_udp_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
+
+
+def greet(conn, timeout=30.0):
+    """A ground station's heartbeat every half second on `conn` until a heartbeat comes back: a
+    UDP peer that answers only once it has heard from us may not be listening yet (a datagram
+    sent before it binds is lost), so one heartbeat is not enough."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        conn.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS,
+                                mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+        if conn.wait_heartbeat(timeout=0.5):
+            return
+    raise AssertionError(f"no heartbeat on {conn.address} in {timeout:.0f} s")
 
 
 @pytest.fixture

@@ -16,7 +16,7 @@ from pathlib import Path
 
 from pymavlink import mavutil
 
-from conftest import ROOT, Daemon
+from conftest import ROOT, Daemon, greet
 from test_ground_station import (ack, armed, ready_to_arm, start_afresh, take_off_and_land,
                                  wait)
 
@@ -172,13 +172,7 @@ def test_a_flood_at_the_ground_station_port_neither_starves_the_loop_nor_the_gro
         gcs = mavutil.mavlink_connection(f"udpout:127.0.0.1:{daemon.gcs_port}",
                                          source_system=255)
         # The daemon answers a UDP peer once it has heard from it (and it may not be up yet).
-        for _ in range(30):
-            gcs.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS,
-                                   mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
-            if gcs.wait_heartbeat(timeout=1):
-                break
-        else:
-            raise AssertionError("no heartbeat")
+        greet(gcs)
         ready_to_arm(gcs)
         home = wait(gcs, "GLOBAL_POSITION_INT", lambda m: True)
         assert command(gcs, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1, 0, 0, 0, 0, 0, 0) == 0
