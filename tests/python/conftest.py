@@ -3,9 +3,12 @@
 import asyncio
 import contextlib
 import os
+import queue
+import select
 import signal
 import socket
 import subprocess
+import threading
 import time
 from pathlib import Path
 
@@ -45,6 +48,91 @@ def greet(conn, timeout=30.0):
         if conn.wait_heartbeat(timeout=0.5):
             return
     raise AssertionError(f"no heartbeat on {conn.address} in {timeout:.0f} s")
+
+
+class PtyLink:
+    """A ground station on a serial line: the master side of a pseudo-terminal pair, read on a
+    thread through pymavlink's parser (so the line never fills); the autopilot opens the slave
+    side as a serial port. `name`: a symlink to the slave side, as udev names a USB radio
+    (/dev/serial/by-id/...): `unplug` closes the pair and removes the name (the device is
+    gone), `plug` makes a new pair under the same name. `heartbeat_s`: a ground-station
+    heartbeat that often while plugged in."""
+
+    def __init__(self, name=None, heartbeat_s=None):
+        self.name, self.heartbeat_s = name, heartbeat_s
+        self.lock = threading.Lock()
+        self.master = None
+        self.arrived = queue.Queue()
+        self.mav = mavutil.mavlink.MAVLink(self, srcSystem=255, srcComponent=190)
+        self.mav.robust_parsing = True
+        self.plug()
+        self.running = True
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    def plug(self):
+        master, slave = os.openpty()
+        tty = os.ttyname(slave)
+        os.close(slave)  # the autopilot opens it by name
+        if self.name is not None:
+            os.symlink(tty, self.name)
+        self.device = str(self.name) if self.name is not None else tty
+        while not self.arrived.empty():  # what came over the line before
+            self.arrived.get_nowait()
+        with self.lock:
+            self.master = master
+
+    def unplug(self):
+        with self.lock:
+            os.close(self.master)
+            self.master = None
+        if self.name is not None:
+            os.unlink(self.name)
+
+    def close(self):
+        self.running = False
+        self.thread.join()
+        if self.master is not None:
+            self.unplug()
+
+    def write(self, data):
+        with self.lock:
+            if self.master is not None:
+                os.write(self.master, data)
+
+    def _run(self):
+        next_heartbeat = 0.0
+        while self.running:
+            if self.heartbeat_s and time.monotonic() >= next_heartbeat:
+                next_heartbeat = time.monotonic() + self.heartbeat_s
+                self.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS,
+                                        mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+            with self.lock:
+                fd = self.master
+            try:
+                if fd is None or not select.select([fd], [], [], 0.05)[0]:
+                    continue
+                data = os.read(fd, 4096)
+            except OSError:
+                # Nobody has the slave side open (yet, or any more), or it was just unplugged:
+                # look again shortly.
+                time.sleep(0.05)
+                continue
+            for m in self.mav.parse_buffer(data) or []:
+                self.arrived.put(m)
+
+    def recv(self, what, condition, timeout=10):
+        """The first message of type `what` from component 1 for which condition(msg) holds
+        (those before it are dropped)."""
+        end = time.monotonic() + timeout
+        while (left := end - time.monotonic()) > 0:
+            try:
+                m = self.arrived.get(timeout=left)
+            except queue.Empty:
+                break
+            if m.get_type() == what and m.get_srcComponent() == 1 and condition(m):
+                return m
+        pytest.fail(f"no {what} over the serial line within {timeout} s")
 
 
 @pytest.fixture

@@ -6,9 +6,7 @@ commands (PX4's pre-flight auto-disarm, for one, counts simulated seconds).
 """
 
 import math
-import os
 import random
-import select
 import struct
 import threading
 import time
@@ -16,7 +14,7 @@ import time
 import pytest
 from pymavlink import mavutil
 
-from conftest import Daemon
+from conftest import Daemon, PtyLink
 
 PREARM_CHECK = mavutil.mavlink.MAV_SYS_STATUS_PREARM_CHECK
 
@@ -550,40 +548,6 @@ def test_stabilized_flies_attitude_and_thrust_from_the_sticks(vehicle):
         sticks.stop()
 
 
-class PtyLink:
-    """The ground station's end of a pseudo-terminal pair: pymavlink's parser and encoder over
-    the master side; the autopilot opens the slave side as a serial port."""
-
-    def __init__(self):
-        self.master, slave = os.openpty()
-        self.device = os.ttyname(slave)
-        os.close(slave)  # the autopilot opens it by name
-        self.mav = mavutil.mavlink.MAVLink(self, srcSystem=255, srcComponent=190)
-        self.mav.robust_parsing = True
-        self.pending = []  # parsed, not yet looked at (one read may carry several messages)
-
-    def write(self, data):
-        os.write(self.master, data)
-
-    def recv(self, what, condition, timeout=10):
-        """The first message of type `what` from component 1 for which condition(msg) holds."""
-        end = time.monotonic() + timeout
-        while time.monotonic() < end:
-            while self.pending:
-                m = self.pending.pop(0)
-                if m.get_type() == what and m.get_srcComponent() == 1 and condition(m):
-                    return m
-            ready, _, _ = select.select([self.master], [], [], 0.2)
-            if not ready:
-                continue
-            try:
-                data = os.read(self.master, 4096)
-            except OSError:  # nobody has the slave side open yet
-                continue
-            self.pending.extend(self.mav.parse_buffer(data) or [])
-        pytest.fail(f"no {what} over the serial line within {timeout} s")
-
-
 def test_a_ground_station_on_a_serial_line(tmp_path):
     link = PtyLink()
     daemon = Daemon(tmp_path, f"serial://{link.device}?baud=57600", connect=False)
@@ -602,4 +566,4 @@ def test_a_ground_station_on_a_serial_line(tmp_path):
             == 2.5
     finally:
         daemon.close()
-        os.close(link.master)
+        link.close()

@@ -16,9 +16,10 @@ from pathlib import Path
 
 from pymavlink import mavutil
 
-from conftest import ROOT, Daemon, greet
-from test_ground_station import (ack, armed, ready_to_arm, start_afresh, take_off_and_land,
-                                 wait)
+from conftest import ROOT, Daemon, PtyLink, binary, free_udp_port, greet
+from test_ground_station import (INT32, REAL32, ack, armed, int_bits, ready_to_arm, set_param,
+                                 start_afresh, take_off_and_land, wait)
+from test_safety import Heartbeats, reposition_north
 
 
 def csv_rows(path):
@@ -271,4 +272,210 @@ def test_a_simulator_restarted_in_flight_is_met_by_a_failsafe_then_flown_again(t
         daemon.stop()
         assert "sensor source restarted" in daemon.ap_stderr
     finally:
+        daemon.close()
+
+
+def test_a_serial_radio_unplugged_in_flight_is_met_by_the_link_loss_failsafe_then_reopened(
+        tmp_path):
+    """The only ground station talks over a USB radio (a pty pair behind a udev-like name); the
+    radio is pulled out in the air. The daemon says the serial link is lost (on its other link)
+    and, once the heartbeats have been missing for COM_DL_LOSS_T, holds and then lands
+    (NAV_DLL_ACT 3). The radio is plugged in again (a new device under the same name): the
+    daemon reopens it by itself, says so, hears the link regained, and the operator takes over
+    from the radio (Hold) mid-descent — the daemon never restarted."""
+    radio = PtyLink(tmp_path / "ttyRadio", heartbeat_s=0.5)
+    ML = mavutil.mavlink
+    daemon = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0",
+                    ap_args=["--mavlink", f"serial://{radio.device}?baud=57600"])
+    try:
+        observer = daemon.gcs  # on UDP, never sends: only the radio's heartbeats count
+
+        def command(cmd, *params):
+            radio.mav.command_long_send(1, 1, cmd, 0, *params, *[0] * (7 - len(params)))
+            return radio.recv("COMMAND_ACK", lambda m: m.command == cmd).result
+
+        def set_param(name, value, ptype=REAL32):
+            radio.mav.param_set_send(1, 1, name.encode(), value, ptype)
+            radio.recv("PARAM_VALUE", lambda m: m.param_id == name and m.param_value == value)
+
+        radio.recv("HEARTBEAT", lambda m: True, 30)
+        set_param("NAV_DLL_ACT", int_bits(3), INT32)  # Land
+        set_param("COM_DL_LOSS_T", 2.0)
+        set_param("COM_FAIL_ACT_T", 3.0)  # flight time: 1 s here
+        set_param("MIS_TAKEOFF_ALT", 15.0)
+        ready_to_arm(observer)
+        assert command(ML.MAV_CMD_COMPONENT_ARM_DISARM, 1) == 0
+        assert command(ML.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan,
+                       math.nan) == 0
+        wait(observer, "LOCAL_POSITION_NED", lambda m: m.z < -14.5, 40)
+
+        radio.unplug()
+        pulled = time.monotonic()
+        wait(observer, "STATUSTEXT", lambda m: m.text == "serial link ttyRadio lost: reopening", 3)
+        wait(observer, "STATUSTEXT",
+             lambda m: m.text == "failsafe: ground-station link lost: Hold", 5)
+        noticed = time.monotonic() - pulled
+        assert 1.5 < noticed < 4.0, f"link loss said {noticed:.1f} s after (COM_DL_LOSS_T 2 s)"
+        wait(observer, "STATUSTEXT",
+             lambda m: m.text == "failsafe: ground-station link lost: Land now", 5)
+        wait(observer, "HEARTBEAT", lambda m: observer.flightmode == "LAND" and armed(m), 3)
+        landing_from = -wait(observer, "LOCAL_POSITION_NED", lambda m: True, 2).z
+
+        radio.plug()
+        wait(observer, "STATUSTEXT", lambda m: m.text == "serial link ttyRadio back", 5)
+        wait(observer, "STATUSTEXT", lambda m: m.text == "ground-station link regained", 5)
+        radio.recv("STATUSTEXT", lambda m: m.text == "ground-station link regained", 5)
+        now = -wait(observer, "LOCAL_POSITION_NED", lambda m: True, 2).z
+        assert 2.0 < now < landing_from - 0.5, f"landing from {landing_from:.1f} m: {now:.1f} m"
+        # The operator takes over again, from the radio.
+        assert command(ML.MAV_CMD_DO_SET_MODE, *mavutil.px4_map["LOITER"]) == 0
+        wait(observer, "HEARTBEAT", lambda m: observer.flightmode == "LOITER" and armed(m), 3)
+        held = [wait(observer, "LOCAL_POSITION_NED", lambda m: abs(m.vz) < 0.3, 5)]
+        end = time.monotonic() + 2
+        while time.monotonic() < end:
+            held.append(wait(observer, "LOCAL_POSITION_NED", lambda m: True, 2))
+        alts = [-m.z for m in held]
+        assert max(alts) - min(alts) < 0.5 and min(alts) > 1.5, alts
+
+        assert daemon.ap.poll() is None, "the daemon kept running"
+        daemon.ap.send_signal(signal.SIGTERM)
+        _, err = daemon.ap.communicate(timeout=20)
+        assert "ground-station serial link lost" in err, err
+        assert err.count("MAVLink serial endpoint") == 2, err
+    finally:
+        daemon.close()
+        radio.close()
+    print(f"\nradio pulled at {landing_from:.1f} m: link loss said after {noticed:.1f} s; "
+          f"regained at {now:.1f} m, held at {alts[-1]:.1f} m")
+
+
+class Board:
+    """sitl playing a flight board in real time on a pseudo-terminal, its device behind a
+    udev-like name (/dev/serial/by-id/...): `pull` kills it (the device goes), `start` plugs a
+    new one in under the same name (a new world: its clock starts again)."""
+
+    def __init__(self, name):
+        self.name = name
+        self.start()
+
+    def start(self):
+        self.proc = subprocess.Popen(
+            [str(binary("sitl")), "--params-dir", str(ROOT / "params"), "--status-interval", "0",
+             "--serial", "pty", "--mode", "realtime", "--duration", "100000",
+             "--airframe", "quad_x"],
+            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+        line = self.proc.stdout.readline()  # its first line, or "" if it exits
+        assert line.startswith("sitl serial: "), line
+        os.symlink(line.strip().removeprefix("sitl serial: "), self.name)
+
+    def pull(self):
+        self.proc.kill()
+        self.proc.wait()
+        os.unlink(self.name)
+
+
+def test_a_flight_board_unplugged_in_flight_is_met_by_a_failsafe_then_reopened(tmp_path):
+    """The sensor source is a flight board on a serial line (sitl in real time on a pty behind
+    a udev-like name). Pulled out in the air: the ground station hears that the sensor frames
+    stopped and the vehicle descends blind. A board is plugged in again under the same name (it
+    rebooted: its clock starts again): the daemon reopens the port by itself, the vehicle starts
+    afresh, says so, and takes off and lands again — the daemon never restarted."""
+    board = Board(tmp_path / "ttyBoard")
+    # A board's magnetometer is calibrated once by its owner (a simulator's is preset).
+    params = tmp_path / "flight.toml"
+    text = (ROOT / "params" / "flight.toml").read_text()
+    params.write_text(text.replace("mag_calibration_id = 0 ", "mag_calibration_id = 1 ", 1))
+    gcs_port = free_udp_port()
+    gcs = mavutil.mavlink_connection(f"udpin:127.0.0.1:{gcs_port}", source_system=255)
+    ap = subprocess.Popen(
+        [str(binary("autopilot")), "--params-dir", str(ROOT / "params"), "--params", str(params),
+         "--source", f"serial://{board.name}", "--loop-hz", "500", "--airframe", "quad_x",
+         "--mavlink", f"udpout://127.0.0.1:{gcs_port}?bind=0",
+         "--param-store", str(tmp_path / "params.toml")],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        assert gcs.wait_heartbeat(timeout=30), "no heartbeat"
+        ready_to_arm(gcs)
+        home = wait(gcs, "GLOBAL_POSITION_INT", lambda m: True)
+        gcs.arducopter_arm()
+        assert ack(gcs, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM) == 0
+        gcs.mav.command_long_send(1, 1, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF, 0,
+                                  0, 0, 0, math.nan, math.nan, math.nan, math.nan)
+        wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER" and armed(m), timeout=30)
+
+        board.pull()
+        wait(gcs, "STATUSTEXT", lambda m: m.text == "sensor frames stopped: DESCEND", 5)
+        board.start()
+        wait(gcs, "STATUSTEXT", lambda m: m.text == "sensor source restarted: vehicle reset", 20)
+        wait(gcs, "STATUSTEXT", lambda m: m.text == "sensor frames back", 5)
+        wait(gcs, "HEARTBEAT", lambda m: not armed(m), 5)
+        ready_to_arm(gcs)
+        gcs.arducopter_arm()
+        assert ack(gcs, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM) == 0
+        take_off_and_land(gcs, home.alt / 1000 + 3.0, (2.6, 3.4))
+        assert ap.poll() is None, "the daemon kept running"
+        ap.send_signal(signal.SIGTERM)
+        _, err = ap.communicate(timeout=20)
+        assert ap.returncode == 0, err
+        assert "serial link lost" in err and "serial link back" in err, err
+    finally:
+        ap.kill()
+        board.proc.kill()
+
+
+def test_a_ground_station_that_goes_away_is_met_by_a_failsafe_and_one_that_comes_is_served(
+        tmp_path):
+    """A ground station (UDP, the daemon listening) flies the vehicle 8 m north, then goes away
+    (its process ends: heartbeats stop, its socket closes). The link-loss failsafe (NAV_DLL_ACT 2)
+    holds, then returns. Another ground station starts (a new port): it is answered at once,
+    the link is said regained, and it watches the return land at home — the daemon never
+    restarted. A passive observer on a second endpoint hears what nobody else could."""
+    listen = free_udp_port()
+    daemon = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0",
+                    ap_args=["--mavlink", f"udpin://127.0.0.1:{listen}"])
+    observer = daemon.gcs  # never sends: only the ground stations' heartbeats count
+    first = mavutil.mavlink_connection(f"udpout:127.0.0.1:{listen}", source_system=255)
+    second = beats = None
+    try:
+        greet(first)
+        beats = Heartbeats(first)
+        set_param(first, "NAV_DLL_ACT", int_bits(2), INT32)  # Return
+        set_param(first, "COM_DL_LOSS_T", 2.0)
+        set_param(first, "COM_FAIL_ACT_T", 3.0)  # flight time: 1 s here
+        ready_to_arm(observer)
+        home = wait(observer, "GLOBAL_POSITION_INT", lambda m: True)
+        first.arducopter_arm()
+        assert ack(first, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM) == 0
+        first.mav.command_long_send(1, 1, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF, 0,
+                                    0, 0, 0, math.nan, math.nan, math.nan, math.nan)
+        wait(observer, "HEARTBEAT", lambda m: observer.flightmode == "LOITER" and armed(m), 30)
+        start = wait(observer, "LOCAL_POSITION_NED", lambda m: True)
+        reposition_north(first, home, 8)
+        wait(observer, "LOCAL_POSITION_NED", lambda m: m.x - start.x > 7.0 and abs(m.vx) < 0.3, 30)
+
+        beats.stop()
+        first.close()
+        wait(observer, "STATUSTEXT",
+             lambda m: m.text == "failsafe: ground-station link lost: Hold", 5)
+        wait(observer, "STATUSTEXT",
+             lambda m: m.text == "failsafe: ground-station link lost: Return now", 5)
+        wait(observer, "HEARTBEAT", lambda m: observer.flightmode == "RTL" and armed(m), 3)
+
+        second = mavutil.mavlink_connection(f"udpout:127.0.0.1:{listen}", source_system=255)
+        greet(second, timeout=5)  # answered at once (within a heartbeat or so)
+        beats = Heartbeats(second)
+        wait(observer, "STATUSTEXT", lambda m: m.text == "ground-station link regained", 5)
+        wait(second, "HEARTBEAT", lambda m: second.flightmode == "RTL" and armed(m), 3)
+        wait(second, "HEARTBEAT", lambda m: not armed(m), 90)
+        end = wait(second, "LOCAL_POSITION_NED", lambda m: True)
+        off = math.hypot(end.x - start.x, end.y - start.y)
+        assert off < 1.0, f"landed {off:.2f} m from home"
+        assert daemon.ap.poll() is None, "the daemon kept running"
+        daemon.ap.send_signal(signal.SIGTERM)
+        _, err = daemon.ap.communicate(timeout=20)
+        assert err.count("ground station connected") == 2, err
+        assert "failsafe: ground-station link lost: Return now" in err, err
+    finally:
+        if beats is not None:
+            beats.stop()
         daemon.close()

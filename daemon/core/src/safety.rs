@@ -52,7 +52,8 @@ impl Action {
         }
     }
 
-    /// `NAV_DLL_ACT` (PX4's values): 0 disabled, 1 Hold, 2 Return, 3 Land, 5 terminate, 6 disarm.
+    /// `NAV_DLL_ACT` (PX4's values): 0 no action (the loss and the return still said, as PX4
+    /// does), 1 Hold, 2 Return, 3 Land, 5 terminate, 6 disarm.
     pub fn from_nav_dll_act(v: u32) -> Self {
         match v {
             1 => Self::Hold,
@@ -60,7 +61,7 @@ impl Action {
             3 => Self::Land,
             5 => Self::Terminate,
             6 => Self::Disarm,
-            _ => Self::None,
+            _ => Self::Warn,
         }
     }
 
@@ -177,7 +178,7 @@ crate::params::param_group! {
         /// Ground-station link loss time (s).
         gcs_loss_s: f64 = 5.0, "COM_DL_LOSS_T", "s", [1.0, 300.0], "Ground-station link lost after this long without its heartbeat (wall-clock time)";
         /// Ground-station link loss action.
-        gcs_loss_action: u32 = 0, "NAV_DLL_ACT", "", [0.0, 6.0], "Ground-station link loss: 0 disabled, 1 Hold, 2 Return, 3 Land, 5 terminate, 6 disarm";
+        gcs_loss_action: u32 = 0, "NAV_DLL_ACT", "", [0.0, 6.0], "Ground-station link loss: 0 warn only, 1 Hold, 2 Return, 3 Land, 5 terminate, 6 disarm";
         /// Hold before a delayed failsafe action (s).
         action_delay_s: f64 = 5.0, "COM_FAIL_ACT_T", "s", [0.0, 25.0], "Hold this long before a link-loss action, waiting for the link";
         /// Battery failsafe action.
@@ -362,6 +363,7 @@ impl fmt::Display for SafetyEvent {
         match self {
             Self::Triggered(c, Action::Warn | Action::None) => write!(f, "{c}"),
             Self::Triggered(c, a) => write!(f, "failsafe: {c}: {}", a.name()),
+            Self::Cleared(Condition::GcsLinkLost) => write!(f, "ground-station link regained"),
             Self::Cleared(c) => write!(f, "failsafe over: {c}"),
             Self::Escalated(c, a) => write!(f, "failsafe: {c}: {} now", a.name()),
         }

@@ -385,19 +385,32 @@ async fn tcp_server(
 /// How long a serial read waits: the latency of frames going out while nothing comes in.
 const SERIAL_POLL: Duration = Duration::from_millis(10);
 
+/// What the ground stations are told (on every link that is up), besides the log.
+type Notices = mpsc::Sender<(MavSeverity, String)>;
+
 /// A serial endpoint on its own thread (serial I/O blocks): reads frames in, writes the
 /// vehicle's frames out, and reopens the port with backoff (0.1 s doubling to 2 s) when it
-/// fails or vanishes, until the frames channel closes. Frames sent while it is closed are lost.
+/// fails or vanishes (a USB radio unplugged: its device gone, then back under the same udev
+/// name), until the frames channel closes. Frames sent while it is closed are lost. The loss
+/// and the return are told to the other links' ground stations (and to this one once back).
 fn serial(
     path: std::path::PathBuf,
     baud: u32,
     guard: Guard,
     inbound: mpsc::Sender<Inbound>,
     mut frames: broadcast::Receiver<Arc<[u8]>>,
+    notices: Notices,
 ) {
     use std::io::{Read, Write};
+    // STATUSTEXT holds 50 bytes: the device's name, not its whole path.
+    let name = path.file_name().map_or_else(
+        || path.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    );
     let mut backoff = Duration::from_millis(100);
     let mut said_down = false;
+    let mut lost_once = false;
+    let mut output_full = 0u64;
     let mut buf = vec![0u8; 4096];
     loop {
         // Frames queued while the port is closed are dropped, not sent late.
@@ -424,13 +437,20 @@ fn serial(
             }
         };
         tracing::info!(port = %path.display(), baud, "MAVLink serial endpoint");
-        said_down = false;
+        if lost_once {
+            let _ = notices.try_send((
+                MavSeverity::MAV_SEVERITY_NOTICE,
+                format!("serial link {name} back"),
+            ));
+        }
         backoff = Duration::from_millis(100);
         let mut splitter = StreamDecoder::default();
         let mut decoded = new_decoded();
         let failure = loop {
             match port.read(&mut buf) {
-                Ok(0) => {}
+                // A poll said readable and nothing came: the line hung up (a pty's other end
+                // closed), which would read nothing for ever.
+                Ok(0) => break std::io::Error::from(std::io::ErrorKind::UnexpectedEof),
                 Ok(n) => {
                     guard.push(&mut splitter, &buf[..n], &mut decoded);
                     deliver(&mut decoded, &inbound, guard.options.trusted);
@@ -442,12 +462,21 @@ fn serial(
             let mut write_error = None;
             loop {
                 match frames.try_recv() {
-                    Ok(frame) => {
-                        if let Err(e) = port.write_all(&frame) {
+                    Ok(frame) => match port.write_all(&frame) {
+                        Ok(()) => {}
+                        // Output full (a radio holding CTS, a reader that stalls): this frame
+                        // is lost (the far parser skips a cut one), not the port.
+                        Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {
+                            output_full += 1;
+                            if output_full.is_power_of_two() {
+                                tracing::warn!(port = %path.display(), dropped = output_full, "ground-station serial output full: frames dropped");
+                            }
+                        }
+                        Err(e) => {
                             write_error = Some(e);
                             break;
                         }
-                    }
+                    },
                     Err(broadcast::error::TryRecvError::Lagged(n)) => {
                         tracing::debug!("ground-station serial behind: {n} frames dropped");
                     }
@@ -460,6 +489,14 @@ fn serial(
             }
         };
         tracing::warn!(port = %path.display(), "ground-station serial link lost: {failure}; reopening");
+        let _ = notices.try_send((
+            MavSeverity::MAV_SEVERITY_WARNING,
+            format!("serial link {name} lost: reopening"),
+        ));
+        lost_once = true;
+        // The first attempt waits too: a device that is going away may still open at once.
+        said_down = true;
+        std::thread::sleep(backoff);
     }
 }
 
@@ -470,6 +507,7 @@ async fn open(
     guard: Guard,
     inbound: &mpsc::Sender<Inbound>,
     frames: &Frames,
+    notices: &Notices,
 ) -> Result<()> {
     match &spec.endpoint {
         Endpoint::UdpOut { target, bind } => {
@@ -500,11 +538,16 @@ async fn open(
             tokio::spawn(tcp_server(l, guard, inbound.clone(), frames.clone()));
         }
         Endpoint::Serial { path, baud } => {
-            let (path, baud, inbound, frames) =
-                (path.clone(), *baud, inbound.clone(), frames.subscribe());
+            let (path, baud, inbound, frames, notices) = (
+                path.clone(),
+                *baud,
+                inbound.clone(),
+                frames.subscribe(),
+                notices.clone(),
+            );
             std::thread::Builder::new()
                 .name("gcs-serial".into())
-                .spawn(move || serial(path, baud, guard, inbound, frames))
+                .spawn(move || serial(path, baud, guard, inbound, frames, notices))
                 .context("starting the serial endpoint")?;
         }
     }
@@ -603,7 +646,7 @@ fn setup_signing(
 
 /// Saves every store it is handed, the latest first (a burst of sets is one write), and says
 /// so when a save fails.
-async fn saver(mut stores: watch::Receiver<Option<ParamStore>>, notices: mpsc::Sender<String>) {
+async fn saver(mut stores: watch::Receiver<Option<ParamStore>>, notices: Notices) {
     while stores.changed().await.is_ok() {
         let Some(store) = stores.borrow_and_update().clone() else {
             continue;
@@ -616,7 +659,10 @@ async fn saver(mut stores: watch::Receiver<Option<ParamStore>>, notices: mpsc::S
         };
         tracing::error!("{failure}");
         let _ = notices
-            .send(format!("parameters not saved: {failure}"))
+            .send((
+                MavSeverity::MAV_SEVERITY_ERROR,
+                format!("parameters not saved: {failure}"),
+            ))
             .await;
     }
 }
@@ -651,16 +697,16 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<Actio
     let (frames, _) = broadcast::channel::<Arc<[u8]>>(1024);
     let (inbound_tx, mut inbound) = mpsc::channel::<Inbound>(256);
     let (answers_tx, mut answers) = mpsc::channel::<(AckTo, Result<(), String>)>(64);
-    let (notices_tx, mut notices) = mpsc::channel::<String>(8);
+    let (notices_tx, mut notices) = mpsc::channel::<(MavSeverity, String)>(8);
     let (save_tx, save_rx) = watch::channel(None::<ParamStore>);
-    let saving = tokio::spawn(saver(save_rx, notices_tx));
+    let saving = tokio::spawn(saver(save_rx, notices_tx.clone()));
     for e in &endpoints {
         let guard = Guard {
             options: e.options.clone(),
             signing: signing.clone(),
             not_allowed: not_allowed.clone(),
         };
-        if let Err(e) = open(e, guard, &inbound_tx, &frames).await {
+        if let Err(e) = open(e, guard, &inbound_tx, &frames, &notices_tx).await {
             tracing::warn!("ground-station endpoint not opened: {e:#}");
         }
     }
@@ -685,7 +731,7 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<Actio
                         MavMessage::SETUP_SIGNING(d) if d.target_system == system_id => {
                             let (severity, text) =
                                 setup_signing(&signing, signing_key_file.as_deref(), d, i.trusted);
-                            out.send(GroundStation::statustext(severity, &text));
+                            out.say(severity, &text);
                         }
                         _ => gcs.on_message(h, m, &t, &mut out),
                     }
@@ -695,8 +741,8 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<Actio
                 }
             }
             Some((to, result)) = answers.recv() => gcs.answered(to, result, &mut out),
-            Some(text) = notices.recv() => {
-                out.send(GroundStation::statustext(MavSeverity::MAV_SEVERITY_ERROR, &text));
+            Some((severity, text)) = notices.recv() => {
+                out.say(severity, &text);
             }
             _ = tick.tick() => {
                 let t = *telemetry.borrow_and_update();
@@ -742,10 +788,7 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<Actio
         if std::mem::take(&mut out.gcs_heartbeat) {
             let _ = commands.try_send(Command::Vehicle(VehicleCommand::GcsHeartbeat, None));
             for text in startup_notices.drain(..) {
-                out.send(GroundStation::statustext(
-                    MavSeverity::MAV_SEVERITY_WARNING,
-                    &text,
-                ));
+                out.say(MavSeverity::MAV_SEVERITY_WARNING, &text);
             }
         }
         if let Some(sticks) = out.sticks.take() {

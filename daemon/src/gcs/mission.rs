@@ -545,10 +545,10 @@ impl Missions {
             Err(why) => {
                 tracing::warn!(seq = m.seq, command = ?m.command, frame = ?m.frame, ?why, "mission upload refused");
                 out.send(ack(peer, u.kind, why, 0));
-                out.send(super::GroundStation::statustext(
+                out.say(
                     MavSeverity::MAV_SEVERITY_WARNING,
                     &format!("mission item {} refused: {why:?}", m.seq),
-                ));
+                );
                 self.upload = None;
                 return;
             }
@@ -576,10 +576,10 @@ impl Missions {
                 Err(why) => {
                     tracing::warn!(?why, "fence upload refused");
                     out.send(ack(peer, u.kind, why, 0));
-                    out.send(super::GroundStation::statustext(
+                    out.say(
                         MavSeverity::MAV_SEVERITY_WARNING,
                         &format!("fence refused: {why:?}"),
-                    ));
+                    );
                     return;
                 }
             }

@@ -118,13 +118,48 @@ pub struct Outbox {
     pub fence: Option<Vec<flight_core::geofence::GeoZone>>,
     /// A ground station's heartbeat arrived (the link-loss failsafe's clock restarts).
     pub gcs_heartbeat: bool,
+    /// The `id` of the last text sent in chunks.
+    statustext_id: u16,
 }
 
 impl Outbox {
     fn send(&mut self, m: MavMessage) {
         self.messages.push(Outgoing::Message(m));
     }
+
+    /// Tells the operator `text` in `STATUSTEXT`: one message when it fits its 50 bytes, else
+    /// chunks of 50 bytes sharing a non-zero `id`, numbered by `chunk_seq`, the last one
+    /// shorter (an empty one if need be: a full chunk says more follows), as the MAVLink spec
+    /// asks; QGroundControl shows them reassembled, a ground station that does not reassemble
+    /// shows the pieces in order. Longer than 255 chunks is cut.
+    pub fn say(&mut self, severity: MavSeverity, text: &str) {
+        let bytes = text.as_bytes();
+        let id = if bytes.len() <= STATUSTEXT_BYTES {
+            0
+        } else {
+            self.statustext_id = self.statustext_id.wrapping_add(1).max(1);
+            self.statustext_id
+        };
+        for chunk_seq in 0..=u8::MAX {
+            let from = usize::from(chunk_seq) * STATUSTEXT_BYTES;
+            let chunk = &bytes[from.min(bytes.len())..(from + STATUSTEXT_BYTES).min(bytes.len())];
+            let mut field = [0u8; STATUSTEXT_BYTES];
+            field[..chunk.len()].copy_from_slice(chunk);
+            self.send(MavMessage::STATUSTEXT(STATUSTEXT_DATA {
+                severity,
+                text: field.into(),
+                id,
+                chunk_seq,
+            }));
+            if id == 0 || chunk.len() < STATUSTEXT_BYTES {
+                return;
+            }
+        }
+    }
 }
+
+/// The bytes a `STATUSTEXT` carries.
+const STATUSTEXT_BYTES: usize = 50;
 
 /// One stream: its interval and when it is next due (s of the ground station's clock).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -248,7 +283,7 @@ impl GroundStation {
         match loaded {
             Ok(l) => {
                 for w in &l.warnings {
-                    out.send(Self::statustext(MavSeverity::MAV_SEVERITY_WARNING, w));
+                    out.say(MavSeverity::MAV_SEVERITY_WARNING, w);
                 }
                 self.params.replace(l.params, l.store);
                 out.actions.push(Action::ParamsChanged);
@@ -256,7 +291,7 @@ impl GroundStation {
             }
             Err(e) => {
                 out.send(self.ack(to, MavResult::MAV_RESULT_FAILED));
-                out.send(Self::statustext(MavSeverity::MAV_SEVERITY_ERROR, &e));
+                out.say(MavSeverity::MAV_SEVERITY_ERROR, &e);
             }
         }
     }
@@ -298,61 +333,61 @@ impl GroundStation {
         let losses = t.status.map_or(0, |s| s.manual_losses);
         if losses > self.manual_losses_shown {
             self.manual_losses_shown = losses;
-            out.send(Self::statustext(
+            out.say(
                 MavSeverity::MAV_SEVERITY_CRITICAL,
                 "manual control lost: Hold",
-            ));
+            );
         }
         let losses = t.status.map_or(0, |s| s.offboard_losses);
         if losses > self.offboard_losses_shown {
             self.offboard_losses_shown = losses;
             let mode = t.status.map_or("Hold", |s| s.mode.name());
-            out.send(Self::statustext(
+            out.say(
                 MavSeverity::MAV_SEVERITY_CRITICAL,
                 &format!("offboard set-points lost: {mode}"),
-            ));
+            );
         }
         let motor = t.status.and_then(|s| s.motor_failed);
         if motor != self.motor_failed_shown {
             self.motor_failed_shown = motor;
             if let Some(m) = motor {
-                out.send(Self::statustext(
+                out.say(
                     MavSeverity::MAV_SEVERITY_CRITICAL,
                     &format!("motor {m} failed: flying on the others"),
-                ));
+                );
             }
         }
         // Said before the frames are back: it is why.
         if t.source_restarts > self.source_restarts_shown {
             self.source_restarts_shown = t.source_restarts;
-            out.send(Self::statustext(
+            out.say(
                 MavSeverity::MAV_SEVERITY_WARNING,
                 "sensor source restarted: vehicle reset",
-            ));
+            );
         }
         if t.sensors_silent != self.sensors_silent_shown {
             self.sensors_silent_shown = t.sensors_silent;
-            out.send(if t.sensors_silent {
-                Self::statustext(
+            if t.sensors_silent {
+                out.say(
                     MavSeverity::MAV_SEVERITY_CRITICAL,
                     &format!(
                         "sensor frames stopped: {}",
                         t.status
                             .map_or("-", |s| if s.armed { s.mode.name() } else { "disarmed" })
                     ),
-                )
+                );
             } else {
-                Self::statustext(MavSeverity::MAV_SEVERITY_NOTICE, "sensor frames back")
-            });
+                out.say(MavSeverity::MAV_SEVERITY_NOTICE, "sensor frames back");
+            }
         }
         if let Some(log) = t.status.map(|s| s.safety_log) {
             // Each failsafe event once, in the state machine's words, however short-lived.
             let (missed, events) = log.since(self.safety_events_shown);
             if missed > 0 {
-                out.send(Self::statustext(
+                out.say(
                     MavSeverity::MAV_SEVERITY_WARNING,
                     &format!("{missed} failsafe messages missed"),
-                ));
+                );
             }
             for e in events {
                 let severity = match e {
@@ -362,7 +397,7 @@ impl GroundStation {
                     }
                     _ => MavSeverity::MAV_SEVERITY_CRITICAL,
                 };
-                out.send(Self::statustext(severity, &e.to_string()));
+                out.say(severity, &e.to_string());
             }
             self.safety_events_shown = log.count;
         }
@@ -479,20 +514,6 @@ impl GroundStation {
         })
     }
 
-    /// A `STATUSTEXT` with `text` (cut to 50 bytes).
-    pub fn statustext(severity: MavSeverity, text: &str) -> MavMessage {
-        let mut cut = text.len().min(50);
-        while !text.is_char_boundary(cut) {
-            cut -= 1;
-        }
-        MavMessage::STATUSTEXT(STATUSTEXT_DATA {
-            severity,
-            text: text[..cut].into(),
-            id: 0,
-            chunk_seq: 0,
-        })
-    }
-
     fn ack(&self, to: AckTo, result: MavResult) -> MavMessage {
         MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
             command: to.command,
@@ -509,7 +530,7 @@ impl GroundStation {
     pub fn answered(&mut self, to: AckTo, result: Result<(), String>, out: &mut Outbox) {
         if to.quiet {
             if let Err(reason) = result {
-                out.send(Self::statustext(MavSeverity::MAV_SEVERITY_WARNING, &reason));
+                out.say(MavSeverity::MAV_SEVERITY_WARNING, &reason);
             }
             return;
         }
@@ -517,7 +538,7 @@ impl GroundStation {
             Ok(()) => out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED)),
             Err(reason) => {
                 out.send(self.ack(to, MavResult::MAV_RESULT_DENIED));
-                out.send(Self::statustext(MavSeverity::MAV_SEVERITY_WARNING, &reason));
+                out.say(MavSeverity::MAV_SEVERITY_WARNING, &reason);
             }
         }
     }
@@ -811,7 +832,7 @@ impl GroundStation {
             f => {
                 out.send(self.ack(to, MavResult::MAV_RESULT_DENIED));
                 let why = format!("reposition: frame {f:?} not supported");
-                return out.send(Self::statustext(MavSeverity::MAV_SEVERITY_WARNING, &why));
+                return out.say(MavSeverity::MAV_SEVERITY_WARNING, &why);
             }
         };
         let z = p[6] as f64;
@@ -840,7 +861,7 @@ impl GroundStation {
         let p = c.p;
         let deny = |this: &Self, out: &mut Outbox, why: &str| {
             out.send(this.ack(to, MavResult::MAV_RESULT_DENIED));
-            out.send(Self::statustext(MavSeverity::MAV_SEVERITY_WARNING, why));
+            out.say(MavSeverity::MAV_SEVERITY_WARNING, why);
         };
         let vehicle = |out: &mut Outbox, v| out.vehicle.push((v, to));
         match c.command {
@@ -1007,10 +1028,7 @@ impl GroundStation {
                     Ok(i) => vehicle(out, VehicleCommand::InjectFailure(i)),
                     Err(why) => {
                         out.send(self.ack(to, MavResult::MAV_RESULT_UNSUPPORTED));
-                        out.send(Self::statustext(
-                            MavSeverity::MAV_SEVERITY_WARNING,
-                            &why.to_string(),
-                        ));
+                        out.say(MavSeverity::MAV_SEVERITY_WARNING, &why.to_string());
                     }
                 }
             }
@@ -1034,10 +1052,10 @@ impl GroundStation {
                         out.actions.push(Action::ParamsChanged);
                         out.actions.push(Action::SaveParams);
                         out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED));
-                        out.send(Self::statustext(
+                        out.say(
                             MavSeverity::MAV_SEVERITY_INFO,
                             "parameters reset to defaults",
-                        ));
+                        );
                     }
                     6.0 => out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED)),
                     x => deny(self, out, &format!("storage: param1 {x} not supported")),
@@ -1064,7 +1082,7 @@ impl GroundStation {
                     } else {
                         "shutting down"
                     };
-                    out.send(Self::statustext(MavSeverity::MAV_SEVERITY_NOTICE, what));
+                    out.say(MavSeverity::MAV_SEVERITY_NOTICE, what);
                 }
             }
             MavCmd::MAV_CMD_GET_HOME_POSITION => {

@@ -176,10 +176,7 @@ fn shortest(value: f32) -> f64 {
 }
 
 fn warn(out: &mut Outbox, text: &str) {
-    out.send(GroundStation::statustext(
-        MavSeverity::MAV_SEVERITY_WARNING,
-        text,
-    ));
+    out.say(MavSeverity::MAV_SEVERITY_WARNING, text);
 }
 
 impl GroundStation {

@@ -1101,3 +1101,57 @@ fn sys_status_health_bits_and_battery_follow_the_checks() {
     );
     assert_eq!(b.voltages[0], 16000, "the reported voltage");
 }
+
+/// The `STATUSTEXT`s `out` holds: (id, chunk_seq, text bytes up to the first NUL).
+fn statustext_chunks(out: &Outbox) -> Vec<(u16, u8, Vec<u8>)> {
+    out.messages
+        .iter()
+        .filter_map(|m| match m {
+            Outgoing::Message(MavMessage::STATUSTEXT(s)) => {
+                let bytes: [u8; 50] = s.text.into();
+                let end = bytes.iter().position(|&b| b == 0).unwrap_or(50);
+                Some((s.id, s.chunk_seq, bytes[..end].to_vec()))
+            }
+            _ => None,
+        })
+        .collect()
+}
+
+/// Texts of up to 50 bytes go whole (id 0); longer ones in 50-byte chunks under one new id,
+/// the last shorter (empty when the text fills its chunks), which reassemble to the text.
+#[test]
+fn long_texts_go_in_chunks_that_reassemble() {
+    let mut out = Outbox::default();
+    let short = "failsafe: ground-station link lost: Return now";
+    out.say(MavSeverity::MAV_SEVERITY_WARNING, short);
+    assert_eq!(
+        statustext_chunks(&out),
+        vec![(0, 0, short.as_bytes().to_vec())]
+    );
+
+    for (len, chunks) in [(51, 2), (100, 3), (120, 3), (150, 4)] {
+        let mut out = Outbox::default();
+        out.say(
+            MavSeverity::MAV_SEVERITY_INFO,
+            "first long one: which takes id 1, 50 bytes and more",
+        );
+        let text: String = ('a'..='z').cycle().take(len).collect();
+        out.say(MavSeverity::MAV_SEVERITY_INFO, &text);
+        let sent: Vec<_> = statustext_chunks(&out).into_iter().skip(2).collect();
+        assert_eq!(sent.len(), chunks, "{len} bytes");
+        assert!(
+            sent.iter().all(|(id, _, _)| *id == 2),
+            "one new id: {sent:?}"
+        );
+        assert!(
+            sent.iter()
+                .enumerate()
+                .all(|(k, (_, seq, _))| usize::from(*seq) == k)
+        );
+        let (last, full) = sent.split_last().unwrap();
+        assert!(full.iter().all(|(_, _, b)| b.len() == 50));
+        assert!(last.2.len() < 50);
+        let whole: Vec<u8> = sent.iter().flat_map(|(_, _, b)| b.clone()).collect();
+        assert_eq!(whole, text.as_bytes());
+    }
+}

@@ -111,12 +111,31 @@ fn gcs_link_loss_holds_then_returns_and_clears_when_the_link_returns() {
             ),
         ],
     );
-    // Disabled (PX4's default): nothing. Never connected: nothing.
+    // No action (PX4's default): the loss and the return are only said, armed or not.
     run(
-        "link loss disabled",
+        "link loss, no action",
         SafetyParams::default(),
-        &[row(0.0, |i| i.gcs_link_age_s = Some(60.0), A::None, &[])],
+        &[
+            row(
+                0.0,
+                |i| i.gcs_link_age_s = Some(60.0),
+                A::Warn,
+                &[E::Triggered(C::GcsLinkLost, A::Warn)],
+            ),
+            row(1.0, |i| i.armed = false, A::Warn, &[]),
+            row(
+                2.0,
+                |i| i.gcs_link_age_s = Some(0.5),
+                A::None,
+                &[E::Cleared(C::GcsLinkLost)],
+            ),
+        ],
     );
+    assert_eq!(
+        E::Cleared(C::GcsLinkLost).to_string(),
+        "ground-station link regained"
+    );
+    // Never connected: nothing.
     run(
         "never connected",
         p,
