@@ -240,6 +240,27 @@ def heartbeats_until(gcs, end):
         gcs.recv_match(blocking=True, timeout=min(0.1, end - now))
 
 
+def source_lost_in_the_air_and_back(gcs, home, stop, start):
+    """Armed, taken off to Hold, the sensor source stopped (`stop`): the ground station told
+    and the vehicle descending blind; a new one started (`start`, its clock from zero): the
+    vehicle reset, disarmed, and then armed and flown to 3 m and landed again."""
+    gcs.arducopter_arm()
+    assert ack(gcs, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM) == 0
+    gcs.mav.command_long_send(1, 1, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF, 0,
+                              0, 0, 0, math.nan, math.nan, math.nan, math.nan)
+    wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER" and armed(m), timeout=30)
+    stop()
+    wait(gcs, "STATUSTEXT", lambda m: m.text == "sensor frames stopped: DESCEND", 5)
+    start()
+    wait(gcs, "STATUSTEXT", lambda m: m.text == "sensor source restarted: vehicle reset", 20)
+    wait(gcs, "STATUSTEXT", lambda m: m.text == "sensor frames back", 5)
+    wait(gcs, "HEARTBEAT", lambda m: not armed(m), 5)
+    ready_to_arm(gcs)
+    gcs.arducopter_arm()
+    assert ack(gcs, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM) == 0
+    take_off_and_land(gcs, home.alt / 1000 + 3.0, (2.6, 3.4))
+
+
 def test_a_simulator_restarted_in_flight_is_met_by_a_failsafe_then_flown_again(tmp_path):
     """The simulator process dies in the air: the ground station is told the sensor frames
     stopped and the vehicle descends blind; a new simulator (a new world, the vehicle on the
@@ -251,23 +272,12 @@ def test_a_simulator_restarted_in_flight_is_met_by_a_failsafe_then_flown_again(t
         assert gcs.wait_heartbeat(timeout=30), "no heartbeat"
         ready_to_arm(gcs)
         home = wait(gcs, "GLOBAL_POSITION_INT", lambda m: True)
-        gcs.arducopter_arm()
-        assert ack(gcs, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM) == 0
-        gcs.mav.command_long_send(1, 1, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF, 0,
-                                  0, 0, 0, math.nan, math.nan, math.nan, math.nan)
-        wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER" and armed(m), timeout=30)
 
-        daemon.sim.kill()
-        daemon.sim.wait()
-        wait(gcs, "STATUSTEXT", lambda m: m.text == "sensor frames stopped: DESCEND", 5)
-        daemon.start_sim()
-        wait(gcs, "STATUSTEXT", lambda m: m.text == "sensor source restarted: vehicle reset", 20)
-        wait(gcs, "STATUSTEXT", lambda m: m.text == "sensor frames back", 5)
-        wait(gcs, "HEARTBEAT", lambda m: not armed(m), 5)
-        ready_to_arm(gcs)
-        gcs.arducopter_arm()
-        assert ack(gcs, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM) == 0
-        take_off_and_land(gcs, home.alt / 1000 + 3.0, (2.6, 3.4))
+        def kill_sim():
+            daemon.sim.kill()
+            daemon.sim.wait()
+
+        source_lost_in_the_air_and_back(gcs, home, kill_sim, daemon.start_sim)
         assert daemon.ap.poll() is None, "the daemon kept running"
         daemon.stop()
         assert "sensor source restarted" in daemon.ap_stderr
@@ -397,22 +407,7 @@ def test_a_flight_board_unplugged_in_flight_is_met_by_a_failsafe_then_reopened(t
         assert gcs.wait_heartbeat(timeout=30), "no heartbeat"
         ready_to_arm(gcs)
         home = wait(gcs, "GLOBAL_POSITION_INT", lambda m: True)
-        gcs.arducopter_arm()
-        assert ack(gcs, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM) == 0
-        gcs.mav.command_long_send(1, 1, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF, 0,
-                                  0, 0, 0, math.nan, math.nan, math.nan, math.nan)
-        wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER" and armed(m), timeout=30)
-
-        board.pull()
-        wait(gcs, "STATUSTEXT", lambda m: m.text == "sensor frames stopped: DESCEND", 5)
-        board.start()
-        wait(gcs, "STATUSTEXT", lambda m: m.text == "sensor source restarted: vehicle reset", 20)
-        wait(gcs, "STATUSTEXT", lambda m: m.text == "sensor frames back", 5)
-        wait(gcs, "HEARTBEAT", lambda m: not armed(m), 5)
-        ready_to_arm(gcs)
-        gcs.arducopter_arm()
-        assert ack(gcs, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM) == 0
-        take_off_and_land(gcs, home.alt / 1000 + 3.0, (2.6, 3.4))
+        source_lost_in_the_air_and_back(gcs, home, board.pull, board.start)
         assert ap.poll() is None, "the daemon kept running"
         ap.send_signal(signal.SIGTERM)
         _, err = ap.communicate(timeout=20)
