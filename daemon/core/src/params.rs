@@ -153,6 +153,19 @@ pub use crate::estimator::attitude::{ATTITUDE_META, AttitudeParams};
 pub use crate::estimator::translation::{TRANSLATION_META, TranslationGroup};
 pub use crate::safety::{SAFETY_META, SafetyParams};
 
+/// Each group's title in the parameter reference, in [`FlightParams::metadata`]'s order.
+const GROUP_TITLES: [(&str, &str); 9] = [
+    ("attitude", "Attitude estimator"),
+    ("translation", "Position and velocity estimator"),
+    ("position", "Position loops"),
+    ("attitude_control", "Attitude loop"),
+    ("rate", "Rate loop"),
+    ("motor", "Rotor-speed loop"),
+    ("commander", "Commander: take-off, landing, return"),
+    ("safety", "Failsafes and arming checks"),
+    ("battery", "Flight battery"),
+];
+
 /// Every flight-core parameter, as in `params/flight.toml`.
 #[derive(Debug, Clone, Default, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -324,6 +337,53 @@ impl FlightParams {
         .flat_map(|(g, m)| m.iter().map(move |p| (g, p)))
     }
 
+    /// `params/README.md`: every parameter's MAVLink name, TOML key, type, unit, default, range
+    /// and description, group by group, from [`FlightParams::metadata`] (a test keeps the file
+    /// in step).
+    pub fn reference_markdown() -> String {
+        use std::fmt::Write;
+        let mut md = String::from(
+            "# Parameter reference\n\n\
+             Generated from the parameter metadata in `daemon/core/src` (regenerate with\n\
+             `UPDATE_PARAM_REFERENCE=1 cargo test -p flight-core parameter_reference`; a test fails\n\
+             when this file is stale). Each parameter is set on MAVLink by its name (QGroundControl's\n\
+             parameter editor, `param set` in MAVProxy, `PARAM_SET`) or in `params/flight.toml` by its\n\
+             group and key. Values out of range, NaN, or not an integer for an INT32 are refused.\n",
+        );
+        let mut group = "";
+        for (g, m) in Self::metadata() {
+            if g != group {
+                group = g;
+                let title = GROUP_TITLES
+                    .iter()
+                    .find(|(name, _)| *name == g)
+                    .map_or(g, |(_, t)| t);
+                let _ = write!(
+                    md,
+                    "\n## {title} (`[{g}]`)\n\n\
+                     | Name | Key | Type | Unit | Default | Range | Description |\n\
+                     |---|---|---|---|---|---|---|\n"
+                );
+            }
+            let kind = match m.kind {
+                ParamKind::Real32 => "REAL32",
+                ParamKind::Int32 => "INT32",
+            };
+            let _ = writeln!(
+                md,
+                "| `{}` | `{}` | {kind} | {} | {} | {} … {} | {} |",
+                m.name,
+                m.key,
+                m.unit,
+                m.default,
+                m.min,
+                m.max,
+                m.description.replace('|', "\\|")
+            );
+        }
+        md
+    }
+
     /// Reads and validates a parameter file; errors name the file, the key and the range.
     pub fn load(path: &std::path::Path) -> Result<Self, airframe::ConfigError> {
         let p: Self = airframe::config::read_toml(path)?;
@@ -412,6 +472,35 @@ mod tests {
             ]
         );
         assert!(FlightParams::default().validate().is_empty());
+    }
+
+    /// `params/README.md` is what the metadata says now; `UPDATE_PARAM_REFERENCE=1` rewrites it.
+    #[test]
+    fn the_parameter_reference_is_up_to_date() {
+        let path =
+            std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../params/README.md");
+        let text = FlightParams::reference_markdown();
+        let groups: Vec<_> = FlightParams::metadata().map(|(g, _)| g).collect();
+        for (g, _) in GROUP_TITLES {
+            assert!(
+                groups.contains(&g),
+                "a title for a group that is not there: {g}"
+            );
+        }
+        assert_eq!(
+            text.matches("\n| `").count(),
+            FlightParams::count(),
+            "one row per parameter"
+        );
+        if std::env::var_os("UPDATE_PARAM_REFERENCE").is_some() {
+            std::fs::write(&path, &text).unwrap();
+        }
+        let on_disk = std::fs::read_to_string(&path).unwrap_or_default();
+        assert!(
+            on_disk == text,
+            "params/README.md is stale: regenerate it with \
+             `UPDATE_PARAM_REFERENCE=1 cargo test -p flight-core parameter_reference`"
+        );
     }
 
     #[test]
