@@ -62,6 +62,7 @@ class PtyLink:
         self.name, self.heartbeat_s = name, heartbeat_s
         self.lock = threading.Lock()
         self.master = None
+        self.plugged = threading.Event()
         self.arrived = queue.Queue()
         self.mav = mavutil.mavlink.MAVLink(self, srcSystem=255, srcComponent=190)
         self.mav.robust_parsing = True
@@ -81,11 +82,13 @@ class PtyLink:
             self.arrived.get_nowait()
         with self.lock:
             self.master = master
+        self.plugged.set()
 
     def unplug(self):
         with self.lock:
             os.close(self.master)
             self.master = None
+            self.plugged.clear()
         if self.name is not None:
             os.unlink(self.name)
 
@@ -110,7 +113,10 @@ class PtyLink:
             with self.lock:
                 fd = self.master
             try:
-                if fd is None or not select.select([fd], [], [], 0.05)[0]:
+                if fd is None:
+                    self.plugged.wait(0.1)  # unplugged: nothing to read until plugged in
+                    continue
+                if not select.select([fd], [], [], 0.05)[0]:
                     continue
                 data = os.read(fd, 4096)
             except OSError:
