@@ -47,6 +47,10 @@ pub struct ConfigFile {
     pub truth_csv: Option<PathBuf>,
     /// Flight-data CSV.
     pub flight_csv: Option<PathBuf>,
+    /// Directory of every run's logs, or `"none"`.
+    pub log_dir: Option<PathBuf>,
+    /// MAVLink telemetry log.
+    pub tlog: Option<PathBuf>,
     /// Rate of the deadline-paced loop (Hz).
     pub loop_hz: Option<f64>,
     /// Spin before each deadline (µs).
@@ -140,6 +144,10 @@ impl ConfigFile {
         rebase(&mut c.params_dir);
         rebase(&mut c.truth_csv);
         rebase(&mut c.flight_csv);
+        rebase(&mut c.tlog);
+        if c.log_dir.as_deref() != Some(Path::new("none")) {
+            rebase(&mut c.log_dir);
+        }
         rebase(&mut c.signing_key_file);
         if c.param_store.as_deref() != Some(Path::new("none")) {
             rebase(&mut c.param_store);

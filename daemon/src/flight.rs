@@ -458,6 +458,8 @@ impl<'a> ControlLoop<'a> {
             let due = deadlines.next();
             sleep_until(due, spin);
             let woke = Instant::now();
+            self.vehicle
+                .set_loop_late(woke.saturating_duration_since(due));
             let flow = self.tick(Duration::ZERO, true)?;
             let end = Instant::now();
             let missed = deadlines.advance(end);

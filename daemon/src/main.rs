@@ -13,6 +13,8 @@ mod flight_csv;
 mod fuzz;
 mod gcs;
 mod link;
+mod log_files;
+mod mag_cal;
 mod param_store;
 mod replay;
 mod score;
@@ -47,7 +49,7 @@ use vehicle::{AutoFlight, Vehicle};
 struct Cli {
     /// Settings file (TOML): every key mirrors a flag below (source, instance, airframe,
     /// params, params_dir, takeoff_m, hover_s, speed, seed, sensors, truth_csv, flight_csv,
-    /// loop_hz, loop_spin_us, loop_cpu, loop_stats_s,
+    /// log_dir, tlog, loop_hz, loop_spin_us, loop_cpu, loop_stats_s,
     /// mavlink, param_store); flags given here win. Paths in it are relative to its directory.
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
@@ -98,10 +100,20 @@ struct Cli {
     /// the same columns as `sitl --truth-csv`).
     #[arg(long, value_name = "FILE")]
     truth_csv: Option<PathBuf>,
-    /// Write the flight data (estimate, set-points, motor commands and, from a simulator, the
-    /// truth) to this CSV file, one row per sensor frame.
+    /// Write the flight data (estimate, set-points, motor commands, loop timing and, from a
+    /// simulator, the truth) to this CSV file, one row per sensor frame [default:
+    /// LOG_DIR/<start time>.csv].
     #[arg(long, value_name = "FILE")]
     flight_csv: Option<PathBuf>,
+    /// Where every run leaves its logs, named by its start time (UTC): a MAVLink telemetry log
+    /// (`.tlog`: mavlogdump.py, MAVExplorer, QGroundControl) and the flight-data CSV; `none`
+    /// for no logs but those asked for by --tlog or --flight-csv [default: ./logs].
+    #[arg(long, value_name = "DIR|none")]
+    log_dir: Option<PathBuf>,
+    /// Write the MAVLink telemetry log (every frame sent and every message heard, each after
+    /// its 8-byte big-endian Unix time in µs) to this file [default: LOG_DIR/<start time>.tlog].
+    #[arg(long, value_name = "FILE")]
+    tlog: Option<PathBuf>,
     /// With a source that does not wait for answers (a flight board, or `?lockstep=false`):
     /// the control loop's rate, 50 to 2000 Hz. It wakes at absolute deadlines, steps on every
     /// sensor frame that arrived, and logs its jitter and overruns [default: 1000].
@@ -161,6 +173,24 @@ enum Command {
         #[arg(long)]
         params: Option<PathBuf>,
     },
+    /// Calibrate the magnetometer from a log (Castillo (75)–(79): the ellipsoid's offset,
+    /// rotation and scale fitted to the raw samples): any CSV with raw FRD columns mx,my,mz,
+    /// such as the flight-data CSV of a run in which the vehicle was turned through every
+    /// orientation. Writes mag_offset, mag_scale, mag_rotation_rad and mag_calibration_id into
+    /// the [attitude] table of --params (atomically, comments kept), or prints them.
+    CalibrateMag {
+        /// Input CSV.
+        #[arg(long, short)]
+        input: PathBuf,
+        /// Flight-parameter file to write the calibration into; its ATT_MAG_STR
+        /// (mag_intensity_gauss) is the field strength the calibration scales to [default:
+        /// print the calibration for the default parameters].
+        #[arg(long)]
+        params: Option<PathBuf>,
+        /// CAL_MAG0_ID to record [default: the file's if set, else 1].
+        #[arg(long)]
+        device_id: Option<u32>,
+    },
 }
 
 /// The settings of a flight: the command line over the `--config` file over the defaults.
@@ -177,6 +207,9 @@ struct Settings {
     sensors: String,
     truth_csv: Option<PathBuf>,
     flight_csv: Option<PathBuf>,
+    /// None: no logs but those named.
+    log_dir: Option<PathBuf>,
+    tlog: Option<PathBuf>,
     loop_hz: f64,
     loop_spin_us: f64,
     loop_stats_s: f64,
@@ -281,6 +314,12 @@ impl Settings {
             sensors,
             truth_csv: cli.truth_csv.clone().or(file.truth_csv),
             flight_csv: cli.flight_csv.clone().or(file.flight_csv),
+            log_dir: match cli.log_dir.clone().or(file.log_dir) {
+                Some(p) if p == Path::new("none") => None,
+                Some(p) => Some(p),
+                None => Some(PathBuf::from("logs")),
+            },
+            tlog: cli.tlog.clone().or(file.tlog),
             loop_hz,
             loop_spin_us,
             loop_stats_s,
@@ -362,10 +401,25 @@ fn fly(cli: &Cli) -> Result<()> {
         hover_s: cfg.hover_s,
     });
     let mut vehicle = Vehicle::new(&airframe, &params, auto)?;
-    if let Some(path) = &cfg.flight_csv {
+    let (flight_csv, tlog) = log_paths(&cfg, &mut notices);
+    if let Some(path) = &flight_csv {
         vehicle.log_to(
             FlightCsv::create(path, airframe.rotors.len())
                 .with_context(|| format!("creating {}", path.display()))?,
+        );
+    }
+    let tlog = match &tlog {
+        Some(path) => Some(
+            log_files::Tlog::create(path)
+                .with_context(|| format!("creating {}", path.display()))?,
+        ),
+        None => None,
+    };
+    if flight_csv.is_some() || tlog.is_some() {
+        tracing::info!(
+            tlog = ?tlog.as_ref().map(|t| t.path()),
+            flight_csv = ?flight_csv,
+            "logging"
         );
     }
     let system_id = (cfg.instance + 1) as u8;
@@ -474,6 +528,7 @@ fn fly(cli: &Cli) -> Result<()> {
                 notices,
                 signing_key,
                 signing_key_file: cfg.signing_key_file.clone(),
+                tlog,
             },
         ));
         tokio::spawn(interrupts(commands));
@@ -490,6 +545,35 @@ fn fly(cli: &Cli) -> Result<()> {
         reboot()?;
     }
     Ok(())
+}
+
+/// The run's flight-data CSV and telemetry log: those named, else LOG_DIR/<start time>.csv and
+/// .tlog. A log directory that cannot be made costs the default logs, not the flight: it is
+/// said in the log and to the first ground station.
+fn log_paths(cfg: &Settings, notices: &mut Vec<String>) -> (Option<PathBuf>, Option<PathBuf>) {
+    let both_named = cfg.flight_csv.is_some() && cfg.tlog.is_some();
+    let stem = cfg
+        .log_dir
+        .as_deref()
+        .filter(|_| !both_named)
+        .and_then(|dir| {
+            let now = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0, |d| d.as_secs());
+            match log_files::run_stem(dir, now, cfg.instance) {
+                Ok(stem) => Some(stem),
+                Err(e) => {
+                    tracing::warn!(dir = %dir.display(), "no logs: {e}");
+                    notices.push(format!("no logs: {e}"));
+                    None
+                }
+            }
+        });
+    let default = |ext| stem.as_ref().map(|s| s.with_extension(ext));
+    (
+        cfg.flight_csv.clone().or_else(|| default("csv")),
+        cfg.tlog.clone().or_else(|| default("tlog")),
+    )
 }
 
 /// `PREFLIGHT_REBOOT_SHUTDOWN` reboot: the process starts again with the same arguments, as a
@@ -621,6 +705,11 @@ fn main() -> std::process::ExitCode {
             output,
             params,
         }) => replay::run(input, output, params.as_deref()),
+        Some(Command::CalibrateMag {
+            input,
+            params,
+            device_id,
+        }) => mag_cal::run(input, params.as_deref(), *device_id),
         None => fly(&cli),
     };
     match result {

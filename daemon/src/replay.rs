@@ -24,13 +24,19 @@ pub fn run(input: &Path, output: &Path, params: Option<&Path>) -> Result<()> {
     let names: Vec<&str> = header.split(',').map(str::trim).collect();
     let mut index = [0usize; 10];
     for (k, want) in REQUIRED.iter().enumerate() {
-        index[k] = names.iter().position(|n| n == want).with_context(|| {
-            format!(
-                "{}: header lacks the column `{want}` (needs {})",
-                input.display(),
-                REQUIRED.join(",")
-            )
-        })?;
+        // The flight-data CSV calls its time `t_s`.
+        let alias = if *want == "t" { "t_s" } else { want };
+        index[k] = names
+            .iter()
+            .position(|n| n == want)
+            .or_else(|| names.iter().position(|n| *n == alias))
+            .with_context(|| {
+                format!(
+                    "{}: header lacks the column `{want}` (needs {})",
+                    input.display(),
+                    REQUIRED.join(",")
+                )
+            })?;
     }
     let out_file = std::fs::File::create(output)
         .with_context(|| format!("{}: cannot create", output.display()))?;

@@ -139,6 +139,8 @@ pub struct Vehicle {
     score: FlightScore,
     csv: Option<FlightCsv>,
     csv_error: Option<std::io::Error>,
+    /// How late the control loop woke for the frames it is stepping (deadline pacing only).
+    loop_late: Option<std::time::Duration>,
     hover: HoverCommands,
     blind: Option<BlindDescent>,
     last_t_usec: u64,
@@ -212,6 +214,7 @@ impl Vehicle {
             score: FlightScore::new(commander_params.takeoff_alt_m),
             csv: None,
             csv_error: None,
+            loop_late: None,
             hover: HoverCommands::new(2.0),
             blind: None,
             last_t_usec: 0,
@@ -237,13 +240,18 @@ impl Vehicle {
         self.csv = Some(csv);
     }
 
-    /// Flushes the flight-data CSV, reporting the first write error of the flight.
+    /// How late the control loop woke for the frames it steps next (for the flight-data CSV).
+    pub fn set_loop_late(&mut self, late: std::time::Duration) {
+        self.loop_late = Some(late);
+    }
+
+    /// Writes the rest of the flight-data CSV, reporting the first write error of the flight.
     pub fn finish_log(&mut self) -> Result<()> {
         if let Some(e) = self.csv_error.take() {
             return Err(e).context("writing the flight-data CSV");
         }
         if let Some(csv) = self.csv.as_mut() {
-            csv.flush().context("writing the flight-data CSV")?;
+            csv.finish().context("writing the flight-data CSV")?;
         }
         Ok(())
     }
@@ -839,6 +847,8 @@ impl Vehicle {
                 &output,
                 truth.as_ref(),
                 &self.score,
+                self.loop_late,
+                &sample,
             )
         {
             // A full disk must not stop the flight: stop logging, report at the end.

@@ -47,6 +47,14 @@ fn spawn(exe: &Path, args: &[&str]) -> Child {
         .unwrap()
 }
 
+/// The autopilot with `args`, keeping no logs but those the arguments name (these flights run
+/// as fast as lockstep goes, and the default logs would slow them threefold).
+fn spawn_autopilot(args: &[&str]) -> Child {
+    let mut args = args.to_vec();
+    args.extend(["--log-dir", "none"]);
+    spawn(&autopilot_exe(), &args)
+}
+
 fn autopilot_exe() -> PathBuf {
     PathBuf::from(env!("CARGO_BIN_EXE_autopilot"))
 }
@@ -141,7 +149,7 @@ fn embedded(airframe: &str, seed: u64, truth_csv: Option<&Path>) -> HashMap<Stri
         args.extend(["--truth-csv", &csv]);
     }
     summary(&wait(
-        spawn(&autopilot_exe(), &args),
+        spawn_autopilot(&args),
         "autopilot --sim",
         Duration::from_secs(120),
     ))
@@ -227,7 +235,7 @@ fn one_seed_one_flight_in_process_and_over_udp() {
     let source = format!("udp://127.0.0.1:{port}");
     let mut args = vec!["--source", &source, "--airframe", "hexa_x"];
     args.extend(FLIGHT);
-    let autopilot = spawn(&autopilot_exe(), &args);
+    let autopilot = spawn_autopilot(&args);
     let target = format!("127.0.0.1:{port}");
     let sitl = spawn_sitl(&["--autopilot", &target], "hexa_x", 7, &udp);
     let over_udp = summary(&wait(
@@ -306,7 +314,7 @@ fn the_same_flight_over_a_serial_line() {
     let mut args = vec!["--source", &source, "--airframe", "quad_x"];
     args.extend(FLIGHT);
     let over_serial = summary(&wait(
-        spawn(&autopilot_exe(), &args),
+        spawn_autopilot(&args),
         "autopilot --source serial",
         Duration::from_secs(120),
     ));
@@ -372,7 +380,7 @@ fn a_board_in_real_time_flies_the_deadline_paced_loop() {
         "params",
     ];
     let s = summary(&wait(
-        spawn(&autopilot_exe(), &args),
+        spawn_autopilot(&args),
         "autopilot --source serial (real time)",
         Duration::from_secs(90),
     ));
@@ -405,13 +413,8 @@ fn a_board_in_real_time_flies_the_deadline_paced_loop() {
 /// Bad command lines and parameter files stop the daemon with a message that names the problem.
 #[test]
 fn refuses_what_it_cannot_fly() {
-    let autopilot = |args: &[&str]| {
-        wait(
-            spawn(&autopilot_exe(), args),
-            "autopilot",
-            Duration::from_secs(60),
-        )
-    };
+    let autopilot =
+        |args: &[&str]| wait(spawn_autopilot(args), "autopilot", Duration::from_secs(60));
     let o = autopilot(&[]);
     assert!(!o.status.success(), "no arguments: help, not a flight");
     let o = autopilot(&["--takeoff", "5"]);

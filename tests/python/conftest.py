@@ -182,6 +182,7 @@ class Daemon:
         self.mavlink = mavlink.format(port=self.gcs_port)
         self.store = tmp_path / "params.toml"
         self.out = tmp_path / "autopilot.out"
+        self.logs = tmp_path / "logs"
         self.gcs = None
         if connect:
             self.gcs = mavutil.mavlink_connection(f"udpin:127.0.0.1:{self.gcs_port}",
@@ -222,7 +223,7 @@ class Daemon:
              "--loop-hz", "500",
              "--airframe", self.airframe,
              "--mavlink", self.mavlink,
-             "--param-store", str(self.store), *self.ap_args],
+             "--param-store", str(self.store), "--log-dir", str(self.logs), *self.ap_args],
             stdout=open(self.out, "a"), stderr=subprocess.PIPE, text=True,
         )
 

@@ -398,7 +398,7 @@ def test_a_flight_board_unplugged_in_flight_is_met_by_a_failsafe_then_reopened(t
         [str(binary("autopilot")), "--params-dir", str(ROOT / "params"), "--params", str(params),
          "--source", f"serial://{board.name}", "--loop-hz", "500", "--airframe", "quad_x",
          "--mavlink", f"udpout://127.0.0.1:{gcs_port}?bind=0",
-         "--param-store", str(tmp_path / "params.toml")],
+         "--param-store", str(tmp_path / "params.toml"), "--log-dir", str(tmp_path / "logs")],
         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
         assert gcs.wait_heartbeat(timeout=30), "no heartbeat"

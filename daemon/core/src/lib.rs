@@ -13,6 +13,7 @@ pub mod failsafe;
 pub mod geo;
 pub mod geofence;
 pub mod mag_check;
+pub mod mag_fit;
 pub mod mission;
 pub mod mixer;
 pub mod motor_failure;

@@ -21,6 +21,7 @@ use super::params::Parameters;
 use super::signing::{SecretKey, Signing};
 use super::{AckTo, Action, GroundStation, Outbox, Outgoing};
 use crate::flight::{Command, Telemetry};
+use crate::log_files::Tlog;
 use crate::param_store::{Loaded, ParamStore};
 use crate::vehicle::VehicleCommand;
 use anyhow::{Context, Result, bail};
@@ -578,6 +579,8 @@ pub struct Vehicle {
     pub signing_key: Option<SecretKey>,
     /// Where a key set by `SETUP_SIGNING` is saved (none: kept in memory only).
     pub signing_key_file: Option<std::path::PathBuf>,
+    /// The MAVLink telemetry log, if one is kept.
+    pub tlog: Option<Tlog>,
 }
 
 /// How often refused frames are reported in the log.
@@ -683,6 +686,7 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<Actio
         notices: mut startup_notices,
         signing_key,
         signing_key_file,
+        mut tlog,
     } = vehicle;
     tracing::info!(
         "MAVLink signing {}",
@@ -725,6 +729,9 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<Actio
         tokio::select! {
             Some(i) = inbound.recv() => {
                 malformed += i.malformed as u64;
+                if let Some(log) = tlog.as_mut() {
+                    log_heard(log, &i);
+                }
                 let t = *telemetry.borrow();
                 for (h, m) in &i.messages {
                     match m {
@@ -750,6 +757,13 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<Actio
                     break;
                 }
                 gcs.poll(start.elapsed().as_secs_f64(), &t, &mut out);
+                if let Some(log) = tlog.as_mut()
+                    && let Err(e) = log.ship_if_due(unix_usec())
+                {
+                    // A full disk stops the log, not the links.
+                    tracing::error!(file = %log.path().display(), "telemetry log: {e}; logging stopped");
+                    tlog = None;
+                }
                 if Instant::now() >= refusals_next {
                     refusals_next = Instant::now() + REFUSALS_REPORT;
                     let now = (
@@ -862,6 +876,9 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<Actio
                 .lock()
                 .unwrap_or_else(|e| e.into_inner())
                 .sign(&mut bytes);
+            if let Some(log) = tlog.as_mut() {
+                log.record(unix_usec(), &bytes);
+            }
             // No endpoint listening is not an error.
             let _ = frames.send(bytes.into());
         }
@@ -876,7 +893,32 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<Actio
         refused_not_on_allow_list = not_allowed.load(Ordering::Relaxed),
         "ground-station links closed"
     );
+    if let Some(log) = tlog {
+        let path = log.path().to_owned();
+        match tokio::task::spawn_blocking(move || log.finish()).await {
+            Ok(Ok(())) => tracing::info!(file = %path.display(), "telemetry log written"),
+            Ok(Err(e)) => tracing::error!(file = %path.display(), "telemetry log: {e}"),
+            Err(e) => tracing::error!(file = %path.display(), "telemetry log: {e}"),
+        }
+    }
     drop(save_tx);
     let _ = saving.await;
     exit
+}
+
+/// Records in the telemetry log what a link heard, each message framed again as its sender
+/// sent it (header and sequence kept; a signature is not).
+fn log_heard(log: &mut Tlog, i: &Inbound) {
+    let now = unix_usec();
+    let mut frame = Vec::with_capacity(280);
+    for (h, m) in &i.messages {
+        frame.clear();
+        Encoder::push_heard(&mut frame, h, m);
+        log.record(now, &frame);
+    }
+    for raw in &i.unparsed {
+        frame.clear();
+        Encoder::push_raw_heard(&mut frame, &raw.header, raw.msg_id, &raw.payload);
+        log.record(now, &frame);
+    }
 }

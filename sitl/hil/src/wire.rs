@@ -119,6 +119,28 @@ impl Encoder {
         self.finish(out, &mut frame, len, msg.message_id());
     }
 
+    /// Appends `msg` as one MAVLink 2 frame from the sender `header` names, with its sequence
+    /// number: a message heard, framed again for a log (unsigned; this encoder's own sequence is
+    /// left alone).
+    pub fn push_heard(out: &mut Vec<u8>, header: &MavHeader, msg: &MavMessage) {
+        let mut frame = [0u8; V2_HEADER + 255 + CHECKSUM];
+        let len = msg.ser(MavlinkVersion::V2, &mut frame[V2_HEADER..V2_HEADER + 255]);
+        Self::heard_as(header).finish(out, &mut frame, len, msg.message_id());
+    }
+
+    /// [`Encoder::push_heard`] for a message given as its id and payload bytes.
+    pub fn push_raw_heard(out: &mut Vec<u8>, header: &MavHeader, msg_id: u32, payload: &[u8]) {
+        Self::heard_as(header).push_raw(out, msg_id, payload);
+    }
+
+    fn heard_as(header: &MavHeader) -> Self {
+        Self {
+            system_id: header.system_id as u8,
+            component_id: header.component_id,
+            sequence: header.sequence,
+        }
+    }
+
     /// Appends a message given as its id and payload bytes (for payloads the dialect cannot
     /// express, such as an acknowledgement of a command id it does not know); trailing zero
     /// bytes are truncated, a payload over 255 bytes is cut.

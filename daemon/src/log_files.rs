@@ -1,0 +1,265 @@
+//! A run's log files: where they go (`logs/2026-11-23_10-15-02.tlog` and `.csv`, named by the
+//! UTC time of the start, as PX4 names its logs) and the writer thread behind each, so that
+//! neither the control loop nor the ground-station task ever waits on the disk (as PX4's logger
+//! and ArduPilot's both write from a thread of their own).
+//!
+//! The producers fill a buffer and hand it over every [`SHIP_INTERVAL_S`]; a daemon killed
+//! outright loses at most that much of its logs.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::mpsc::{SyncSender, TrySendError, sync_channel};
+use std::thread::JoinHandle;
+
+/// How much of a log the producers hold before handing it to the writer (s).
+pub const SHIP_INTERVAL_S: f64 = 0.5;
+
+/// Buffers the writer may hold before a new one is dropped: 32 s of log at one per
+/// [`SHIP_INTERVAL_S`], so only a disk stalled for that long loses anything.
+const QUEUE: usize = 64;
+
+/// One log file written by its own thread.
+pub struct LogFile {
+    path: PathBuf,
+    chunks: Option<SyncSender<Vec<u8>>>,
+    writer: Option<JoinHandle<std::io::Result<()>>>,
+    /// Buffers dropped because the writer was behind.
+    dropped: u64,
+}
+
+impl LogFile {
+    /// Creates (truncates) `path` and starts its writer.
+    pub fn create(path: &Path) -> std::io::Result<Self> {
+        let mut file = std::fs::File::create(path)?;
+        let (tx, rx) = sync_channel::<Vec<u8>>(QUEUE);
+        let writer = std::thread::Builder::new()
+            .name("log-writer".into())
+            .spawn(move || -> std::io::Result<()> {
+                // Straight to the kernel: nothing is held here that a kill would lose.
+                for chunk in rx {
+                    file.write_all(&chunk)?;
+                }
+                Ok(())
+            })?;
+        Ok(Self {
+            path: path.to_owned(),
+            chunks: Some(tx),
+            writer: Some(writer),
+            dropped: 0,
+        })
+    }
+
+    /// The file's path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Hands `chunk` to the writer without waiting. A writer behind by [`QUEUE`] buffers loses
+    /// this one (counted, logged); an `Err` means the writer has stopped (a full disk, say: the
+    /// cause comes from [`LogFile::finish`]).
+    pub fn write(&mut self, chunk: Vec<u8>) -> std::io::Result<()> {
+        if chunk.is_empty() {
+            return Ok(());
+        }
+        let Some(tx) = &self.chunks else {
+            return Err(std::io::Error::other("log finished"));
+        };
+        match tx.try_send(chunk) {
+            Ok(()) => Ok(()),
+            Err(TrySendError::Full(_)) => {
+                self.dropped += 1;
+                if self.dropped.is_power_of_two() {
+                    tracing::warn!(file = %self.path.display(), dropped = self.dropped, "log writer behind: log data dropped");
+                }
+                Ok(())
+            }
+            Err(TrySendError::Disconnected(_)) => {
+                Err(std::io::Error::other("the log writer stopped"))
+            }
+        }
+    }
+
+    /// Waits for the writer to write everything handed to it; its error, if it met one.
+    pub fn finish(&mut self) -> std::io::Result<()> {
+        self.chunks = None;
+        match self.writer.take().map(JoinHandle::join) {
+            None => Ok(()),
+            Some(Ok(r)) => r,
+            Some(Err(_)) => Err(std::io::Error::other("the log writer panicked")),
+        }
+    }
+}
+
+impl Drop for LogFile {
+    fn drop(&mut self) {
+        if let Err(e) = self.finish() {
+            tracing::error!(file = %self.path.display(), "log: {e}");
+        }
+    }
+}
+
+/// The MAVLink telemetry log (`.tlog`, as MAVProxy and QGroundControl write it): every frame
+/// the vehicle sent and every message it heard, each after the time it passed (µs since the
+/// Unix epoch, 8 bytes big-endian). pymavlink (`mavlogdump.py`, MAVExplorer) and
+/// QGroundControl open it.
+pub struct Tlog {
+    file: LogFile,
+    buf: Vec<u8>,
+    /// When `buf` was last handed over (µs since the epoch).
+    shipped_us: u64,
+}
+
+impl Tlog {
+    /// Creates the log at `path`.
+    pub fn create(path: &Path) -> std::io::Result<Self> {
+        Ok(Self {
+            file: LogFile::create(path)?,
+            buf: Vec::with_capacity(64 * 1024),
+            shipped_us: 0,
+        })
+    }
+
+    /// The file's path.
+    pub fn path(&self) -> &Path {
+        self.file.path()
+    }
+
+    /// Records one frame at `unix_us`.
+    pub fn record(&mut self, unix_us: u64, frame: &[u8]) {
+        self.buf.extend_from_slice(&unix_us.to_be_bytes());
+        self.buf.extend_from_slice(frame);
+    }
+
+    /// Hands what is recorded to the writer when [`SHIP_INTERVAL_S`] has passed since it last
+    /// did (or the clock stepped back).
+    pub fn ship_if_due(&mut self, unix_us: u64) -> std::io::Result<()> {
+        let due = self.shipped_us + (SHIP_INTERVAL_S * 1e6) as u64;
+        if unix_us >= due || unix_us < self.shipped_us {
+            self.shipped_us = unix_us;
+            return self.ship();
+        }
+        Ok(())
+    }
+
+    fn ship(&mut self) -> std::io::Result<()> {
+        let chunk = std::mem::replace(&mut self.buf, Vec::with_capacity(64 * 1024));
+        self.file.write(chunk)
+    }
+
+    /// Writes the rest and closes the file.
+    pub fn finish(mut self) -> std::io::Result<()> {
+        self.ship()?;
+        self.file.finish()
+    }
+}
+
+/// Where a run's default logs go: `dir/STEM.tlog` and `dir/STEM.csv`, STEM the UTC date and time
+/// of `unix_s` (`2026-11-23_10-15-02`), `_iN` added for instance N > 0 and `-2`, `-3`, … when
+/// a run of the same second already left logs. Creates `dir`.
+pub fn run_stem(dir: &Path, unix_s: u64, instance: u16) -> std::io::Result<PathBuf> {
+    std::fs::create_dir_all(dir)?;
+    let mut stem = utc_stamp(unix_s);
+    if instance > 0 {
+        stem += &format!("_i{instance}");
+    }
+    let taken = |s: &str| {
+        ["tlog", "csv"]
+            .iter()
+            .any(|ext| dir.join(format!("{s}.{ext}")).exists())
+    };
+    let mut n = 1;
+    let mut name = stem.clone();
+    while taken(&name) {
+        n += 1;
+        name = format!("{stem}-{n}");
+    }
+    Ok(dir.join(name))
+}
+
+/// `YYYY-MM-DD_HH-MM-SS` of a Unix time, UTC (civil-from-days: the proleptic Gregorian
+/// calendar in 400-year eras).
+fn utc_stamp(unix_s: u64) -> String {
+    let days = (unix_s / 86_400) as i64;
+    let secs = unix_s % 86_400;
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = doy - (153 * mp + 2) / 5 + 1;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 };
+    let year = yoe + era * 400 + i64::from(month <= 2);
+    format!(
+        "{year:04}-{month:02}-{day:02}_{:02}-{:02}-{:02}",
+        secs / 3600,
+        secs / 60 % 60,
+        secs % 60
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    #[test]
+    fn stamps_are_utc_calendar_dates() {
+        assert_eq!(utc_stamp(0), "1970-01-01_00-00-00");
+        // Leap days and century rules: 2000-02-29 exists, 2100-02-29 does not.
+        assert_eq!(utc_stamp(951_782_400), "2000-02-29_00-00-00");
+        assert_eq!(utc_stamp(4_107_542_399), "2100-02-28_23-59-59");
+        assert_eq!(utc_stamp(4_107_542_400), "2100-03-01_00-00-00");
+        assert_eq!(utc_stamp(1_795_432_502), "2026-11-23_11-15-02");
+    }
+
+    #[test]
+    fn a_second_run_in_the_same_second_gets_its_own_names() {
+        let dir = std::env::temp_dir().join(format!("autopilot-logs-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let first = run_stem(&dir, 1_795_432_502, 0).unwrap();
+        assert_eq!(first, dir.join("2026-11-23_11-15-02"));
+        std::fs::write(first.with_extension("tlog"), b"").unwrap();
+        let second = run_stem(&dir, 1_795_432_502, 0).unwrap();
+        assert_eq!(second, dir.join("2026-11-23_11-15-02-2"));
+        assert_eq!(
+            run_stem(&dir, 1_795_432_502, 3).unwrap(),
+            dir.join("2026-11-23_11-15-02_i3")
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_tlog_holds_every_frame_after_its_timestamp_in_order() {
+        let path = std::env::temp_dir().join(format!("autopilot-{}.tlog", std::process::id()));
+        let mut tlog = Tlog::create(&path).unwrap();
+        let mut enc = hil::Encoder::with_ids(1, 1);
+        let mut frames = Vec::new();
+        for i in 0..2000u64 {
+            let mut f = Vec::new();
+            enc.push(
+                &mut f,
+                &mavlink::dialects::common::MavMessage::SYSTEM_TIME(
+                    mavlink::dialects::common::SYSTEM_TIME_DATA {
+                        time_unix_usec: i,
+                        time_boot_ms: i as u32,
+                    },
+                ),
+            );
+            let t = 1_795_432_502_000_000 + i * 1000;
+            tlog.record(t, &f);
+            tlog.ship_if_due(t).unwrap();
+            frames.push((t, f));
+        }
+        tlog.finish().unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        let mut at = 0;
+        for (t, f) in &frames {
+            assert_eq!(bytes[at..at + 8], t.to_be_bytes());
+            assert_eq!(&bytes[at + 8..at + 8 + f.len()], f.as_slice());
+            at += 8 + f.len();
+        }
+        assert_eq!(at, bytes.len());
+    }
+}
