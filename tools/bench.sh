@@ -18,8 +18,9 @@ field() { tr ' ' '\n' | sed -n "s/^$1=//p" | head -1; }
 flight=(--takeoff 5 --hover 60 --params-dir params --param-store none --log-dir none)
 
 embedded=$("$bin/autopilot" --sim --speed max "${flight[@]}" 2>/dev/null | grep 'autopilot summary')
-printf '%-50s %s x real time (%s frames/s)\n' "flight: embedded, 60 s hover" \
-    "$(echo "$embedded" | field realtime_factor)" "$(echo "$embedded" | field frames_per_s)"
+printf '%-50s %s x real time (%s frames/s), peak memory %s KiB\n' "flight: embedded, 60 s hover" \
+    "$(echo "$embedded" | field realtime_factor)" "$(echo "$embedded" | field frames_per_s)" \
+    "$(echo "$embedded" | field max_rss_kib)"
 logs=$(mktemp -d)
 logged=$("$bin/autopilot" --sim --speed max "${flight[@]}" --log-dir "$logs" 2>/dev/null | grep 'autopilot summary')
 printf '%-50s %s x real time (%s frames/s), %s of logs\n' "flight: embedded, 60 s hover, with its logs" \
@@ -80,11 +81,11 @@ rt=()
 if chrt -f 50 true 2>/dev/null; then rt=(chrt -f 50); fi
 flight+=(--loop-hz 1000 --loop-cpu 0)
 wall=$(udp_flight "$(free_port)" "?lockstep=false" realtime "${rt[@]}")
-printf '%-50s %s Hz, jitter p50 %s us, p99 %s us, max %s us, overruns %s in %s s (%s)\n' \
+printf '%-50s %s Hz, jitter p50 %s us, p99 %s us, max %s us, overruns %s in %s s (%s), peak memory %s KiB\n' \
     "wall clock: 1 kHz loop, 60 s hover, sitl real time" "$(echo "$wall" | field loop_hz)" \
     "$(echo "$wall" | field jitter_p50_us)" "$(echo "$wall" | field jitter_p99_us)" \
     "$(echo "$wall" | field jitter_max_us)" "$(echo "$wall" | field overruns)" \
-    "$(echo "$wall" | field wall_time_s)" "${rt[*]:-SCHED_OTHER} CPU 0"
+    "$(echo "$wall" | field wall_time_s)" "${rt[*]:-SCHED_OTHER} CPU 0" "$(echo "$wall" | field max_rss_kib)"
 # The floor: the same pacing with no work and no simulator, 60 s, same CPU and priority.
 idle=$("${rt[@]}" "$bin/examples/idle_loop" 60 1000 0)
 printf '%-50s %s Hz, jitter p50 %s us, p99 %s us, max %s us, overruns %s in 60 s\n' \

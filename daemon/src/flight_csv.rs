@@ -2,25 +2,26 @@
 //! asked to do, what it commanded, the simulator's truth where one reports it, and how late the
 //! control loop woke. For plots (`tools/plot_flight.py`, any spreadsheet, pandas, gnuplot) and
 //! for finding where an error comes from. Rows are written by a thread of their own
-//! ([`crate::log_files`]): the control loop formats them and never waits on the disk.
+//! ([`crate::log_files`]): the control loop copies each row and never formats or waits on the disk.
 
 use crate::log_files::LogFile;
 use crate::score::FlightScore;
-use flight_core::commander::CommanderStatus;
+use airframe::MAX_ROTORS;
+use flight_core::commander::{CommanderStatus, LandedState};
 use flight_core::control::Setpoint;
 use flight_core::core::{SensorSample, StepOutput};
 use hil::TruthReport;
+use nalgebra::{UnitQuaternion, Vector3};
 use std::io::Write;
 use std::path::Path;
 use std::time::Duration;
 
 /// Writes flight-data rows.
 pub struct FlightCsv {
-    file: LogFile,
+    file: LogFile<Vec<Row>>,
     /// Rows not yet handed to the writer.
-    out: Vec<u8>,
-    rotors: usize,
-    /// Flight time of the last row on disk: see [`FLUSH_INTERVAL_S`].
+    rows: Vec<Row>,
+    /// Flight time of the last row handed over: see [`FLUSH_INTERVAL_S`].
     flushed_t_s: f64,
 }
 
@@ -29,49 +30,130 @@ pub struct FlightCsv {
 /// log; one that is stopped (Ctrl-C, SIGTERM) writes the rest.
 pub const FLUSH_INTERVAL_S: f64 = crate::log_files::SHIP_INTERVAL_S;
 
+/// Rows held before a flight-time interval is over (a row per frame at up to 2 kHz).
+const ROWS_PER_SHIP: usize = 1024;
+
+/// One row as the control loop copies it: the writer thread formats it.
+#[derive(Debug, Clone, Copy)]
+struct Row {
+    t_s: f64,
+    mode: &'static str,
+    landed: LandedState,
+    armed: bool,
+    pos: Vector3<f64>,
+    vel: Vector3<f64>,
+    sp_pos: Vector3<f64>,
+    q: Option<UnitQuaternion<f64>>,
+    q_d: Option<UnitQuaternion<f64>>,
+    thrust_n: Option<f64>,
+    rate_ref: Vector3<f64>,
+    /// True position from the take-off spot and attitude.
+    truth: Option<(Vector3<f64>, UnitQuaternion<f64>)>,
+    loop_late: Option<Duration>,
+    gyro: Vector3<f64>,
+    accel: Vector3<f64>,
+    mag: Option<Vector3<f64>>,
+    commands: [f64; MAX_ROTORS],
+}
+
 /// Roll, pitch, yaw (deg) of an optional quaternion, or empty cells.
-fn euler_deg(q: Option<nalgebra::UnitQuaternion<f64>>) -> String {
-    q.map_or(",,".to_owned(), |q| {
-        let (r, p, y) = q.euler_angles();
-        format!(
-            "{:.3},{:.3},{:.3}",
-            r.to_degrees(),
-            p.to_degrees(),
-            y.to_degrees()
-        )
-    })
+fn euler_deg(out: &mut dyn Write, q: Option<UnitQuaternion<f64>>) -> std::io::Result<()> {
+    match q {
+        Some(q) => {
+            let (r, p, y) = q.euler_angles();
+            write!(
+                out,
+                "{:.3},{:.3},{:.3}",
+                r.to_degrees(),
+                p.to_degrees(),
+                y.to_degrees()
+            )
+        }
+        None => write!(out, ",,"),
+    }
+}
+
+/// Formats `r` as a CSV line with `rotors` motor columns (on the writer thread).
+fn write_row(out: &mut dyn Write, r: &Row, rotors: usize) -> std::io::Result<()> {
+    let (p, v, s) = (r.pos, r.vel, r.sp_pos);
+    write!(
+        out,
+        "{:.4},{},{:?},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},",
+        r.t_s, r.mode, r.landed, r.armed as u8, p.x, p.y, p.z, v.x, v.y, v.z, s.x, s.y, s.z,
+    )?;
+    euler_deg(out, r.q)?;
+    write!(out, ",")?;
+    euler_deg(out, r.q_d)?;
+    write!(
+        out,
+        ",{:.5},{:.5},{:.5},",
+        r.rate_ref.x, r.rate_ref.y, r.rate_ref.z
+    )?;
+    if let Some(t) = r.thrust_n {
+        write!(out, "{t:.3}")?;
+    }
+    write!(out, ",")?;
+    match r.truth {
+        Some((p, q)) => {
+            write!(out, "{:.4},{:.4},{:.4},", p.x, p.y, p.z)?;
+            euler_deg(out, Some(q))?;
+        }
+        None => write!(out, ",,,,,")?,
+    }
+    match r.loop_late {
+        Some(d) => write!(out, ",{}", d.as_micros())?,
+        None => write!(out, ",")?,
+    }
+    let (g, a) = (r.gyro, r.accel);
+    write!(
+        out,
+        ",{:.6},{:.6},{:.6},{:.5},{:.5},{:.5},",
+        g.x, g.y, g.z, a.x, a.y, a.z
+    )?;
+    match r.mag {
+        Some(m) => write!(out, "{:.6},{:.6},{:.6}", m.x, m.y, m.z)?,
+        None => write!(out, ",,")?,
+    }
+    for c in &r.commands[..rotors] {
+        write!(out, ",{c:.4}")?;
+    }
+    writeln!(out)
 }
 
 impl FlightCsv {
-    /// Creates `path` and writes the header for `rotors` motor columns.
-    pub fn create(path: &Path, rotors: usize) -> std::io::Result<Self> {
-        let file = LogFile::create(path)?;
-        let mut out = Vec::with_capacity(256 * 1024);
-        write!(
-            out,
+    /// Creates `path` and writes the header for `rotors` motor columns. `lockstep`: the flight's
+    /// time is simulated, so a writer that falls behind (a simulation as fast as it goes) is
+    /// waited for rather than losing rows; otherwise the loop never waits on it.
+    pub fn create(path: &Path, rotors: usize, lockstep: bool) -> std::io::Result<Self> {
+        let rotors = rotors.min(MAX_ROTORS);
+        let mut header = String::from(
             "t_s,mode,landed,armed,n_m,e_m,d_m,vn_m_s,ve_m_s,vd_m_s,sp_n_m,sp_e_m,sp_d_m,\
              roll_deg,pitch_deg,yaw_deg,sp_roll_deg,sp_pitch_deg,sp_yaw_deg,\
              p_ref_rad_s,q_ref_rad_s,r_ref_rad_s,thrust_n,\
              true_n_m,true_e_m,true_d_m,true_roll_deg,true_pitch_deg,true_yaw_deg,loop_late_us,\
-             gx,gy,gz,ax,ay,az,mx,my,mz"
-        )?;
+             gx,gy,gz,ax,ay,az,mx,my,mz",
+        );
         for i in 1..=rotors {
-            write!(out, ",motor{i}")?;
+            header += &format!(",motor{i}");
         }
-        writeln!(out)?;
+        header.push('\n');
+        let file = LogFile::create_with(path, header.as_bytes(), move |rows: Vec<Row>, out| {
+            rows.iter().try_for_each(|r| write_row(out, r, rotors))
+        })?;
+        let file = if lockstep { file.lossless() } else { file };
         Ok(Self {
             file,
-            out,
-            rotors,
+            rows: Vec::with_capacity(ROWS_PER_SHIP),
             flushed_t_s: f64::NEG_INFINITY,
         })
     }
 
-    /// Writes one frame's row. True positions are relative to the take-off spot (empty before
+    /// Records one frame's row. True positions are relative to the take-off spot (empty before
     /// arming or without truth); `loop_late` is how late the control loop woke for this frame
     /// (empty when paced by the simulator, lockstep); then the sensor sample the flight core
     /// stepped on, raw (gyro rad/s, specific force m/s², magnetometer gauss, FRD; the
     /// magnetometer only when fresh), the columns `autopilot replay` and `calibrate-mag` read.
+    /// The row is copied here and formatted by the writer thread.
     #[allow(clippy::too_many_arguments)]
     pub fn record(
         &mut self,
@@ -85,68 +167,29 @@ impl FlightCsv {
         loop_late: Option<Duration>,
         sample: &SensorSample,
     ) -> std::io::Result<()> {
-        let tr = &out.translation;
-        // Stick-to-attitude modes fly no position: its set-point columns are NaN.
-        let s = setpoint
-            .position()
-            .map_or(nalgebra::Vector3::repeat(f64::NAN), |p| p.pos_ned_m);
-        let (p, v) = (tr.pos_ned_m, tr.vel_ned_m_s);
-        write!(
-            self.out,
-            "{t_s:.4},{},{:?},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{},",
-            status.mode.name(),
-            status.landed,
-            armed as u8,
-            p.x,
-            p.y,
-            p.z,
-            v.x,
-            v.y,
-            v.z,
-            s.x,
-            s.y,
-            s.z,
-            euler_deg(out.attitude.map(|a| a.q)),
-        )?;
         let sp = out.attitude_setpoint;
-        write!(
-            self.out,
-            "{},{:.5},{:.5},{:.5},{},",
-            euler_deg(sp.map(|a| a.q_d)),
-            out.rate_reference.x,
-            out.rate_reference.y,
-            out.rate_reference.z,
-            sp.map_or(String::new(), |a| format!("{:.3}", a.thrust_n)),
-        )?;
-        match truth.and_then(|t| score.local(t).map(|p| (p, t.q))) {
-            Some((p, q)) => write!(
-                self.out,
-                "{:.4},{:.4},{:.4},{}",
-                p.x,
-                p.y,
-                p.z,
-                euler_deg(Some(q))
-            )?,
-            None => write!(self.out, ",,,,,")?,
-        }
-        match loop_late {
-            Some(d) => write!(self.out, ",{}", d.as_micros())?,
-            None => write!(self.out, ",")?,
-        }
-        let (g, a) = (sample.gyro, sample.accel);
-        write!(
-            self.out,
-            ",{:.6},{:.6},{:.6},{:.5},{:.5},{:.5},",
-            g.x, g.y, g.z, a.x, a.y, a.z
-        )?;
-        match sample.mag {
-            Some(m) => write!(self.out, "{:.6},{:.6},{:.6}", m.x, m.y, m.z)?,
-            None => write!(self.out, ",,")?,
-        }
-        for c in &out.commands[..self.rotors] {
-            write!(self.out, ",{c:.4}")?;
-        }
-        writeln!(self.out)?;
+        self.rows.push(Row {
+            t_s,
+            mode: status.mode.name(),
+            landed: status.landed,
+            armed,
+            pos: out.translation.pos_ned_m,
+            vel: out.translation.vel_ned_m_s,
+            // Stick-to-attitude modes fly no position: its set-point columns are NaN.
+            sp_pos: setpoint
+                .position()
+                .map_or(Vector3::repeat(f64::NAN), |p| p.pos_ned_m),
+            q: out.attitude.map(|a| a.q),
+            q_d: sp.map(|a| a.q_d),
+            thrust_n: sp.map(|a| a.thrust_n),
+            rate_ref: out.rate_reference,
+            truth: truth.and_then(|t| score.local(t).map(|p| (p, t.q))),
+            loop_late,
+            gyro: sample.gyro,
+            accel: sample.accel,
+            mag: sample.mag,
+            commands: out.commands,
+        });
         // Not `>=` on the difference alone: a clock that steps back (a board restarted)
         // flushes at once and starts counting again.
         if !(t_s < self.flushed_t_s + FLUSH_INTERVAL_S && t_s >= self.flushed_t_s) {
@@ -158,7 +201,10 @@ impl FlightCsv {
 
     /// Hands the rows held to the writer; if it has stopped, the error that stopped it.
     fn ship(&mut self) -> std::io::Result<()> {
-        let rows = std::mem::replace(&mut self.out, Vec::with_capacity(256 * 1024));
+        if self.rows.is_empty() {
+            return Ok(());
+        }
+        let rows = std::mem::replace(&mut self.rows, Vec::with_capacity(ROWS_PER_SHIP));
         if let Err(e) = self.file.write(rows) {
             return Err(self.file.finish().err().unwrap_or(e));
         }

@@ -94,6 +94,14 @@ impl Source {
         }
     }
 
+    /// Whether the source waits for each answer (its time is then the flight's clock).
+    pub fn lockstep(&self) -> bool {
+        match self {
+            Self::Embedded => true,
+            Self::Udp { lockstep, .. } | Self::Serial { lockstep, .. } => *lockstep,
+        }
+    }
+
     /// Presets what a simulator's sensors need (PX4's `param set-default` in its SITL start-up):
     /// the simulated magnetometer is calibrated by construction (`CAL_MAG0_ID`), unless the
     /// parameter file says otherwise. A ground station may still clear it.

@@ -3,8 +3,8 @@
 //! neither the control loop nor the ground-station task ever waits on the disk (as PX4's logger
 //! and ArduPilot's both write from a thread of their own).
 //!
-//! The producers fill a buffer and hand it over every [`SHIP_INTERVAL_S`]; a daemon killed
-//! outright loses at most that much of its logs.
+//! The producers fill a buffer (bytes, or rows the writer formats) and hand it over every
+//! [`SHIP_INTERVAL_S`]; a daemon killed outright loses at most that much of its logs.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -18,26 +18,45 @@ pub const SHIP_INTERVAL_S: f64 = 0.5;
 /// [`SHIP_INTERVAL_S`], so only a disk stalled for that long loses anything.
 const QUEUE: usize = 64;
 
-/// One log file written by its own thread.
-pub struct LogFile {
+/// One log file written by its own thread: the producers hand it chunks of `T` (bytes, or rows
+/// the thread formats, so that formatting costs the producer nothing either).
+pub struct LogFile<T: Send + 'static = Vec<u8>> {
     path: PathBuf,
-    chunks: Option<SyncSender<Vec<u8>>>,
+    chunks: Option<SyncSender<T>>,
     writer: Option<JoinHandle<std::io::Result<()>>>,
-    /// Buffers dropped because the writer was behind.
+    /// Chunks dropped because the writer was behind.
     dropped: u64,
+    /// Wait for a writer that is behind instead of dropping (a simulation in lockstep, where
+    /// waiting costs only simulated time).
+    lossless: bool,
 }
 
-impl LogFile {
-    /// Creates (truncates) `path` and starts its writer.
+impl LogFile<Vec<u8>> {
+    /// Creates (truncates) `path` and starts its writer, which writes the bytes it is handed.
     pub fn create(path: &Path) -> std::io::Result<Self> {
+        Self::create_with(path, b"", |chunk: Vec<u8>, out| out.write_all(&chunk))
+    }
+}
+
+impl<T: Send + 'static> LogFile<T> {
+    /// Creates (truncates) `path`, writes `header`, and starts the writer, which writes each
+    /// chunk it is handed with `encode`.
+    pub fn create_with(
+        path: &Path,
+        header: &[u8],
+        mut encode: impl FnMut(T, &mut dyn Write) -> std::io::Result<()> + Send + 'static,
+    ) -> std::io::Result<Self> {
         let mut file = std::fs::File::create(path)?;
-        let (tx, rx) = sync_channel::<Vec<u8>>(QUEUE);
+        file.write_all(header)?;
+        let (tx, rx) = sync_channel::<T>(QUEUE);
         let writer = std::thread::Builder::new()
             .name("log-writer".into())
             .spawn(move || -> std::io::Result<()> {
-                // Straight to the kernel: nothing is held here that a kill would lose.
+                let mut out = std::io::BufWriter::with_capacity(256 * 1024, file);
                 for chunk in rx {
-                    file.write_all(&chunk)?;
+                    encode(chunk, &mut out)?;
+                    // To the kernel with every chunk: nothing is held here that a kill would lose.
+                    out.flush()?;
                 }
                 Ok(())
             })?;
@@ -46,7 +65,15 @@ impl LogFile {
             chunks: Some(tx),
             writer: Some(writer),
             dropped: 0,
+            lossless: false,
         })
+    }
+
+    /// From now on [`LogFile::write`] waits for a writer that is behind rather than dropping:
+    /// for producers whose time is simulated (lockstep), where a wait costs no flight.
+    pub fn lossless(mut self) -> Self {
+        self.lossless = true;
+        self
     }
 
     /// The file's path.
@@ -54,16 +81,18 @@ impl LogFile {
         &self.path
     }
 
-    /// Hands `chunk` to the writer without waiting. A writer behind by [`QUEUE`] buffers loses
+    /// Hands `chunk` to the writer without waiting (unless [`LogFile::lossless`]). A writer behind by [`QUEUE`] chunks loses
     /// this one (counted, logged); an `Err` means the writer has stopped (a full disk, say: the
     /// cause comes from [`LogFile::finish`]).
-    pub fn write(&mut self, chunk: Vec<u8>) -> std::io::Result<()> {
-        if chunk.is_empty() {
-            return Ok(());
-        }
+    pub fn write(&mut self, chunk: T) -> std::io::Result<()> {
         let Some(tx) = &self.chunks else {
             return Err(std::io::Error::other("log finished"));
         };
+        if self.lossless {
+            return tx
+                .send(chunk)
+                .map_err(|_| std::io::Error::other("the log writer stopped"));
+        }
         match tx.try_send(chunk) {
             Ok(()) => Ok(()),
             Err(TrySendError::Full(_)) => {
@@ -90,7 +119,7 @@ impl LogFile {
     }
 }
 
-impl Drop for LogFile {
+impl<T: Send + 'static> Drop for LogFile<T> {
     fn drop(&mut self) {
         if let Err(e) = self.finish() {
             tracing::error!(file = %self.path.display(), "log: {e}");
@@ -142,6 +171,9 @@ impl Tlog {
     }
 
     fn ship(&mut self) -> std::io::Result<()> {
+        if self.buf.is_empty() {
+            return Ok(());
+        }
         let chunk = std::mem::replace(&mut self.buf, Vec::with_capacity(64 * 1024));
         self.file.write(chunk)
     }

@@ -404,7 +404,7 @@ fn fly(cli: &Cli) -> Result<()> {
     let (flight_csv, tlog) = log_paths(&cfg, &mut notices);
     if let Some(path) = &flight_csv {
         vehicle.log_to(
-            FlightCsv::create(path, airframe.rotors.len())
+            FlightCsv::create(path, airframe.rotors.len(), source.lockstep())
                 .with_context(|| format!("creating {}", path.display()))?,
         );
     }
@@ -540,11 +540,22 @@ fn fly(cli: &Cli) -> Result<()> {
     let report = control
         .join()
         .map_err(|_| anyhow::anyhow!("the control loop panicked"))??;
-    println!("{report}");
+    // The process's peak memory joins the summary (the bench quotes it).
+    match peak_rss_kib() {
+        Some(kib) => println!("{report} max_rss_kib={kib}"),
+        None => println!("{report}"),
+    }
     if exit == Some(gcs::Action::Reboot) {
         reboot()?;
     }
     Ok(())
+}
+
+/// The process's peak resident memory (KiB), where Linux's /proc tells it.
+fn peak_rss_kib() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
 }
 
 /// The run's flight-data CSV and telemetry log: those named, else LOG_DIR/<start time>.csv and

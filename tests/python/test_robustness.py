@@ -69,12 +69,22 @@ def test_logs_are_flushed_on_sigterm_and_a_killed_daemon_loses_under_a_second(tm
                                   0, 0, 0, float("nan"), float("nan"), float("nan"), float("nan"))
         wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER" and armed(m), timeout=30)
         seen_s = vehicle_time_s(gcs)
+        killed_at = time.time()
         daemon.ap.kill()
         daemon.ap.wait()
         _, rows = csv_rows(second)
         last = rows[-1]
         assert float(last["t_s"]) >= seen_s - 1.0, (last["t_s"], seen_s)
         assert last["armed"] == "1" and float(last["d_m"]) < -1.5, last  # in the air
+        # The telemetry log (handed to its writer every half second of wall-clock time) reaches
+        # to within a second of the kill, and what it holds reads whole.
+        tlog = max(daemon.logs.glob("*.tlog"), key=lambda p: p.stat().st_mtime)
+        log = mavutil.mavlink_connection(str(tlog))
+        stamps = []
+        while (m := log.recv_match()) is not None:
+            assert m.get_type() != "BAD_DATA", m
+            stamps.append(m._timestamp)
+        assert stamps and stamps[-1] >= killed_at - 1.0, (stamps[-1:], killed_at)
     finally:
         daemon.close()
 
