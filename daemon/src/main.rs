@@ -400,6 +400,12 @@ fn fly(cli: &Cli) -> Result<()> {
         takeoff_m,
         hover_s: cfg.hover_s,
     });
+    if let Some(cpu) = cfg.loop_cpu {
+        // This thread runs the tasks around the loop, and the threads it starts (the log
+        // writers, the runtime's) inherit where it may run: none on the loop's CPU. The loop's
+        // own thread pins itself there.
+        deadline::keep_off_cpu(cpu).map_err(anyhow::Error::msg)?;
+    }
     let mut vehicle = Vehicle::new(&airframe, &params, auto)?;
     let (flight_csv, tlog) = log_paths(&cfg, &mut notices);
     if let Some(path) = &flight_csv {
@@ -451,7 +457,6 @@ fn fly(cli: &Cli) -> Result<()> {
     let (params_tx, params_rx) = watch::channel(params.clone());
     ports.params = Some(params_rx);
     let parameters = gcs::params::Parameters::new(params, store);
-    let loop_cpu = cfg.loop_cpu;
     // The control loop on its own thread owns the vehicle and the sensor link; this thread runs
     // the tasks that talk to it (status line, Ctrl-C; the ground stations later).
     let control = std::thread::Builder::new()
@@ -506,10 +511,6 @@ fn fly(cli: &Cli) -> Result<()> {
             }
         })
         .context("starting the control loop")?;
-    if let Some(cpu) = loop_cpu {
-        // This thread runs the tasks around the loop: not on the loop's CPU.
-        deadline::keep_off_cpu(cpu).map_err(anyhow::Error::msg)?;
-    }
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()

@@ -139,6 +139,23 @@ def cpu_s(pid):
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
+def cpus_of_threads(pid):
+    """Each thread name of process `pid` with the sets of CPUs its threads may run on."""
+    def cpus(text):
+        out = set()
+        for part in text.split(","):
+            lo, _, hi = part.partition("-")
+            out.update(range(int(lo), int(hi or lo) + 1))
+        return out
+    threads = {}
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        name = (task / "comm").read_text().strip()
+        line = next(l for l in (task / "status").read_text().splitlines()
+                    if l.startswith("Cpus_allowed_list:"))
+        threads.setdefault(name, []).append(cpus(line.split(":", 1)[1].strip()))
+    return threads
+
+
 def rss_kib(pid):
     for line in Path(f"/proc/{pid}/status").read_text().splitlines():
         if line.startswith("VmRSS:"):
@@ -183,6 +200,14 @@ def test_a_flood_at_the_ground_station_port_neither_starves_the_loop_nor_the_gro
         greet(gcs)
         ready_to_arm(gcs)
         home = wait(gcs, "GLOBAL_POSITION_INT", lambda m: True)
+        # The loop alone on its CPU: every other thread of the daemon (the runtime, the log
+        # writers, which format the flight CSV) kept off it.
+        threads = cpus_of_threads(daemon.ap.pid)
+        assert threads["control-loop"] == [{LOOP_CPU}], threads
+        assert "log-writer" in threads, threads
+        if len(everywhere) > 1:
+            others = {n: c for n, c in threads.items() if n != "control-loop"}
+            assert all(LOOP_CPU not in c for cs in others.values() for c in cs), threads
         assert command(gcs, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1, 0, 0, 0, 0, 0, 0) == 0
         assert command(gcs, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan,
                        math.nan, math.nan) == 0
