@@ -88,6 +88,8 @@ pub struct Telemetry {
     pub sensors_silent: bool,
     /// Times the sensor source started again from an earlier time (the vehicle with it).
     pub source_restarts: u32,
+    /// The magnetometer calibration under way, or the last one.
+    pub mag_cal: Option<flight_core::mag_calibrator::MagCalStatus>,
 }
 
 /// The control loop's side of its channels.
@@ -399,6 +401,7 @@ impl<'a> ControlLoop<'a> {
                     finished: false,
                     sensors_silent: false,
                     source_restarts: self.vehicle.source_restarts(),
+                    mag_cal: self.vehicle.mag_calibration(),
                 });
             }
             if self.vehicle.awaiting_takeoff() && self.t_s > READY_TIMEOUT_S {

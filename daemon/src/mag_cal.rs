@@ -60,11 +60,13 @@ fn calibration_values(
     strength: f64,
     device_id: u32,
 ) -> [(&'static str, String); 4] {
-    let v = |x: Vector3<f64>| format!("[{:.6}, {:.6}, {:.6}]", x.x, x.y, x.z);
+    let v = |x: [f64; 3]| format!("[{:.6}, {:.6}, {:.6}]", x[0], x[1], x[2]);
+    let mut p = flight_core::estimator::attitude::AttitudeParams::default();
+    p.set_mag_correction(&fit.correction(strength));
     [
-        ("mag_offset", v(fit.offset)),
-        ("mag_scale", v(fit.scale(strength))),
-        ("mag_rotation_rad", v(fit.rotation.scaled_axis())),
+        ("mag_offset", v(fit.offset.into())),
+        ("mag_scale", v(p.mag_scale)),
+        ("mag_offdiag", v(p.mag_offdiag)),
         ("mag_calibration_id", device_id.to_string()),
     ]
 }

@@ -176,7 +176,7 @@ enum Command {
     /// Calibrate the magnetometer from a log (Castillo (75)–(79): the ellipsoid's offset,
     /// rotation and scale fitted to the raw samples): any CSV with raw FRD columns mx,my,mz,
     /// such as the flight-data CSV of a run in which the vehicle was turned through every
-    /// orientation. Writes mag_offset, mag_scale, mag_rotation_rad and mag_calibration_id into
+    /// orientation. Writes mag_offset, mag_scale, mag_offdiag and mag_calibration_id into
     /// the [attitude] table of --params (atomically, comments kept), or prints them.
     CalibrateMag {
         /// Input CSV.

@@ -15,6 +15,7 @@ use flight_core::estimator::translation::GpsMeasurement;
 use flight_core::failsafe::{BlindDescent, HoverCommands};
 use flight_core::geo::{LatLonAlt, LocalFrame};
 use flight_core::geofence::{FenceMonitor, GeoZone, Geofence};
+use flight_core::mag_calibrator::{MagCalState, MagCalStatus, MagCalibrator};
 use flight_core::mag_check::MagFieldMonitor;
 use flight_core::mission::{MissionItem, MissionPoint, SpeedChange};
 use flight_core::params::FlightParams;
@@ -103,6 +104,25 @@ pub enum VehicleCommand {
     },
     /// Make a motor or sensor fail, or work again (`MAV_CMD_INJECT_FAILURE`).
     InjectFailure(Injection),
+    /// Start an onboard magnetometer calibration (`MAV_CMD_PREFLIGHT_CALIBRATION`, param2 1).
+    CalibrateMag,
+    /// Cancel a calibration under way (`MAV_CMD_PREFLIGHT_CALIBRATION`, every param 0).
+    CancelCalibration,
+}
+
+/// Logs how a magnetometer calibration ended, if it has.
+fn log_calibration_end(s: &MagCalStatus) {
+    match s.state {
+        MagCalState::Collecting | MagCalState::Cancelled => {}
+        MagCalState::Succeeded(r) => tracing::info!(
+            samples = r.samples,
+            coverage = r.coverage,
+            residual = format!("{:.2} %", 100.0 * r.residual_rms),
+            offset = ?r.offset.as_slice(),
+            "magnetometer calibration done"
+        ),
+        MagCalState::Failed(f) => tracing::warn!("magnetometer calibration failed: {f}"),
+    }
 }
 
 /// How far back the sensor clock must jump for the source to count as started again (s): more
@@ -164,6 +184,9 @@ pub struct Vehicle {
     /// When the IMU froze while armed (sensor time): the loops cannot fly without it, and it
     /// is not trusted again before the motors stop.
     imu_frozen_since_usec: Option<u64>,
+    /// The last magnetometer calibration (under way or ended), and how many were started.
+    mag_cal: Option<MagCalibrator>,
+    mag_cal_runs: u32,
 }
 
 /// One step's result.
@@ -232,6 +255,8 @@ impl Vehicle {
             monitor: SensorMonitor::new(),
             mag_field: MagFieldMonitor::default(),
             imu_frozen_since_usec: None,
+            mag_cal: None,
+            mag_cal_runs: 0,
         })
     }
 
@@ -327,11 +352,53 @@ impl Vehicle {
         self.commander.take_changed()
     }
 
+    /// The magnetometer calibration under way, or the last one.
+    pub fn mag_calibration(&self) -> Option<MagCalStatus> {
+        self.mag_cal.as_ref().map(MagCalibrator::status)
+    }
+
+    fn calibrating(&self) -> bool {
+        self.mag_cal.as_ref().is_some_and(MagCalibrator::collecting)
+    }
+
     /// Carries out a command, or says why not.
     pub fn command(&mut self, c: VehicleCommand) -> Result<(), Denial> {
+        let arming = matches!(
+            c,
+            VehicleCommand::Arm { .. }
+                | VehicleCommand::Takeoff(_)
+                | VehicleCommand::TakeoffAmsl(_)
+                | VehicleCommand::StartMission(_)
+        );
+        if arming && self.calibrating() {
+            return Err("arming refused: calibrating the magnetometer".into());
+        }
         let origin = self.origin();
         let c_ = &mut self.commander;
         match c {
+            VehicleCommand::CalibrateMag => {
+                if c_.status().armed {
+                    return Err("calibration refused: disarm first".into());
+                }
+                if self.calibrating() {
+                    return Err("a magnetometer calibration is already running".into());
+                }
+                self.mag_cal_runs += 1;
+                let strength = self.params.attitude.mag_intensity_gauss;
+                self.mag_cal = Some(MagCalibrator::new(self.mag_cal_runs, strength));
+                tracing::info!(
+                    run = self.mag_cal_runs,
+                    "magnetometer calibration started: turn the vehicle through every orientation"
+                );
+                Ok(())
+            }
+            VehicleCommand::CancelCalibration => {
+                if let Some(cal) = self.mag_cal.as_mut().filter(|c| c.collecting()) {
+                    cal.cancel();
+                    tracing::warn!("magnetometer calibration cancelled");
+                }
+                Ok(())
+            }
             VehicleCommand::Arm { force } => c_.arm(force),
             VehicleCommand::Disarm { force } => c_.disarm(force),
             VehicleCommand::SetMode(m) => c_.set_mode(m),
@@ -724,6 +791,10 @@ impl Vehicle {
             self.mag_field.update(sample.mag, &sample.accel, p, dt);
         }
         let t_s = t_usec as f64 * 1e-6;
+        if let Some(cal) = self.mag_cal.as_mut().filter(|c| c.collecting()) {
+            cal.step(t_s, sample.mag);
+            log_calibration_end(&cal.status());
+        }
         let (setpoint, armed) = match self.last {
             Some(e) => {
                 let ready = e.attitude.is_some_and(|a| a.valid)

@@ -124,11 +124,11 @@ fn a_calibration_from_a_log_recovers_the_simulated_distortion() {
             "mag_calibration_id",
             "mag_offset",
             "mag_scale",
-            "mag_rotation_rad"
+            "mag_offdiag"
         ]
     );
     assert_eq!(original.lines().count(), written.lines().count());
-    assert!(written.contains("mag_offset = [") && written.contains("# CAL_MAG offset"));
+    assert!(written.contains("mag_offset = [") && written.contains("# CAL_MAG0_XOFF, YOFF, ZOFF"));
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

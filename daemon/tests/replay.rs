@@ -3,7 +3,7 @@
 // Test code: a failed unwrap is a failed test.
 #![allow(clippy::unwrap_used)]
 
-use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
+use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use sitl_core::environment::isa;
 use sitl_core::geo::Geodetic;
 use sitl_core::sensors::{EarthField, SensorConfig, SensorPreset, SensorSuite, Truth, fields};
@@ -84,16 +84,19 @@ fn make_log(
     let path = dir.join("log.csv");
     std::fs::write(&path, csv).unwrap();
     // The calibration that undoes raw = S m + offset: R E Rᵀ = S⁻¹ (Castillo (75) in body form).
-    let eig = cfg.mag_soft_iron.try_inverse().unwrap().symmetric_eigen();
-    let mut r: Matrix3<f64> = eig.eigenvectors;
-    if r.determinant() < 0.0 {
-        r.column_mut(0).neg_mut();
-    }
-    let rv = Rotation3::from_matrix_unchecked(r).scaled_axis();
-    let (e, o) = (eig.eigenvalues, cfg.mag_hard_iron);
+    let s: Matrix3<f64> = cfg.mag_soft_iron.try_inverse().unwrap();
+    let o = cfg.mag_hard_iron;
     let params = format!(
-        "[attitude]\nmag_offset = [{}, {}, {}]\nmag_scale = [{}, {}, {}]\nmag_rotation_rad = [{}, {}, {}]\n",
-        o.x, o.y, o.z, e[0], e[1], e[2], rv.x, rv.y, rv.z
+        "[attitude]\nmag_offset = [{}, {}, {}]\nmag_scale = [{}, {}, {}]\nmag_offdiag = [{}, {}, {}]\n",
+        o.x,
+        o.y,
+        o.z,
+        s[(0, 0)],
+        s[(1, 1)],
+        s[(2, 2)],
+        s[(0, 1)],
+        s[(0, 2)],
+        s[(1, 2)]
     );
     let params_path = dir.join("params.toml");
     std::fs::write(&params_path, params).unwrap();

@@ -1,7 +1,8 @@
 //! The simulator's own MAVLink endpoint (`sitl --control ADDR`): the weather, changed while it
 //! flies. ArduPilot's SITL names where it has them — `SIM_WIND_SPD`, `SIM_WIND_DIR` (where the
 //! wind comes from), `SIM_WIND_TURB` (here the Dryden intensity W20) — and `1 − cos` gusts
-//! (`SIM_GUST_*`). Any ground station or script speaks to it with the parameter protocol
+//! (`SIM_GUST_*`); and a hand that picks the vehicle up and turns it through every orientation
+//! for a magnetometer calibration (`SIM_TUMBLE_S`). Any ground station or script speaks to it with the parameter protocol
 //! (`PARAM_REQUEST_LIST`, `PARAM_REQUEST_READ`, `PARAM_SET`, each answered with `PARAM_VALUE`);
 //! a value out of range or not finite keeps the old one and says why in `STATUSTEXT`. It
 //! speaks as system 1, component 25 (the simulator's ids on the HIL link) and sends a heartbeat
@@ -30,7 +31,7 @@ struct Meta {
     description: &'static str,
 }
 
-const META: [Meta; 7] = [
+const META: [Meta; 8] = [
     Meta {
         name: "SIM_WIND_SPD",
         unit: "m/s",
@@ -80,6 +81,13 @@ const META: [Meta; 7] = [
         max: 600.0,
         description: "Time between gust starts (0: one gust each time SIM_GUST_SPD is set)",
     },
+    Meta {
+        name: "SIM_TUMBLE_S",
+        unit: "s",
+        min: 0.0,
+        max: 600.0,
+        description: "Setting it picks the vehicle up and turns it by hand through every orientation for this long (a magnetometer calibration), then sets it down level; 0 sets it down now",
+    },
 ];
 
 /// The weather parameters and the gusts they schedule: pure, stepped with simulation time.
@@ -108,7 +116,16 @@ impl Weather {
             0.0
         };
         Self {
-            values: [speed, from, wind.turbulence_w20_m_s, 0.0, 0.0, 2.0, 0.0],
+            values: [
+                speed,
+                from,
+                wind.turbulence_w20_m_s,
+                0.0,
+                0.0,
+                2.0,
+                0.0,
+                0.0,
+            ],
             vertical_m_s: d,
             next_gust_s: None,
         }
@@ -146,6 +163,7 @@ impl Weather {
                 }
                 Vec::new()
             }
+            "SIM_TUMBLE_S" => vec![Action::Tumble { duration_s: value }],
             _ => Vec::new(),
         })
     }

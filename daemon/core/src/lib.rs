@@ -12,6 +12,7 @@ pub mod estimator;
 pub mod failsafe;
 pub mod geo;
 pub mod geofence;
+pub mod mag_calibrator;
 pub mod mag_check;
 pub mod mag_fit;
 pub mod mission;

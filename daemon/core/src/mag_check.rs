@@ -177,17 +177,9 @@ mod tests {
         let raw = m.measured().unwrap();
         assert!((raw.strength_gauss - 0.48).abs() > 0.2, "{raw:?}");
         // The calibration that inverts the distortion: offset and the soft iron's inverse
-        // (symmetric, so its eigen-decomposition is Castillo's R·E·Rᵀ).
+        // (symmetric: Castillo's R·E·Rᵀ).
         p.mag_offset = hard.into();
-        let inv = soft.try_inverse().unwrap();
-        let eig = inv.symmetric_eigen();
-        let mut v = eig.eigenvectors;
-        if v.determinant() < 0.0 {
-            v = -v; // a proper rotation
-        }
-        let r = nalgebra::Rotation3::from_matrix_unchecked(v);
-        p.mag_rotation_rad = r.scaled_axis().into();
-        p.mag_scale = eig.eigenvalues.into();
+        p.set_mag_correction(&soft.try_inverse().unwrap());
         let mut m = MagFieldMonitor::default();
         feed(&mut m, q, hard, soft, &p, 2.0);
         let f = m.measured().unwrap();

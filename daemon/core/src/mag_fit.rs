@@ -20,7 +20,7 @@
 use nalgebra::{Matrix3, Matrix4, Rotation3, SMatrix, SVector, Vector3};
 
 /// Why a set of samples gives no calibration.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub enum FitError {
     /// Fewer finite samples than a fit needs.
     TooFewSamples {
@@ -85,37 +85,51 @@ impl Ellipsoid {
         self.radii.map(|r| strength / r)
     }
 
+    /// The soft-iron correction `R E Rᵀ` of Castillo (75) in body axes, E for `strength`.
+    pub fn correction(&self, strength: f64) -> Matrix3<f64> {
+        let r = self.rotation.matrix();
+        r * Matrix3::from_diagonal(&self.scale(strength)) * r.transpose()
+    }
+
     /// Castillo (75) in body axes: the field `R E Rᵀ (m_raw − offset)`, E for `strength`.
     pub fn correct(&self, raw: &Vector3<f64>, strength: f64) -> Vector3<f64> {
-        let r = self.rotation.matrix();
-        r * Matrix3::from_diagonal(&self.scale(strength)) * r.transpose() * (raw - self.offset)
+        self.correction(strength) * (raw - self.offset)
     }
 }
 
-/// Index of the nearest of the 26 directions (x, y, z each −1, 0 or +1, not all 0) to `v`.
-fn direction(v: &Vector3<f64>) -> Option<usize> {
-    let n = v.norm();
-    if n.is_nan() || n <= 0.0 {
-        return None;
-    }
-    let mut best = (f64::NEG_INFINITY, 0);
+/// The 26 directions of a cube's faces, edges and corners (x, y, z each −1, 0 or +1, not all
+/// 0), as unit vectors.
+fn directions() -> [Vector3<f64>; COVERAGE_DIRECTIONS] {
+    let mut d = [Vector3::zeros(); COVERAGE_DIRECTIONS];
     let mut i = 0;
     for x in -1i8..=1 {
         for y in -1i8..=1 {
             for z in -1i8..=1 {
-                if (x, y, z) == (0, 0, 0) {
-                    continue;
+                if (x, y, z) != (0, 0, 0) {
+                    d[i] = Vector3::new(x as f64, y as f64, z as f64).normalize();
+                    i += 1;
                 }
-                let d = Vector3::new(x as f64, y as f64, z as f64).normalize();
-                let c = d.dot(v) / n;
-                if c > best.0 {
-                    best = (c, i);
-                }
-                i += 1;
             }
         }
     }
-    Some(best.1)
+    d
+}
+
+/// Index of the nearest of the 26 [`directions`] to `v`.
+pub(crate) fn direction(v: &Vector3<f64>) -> Option<usize> {
+    thread_local! {
+        static DIRECTIONS: [Vector3<f64>; COVERAGE_DIRECTIONS] = directions();
+    }
+    let n = v.norm();
+    if n.is_nan() || n <= 0.0 {
+        return None;
+    }
+    DIRECTIONS.with(|d| {
+        d.iter()
+            .enumerate()
+            .max_by(|a, b| a.1.dot(v).total_cmp(&b.1.dot(v)))
+            .map(|(i, _)| i)
+    })
 }
 
 /// Fits the ellipsoid to raw magnetometer samples (any unit; non-finite samples skipped).

@@ -297,24 +297,38 @@ impl FlightParams {
     /// integer parameter, within the parameter's range and consistent with the others;
     /// otherwise nothing changes and the rejection says why.
     pub fn set(&mut self, name: &str, value: f64) -> Result<(), ParamRejection> {
-        let (_, group, m) = Self::find(name).ok_or_else(|| ParamRejection::Unknown(name.into()))?;
-        let invalid = |why: String| Err(ParamRejection::Invalid(format!("{name}: {why}")));
-        if !value.is_finite() {
-            return invalid(format!("{value} is not a number"));
-        }
-        if m.kind == ParamKind::Int32 && value.fract() != 0.0 {
-            return invalid(format!("{value} is not an integer"));
-        }
-        if !(m.min..=m.max).contains(&value) {
-            return invalid(format!(
-                "{value} is outside [{}, {}] {}",
-                m.min, m.max, m.unit
-            ));
-        }
+        self.set_many(&[(name, value)])
+    }
+
+    /// Sets several parameters together (a calibration's result), each checked as by
+    /// [`FlightParams::set`] and the consistency once, after all: all of them change, or none.
+    pub fn set_many(&mut self, values: &[(&str, f64)]) -> Result<(), ParamRejection> {
         let mut next = self.clone();
-        next.set_field(group, m.key, value);
+        for &(name, value) in values {
+            let (_, group, m) =
+                Self::find(name).ok_or_else(|| ParamRejection::Unknown(name.into()))?;
+            let invalid = |why: String| Err(ParamRejection::Invalid(format!("{name}: {why}")));
+            if !value.is_finite() {
+                return invalid(format!("{value} is not a number"));
+            }
+            if m.kind == ParamKind::Int32 && value.fract() != 0.0 {
+                return invalid(format!("{value} is not an integer"));
+            }
+            if !(m.min..=m.max).contains(&value) {
+                return invalid(format!(
+                    "{value} is outside [{}, {}] {}",
+                    m.min, m.max, m.unit
+                ));
+            }
+            next.set_field(group, m.key, value);
+        }
         if let Some(v) = next.validate().into_iter().next() {
-            return invalid(v.reason);
+            let names: Vec<&str> = values.iter().map(|(n, _)| *n).collect();
+            return Err(ParamRejection::Invalid(format!(
+                "{}: {}",
+                names.join(", "),
+                v.reason
+            )));
         }
         *self = next;
         Ok(())
@@ -576,6 +590,39 @@ mod tests {
         assert_eq!(FlightParams::count(), n);
     }
 
+    /// A calibration's nine values go in together: one at a time, a valid result may pass
+    /// through a soft-iron matrix that is not positive definite, which is refused.
+    #[test]
+    fn a_calibration_is_set_all_at_once_and_a_folding_correction_is_refused() {
+        let mut p = FlightParams::default();
+        p.set_many(&[("CAL_MAG0_XODIAG", 0.9)]).unwrap();
+        let shrink = [
+            ("CAL_MAG0_XSCALE", 0.3),
+            ("CAL_MAG0_YSCALE", 0.3),
+            ("CAL_MAG0_XODIAG", 0.0),
+        ];
+        let mut one_by_one = p.clone();
+        let err = one_by_one.set(shrink[0].0, shrink[0].1).unwrap_err();
+        assert!(err.to_string().contains("positive definite"), "{err}");
+        p.set_many(&shrink).unwrap();
+        assert_eq!(p.value("CAL_MAG0_XSCALE"), Some(0.3));
+        assert_eq!(
+            p.attitude.mag_correction(),
+            Matrix3::from_diagonal(&Vector3::new(0.3, 0.3, 1.0))
+        );
+        // All or nothing: one bad value leaves every other as it was.
+        let before = p.clone();
+        assert!(
+            p.set_many(&[("CAL_MAG0_XOFF", 0.1), ("CAL_MAG0_YOFF", 7.0)])
+                .is_err()
+        );
+        assert!(
+            p.set_many(&[("CAL_MAG0_XODIAG", 0.5)]).is_err(),
+            "0.3 diagonal, 0.5 off it"
+        );
+        assert_eq!(p, before);
+    }
+
     #[test]
     fn every_violation_is_reported_with_its_range() {
         let p: AttitudeParams = toml::from_str(
@@ -589,7 +636,7 @@ mod tests {
             [
                 "attitude.observer_gain",
                 "attitude.accel_deweight_g",
-                "attitude.mag_scale"
+                "attitude.mag_scale[1]"
             ]
         );
         assert!(v[0].reason.contains("[0.05, 50] 1/s, got -1"));

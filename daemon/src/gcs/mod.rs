@@ -10,6 +10,7 @@
 // and older scripts send: honoured on purpose.
 #![allow(deprecated)]
 
+mod calibration;
 pub mod links;
 pub mod mission;
 pub mod modes;
@@ -216,6 +217,8 @@ pub struct GroundStation {
     reached_shown: u32,
     /// When MISSION_CURRENT is next due (s).
     mission_current_next_s: f64,
+    /// What has been said of the magnetometer calibration.
+    mag_cal_shown: calibration::Shown,
 }
 
 impl GroundStation {
@@ -253,6 +256,7 @@ impl GroundStation {
             mission_shown: None,
             reached_shown: 0,
             mission_current_next_s: 0.0,
+            mag_cal_shown: Default::default(),
         }
     }
 
@@ -409,6 +413,7 @@ impl GroundStation {
                 .extend(telemetry::build(HOME_POSITION_DATA::ID, t, unix).map(Outgoing::Message));
         }
         self.missions.poll(now_s, out);
+        self.report_calibration(t, out);
         if let Some(status) = t.status {
             let m = status.mission;
             // MISSION_ITEM_REACHED once per item, then MISSION_CURRENT (at 1 Hz and on every
@@ -1083,6 +1088,24 @@ impl GroundStation {
                         "shutting down"
                     };
                     out.say(MavSeverity::MAV_SEVERITY_NOTICE, what);
+                }
+            }
+            MavCmd::MAV_CMD_PREFLIGHT_CALIBRATION => {
+                // Params 1–7: gyro, magnetometer, ground pressure, radio, accelerometer,
+                // airspeed/compass-motor, ESC/baro; all 0 cancels (PX4, MAVSDK). NaN is a
+                // reserved param left unset (MAVSDK leaves 6 and 7 so): 0.
+                let off = |x: f32| x == 0.0 || x.is_nan();
+                if p.iter().all(|&x| off(x)) {
+                    vehicle(out, VehicleCommand::CancelCalibration);
+                } else if p[1] == 1.0 && p.iter().enumerate().all(|(i, &x)| i == 1 || off(x)) {
+                    vehicle(out, VehicleCommand::CalibrateMag);
+                } else {
+                    out.send(self.ack(to, MavResult::MAV_RESULT_UNSUPPORTED));
+                    out.say(
+                        MavSeverity::MAV_SEVERITY_WARNING,
+                        "calibration: only the magnetometer (param2 = 1) is calibrated onboard; \
+                         the gyro and accelerometer biases are estimated in flight",
+                    );
                 }
             }
             MavCmd::MAV_CMD_GET_HOME_POSITION => {

@@ -156,6 +156,19 @@ impl Parameters {
         change
     }
 
+    /// Sets several parameters together (all or none, see [`FlightParams::set_many`]), records
+    /// them in the store and announces each in `PARAM_VALUE`.
+    pub fn set_many(&mut self, values: &[(&str, f64)], out: &mut Outbox) -> Result<(), String> {
+        self.values.set_many(values).map_err(|e| e.to_string())?;
+        for &(name, value) in values {
+            self.store.record(name, value);
+            if let Some((i, group, m)) = FlightParams::find(name) {
+                out.send(self.value_message(i, group, m));
+            }
+        }
+        Ok(())
+    }
+
     /// Resets every parameter to `base` (`flight.toml`'s values) and empties the store.
     pub fn reset(&mut self, base: &FlightParams) {
         self.values = base.clone();

@@ -6,7 +6,7 @@ use flight_core::commander::Sticks;
 use mavlink::Message;
 use params::Parameters;
 
-fn gcs_header() -> MavHeader {
+pub(crate) fn gcs_header() -> MavHeader {
     MavHeader {
         system_id: 255,
         component_id: 190,
@@ -40,7 +40,7 @@ pub(crate) fn telemetry(armed: bool, mode: FlightMode) -> Telemetry {
     }
 }
 
-fn command_long(command: MavCmd, p: [f32; 7], target: (u8, u8)) -> MavMessage {
+pub(crate) fn command_long(command: MavCmd, p: [f32; 7], target: (u8, u8)) -> MavMessage {
     MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
         param1: p[0],
         param2: p[1],
@@ -56,7 +56,7 @@ fn command_long(command: MavCmd, p: [f32; 7], target: (u8, u8)) -> MavMessage {
     })
 }
 
-fn acks(out: &Outbox) -> Vec<&COMMAND_ACK_DATA> {
+pub(crate) fn acks(out: &Outbox) -> Vec<&COMMAND_ACK_DATA> {
     out.messages
         .iter()
         .filter_map(|m| match m {
@@ -396,7 +396,7 @@ fn endpoint_options_trusted_and_allow_lists_parse_on_every_kind() {
     }
 }
 
-fn param_values(out: &Outbox) -> Vec<&PARAM_VALUE_DATA> {
+pub(crate) fn param_values(out: &Outbox) -> Vec<&PARAM_VALUE_DATA> {
     out.messages
         .iter()
         .filter_map(|m| match m {
@@ -406,7 +406,7 @@ fn param_values(out: &Outbox) -> Vec<&PARAM_VALUE_DATA> {
         .collect()
 }
 
-fn statustexts(out: &Outbox) -> Vec<String> {
+pub(crate) fn statustexts(out: &Outbox) -> Vec<String> {
     out.messages
         .iter()
         .filter_map(|m| match m {

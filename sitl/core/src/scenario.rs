@@ -117,6 +117,10 @@ enum EventFile {
         #[serde(default)]
         turbulence_w20_m_s: f64,
     },
+    Tumble {
+        t_s: f64,
+        duration_s: f64,
+    },
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -572,6 +576,16 @@ fn resolve_event(c: &mut Checker, i: usize, e: &EventFile, out: &mut Vec<Event>)
             );
             *t_s
         }
+        EventFile::Tumble { t_s, duration_s } => {
+            c.positive(format!("{key}.duration_s"), *duration_s);
+            push(
+                *t_s,
+                Action::Tumble {
+                    duration_s: *duration_s,
+                },
+            );
+            *t_s
+        }
     };
     c.non_negative(format!("{key}.t_s"), t);
     out.extend(later);
@@ -621,6 +635,10 @@ t_s = 7.0
 kind = "torque_pulse"
 torque_frd_n_m = [1.0, 0.0, 0.0]
 duration_s = 3.0
+[[events]]
+t_s = 12.0
+kind = "tumble"
+duration_s = 60.0
 [[open_loop]]
 t_s = 1.0
 hover_delta = 0.02
@@ -653,6 +671,10 @@ throttle = 0.1
                 health: SensorHealth::Ok
             }
         }));
+        assert!(s.events.contains(&Event {
+            t_s: 12.0,
+            action: Action::Tumble { duration_s: 60.0 }
+        }));
         // The script is sorted by time.
         assert_eq!(s.open_loop_at(0.5), Some(&OpenLoopCommand::Throttle(0.1)));
         assert_eq!(
@@ -681,6 +703,8 @@ throttle = 0.1
         assert!(e.contains("motor_explode"), "{e}");
         let e = err(&FULL.replace("hover_delta = 0.02", "hover_delta = 0.02\nthrottle = 0.3"));
         assert!(e.contains("`open_loop[0]`: give exactly one of"), "{e}"); // index in the file
+        let e = err(&FULL.replace("duration_s = 60.0", "duration_s = -1.0"));
+        assert!(e.contains("`events[3].duration_s`"), "{e}");
         let e = err(&FULL.replace("rate_hz = 500.0", "rate_hz = 5.0"));
         assert!(
             e.contains("`rate_hz`: must be within [20, 10000], got 5"),

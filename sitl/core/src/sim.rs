@@ -111,6 +111,48 @@ pub enum Action {
         /// Turbulence intensity W20 (m/s).
         turbulence_w20_m_s: f64,
     },
+    /// The vehicle is picked up and turned by hand through every orientation for `duration_s`
+    /// (a magnetometer calibration's dance), then set down level over [`SET_DOWN_S`]; a new
+    /// tumble replaces one under way (0: set it down now). The built-in rigid body only (an
+    /// external one, such as JSBSim's, keeps its own motion).
+    Tumble {
+        /// Length (s).
+        duration_s: f64,
+    },
+}
+
+/// How long a tumble's hand takes to speed up and to slow down (s).
+pub const TUMBLE_RAMP_S: f64 = 2.0;
+/// How long setting the vehicle down level after a tumble takes (s).
+pub const SET_DOWN_S: f64 = 2.0;
+
+/// The hand's turns during an [`Action::Tumble`] of `duration_s`, `t` seconds in, from the
+/// attitude it was picked up in: Euler angles growing at incommensurate rates (0.9, 0.37,
+/// 0.23 rad/s of roll, pitch and yaw), so that the body sweeps every orientation within about
+/// a minute, no faster than a person turns it; the rates rise from and fall to rest smoothly
+/// over [`TUMBLE_RAMP_S`] (a hand, not a step: the IMU's lever arm feels no jolt).
+pub fn tumble_attitude(t: f64, duration_s: f64) -> UnitQuaternion<f64> {
+    let ramp = TUMBLE_RAMP_S.min(duration_s / 2.0).max(1e-9);
+    // ∫ of the speed profile smoothstep(t/ramp)·smoothstep((D − t)/ramp), as a time.
+    let up = |x: f64| ramp * (x.powi(3) - x.powi(4) / 2.0);
+    let t = t.clamp(0.0, duration_s);
+    let progress = if t < ramp {
+        up(t / ramp)
+    } else if t <= duration_s - ramp {
+        ramp / 2.0 + (t - ramp)
+    } else {
+        (duration_s - ramp) - up((duration_s - t) / ramp)
+    };
+    UnitQuaternion::from_euler_angles(0.9 * progress, 0.37 * progress, 0.23 * progress)
+}
+
+/// A tumble under way.
+#[derive(Debug, Clone, Copy)]
+struct Tumble {
+    start_s: f64,
+    duration_s: f64,
+    /// The attitude when picked up (the dance starts from it).
+    q0: UnitQuaternion<f64>,
 }
 
 /// A scheduled action.
@@ -225,6 +267,7 @@ pub struct Simulator {
     air: AirState,
     wind_ned: Vector3<f64>,
     pulses: Vec<Pulse>,
+    tumble: Option<Tumble>,
     events: Vec<Event>,
     max_speeds: [f64; MAX_ROTORS],
     stats: SimStats,
@@ -300,6 +343,7 @@ impl Simulator {
             air: isa(cfg.home.alt_m - initial.pos_ned_m.z),
             wind_ned: Vector3::from(cfg.wind.mean_ned_m_s),
             pulses: Vec::new(),
+            tumble: None,
             events: Vec::new(),
             max_speeds,
             stats: SimStats::default(),
@@ -389,6 +433,13 @@ impl Simulator {
             } => {
                 self.wind.mean_ned_m_s = mean_ned_m_s;
                 self.wind.set_turbulence(turbulence_w20_m_s);
+            }
+            Action::Tumble { duration_s } => {
+                self.tumble = Some(Tumble {
+                    start_s: t,
+                    duration_s: duration_s.max(0.0),
+                    q0: self.body.q_ned_from_frd,
+                });
             }
         }
     }
@@ -548,34 +599,59 @@ impl Simulator {
     pub fn step(&mut self, controls: &[f64]) {
         let dt = self.cfg.dt_s;
         let loads = self.begin_step(controls);
-        let forces = Forces {
-            loads: &loads,
-            mass: &self.mass,
-            drag: &self.airframe.drag,
-        };
         let before = self.body;
-        if self.landed {
+        if let Some(tb) = self.tumble {
+            self.turn_by_hand(&tb, dt);
+        } else {
+            let forces = Forces {
+                loads: &loads,
+                mass: &self.mass,
+                drag: &self.airframe.drag,
+            };
             // Lift off only when the forces at rest would accelerate the vehicle upward.
-            if forces.accel(&self.body).lin_ned_m_s2.z < 0.0 {
+            if self.landed && forces.accel(&self.body).lin_ned_m_s2.z < 0.0 {
                 self.landed = false;
             }
-        }
-        if !self.landed {
-            self.body = self
-                .cfg
-                .integrator
-                .step(&self.body, dt, |s| forces.accel(s));
-            if self.body.pos_ned_m.z > 0.0 {
-                self.stats.touchdowns += 1;
-                self.stats.last_touchdown_speed_m_s = self.body.vel_ned_m_s.z;
+            if !self.landed {
+                self.body = self
+                    .cfg
+                    .integrator
+                    .step(&self.body, dt, |s| forces.accel(s));
+                if self.body.pos_ned_m.z > 0.0 {
+                    self.stats.touchdowns += 1;
+                    self.stats.last_touchdown_speed_m_s = self.body.vel_ned_m_s.z;
+                    self.rest_on_ground();
+                }
+            } else {
                 self.rest_on_ground();
             }
-        } else {
-            self.rest_on_ground();
         }
         self.accel_ned = (self.body.vel_ned_m_s - before.vel_ned_m_s) / dt;
         self.ang_accel_frd = (self.body.rate_frd_rad_s - before.rate_frd_rad_s) / dt;
         self.end_step(&loads.rotor);
+    }
+
+    /// A step of a tumble: the body held where it is, turned to the dance's attitude (its rate
+    /// the turn over the step), then turned back level (heading kept) and set down.
+    fn turn_by_hand(&mut self, tb: &Tumble, dt: f64) {
+        let t = self.time_s() + dt - tb.start_s;
+        let q = if t < tb.duration_s {
+            tb.q0 * tumble_attitude(t, tb.duration_s)
+        } else if t < tb.duration_s + SET_DOWN_S {
+            let from = tb.q0 * tumble_attitude(tb.duration_s, tb.duration_s);
+            let level = UnitQuaternion::from_euler_angles(0.0, 0.0, from.euler_angles().2);
+            let x = (t - tb.duration_s) / SET_DOWN_S;
+            let turn = (from.inverse() * level).scaled_axis() * (x * x * (3.0 - 2.0 * x));
+            from * UnitQuaternion::from_scaled_axis(turn)
+        } else {
+            self.tumble = None;
+            self.rest_on_ground();
+            return;
+        };
+        self.body.rate_frd_rad_s = (self.body.q_ned_from_frd.inverse() * q).scaled_axis() / dt;
+        self.body.q_ned_from_frd = q;
+        self.body.vel_ned_m_s = Vector3::zeros();
+        self.landed = true;
     }
 
     /// Advances the world by one step as [`Simulator::step`] does, but the rigid body, gravity

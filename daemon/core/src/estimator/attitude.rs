@@ -11,7 +11,6 @@ use super::observer::AttitudeObserver;
 use super::wahba::{ObservationError, VectorObservation, quest};
 use crate::GRAVITY_M_S2;
 use crate::params::{ParamKind, ParamMeta, ParamViolation, check};
-use nalgebra::Rotation3;
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use serde::Deserialize;
 
@@ -409,12 +408,13 @@ pub struct AttitudeParams {
     pub mag_intensity_gauss: f64,
     /// Set by a magnetometer calibration (PX4 stores the device id); 0: never calibrated.
     pub mag_calibration_id: u32,
-    /// Hard-iron offset, Castillo (75).
+    /// Hard-iron offset (gauss), Castillo (75): `CAL_MAG0_XOFF`…`ZOFF`.
     pub mag_offset: [f64; 3],
-    /// Ellipsoid scale E = diag(mag_scale), Castillo (75).
+    /// Diagonal of the soft-iron correction `R E Rᵀ` of Castillo (75): `CAL_MAG0_XSCALE`….
     pub mag_scale: [f64; 3],
-    /// Ellipsoid rotation R of Castillo (75) as a rotation vector (rad).
-    pub mag_rotation_rad: [f64; 3],
+    /// Off-diagonal of the same symmetric matrix, (xy, xz, yz): `CAL_MAG0_XODIAG`…`ZODIAG`,
+    /// as PX4 and `MAG_CAL_REPORT` keep it.
+    pub mag_offdiag: [f64; 3],
 }
 
 impl Default for AttitudeParams {
@@ -439,7 +439,7 @@ impl Default for AttitudeParams {
             mag_calibration_id: 0,
             mag_offset: [0.0; 3],
             mag_scale: [1.0; 3],
-            mag_rotation_rad: [0.0; 3],
+            mag_offdiag: [0.0; 3],
         }
     }
 }
@@ -576,6 +576,96 @@ pub const ATTITUDE_META: &[ParamMeta] = &[
         max: 2147483647.0,
         description: "Set by a magnetometer calibration (a simulator presets its own); 0: never calibrated, arming refused",
     },
+    ParamMeta {
+        name: "CAL_MAG0_XOFF",
+        key: "mag_offset[0]",
+        kind: ParamKind::Real32,
+        unit: "gauss",
+        default: 0.0,
+        min: -2.0,
+        max: 2.0,
+        description: "Magnetometer hard-iron offset, x (Castillo (75); set by a calibration)",
+    },
+    ParamMeta {
+        name: "CAL_MAG0_YOFF",
+        key: "mag_offset[1]",
+        kind: ParamKind::Real32,
+        unit: "gauss",
+        default: 0.0,
+        min: -2.0,
+        max: 2.0,
+        description: "Magnetometer hard-iron offset, y",
+    },
+    ParamMeta {
+        name: "CAL_MAG0_ZOFF",
+        key: "mag_offset[2]",
+        kind: ParamKind::Real32,
+        unit: "gauss",
+        default: 0.0,
+        min: -2.0,
+        max: 2.0,
+        description: "Magnetometer hard-iron offset, z",
+    },
+    ParamMeta {
+        name: "CAL_MAG0_XSCALE",
+        key: "mag_scale[0]",
+        kind: ParamKind::Real32,
+        unit: "",
+        default: 1.0,
+        min: 0.2,
+        max: 5.0,
+        description: "Soft-iron correction R E Rᵀ (Castillo (75)), xx (set by a calibration)",
+    },
+    ParamMeta {
+        name: "CAL_MAG0_YSCALE",
+        key: "mag_scale[1]",
+        kind: ParamKind::Real32,
+        unit: "",
+        default: 1.0,
+        min: 0.2,
+        max: 5.0,
+        description: "Soft-iron correction, yy",
+    },
+    ParamMeta {
+        name: "CAL_MAG0_ZSCALE",
+        key: "mag_scale[2]",
+        kind: ParamKind::Real32,
+        unit: "",
+        default: 1.0,
+        min: 0.2,
+        max: 5.0,
+        description: "Soft-iron correction, zz",
+    },
+    ParamMeta {
+        name: "CAL_MAG0_XODIAG",
+        key: "mag_offdiag[0]",
+        kind: ParamKind::Real32,
+        unit: "",
+        default: 0.0,
+        min: -1.0,
+        max: 1.0,
+        description: "Soft-iron correction, xy (the matrix must stay positive definite)",
+    },
+    ParamMeta {
+        name: "CAL_MAG0_YODIAG",
+        key: "mag_offdiag[1]",
+        kind: ParamKind::Real32,
+        unit: "",
+        default: 0.0,
+        min: -1.0,
+        max: 1.0,
+        description: "Soft-iron correction, xz",
+    },
+    ParamMeta {
+        name: "CAL_MAG0_ZODIAG",
+        key: "mag_offdiag[2]",
+        kind: ParamKind::Real32,
+        unit: "",
+        default: 0.0,
+        min: -1.0,
+        max: 1.0,
+        description: "Soft-iron correction, yz",
+    },
 ];
 
 impl AttitudeParams {
@@ -595,7 +685,7 @@ impl AttitudeParams {
             "mag_declination_deg" => self.mag_declination_deg,
             "mag_intensity_gauss" => self.mag_intensity_gauss,
             "mag_calibration_id" => self.mag_calibration_id as f64,
-            _ => return None,
+            k => return self.mag_element(k).map(|(a, i)| a[i]),
         })
     }
 
@@ -622,10 +712,49 @@ impl AttitudeParams {
                 self.mag_calibration_id = value as u32;
                 return true;
             }
-            _ => return false,
+            k => match self.mag_element_mut(k) {
+                Some(x) => x,
+                None => return false,
+            },
         };
         *field = value;
         true
+    }
+
+    /// The calibration array and index a key such as `mag_offset[1]` names.
+    fn mag_element(&self, key: &str) -> Option<(&[f64; 3], usize)> {
+        let (name, i) = key.strip_suffix(']')?.split_once('[')?;
+        let i: usize = i.parse().ok().filter(|&i| i < 3)?;
+        let array = match name {
+            "mag_offset" => &self.mag_offset,
+            "mag_scale" => &self.mag_scale,
+            "mag_offdiag" => &self.mag_offdiag,
+            _ => return None,
+        };
+        Some((array, i))
+    }
+
+    fn mag_element_mut(&mut self, key: &str) -> Option<&mut f64> {
+        let (_, i) = self.mag_element(key)?;
+        let name = key.split_once('[')?.0;
+        let array = match name {
+            "mag_offset" => &mut self.mag_offset,
+            "mag_scale" => &mut self.mag_scale,
+            _ => &mut self.mag_offdiag,
+        };
+        Some(&mut array[i])
+    }
+
+    /// The soft-iron correction `R E Rᵀ` (symmetric) from its diagonal and off-diagonal.
+    pub fn mag_correction(&self) -> Matrix3<f64> {
+        let (d, o) = (self.mag_scale, self.mag_offdiag);
+        Matrix3::new(d[0], o[0], o[1], o[0], d[1], o[2], o[1], o[2], d[2])
+    }
+
+    /// Sets the soft-iron correction from a symmetric matrix (its upper triangle is read).
+    pub fn set_mag_correction(&mut self, s: &Matrix3<f64>) {
+        self.mag_scale = [s[(0, 0)], s[(1, 1)], s[(2, 2)]];
+        self.mag_offdiag = [s[(0, 1)], s[(0, 2)], s[(1, 2)]];
     }
 
     /// Every out-of-range value.
@@ -699,21 +828,17 @@ impl AttitudeParams {
                 reason: format!("must be below accel_gate_g ({})", self.accel_gate_g),
             });
         }
-        for (k, arr) in [
-            ("mag_offset", &self.mag_offset),
-            ("mag_rotation_rad", &self.mag_rotation_rad),
-        ] {
-            if arr.iter().any(|x| !x.is_finite()) {
-                v.push(ParamViolation {
-                    key: format!("attitude.{k}"),
-                    reason: "must be finite".into(),
-                });
-            }
+        for m in ATTITUDE_META.iter().filter(|m| m.key.ends_with(']')) {
+            let value = self.get(m.key).unwrap_or(f64::NAN);
+            check(&mut v, "attitude", ATTITUDE_META, m.key, value);
         }
-        if self.mag_scale.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
+        // A correction that is not positive definite folds the field over (or flattens it).
+        if v.is_empty() && self.mag_correction().cholesky().is_none() {
             v.push(ParamViolation {
-                key: "attitude.mag_scale".into(),
-                reason: "every scale must be > 0".into(),
+                key: "attitude.mag_offdiag".into(),
+                reason: "the soft-iron correction (mag_scale on its diagonal, mag_offdiag off \
+                         it) must be positive definite"
+                    .into(),
             });
         }
         v
@@ -721,12 +846,10 @@ impl AttitudeParams {
 
     /// The magnetometer calibration these parameters describe.
     pub fn mag_calibration(&self) -> MagCalibration {
-        let r = Rotation3::from_scaled_axis(Vector3::from(self.mag_rotation_rad));
-        MagCalibration::from_ellipsoid(
-            Vector3::from(self.mag_offset),
-            r.matrix(),
-            &Vector3::from(self.mag_scale),
-        )
+        MagCalibration {
+            offset: Vector3::from(self.mag_offset),
+            correction: self.mag_correction(),
+        }
     }
 
     /// Unit Earth-field direction in NED from inclination and declination.

@@ -188,6 +188,61 @@ fn vehicle_rests_on_the_ground_lifts_off_and_touches_down() {
     assert!(sim.stats().last_touchdown_speed_m_s > 2.0);
 }
 
+/// A tumble turns the vehicle by hand through every orientation — its down axis reaches all 26
+/// directions of a cube's faces, edges and corners — the gyro and accelerometer feel it as a
+/// hand's turns (rates that integrate to the attitude, the specific force −g in the body), and
+/// at the end it stands level where it was, heading kept.
+#[test]
+fn a_tumble_turns_the_vehicle_through_every_orientation_and_sets_it_down() {
+    let a = shipped("quad_x");
+    let mut sim = Simulator::new(&a, config(SensorPreset::Ideal), BodyState::default()).unwrap();
+    sim.schedule(&[Event {
+        t_s: 1.0,
+        action: Action::Tumble { duration_s: 60.0 },
+    }])
+    .unwrap();
+    let mut seen = std::collections::HashSet::new();
+    let mut integrated = UnitQuaternion::identity();
+    let mut worst_accel: f64 = 0.0;
+    for _ in 0..64_000 {
+        sim.step(&[0.0; 4]);
+        let body = sim.truth().body;
+        integrated *= UnitQuaternion::from_scaled_axis(body.rate_frd_rad_s * 1e-3);
+        let f = sim.sample_sensors().accel_frd_m_s2;
+        let g_body =
+            body.q_ned_from_frd
+                .inverse_transform_vector(&Vector3::new(0.0, 0.0, -GRAVITY_M_S2));
+        worst_accel = worst_accel.max((f - g_body).norm());
+        let down = body.q_ned_from_frd.transform_vector(&Vector3::z());
+        let cell = down.map(|x| (x * 1.5).round() as i8);
+        if cell != Vector3::zeros() {
+            seen.insert((cell.x.signum(), cell.y.signum(), cell.z.signum()));
+        }
+        if sim.time_s() > 30.0 && sim.time_s() < 30.002 {
+            let err = integrated.angle_to(&body.q_ned_from_frd);
+            assert!(err < 1e-3, "gyro integrates to the attitude: {err} rad");
+        }
+    }
+    assert_eq!(seen.len(), 26, "{seen:?}");
+    // Gravity, and the lever arm's ω × (ω × r) and ω̇ × r of a hand's turns (≈ 1 rad/s).
+    println!("tumble: accelerometer off gravity by {worst_accel:.4} m/s² at most");
+    assert!(
+        worst_accel < 0.1,
+        "held still: the accelerometer feels gravity alone"
+    );
+    let t = sim.truth();
+    assert!(t.landed && t.body.pos_ned_m.z == 0.0);
+    let (roll, pitch, _) = t.body.q_ned_from_frd.euler_angles();
+    assert!(roll == 0.0 && pitch == 0.0, "{roll} {pitch}");
+    assert!(t.body.rate_frd_rad_s == Vector3::zeros());
+    // Set down without a jump: the gyro's turns still add up to the attitude.
+    let err = integrated.angle_to(&t.body.q_ned_from_frd);
+    assert!(
+        err < 1e-3,
+        "gyro integrates to the level attitude: {err} rad"
+    );
+}
+
 #[test]
 fn bad_actuator_values_are_clamped_and_counted() {
     let mut sim = airborne("quad_x", SensorPreset::Ideal);
