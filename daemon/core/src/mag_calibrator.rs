@@ -382,7 +382,11 @@ mod tests {
         let mut d = MagCalibrator::new(2, 0.48);
         for k in 0..250 * 200usize {
             let t = k as f64 * 0.004;
-            let bump = if (t as u64 / 3).is_multiple_of(2) { 0.0 } else { 0.15 };
+            let bump = if (t as u64 / 3).is_multiple_of(2) {
+                0.0
+            } else {
+                0.15
+            };
             let mag = k
                 .is_multiple_of(5)
                 .then(|| raw(&dance(t), k) + Vector3::new(bump, -bump, bump));

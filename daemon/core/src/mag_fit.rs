@@ -97,39 +97,30 @@ impl Ellipsoid {
     }
 }
 
-/// The 26 directions of a cube's faces, edges and corners (x, y, z each −1, 0 or +1, not all
-/// 0), as unit vectors.
-fn directions() -> [Vector3<f64>; COVERAGE_DIRECTIONS] {
-    let mut d = [Vector3::zeros(); COVERAGE_DIRECTIONS];
-    let mut i = 0;
-    for x in -1i8..=1 {
-        for y in -1i8..=1 {
-            for z in -1i8..=1 {
-                if (x, y, z) != (0, 0, 0) {
-                    d[i] = Vector3::new(x as f64, y as f64, z as f64).normalize();
-                    i += 1;
-                }
-            }
-        }
-    }
-    d
-}
-
-/// Index of the nearest of the 26 [`directions`] to `v`.
+/// Index of the nearest to `v` of the 26 directions of a cube's faces, edges and corners
+/// ((x, y, z) each −1, 0 or +1, not all 0, numbered in that order, x slowest). The nearest one
+/// with k non-zero components takes the signs of v's k largest components and is
+/// (|v₁| + … + |v_k|)/√k along v: the best of k = 1, 2, 3 is the nearest (no table, no search:
+/// this runs for every sample when the onboard calibration counts its coverage).
 pub(crate) fn direction(v: &Vector3<f64>) -> Option<usize> {
-    thread_local! {
-        static DIRECTIONS: [Vector3<f64>; COVERAGE_DIRECTIONS] = directions();
-    }
-    let n = v.norm();
-    if n.is_nan() || n <= 0.0 {
+    if v.iter().any(|x| !x.is_finite()) || *v == Vector3::zeros() {
         return None;
     }
-    DIRECTIONS.with(|d| {
-        d.iter()
-            .enumerate()
-            .max_by(|a, b| a.1.dot(v).total_cmp(&b.1.dot(v)))
-            .map(|(i, _)| i)
-    })
+    let mut order = [0, 1, 2];
+    order.sort_by(|&a, &b| v[b].abs().total_cmp(&v[a].abs()));
+    let a = order.map(|i| v[i].abs());
+    let scores = [
+        a[0],
+        (a[0] + a[1]) / 2f64.sqrt(),
+        (a[0] + a[1] + a[2]) / 3f64.sqrt(),
+    ];
+    let k = (0..3).max_by(|&i, &j| scores[i].total_cmp(&scores[j]))? + 1;
+    let mut d = [0i8; 3];
+    for &i in &order[..k] {
+        d[i] = if v[i] < 0.0 { -1 } else { 1 };
+    }
+    let cell = (d[0] + 1) as usize * 9 + (d[1] + 1) as usize * 3 + (d[2] + 1) as usize;
+    Some(if cell > 13 { cell - 1 } else { cell }) // the centre, 13, is not a direction
 }
 
 /// Fits the ellipsoid to raw magnetometer samples (any unit; non-finite samples skipped).
@@ -319,6 +310,37 @@ mod tests {
             let body = q.inverse() * field;
             assert!((fit.correct(m, field.norm()) - body).norm() < 1e-9);
         }
+    }
+
+    /// The closed form picks the direction a search over all 26 picks.
+    #[test]
+    fn the_nearest_direction_is_the_one_a_search_finds() {
+        let mut all = vec![];
+        for x in -1i8..=1 {
+            for y in -1i8..=1 {
+                for z in -1i8..=1 {
+                    if (x, y, z) != (0, 0, 0) {
+                        all.push(Vector3::new(x as f64, y as f64, z as f64).normalize());
+                    }
+                }
+            }
+        }
+        for (i, d) in all.iter().enumerate() {
+            assert_eq!(direction(d), Some(i));
+        }
+        for u in sphere(5000) {
+            let v = u * 0.37;
+            let best = (0..26)
+                .max_by(|&i, &j| all[i].dot(&v).total_cmp(&all[j].dot(&v)))
+                .unwrap();
+            let got = direction(&v).unwrap();
+            assert!(
+                (all[got].dot(&v) - all[best].dot(&v)).abs() < 1e-12,
+                "{v:?}"
+            );
+        }
+        assert_eq!(direction(&Vector3::zeros()), None);
+        assert_eq!(direction(&Vector3::new(f64::NAN, 1.0, 0.0)), None);
     }
 
     #[test]
