@@ -184,10 +184,14 @@ pub struct Vehicle {
     /// When the IMU froze while armed (sensor time): the loops cannot fly without it, and it
     /// is not trusted again before the motors stop.
     imu_frozen_since_usec: Option<u64>,
-    /// The last magnetometer calibration (under way or ended), and how many were started.
+    /// The last magnetometer calibration (under way or ended).
     mag_cal: Option<MagCalibrator>,
-    mag_cal_runs: u32,
 }
+
+/// Magnetometer calibrations started in this process: each run's number, unique across the
+/// vehicles a reboot or a restarted source makes, so the ground-station side never takes a new
+/// run for one it has reported.
+static MAG_CAL_RUNS: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
 
 /// One step's result.
 pub struct Step {
@@ -256,7 +260,6 @@ impl Vehicle {
             mag_field: MagFieldMonitor::default(),
             imu_frozen_since_usec: None,
             mag_cal: None,
-            mag_cal_runs: 0,
         })
     }
 
@@ -383,11 +386,11 @@ impl Vehicle {
                 if self.calibrating() {
                     return Err("a magnetometer calibration is already running".into());
                 }
-                self.mag_cal_runs += 1;
+                let run = MAG_CAL_RUNS.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
                 let strength = self.params.attitude.mag_intensity_gauss;
-                self.mag_cal = Some(MagCalibrator::new(self.mag_cal_runs, strength));
+                self.mag_cal = Some(MagCalibrator::new(run, strength));
                 tracing::info!(
-                    run = self.mag_cal_runs,
+                    run,
                     "magnetometer calibration started: turn the vehicle through every orientation"
                 );
                 Ok(())
@@ -703,6 +706,11 @@ impl Vehicle {
         fresh.update = std::mem::take(&mut self.update);
         fresh.repeated_frames = self.repeated_frames;
         fresh.source_restarts = self.source_restarts + 1;
+        // A calibration under way cannot go on in a clock that went back: ended, and said so.
+        fresh.mag_cal = self.mag_cal.take().map(|mut c| {
+            c.cancel();
+            c
+        });
         *self = fresh;
     }
 

@@ -50,6 +50,23 @@ def greet(conn, timeout=30.0):
     raise AssertionError(f"no heartbeat on {conn.address} in {timeout:.0f} s")
 
 
+def sim_control(port):
+    """A pymavlink connection to the simulator's own endpoint (`sitl --control`), greeted."""
+    sim = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=255)
+    greet(sim)  # sitl may still be starting
+    return sim
+
+
+def sim_param(sim, name, value):
+    """PARAM_SET of a simulator parameter (REAL32); the value it answers with."""
+    sim.mav.param_set_send(sim.target_system, sim.target_component, name.encode(), value,
+                           mavutil.mavlink.MAV_PARAM_TYPE_REAL32)
+    m = sim.recv_match(type="PARAM_VALUE", blocking=True, timeout=5,
+                       condition=f"PARAM_VALUE.param_id == '{name}'")
+    assert m is not None, f"no PARAM_VALUE for {name}"
+    return m.param_value
+
+
 class PtyLink:
     """A ground station on a serial line: the master side of a pseudo-terminal pair, read on a
     thread through pymavlink's parser (so the line never fills); the autopilot opens the slave

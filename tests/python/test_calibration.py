@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from pymavlink import mavutil
 
-from conftest import Daemon, greet, mavsdk_autopilot
+from conftest import Daemon, mavsdk_autopilot, sim_control, sim_param
 from test_ground_station import ack, param, ready_to_arm, wait
 
 ML = mavutil.mavlink
@@ -20,22 +20,6 @@ ML = mavutil.mavlink
 HARD_IRON = np.array([0.12, -0.08, 0.2])
 SOFT_IRON = np.array([[1.08, 0.04, -0.02], [0.04, 0.95, 0.03], [-0.02, 0.03, 1.02]])
 FIELD_GAUSS = 0.48
-
-
-def control(d):
-    """A pymavlink connection to the simulator's own endpoint."""
-    sim = mavutil.mavlink_connection(f"udpout:127.0.0.1:{d.control_port}", source_system=255)
-    greet(sim)  # sitl may still be starting
-    return sim
-
-
-def sim_param(sim, name, value):
-    sim.mav.param_set_send(sim.target_system, sim.target_component, name.encode(), value,
-                           ML.MAV_PARAM_TYPE_REAL32)
-    m = sim.recv_match(type="PARAM_VALUE", blocking=True, timeout=5,
-                       condition=f"PARAM_VALUE.param_id == '{name}'")
-    assert m is not None, f"no PARAM_VALUE for {name}"
-    return m.param_value
 
 
 def calibrate(gcs, which=(0, 1, 0, 0, 0, 0, 0)):
@@ -66,7 +50,7 @@ def test_the_magnetometer_is_calibrated_onboard_while_turned_by_hand(tmp_path):
     try:
         gcs = d.gcs
         assert gcs.wait_heartbeat(timeout=30), "no heartbeat"
-        sim = control(d)
+        sim = sim_control(d.control_port)
         # Uncalibrated, the field reads far from 0.48 G: the pre-arm check says so (once the
         # vehicle has measured it at rest).
         reason = ""
@@ -142,7 +126,7 @@ def test_mavsdk_calibrates_the_magnetometer_with_its_calibration_plugin(tmp_path
     async def run():
         async with mavsdk_autopilot(d.gcs_port) as system:
             calibration = CalibrationAsync(system)
-            sim = control(d)
+            sim = sim_control(d.control_port)
             assert sim_param(sim, "SIM_TUMBLE_S", 90.0) == 90.0
             progress, results = [], []
 

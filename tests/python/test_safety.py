@@ -9,7 +9,7 @@ import time
 import pytest
 from pymavlink import mavutil
 
-from conftest import Daemon, greet
+from conftest import Daemon, sim_control, sim_param
 from test_ground_station import (  # noqa: F401
     INT32, PREARM_CHECK, ack, armed, daemon, int_bits, ready_to_arm, set_param, vehicle, wait)
 
@@ -356,25 +356,14 @@ def test_wind_set_at_run_time_is_flown_through(tmp_path):
     try:
         gcs = d.gcs
         assert gcs.wait_heartbeat(timeout=30), "no heartbeat"
-        sim = mavutil.mavlink_connection(f"udpout:127.0.0.1:{d.control_port}",
-                                         source_system=255)
-        greet(sim)  # sitl may still be starting
-
-        def sim_param(name, value):
-            sim.mav.param_set_send(sim.target_system, sim.target_component, name.encode(), value,
-                                   ML.MAV_PARAM_TYPE_REAL32)
-            m = sim.recv_match(type="PARAM_VALUE", blocking=True, timeout=5,
-                               condition=f"PARAM_VALUE.param_id == '{name}'")
-            assert m is not None, f"no PARAM_VALUE for {name}"
-            return m.param_value
-
-        assert sim_param("SIM_WIND_SPD", 80.0) == 0.0, "out of range: refused"
+        sim = sim_control(d.control_port)
+        assert sim_param(sim, "SIM_WIND_SPD", 80.0) == 0.0, "out of range: refused"
         ready_to_arm(gcs)
         take_off(gcs)
         hold = wait(gcs, "LOCAL_POSITION_NED", lambda m: True)
-        assert sim_param("SIM_WIND_DIR", 270.0) == 270.0
-        assert sim_param("SIM_WIND_TURB", 3.0) == pytest.approx(3.0)
-        assert sim_param("SIM_WIND_SPD", 8.0) == 8.0
+        assert sim_param(sim, "SIM_WIND_DIR", 270.0) == 270.0
+        assert sim_param(sim, "SIM_WIND_TURB", 3.0) == pytest.approx(3.0)
+        assert sim_param(sim, "SIM_WIND_SPD", 8.0) == 8.0
         # 20 s of simulated time (about 7 s here) in the wind.
         end, rolls, off = time.monotonic() + 7, [], 0.0
         while time.monotonic() < end:
