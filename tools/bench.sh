@@ -93,6 +93,48 @@ printf '%-50s %s Hz, jitter p50 %s us, p99 %s us, max %s us, overruns %s in 60 s
     "$(echo "$idle" | field jitter_p50_us)" "$(echo "$idle" | field jitter_p99_us)" \
     "$(echo "$idle" | field jitter_max_us)" "$(echo "$idle" | field overruns)"
 
+# Many vehicles, each with the default ground-station links (telemetry to 14550 and 14540 + k,
+# a TCP server). In one process (--count): as fast as lockstep allows, then paced in real time
+# with as many as the MAVLink ids allow (251): its largest lag behind the wall clock and the CPU
+# it took. As separate processes (tools/swarm.sh): N sitl + autopilot pairs, each capped at real
+# time; the slowest vehicle's pace (its sensor time over its wall time, the start-up included)
+# and the CPU of all.
+echo "many vehicles (about 3 minutes)..." >&2
+swarm=(--takeoff 5 --hover 20 --params-dir params --param-store none --log-dir none)
+TIMEFORMAT='%U %S %R'
+cpu_share() { python3 -c "u, s, r = map(float, '$1'.split()); print(f'{100 * (u + s) / r:.0f} % of one CPU')"; }
+for n in 50 251; do
+    s=$("$bin/autopilot" --sim --count "$n" --speed max "${swarm[@]}" 2>/dev/null | grep 'swarm summary')
+    rtf=$(echo "$s" | field realtime_factor)
+    printf '%-50s %s x real time: %s vehicles'"'"' worth of real time\n' \
+        "swarm: $n vehicles in one process, lockstep" "$rtf" "$(python3 -c "print(round($n * $rtf))")"
+done
+out=$(mktemp)
+t=$( { time "$bin/autopilot" --sim --count 251 --speed 1 "${swarm[@]}" >"$out" 2>/dev/null || true; } 2>&1 )
+s=$(grep 'swarm summary' "$out")
+printf '%-50s x%s, lag at most %s s, %s landed, %s, peak memory %s KiB\n' \
+    "swarm: 251 in one process, real time" "$(echo "$s" | field realtime_factor)" \
+    "$(echo "$s" | field max_lag_s)" "$(echo "$s" | field landed)" "$(cpu_share "$t")" \
+    "$(echo "$s" | field max_rss_kib)"
+logs=$(mktemp -d)
+for n in 50 100; do
+    t=$( { time SWARM_BIN="$bin" SWARM_LOG_DIR="$logs" SWARM_HIL_PORT=34560 SWARM_SITL_ARGS="--speed 1" \
+        tools/swarm.sh "$n" "${swarm[@]}" >"$out" 2>/dev/null || true; } 2>&1 )
+    slowest=$(awk '/autopilot summary/ {for (i = 1; i <= NF; i++) {split($i, kv, "="); v[kv[1]] = kv[2]}
+        r = v["sim_time_s"] / v["wall_time_s"]; if (min == "" || r < min) min = r; landed += v["landed"] == "true"}
+        END {printf "x%.3f, %d landed", min, landed}' "$out")
+    printf '%-50s slowest %s, %s\n' "swarm: $n sitl + autopilot pairs, real time" "$slowest" "$(cpu_share "$t")"
+done
+rm -rf "$logs" "$out"
+# Monte-Carlo batch: flights a second over every CPU, every fault drawn.
+out=$(mktemp)
+b=$("$bin/autopilot" batch --runs 200 --seed 1 --params-dir params \
+    --faults none,motor,motor_off,gps,mag,baro,gust,imu -o "$out" 2>/dev/null | grep 'batch summary')
+printf '%-50s %s runs/s on %s workers (%s landed, %s crashed of %s)\n' "batch: 200 runs, 5 m, 20 s hover, every fault" \
+    "$(echo "$b" | field runs_per_s)" "$(echo "$b" | field jobs)" "$(echo "$b" | field landed)" \
+    "$(echo "$b" | field crashed)" "$(echo "$b" | field runs)"
+rm -f "$out"
+
 # JSBSim's lockstep speed, when the test command's venv is there to supply it.
 if .venv/bin/python -c "import jsbsim" 2>/dev/null; then
     .venv/bin/python tools/bench_jsbsim.py --sitl "$bin/sitl"

@@ -27,6 +27,8 @@ pub struct ConfigFile {
     pub source: Option<String>,
     /// Instance number.
     pub instance: Option<u16>,
+    /// Vehicles flown together in the embedded simulator.
+    pub count: Option<u16>,
     /// Airframe name or file.
     pub airframe: Option<String>,
     /// Flight parameters file.
@@ -73,6 +75,9 @@ pub const TAKEOFF_RANGE_M: RangeInclusive<f64> = 1.0..=100.0;
 pub const HOVER_RANGE_S: RangeInclusive<f64> = 0.0..=3600.0;
 /// Allowed instance numbers.
 pub const INSTANCE_RANGE: RangeInclusive<u16> = 0..=250;
+/// Allowed numbers of vehicles flown together (instances `instance` … `instance + count − 1`,
+/// all within [`INSTANCE_RANGE`]).
+pub const COUNT_RANGE: RangeInclusive<u16> = 1..=251;
 /// Allowed rates of the deadline-paced loop (Hz).
 pub const LOOP_HZ_RANGE: RangeInclusive<f64> = 50.0..=2000.0;
 /// Allowed spins before a deadline (µs).
@@ -116,6 +121,18 @@ impl ConfigFile {
                     "{i} is out of range [{}, {}]",
                     INSTANCE_RANGE.start(),
                     INSTANCE_RANGE.end()
+                ),
+            );
+        }
+        if let Some(n) = c.count
+            && !COUNT_RANGE.contains(&n)
+        {
+            bad(
+                "count",
+                format!(
+                    "{n} is out of range [{}, {}]",
+                    COUNT_RANGE.start(),
+                    COUNT_RANGE.end()
                 ),
             );
         }

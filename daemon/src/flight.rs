@@ -153,12 +153,34 @@ pub struct FlightReport {
     deadline_loop: Option<(f64, LoopSummary)>,
 }
 
+impl FlightReport {
+    /// The vehicle ended its run on the ground, disarmed.
+    pub fn landed(&self) -> bool {
+        self.disarmed && self.score.on_ground()
+    }
+
+    /// The flight's figures against the simulator's truth.
+    pub fn score(&self) -> &FlightScore {
+        &self.score
+    }
+
+    /// Sensor time flown (s).
+    pub fn sim_time_s(&self) -> f64 {
+        self.sim_time_s
+    }
+
+    /// Times the sensor frames stopped (the watchdog fired).
+    pub fn sensor_timeouts(&self) -> u64 {
+        self.sensor_timeouts
+    }
+}
+
 impl std::fmt::Display for FlightReport {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let opt = |x: Option<f64>| x.map_or("nan".to_owned(), |x| format!("{x:.3}"));
         write!(
             f,
-            "autopilot summary: source={} sim_time_s={:.2} wall_time_s={:.2} realtime_factor={:.1} frames={} frames_per_s={:.0} malformed={} repeated={} sensor_timeouts={} max_alt_m={:.2} hover_alt_rms_m={} hover_drift_rms_m={} attitude_rms_deg={} touchdown_m_s={:.2} landed={} disarmed={}",
+            "autopilot summary: source={} sim_time_s={:.2} wall_time_s={:.2} realtime_factor={:.1} frames={} frames_per_s={:.0} malformed={} repeated={} sensor_timeouts={} max_alt_m={:.2} hover_alt_rms_m={} hover_drift_rms_m={} attitude_rms_deg={} touchdown_m_s={:.2} impact_m_s={:.2} max_tilt_deg={:.1} max_distance_m={:.2} failsafe={} landed={} disarmed={}",
             self.source,
             self.sim_time_s,
             self.wall_time_s,
@@ -173,6 +195,10 @@ impl std::fmt::Display for FlightReport {
             opt(self.score.hover_drift_rms_m()),
             opt(self.score.attitude_rms_deg()),
             self.score.touchdown_m_s,
+            self.score.impact_m_s,
+            self.score.max_tilt_deg,
+            self.score.max_distance_m,
+            self.score.failsafe,
             self.score.on_ground(),
             self.disarmed
         )?;
@@ -445,6 +471,17 @@ impl<'a> ControlLoop<'a> {
         Ok(Flow::Continue)
     }
 
+    /// The run's report, once the loop has ended (`started`: when it began).
+    fn into_report(self, started: Instant) -> FlightReport {
+        let mut report = self.report;
+        report.sim_time_s = self.t_s;
+        report.wall_time_s = started.elapsed().as_secs_f64();
+        report.score = self.vehicle.score().clone();
+        report.repeated = self.vehicle.repeated_frames();
+        report.disarmed = !self.vehicle.status().armed;
+        report
+    }
+
     /// Lockstep: every frame is a tick.
     fn run_lockstep(&mut self) -> Result<()> {
         while self.tick(POLL, false)? == Flow::Continue {}
@@ -516,13 +553,84 @@ pub fn fly(
     };
     l.ports.telemetry.send_modify(|t| t.finished = true);
     result?;
-    let mut report = l.report;
-    report.sim_time_s = l.t_s;
-    report.wall_time_s = started.elapsed().as_secs_f64();
-    report.score = l.vehicle.score().clone();
-    report.repeated = l.vehicle.repeated_frames();
-    report.disarmed = !l.vehicle.status().armed;
-    Ok(report)
+    Ok(l.into_report(started))
+}
+
+/// One of several vehicles flown together by [`fly_together`]: its sensor link (a simulator
+/// of its own, in lockstep and unpaced), its vehicle and its channels.
+pub struct Member<'a> {
+    /// The vehicle's simulator.
+    pub link: &'a mut dyn SensorLink,
+    /// The vehicle.
+    pub vehicle: &'a mut Vehicle,
+    /// Its channels to the tasks around it (its ground stations).
+    pub ports: &'a mut Ports,
+    /// Its MAVLink system id.
+    pub system_id: u8,
+}
+
+/// How a flight of several vehicles together went.
+#[derive(Debug)]
+pub struct SwarmReport {
+    /// Each vehicle's report, or why its flight ended in error, in the members' order.
+    pub flights: Vec<Result<FlightReport>>,
+    /// Rounds flown: in each, every vehicle still flying took one sensor frame.
+    pub rounds: u64,
+    /// Simulated time of the last round (s).
+    pub sim_time_s: f64,
+    /// Wall-clock time (s).
+    pub wall_time_s: f64,
+    /// Paced (`speed`): the largest lag of a round behind its wall-clock time (s); a swarm
+    /// that runs in real time keeps it within a few exchange periods.
+    pub max_lag_s: f64,
+}
+
+/// Flies several vehicles on this thread, in lockstep on one clock: every round each vehicle
+/// still flying takes the next frame of its simulator (one exchange, `1 / exchange_hz` of
+/// simulated time) and answers it, so all worlds advance together. With `speed` the rounds are
+/// paced against the wall clock (× real time); without, they run as fast as they can. A vehicle
+/// whose run ends (landed and disarmed, `Stop`, an error) leaves the round; the others fly on.
+pub fn fly_together(members: Vec<Member<'_>>, exchange_hz: f64, speed: Option<f64>) -> SwarmReport {
+    let started = Instant::now();
+    let mut loops: Vec<Option<ControlLoop<'_>>> = members
+        .into_iter()
+        .map(|m| Some(ControlLoop::new(m.link, m.vehicle, m.ports, m.system_id)))
+        .collect();
+    let mut flights: Vec<Option<Result<FlightReport>>> = loops.iter().map(|_| None).collect();
+    let (mut rounds, mut max_lag_s) = (0u64, 0.0f64);
+    let mut flying = loops.len();
+    while flying > 0 {
+        for (slot, flight) in loops.iter_mut().zip(flights.iter_mut()) {
+            let Some(l) = slot.as_mut() else { continue };
+            let end = match l.tick(POLL, false) {
+                Ok(Flow::Continue) => continue,
+                Ok(Flow::Stop) => Ok(()),
+                Err(e) => Err(e),
+            };
+            let Some(l) = slot.take() else { continue };
+            l.ports.telemetry.send_modify(|t| t.finished = true);
+            *flight = Some(end.map(|()| l.into_report(started)));
+            flying -= 1;
+        }
+        rounds += 1;
+        if let Some(speed) = speed {
+            let due = started + Duration::from_secs_f64(rounds as f64 / exchange_hz / speed);
+            match due.checked_duration_since(Instant::now()) {
+                Some(wait) => std::thread::sleep(wait),
+                None => max_lag_s = max_lag_s.max(due.elapsed().as_secs_f64()),
+            }
+        }
+    }
+    SwarmReport {
+        flights: flights
+            .into_iter()
+            .map(|f| f.unwrap_or_else(|| Err(anyhow::anyhow!("never flown"))))
+            .collect(),
+        rounds,
+        sim_time_s: rounds as f64 / exchange_hz,
+        wall_time_s: started.elapsed().as_secs_f64(),
+        max_lag_s,
+    }
 }
 
 #[cfg(test)]
@@ -933,5 +1041,103 @@ mod tests {
             "drifted {:.2} m",
             link.max_drift_after_m
         );
+    }
+
+    /// A link that fails after `frames` frames: a vehicle whose flight ends in error.
+    struct FailingLink {
+        sim: EmbeddedSim,
+        frames: u32,
+    }
+
+    impl SensorLink for FailingLink {
+        fn receive(&mut self, timeout: Duration, into: &mut Decoded) -> io::Result<bool> {
+            if self.frames == 0 {
+                return Err(io::Error::other("the simulator went away"));
+            }
+            self.frames -= 1;
+            self.sim.receive(timeout, into)
+        }
+        fn send(&mut self, bytes: &[u8]) -> io::Result<()> {
+            self.sim.send(bytes)
+        }
+        fn describe(&self) -> String {
+            "failing".into()
+        }
+        fn silence_clock_s(&self) -> Option<f64> {
+            None
+        }
+    }
+
+    /// A quad that takes off to 3 m, hovers 2 s and lands, flying with the seed's sensors.
+    fn swarm_member(seed: u64) -> (Vehicle, EmbeddedSim, Ports) {
+        let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../params");
+        let airframe = Airframe::load(&dir.join("airframes/quad_x.toml")).unwrap();
+        let mut params = FlightParams::load(&dir.join("flight.toml")).unwrap();
+        crate::link::Source::Embedded.preset_params(&mut params);
+        let auto = crate::vehicle::AutoFlight {
+            takeoff_m: 3.0,
+            hover_s: 2.0,
+        };
+        let vehicle = Vehicle::new(&airframe, &params, Some(auto)).unwrap();
+        let sim = EmbeddedSim::new(&airframe, seed, SensorPreset::Typical, None, None).unwrap();
+        (vehicle, sim, Ports::new(4).0)
+    }
+
+    /// Ten vehicles in lockstep on one clock: every round each vehicle still flying takes one
+    /// frame, so each flies exactly the flight it flies alone (the same frames, the same
+    /// figures to the bit), all land, and one whose link fails ends in error while the others
+    /// fly on.
+    #[test]
+    fn ten_vehicles_fly_together_on_one_clock_each_as_it_flies_alone() {
+        let mut members: Vec<_> = (1..=10).map(swarm_member).collect();
+        let (mut failing_vehicle, sim, mut failing_ports) = swarm_member(11);
+        let mut failing = FailingLink { sim, frames: 500 };
+        let mut all: Vec<Member<'_>> = members
+            .iter_mut()
+            .enumerate()
+            .map(|(k, (vehicle, sim, ports))| Member {
+                link: sim,
+                vehicle,
+                ports,
+                system_id: k as u8 + 1,
+            })
+            .collect();
+        all.push(Member {
+            link: &mut failing,
+            vehicle: &mut failing_vehicle,
+            ports: &mut failing_ports,
+            system_id: 11,
+        });
+        let swarm = fly_together(all, EXCHANGE_HZ, None);
+        assert_eq!(swarm.flights.len(), 11);
+        let err = swarm.flights[10].as_ref().unwrap_err();
+        assert!(format!("{err:#}").contains("went away"), "{err:#}");
+        let mut longest = 0;
+        for (k, flight) in swarm.flights[..10].iter().enumerate() {
+            let r = flight.as_ref().unwrap();
+            eprintln!("{r}");
+            assert!(r.landed(), "vehicle {} landed", k + 1);
+            assert!(
+                (2.7..=3.5).contains(&r.score.max_height_m),
+                "vehicle {}: {:.2} m",
+                k + 1,
+                r.score.max_height_m
+            );
+            longest = longest.max(r.frames);
+        }
+        assert_eq!(swarm.rounds, longest, "one frame per vehicle per round");
+        assert!((swarm.sim_time_s - longest as f64 / EXCHANGE_HZ).abs() < 1e-9);
+        for seed in [1, 7] {
+            let (mut vehicle, mut sim, mut ports) = swarm_member(seed);
+            let alone = fly(&mut sim, &mut vehicle, 1, &mut ports, Pacing::Lockstep).unwrap();
+            let together = swarm.flights[seed as usize - 1].as_ref().unwrap();
+            assert_eq!(alone.frames, together.frames, "seed {seed}");
+            assert_eq!(alone.score.max_height_m, together.score.max_height_m);
+            assert_eq!(alone.score.touchdown_m_s, together.score.touchdown_m_s);
+            assert_eq!(
+                alone.score.attitude_rms_deg(),
+                together.score.attitude_rms_deg()
+            );
+        }
     }
 }

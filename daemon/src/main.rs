@@ -4,6 +4,7 @@
 //! with a live status line; `--source udp://0.0.0.0:4560` flies a simulator process (`sitl`) the
 //! same way. `autopilot replay` runs the attitude estimator over logged sensor data.
 
+mod batch;
 mod config;
 mod deadline;
 mod failure_injection;
@@ -30,7 +31,9 @@ use link::{SensorLink, SerialLink, Source, UdpLink};
 use param_store::ParamStore;
 use sim::EmbeddedSim;
 use sitl_core::Airframe;
-use sitl_core::sensors::SensorPreset;
+use sitl_core::geo::Geodetic;
+use sitl_core::sensors::{SensorConfig, SensorPreset};
+use sitl_core::sim::SimConfig;
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -47,7 +50,7 @@ use vehicle::{AutoFlight, Vehicle};
     args_override_self = true
 )]
 struct Cli {
-    /// Settings file (TOML): every key mirrors a flag below (source, instance, airframe,
+    /// Settings file (TOML): every key mirrors a flag below (source, instance, count, airframe,
     /// params, params_dir, takeoff_m, hover_s, speed, seed, sensors, truth_csv, flight_csv,
     /// log_dir, tlog, loop_hz, loop_spin_us, loop_cpu, loop_stats_s,
     /// mavlink, param_store); flags given here win. Paths in it are relative to its directory.
@@ -66,6 +69,12 @@ struct Cli {
     /// and the vehicle speaks as MAVLink system N + 1 [default: 0].
     #[arg(short = 'i', long, value_parser = clap::value_parser!(u16).range(0..=250))]
     instance: Option<u16>,
+    /// Fly this many vehicles together in the embedded simulator, in one process on one
+    /// clock: instances --instance … --instance + N − 1, each its own MAVLink system,
+    /// ground-station ports, seed (--seed + k), parameter store and logs, and its home 3 m east
+    /// of the one before (as `sitl -i`) [default: 1].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=251))]
+    count: Option<u16>,
     /// Airframe: a name in PARAMS_DIR/airframes/ (quad_x, quad_plus, hexa_x, octa_x, dodeca) or a
     /// path to a .toml file. With an external simulator it must be the airframe it simulates
     /// [default: quad_x].
@@ -134,9 +143,10 @@ struct Cli {
     /// A ground-station endpoint; repeat for several, `none` for none. `udpout://HOST:PORT?bind=LOCAL`
     /// pushes to HOST:PORT from the LOCAL port and answers every peer writing to it;
     /// `udpin://ADDR:PORT` answers every peer writing to it; `tcpin://ADDR:PORT` is a TCP
-    /// server. Every port is offset by --instance [default: udpout://127.0.0.1:14550?bind=18570
-    /// (QGroundControl, pymavlink, MAVProxy), udpout://127.0.0.1:14540?bind=14580 (MAVSDK),
-    /// tcpin://0.0.0.0:5760].
+    /// server. Every port is offset by --instance, but a udpout target marked `shared` (one
+    /// ground station hearing every vehicle, as PX4 does it) [default:
+    /// udpout://127.0.0.1:14550?bind=18570&shared (QGroundControl, pymavlink, MAVProxy),
+    /// udpout://127.0.0.1:14540?bind=14580 (MAVSDK), tcpin://0.0.0.0:5760].
     #[arg(long, value_name = "URL")]
     mavlink: Vec<String>,
     /// Where the parameters a ground station changes are kept (applied over the flight
@@ -191,12 +201,70 @@ enum Command {
         #[arg(long)]
         device_id: Option<u32>,
     },
+    /// Monte-Carlo batch: fly the take-off, hover and landing many times in the embedded
+    /// simulator, each run with its own sensor seed, wind, turbulence and fault drawn from the
+    /// batch's seed, on every core, with a progress bar; one CSV row of flight-quality figures
+    /// per run (landed, failsafe, height, hover errors, attitude-estimate error, tilt, distance,
+    /// touchdown and impact speeds) and a summary per fault.
+    Batch {
+        /// Runs to fly.
+        #[arg(long, default_value_t = 100)]
+        runs: u32,
+        /// The first run's number: run i draws from (seed, i), so a run of a batch is flown
+        /// again with the batch's seed, `--first i --runs 1`.
+        #[arg(long, default_value_t = 0)]
+        first: u32,
+        /// The batch's seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Worker threads [default: every CPU].
+        #[arg(long)]
+        jobs: Option<usize>,
+        /// Airframe: a name in PARAMS_DIR/airframes/ or a .toml file.
+        #[arg(long, default_value = "quad_x")]
+        airframe: String,
+        /// Directory holding airframes/ and flight.toml [default: ./params, else the source
+        /// tree's].
+        #[arg(long)]
+        params_dir: Option<PathBuf>,
+        /// Flight parameters file [default: PARAMS_DIR/flight.toml].
+        #[arg(long)]
+        params: Option<PathBuf>,
+        /// Take-off height (m, 1 to 100).
+        #[arg(long, default_value_t = 5.0)]
+        takeoff: f64,
+        /// Hover time (s, 0 to 3600).
+        #[arg(long, default_value_t = 20.0)]
+        hover: f64,
+        /// Largest mean wind (m/s): each run's is drawn from 0 to this, from any direction.
+        #[arg(long, default_value_t = 5.0)]
+        wind_max: f64,
+        /// Largest turbulence intensity W20 (m/s), drawn likewise.
+        #[arg(long, default_value_t = 3.0)]
+        turbulence_max: f64,
+        /// The faults each run's one is drawn from (comma-separated): none, motor (a propeller
+        /// at 50–90 %), motor_off, gps (fix lost 5–15 s), mag (0.1–0.3 G for 3–10 s), baro
+        /// (silent 2–10 s), gust (3–8 m/s), imu (stuck); each strikes during the hover.
+        #[arg(
+            long,
+            value_delimiter = ',',
+            default_value = "none,motor,gps,mag,baro,gust"
+        )]
+        faults: Vec<String>,
+        /// Sensor quality: ideal, typical or noisy.
+        #[arg(long, default_value = "typical")]
+        sensors: String,
+        /// The CSV written [default: batch-SEED.csv].
+        #[arg(long, short)]
+        output: Option<PathBuf>,
+    },
 }
 
 /// The settings of a flight: the command line over the `--config` file over the defaults.
 struct Settings {
     source: String,
     instance: u16,
+    count: u16,
     airframe: String,
     params: Option<PathBuf>,
     params_dir: Option<PathBuf>,
@@ -215,9 +283,19 @@ struct Settings {
     loop_stats_s: f64,
     loop_cpu: Option<usize>,
     mavlink: Vec<String>,
-    /// None: in memory only.
-    param_store: Option<PathBuf>,
+    param_store: StoreSetting,
     signing_key_file: Option<PathBuf>,
+}
+
+/// Where the parameters a ground station changes are kept.
+#[derive(Debug, Clone, PartialEq)]
+enum StoreSetting {
+    /// autopilot-params-N.toml in the working directory, N the instance.
+    PerInstance,
+    /// This file.
+    File(PathBuf),
+    /// In memory only.
+    Memory,
 }
 
 impl Settings {
@@ -297,9 +375,19 @@ impl Settings {
             .clone()
             .or(file.sensors)
             .unwrap_or_else(|| "typical".into());
+        let instance = cli.instance.or(file.instance).unwrap_or(0);
+        let count = cli.count.or(file.count).unwrap_or(1);
+        let last = usize::from(instance) + usize::from(count) - 1;
+        if last > usize::from(*config::INSTANCE_RANGE.end()) {
+            bail!(
+                "--count {count} from instance {instance} goes past the last instance, {}",
+                config::INSTANCE_RANGE.end()
+            );
+        }
         Ok(Self {
             source,
-            instance: cli.instance.or(file.instance).unwrap_or(0),
+            instance,
+            count,
             airframe: cli
                 .airframe
                 .clone()
@@ -335,12 +423,9 @@ impl Settings {
                 cli.mavlink.clone()
             },
             param_store: match cli.param_store.clone().or(file.param_store) {
-                Some(p) if p == Path::new("none") => None,
-                Some(p) => Some(p),
-                None => Some(PathBuf::from(format!(
-                    "autopilot-params-{}.toml",
-                    cli.instance.or(file.instance).unwrap_or(0)
-                ))),
+                Some(p) if p == Path::new("none") => StoreSetting::Memory,
+                Some(p) => StoreSetting::File(p),
+                None => StoreSetting::PerInstance,
             },
             signing_key_file: cli.signing_key_file.clone().or(file.signing_key_file),
         })
@@ -349,28 +434,59 @@ impl Settings {
     fn params_dir(&self) -> PathBuf {
         airframe::config::params_dir(self.params_dir.as_deref())
     }
+
+    /// Instance `instance`'s parameter store (none: in memory only).
+    fn param_store(&self, instance: u16) -> Option<PathBuf> {
+        match &self.param_store {
+            StoreSetting::PerInstance => {
+                Some(PathBuf::from(format!("autopilot-params-{instance}.toml")))
+            }
+            StoreSetting::File(p) => Some(p.clone()),
+            StoreSetting::Memory => None,
+        }
+    }
+
+    /// The airframe file.
+    fn airframe_path(&self) -> PathBuf {
+        if self.airframe.ends_with(".toml") {
+            PathBuf::from(&self.airframe)
+        } else {
+            self.params_dir()
+                .join("airframes")
+                .join(format!("{}.toml", self.airframe))
+        }
+    }
 }
 
-fn fly(cli: &Cli) -> Result<()> {
-    let cfg = Settings::resolve(cli)?;
-    let source = Source::parse(&cfg.source, cfg.instance)?;
-    let dir = cfg.params_dir();
-    let airframe_path = if cfg.airframe.ends_with(".toml") {
-        PathBuf::from(&cfg.airframe)
-    } else {
-        dir.join("airframes").join(format!("{}.toml", cfg.airframe))
-    };
+/// One vehicle made ready to fly: its flight core and logs, the control loop's channels, and
+/// its ground-station side.
+struct Prepared {
+    system_id: u8,
+    vehicle: Vehicle,
+    ports: Ports,
+    endpoints: Vec<gcs::links::EndpointSpec>,
+    gcs: gcs::links::Vehicle,
+}
+
+/// Builds instance `instance`'s vehicle: its parameters (flight.toml, then what ground stations
+/// changed, then the command line), logs, endpoints (ports offset by the instance) and
+/// channels.
+fn prepare(
+    cfg: &Settings,
+    source: &Source,
+    airframe: &Airframe,
+    instance: u16,
+) -> Result<Prepared> {
     let params_path = cfg
         .params
         .clone()
-        .unwrap_or_else(|| dir.join("flight.toml"));
-    // flight.toml, then what ground stations changed, then the command line.
+        .unwrap_or_else(|| cfg.params_dir().join("flight.toml"));
     let mut base = FlightParams::load(&params_path)?;
     source.preset_params(&mut base);
     let mut notices = Vec::new();
-    let (params, store) = match &cfg.param_store {
+    let (mut params, store) = match cfg.param_store(instance) {
         Some(path) => {
-            let loaded = ParamStore::load(path, &base)?;
+            let loaded = ParamStore::load(&path, &base)?;
             for w in &loaded.warnings {
                 tracing::warn!("{w}");
             }
@@ -385,29 +501,16 @@ fn fly(cli: &Cli) -> Result<()> {
         }
         None => (base.clone(), ParamStore::in_memory()),
     };
-    let mut params = params;
     if let Some(t) = cfg.takeoff_m {
         params.commander.takeoff_alt_m = t;
         base.commander.takeoff_alt_m = t;
     }
-    if source != Source::Embedded && cfg.truth_csv.is_some() {
-        bail!(
-            "--truth-csv is for the embedded simulator; an external one writes its own (sitl --truth-csv)"
-        );
-    }
-    let airframe = Airframe::load(&airframe_path)?;
     let auto = cfg.takeoff_m.map(|takeoff_m| AutoFlight {
         takeoff_m,
         hover_s: cfg.hover_s,
     });
-    if let Some(cpu) = cfg.loop_cpu {
-        // This thread runs the tasks around the loop, and the threads it starts (the log
-        // writers, the runtime's) inherit where it may run: none on the loop's CPU. The loop's
-        // own thread pins itself there.
-        deadline::keep_off_cpu(cpu).map_err(anyhow::Error::msg)?;
-    }
-    let mut vehicle = Vehicle::new(&airframe, &params, auto)?;
-    let (flight_csv, tlog) = log_paths(&cfg, &mut notices);
+    let mut vehicle = Vehicle::new(airframe, &params, auto)?;
+    let (flight_csv, tlog) = log_paths(cfg, instance, &mut notices);
     if let Some(path) = &flight_csv {
         vehicle.log_to(
             FlightCsv::create(path, airframe.rotors.len(), source.lockstep())
@@ -428,15 +531,14 @@ fn fly(cli: &Cli) -> Result<()> {
             "logging"
         );
     }
-    let system_id = (cfg.instance + 1) as u8;
+    let system_id = (instance + 1) as u8;
     let endpoints = cfg
         .mavlink
         .iter()
         .filter(|u| u.as_str() != "none")
-        .map(|u| gcs::links::EndpointSpec::parse(u, cfg.instance))
+        .map(|u| gcs::links::EndpointSpec::parse(u, instance))
         .collect::<Result<Vec<_>>>()
         .context("--mavlink")?;
-    let mav_type = gcs::GroundStation::mav_type(airframe.rotors.len());
     let signing_key = match &cfg.signing_key_file {
         Some(path) => match std::fs::read_to_string(path) {
             Ok(text) => Some(
@@ -448,17 +550,74 @@ fn fly(cli: &Cli) -> Result<()> {
         },
         None => None,
     };
+    let (mut ports, commands, telemetry) = Ports::new(16);
+    let (params_tx, params_rx) = watch::channel(params.clone());
+    ports.params = Some(params_rx);
+    Ok(Prepared {
+        system_id,
+        vehicle,
+        ports,
+        endpoints,
+        gcs: gcs::links::Vehicle {
+            system_id,
+            mav_type: gcs::GroundStation::mav_type(airframe.rotors.len()),
+            telemetry,
+            commands,
+            parameters: gcs::params::Parameters::new(params, store),
+            base_params: base,
+            params: params_tx,
+            notices,
+            signing_key,
+            signing_key_file: cfg.signing_key_file.clone(),
+            tlog,
+            reboot_allowed: cfg.count == 1,
+        },
+    })
+}
+
+/// The embedded simulator's sensor preset.
+fn sensor_preset(cfg: &Settings) -> Result<SensorPreset> {
+    SensorPreset::from_name(&cfg.sensors).with_context(|| {
+        format!(
+            "--sensors must be ideal, typical or noisy, got {:?}",
+            cfg.sensors
+        )
+    })
+}
+
+fn fly(cli: &Cli) -> Result<()> {
+    let cfg = Settings::resolve(cli)?;
+    let source = Source::parse(&cfg.source, cfg.instance)?;
+    if source != Source::Embedded && cfg.truth_csv.is_some() {
+        bail!(
+            "--truth-csv is for the embedded simulator; an external one writes its own (sitl --truth-csv)"
+        );
+    }
+    if cfg.count > 1 {
+        return fly_together(cfg, source);
+    }
+    let airframe = Airframe::load(&cfg.airframe_path())?;
+    if let Some(cpu) = cfg.loop_cpu {
+        // This thread runs the tasks around the loop, and the threads it starts (the log
+        // writers, the runtime's) inherit where it may run: none on the loop's CPU. The loop's
+        // own thread pins itself there.
+        deadline::keep_off_cpu(cpu).map_err(anyhow::Error::msg)?;
+    }
+    let Prepared {
+        system_id,
+        mut vehicle,
+        mut ports,
+        endpoints,
+        gcs,
+    } = prepare(&cfg, &source, &airframe, cfg.instance)?;
     let deadlines = Pacing::Deadlines {
         period: Duration::from_secs_f64(1.0 / cfg.loop_hz),
         spin: Duration::from_secs_f64(cfg.loop_spin_us * 1e-6),
         stats: Duration::from_secs_f64(cfg.loop_stats_s),
     };
-    let (mut ports, commands, telemetry) = Ports::new(16);
-    let (params_tx, params_rx) = watch::channel(params.clone());
-    ports.params = Some(params_rx);
-    let parameters = gcs::params::Parameters::new(params, store);
+    let (commands, telemetry) = (gcs.commands.clone(), gcs.telemetry.clone());
     // The control loop on its own thread owns the vehicle and the sensor link; this thread runs
-    // the tasks that talk to it (status line, Ctrl-C; the ground stations later).
+    // the tasks that talk to it (ground stations, status line, Ctrl-C).
     let control = std::thread::Builder::new()
         .name("control-loop".into())
         .spawn(move || -> Result<FlightReport> {
@@ -469,19 +628,20 @@ fn fly(cli: &Cli) -> Result<()> {
             }
             match source {
                 Source::Embedded => {
-                    let sensors = SensorPreset::from_name(&cfg.sensors).with_context(|| {
-                        format!(
-                            "--sensors must be ideal, typical or noisy, got {:?}",
-                            cfg.sensors
-                        )
-                    })?;
+                    let sensors = sensor_preset(&cfg)?;
                     if sensors == SensorPreset::Ideal {
                         vehicle.sensors_noise_free();
                     }
-                    let mut link = EmbeddedSim::new(
+                    let world = SimConfig {
+                        seed: cfg.seed,
+                        sensors: SensorConfig::preset(sensors),
+                        home: Geodetic::default().for_instance(cfg.instance),
+                        ..SimConfig::default()
+                    };
+                    let mut link = EmbeddedSim::with_world(
                         &airframe,
-                        cfg.seed,
-                        sensors,
+                        world,
+                        &[],
                         cfg.speed,
                         cfg.truth_csv.as_deref(),
                     )?;
@@ -511,33 +671,7 @@ fn fly(cli: &Cli) -> Result<()> {
             }
         })
         .context("starting the control loop")?;
-    let runtime = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .context("starting the async runtime")?;
-    let exit = runtime.block_on(async move {
-        let gcs = tokio::spawn(gcs::links::run(
-            endpoints,
-            gcs::links::Vehicle {
-                system_id,
-                mav_type,
-                telemetry: telemetry.clone(),
-                commands: commands.clone(),
-                parameters,
-                base_params: base,
-                params: params_tx,
-                notices,
-                signing_key,
-                signing_key_file: cfg.signing_key_file.clone(),
-                tlog,
-            },
-        ));
-        tokio::spawn(interrupts(commands));
-        status_line(telemetry).await;
-        // The ground-station side ends with the loop, after its last save.
-        gcs.await.ok().flatten()
-    });
-    drop(runtime);
+    let exits = serve(vec![(endpoints, gcs)], vec![commands], vec![telemetry])?;
     let report = control
         .join()
         .map_err(|_| anyhow::anyhow!("the control loop panicked"))??;
@@ -546,8 +680,147 @@ fn fly(cli: &Cli) -> Result<()> {
         Some(kib) => println!("{report} max_rss_kib={kib}"),
         None => println!("{report}"),
     }
-    if exit == Some(gcs::Action::Reboot) {
+    if exits.first() == Some(&Some(gcs::Action::Reboot)) {
         reboot()?;
+    }
+    Ok(())
+}
+
+/// Runs the tasks around the control loop on this thread until the loop ends: every vehicle's
+/// ground stations, Ctrl-C for all of them, the status line. Returns what each vehicle's
+/// ground stations asked the process to do at the end (a reboot).
+fn serve(
+    vehicles: Vec<(Vec<gcs::links::EndpointSpec>, gcs::links::Vehicle)>,
+    commands: Vec<mpsc::Sender<LoopCommand>>,
+    telemetry: Vec<watch::Receiver<Telemetry>>,
+) -> Result<Vec<Option<gcs::Action>>> {
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .context("starting the async runtime")?;
+    let exits = runtime.block_on(async move {
+        let links: Vec<_> = vehicles
+            .into_iter()
+            .map(|(endpoints, vehicle)| tokio::spawn(gcs::links::run(endpoints, vehicle)))
+            .collect();
+        tokio::spawn(interrupts(commands));
+        status_line(telemetry).await;
+        // The ground-station side ends with the loop, after its last save.
+        let mut exits = Vec::with_capacity(links.len());
+        for l in links {
+            exits.push(l.await.ok().flatten());
+        }
+        exits
+    });
+    drop(runtime);
+    Ok(exits)
+}
+
+/// `--count N`: N vehicles in the embedded simulator, flown together on one control-loop thread
+/// in lockstep on one clock ([`flight::fly_together`]), each with its own ground stations.
+fn fly_together(cfg: Settings, source: Source) -> Result<()> {
+    if source != Source::Embedded {
+        bail!(
+            "--count flies vehicles in the embedded simulator (--sim); with simulator processes or flight boards run one autopilot per vehicle, each with its own --instance"
+        );
+    }
+    if cfg.truth_csv.is_some() || cfg.flight_csv.is_some() || cfg.tlog.is_some() {
+        bail!(
+            "--truth-csv, --flight-csv and --tlog name one vehicle's file; with --count every vehicle logs to --log-dir"
+        );
+    }
+    if let StoreSetting::File(p) = &cfg.param_store {
+        bail!(
+            "--param-store {} names one vehicle's file; with --count every vehicle keeps its own (the default) or none",
+            p.display()
+        );
+    }
+    let airframe = Airframe::load(&cfg.airframe_path())?;
+    let sensors = sensor_preset(&cfg)?;
+    let mut vehicles = Vec::with_capacity(cfg.count.into());
+    let mut sims = Vec::with_capacity(cfg.count.into());
+    for k in 0..cfg.count {
+        let mut p = prepare(&cfg, &source, &airframe, cfg.instance + k)?;
+        if sensors == SensorPreset::Ideal {
+            p.vehicle.sensors_noise_free();
+        }
+        let world = SimConfig {
+            seed: cfg.seed.wrapping_add(k.into()),
+            sensors: SensorConfig::preset(sensors),
+            home: Geodetic::default().for_instance(cfg.instance + k),
+            ..SimConfig::default()
+        };
+        sims.push(EmbeddedSim::with_world(&airframe, world, &[], None, None)?);
+        vehicles.push(p);
+    }
+    let commands: Vec<_> = vehicles.iter().map(|p| p.gcs.commands.clone()).collect();
+    let telemetry: Vec<_> = vehicles.iter().map(|p| p.gcs.telemetry.clone()).collect();
+    let (mut cores, links): (Vec<_>, Vec<_>) = vehicles
+        .into_iter()
+        .map(|p| ((p.system_id, p.vehicle, p.ports), (p.endpoints, p.gcs)))
+        .unzip();
+    tracing::info!(
+        vehicles = cfg.count,
+        first_system_id = cfg.instance + 1,
+        airframe = %airframe.name,
+        "flying together on one clock"
+    );
+    let speed = cfg.speed;
+    let control = std::thread::Builder::new()
+        .name("control-loop".into())
+        .spawn(move || -> Result<flight::SwarmReport> {
+            let members = cores
+                .iter_mut()
+                .zip(sims.iter_mut())
+                .map(|((system_id, vehicle, ports), sim)| flight::Member {
+                    link: sim,
+                    vehicle,
+                    ports,
+                    system_id: *system_id,
+                })
+                .collect();
+            let mut report = flight::fly_together(members, sim::EXCHANGE_HZ, speed);
+            for ((system_id, vehicle, _), flight) in cores.iter_mut().zip(&mut report.flights) {
+                if let Err(e) = vehicle.finish_log()
+                    && flight.is_ok()
+                {
+                    *flight = Err(e.context(format!("system {system_id}")));
+                }
+            }
+            Ok(report)
+        })
+        .context("starting the control loop")?;
+    serve(links, commands, telemetry)?;
+    let report = control
+        .join()
+        .map_err(|_| anyhow::anyhow!("the control loop panicked"))??;
+    let mut failed = 0;
+    let mut landed = 0;
+    for (k, flight) in report.flights.iter().enumerate() {
+        let system_id = usize::from(cfg.instance) + k + 1;
+        match flight {
+            Ok(r) => {
+                landed += usize::from(r.landed());
+                println!("{} system_id={system_id}", r);
+            }
+            Err(e) => {
+                failed += 1;
+                eprintln!("autopilot: system {system_id}: error: {e:#}");
+            }
+        }
+    }
+    println!(
+        "swarm summary: vehicles={} rounds={} sim_time_s={:.2} wall_time_s={:.2} realtime_factor={:.2} max_lag_s={:.3} landed={landed} failed={failed} max_rss_kib={}",
+        cfg.count,
+        report.rounds,
+        report.sim_time_s,
+        report.wall_time_s,
+        report.sim_time_s / report.wall_time_s.max(1e-9),
+        report.max_lag_s,
+        peak_rss_kib().unwrap_or(0),
+    );
+    if failed > 0 {
+        bail!("{failed} of {} vehicles ended in error", cfg.count);
     }
     Ok(())
 }
@@ -562,7 +835,11 @@ fn peak_rss_kib() -> Option<u64> {
 /// The run's flight-data CSV and telemetry log: those named, else LOG_DIR/<start time>.csv and
 /// .tlog. A log directory that cannot be made costs the default logs, not the flight: it is
 /// said in the log and to the first ground station.
-fn log_paths(cfg: &Settings, notices: &mut Vec<String>) -> (Option<PathBuf>, Option<PathBuf>) {
+fn log_paths(
+    cfg: &Settings,
+    instance: u16,
+    notices: &mut Vec<String>,
+) -> (Option<PathBuf>, Option<PathBuf>) {
     let both_named = cfg.flight_csv.is_some() && cfg.tlog.is_some();
     let stem = cfg
         .log_dir
@@ -572,7 +849,7 @@ fn log_paths(cfg: &Settings, notices: &mut Vec<String>) -> (Option<PathBuf>, Opt
             let now = std::time::SystemTime::now()
                 .duration_since(std::time::UNIX_EPOCH)
                 .map_or(0, |d| d.as_secs());
-            match log_files::run_stem(dir, now, cfg.instance) {
+            match log_files::run_stem(dir, now, instance) {
                 Ok(stem) => Some(stem),
                 Err(e) => {
                     tracing::warn!(dir = %dir.display(), "no logs: {e}");
@@ -606,9 +883,10 @@ fn finish(mut vehicle: Vehicle, report: FlightReport) -> Result<FlightReport> {
     Ok(report)
 }
 
-/// Ctrl-C: the first lands, the second stops the loop at once. SIGTERM (a service manager, `kill`)
-/// stops it at once. Either way the run ends as every run does: logs flushed, parameters saved.
-async fn interrupts(commands: mpsc::Sender<LoopCommand>) {
+/// Ctrl-C: the first lands (every vehicle), the second stops the loop at once. SIGTERM (a service
+/// manager, `kill`) stops it at once. Either way the run ends as every run does: logs flushed,
+/// parameters saved.
+async fn interrupts(commands: Vec<mpsc::Sender<LoopCommand>>) {
     use tokio::signal::unix::{SignalKind, signal};
     let mut terminate = match signal(SignalKind::terminate()) {
         Ok(s) => Some(s),
@@ -629,7 +907,9 @@ async fn interrupts(commands: mpsc::Sender<LoopCommand>) {
         tokio::select! {
             Some(()) = &mut terminated => {
                 tracing::info!("SIGTERM: stopping");
-                let _ = commands.send(LoopCommand::Stop).await;
+                for c in &commands {
+                    let _ = c.send(LoopCommand::Stop).await;
+                }
                 return;
             }
             r = tokio::signal::ctrl_c() => {
@@ -637,13 +917,15 @@ async fn interrupts(commands: mpsc::Sender<LoopCommand>) {
                     return;
                 }
                 interrupts += 1;
-                let command = if interrupts == 1 {
+                if interrupts == 1 {
                     eprintln!("\nautopilot: landing (Ctrl-C again to stop at once)");
-                    LoopCommand::Land
-                } else {
-                    LoopCommand::Stop
-                };
-                if commands.send(command).await.is_err() {
+                }
+                let mut reached = 0;
+                for c in &commands {
+                    let command = if interrupts == 1 { LoopCommand::Land } else { LoopCommand::Stop };
+                    reached += usize::from(c.send(command).await.is_ok());
+                }
+                if reached == 0 {
                     return;
                 }
             }
@@ -652,8 +934,9 @@ async fn interrupts(commands: mpsc::Sender<LoopCommand>) {
 }
 
 /// The live one-line status, four times a second from the latest telemetry, until the loop
-/// ends: on a terminal it rewrites itself, otherwise one line each time.
-async fn status_line(mut telemetry: watch::Receiver<Telemetry>) {
+/// ends: on a terminal it rewrites itself, otherwise one line each time. One vehicle's line
+/// shows its state; several vehicles' a count of each mode and the spread of their altitudes.
+async fn status_line(mut telemetry: Vec<watch::Receiver<Telemetry>>) {
     let tty = std::io::stdout().is_terminal();
     let started = Instant::now();
     let mut tick = tokio::time::interval(Duration::from_millis(250));
@@ -662,35 +945,47 @@ async fn status_line(mut telemetry: watch::Receiver<Telemetry>) {
         // Polled, not awaited on every change: the loop publishes at its own rate, and waking
         // this thread that often would take CPU time from it.
         tick.tick().await;
-        let t = *telemetry.borrow_and_update();
-        // The loop ended, or its thread did (an error before it started).
-        if t.finished || telemetry.has_changed().is_err() {
+        let latest: Vec<Telemetry> = telemetry
+            .iter_mut()
+            .filter_map(|rx| {
+                let t = *rx.borrow_and_update();
+                // The loop ended, or its thread did (an error before it started).
+                (!t.finished && rx.has_changed().is_ok()).then_some(t)
+            })
+            .collect();
+        if latest.is_empty() {
             break;
         }
-        let (Some(out), Some(status)) = (t.output, t.status) else {
-            continue;
+        let wall = started.elapsed().as_secs_f64().max(1e-9);
+        let line = if telemetry.len() == 1 {
+            let t = &latest[0];
+            let (Some(out), Some(status)) = (t.output, t.status) else {
+                continue;
+            };
+            let (roll, pitch, yaw) = out.attitude.map_or((0.0, 0.0, 0.0), |a| a.q.euler_angles());
+            let mut line = format!(
+                "t {:6.1} s  {:<8} {:<8} alt {:6.2} m  vz {:5.2} m/s  roll {:5.1}  pitch {:5.1}  yaw {:6.1} deg  {:.0} frames/s x{:.0} real time",
+                t.t_s,
+                if status.armed { "armed" } else { "disarmed" },
+                status.mode.name(),
+                -out.translation.pos_ned_m.z,
+                -out.translation.vel_ned_m_s.z,
+                roll.to_degrees(),
+                pitch.to_degrees(),
+                yaw.to_degrees(),
+                t.frames as f64 / wall,
+                t.t_s / wall
+            );
+            if let Some(s) = t.loop_stats {
+                line += &format!("  loop p99 {} us, {} overruns", s.jitter_p99_us, s.overruns);
+            }
+            line
+        } else {
+            swarm_status(&latest, telemetry.len(), wall)
         };
-        let (roll, pitch, yaw) = out.attitude.map_or((0.0, 0.0, 0.0), |a| a.q.euler_angles());
-        let wall = started.elapsed().as_secs_f64();
-        let mut line = format!(
-            "t {:6.1} s  {:<8} {:<8} alt {:6.2} m  vz {:5.2} m/s  roll {:5.1}  pitch {:5.1}  yaw {:6.1} deg  {:.0} frames/s x{:.0} real time",
-            t.t_s,
-            if status.armed { "armed" } else { "disarmed" },
-            status.mode.name(),
-            -out.translation.pos_ned_m.z,
-            -out.translation.vel_ned_m_s.z,
-            roll.to_degrees(),
-            pitch.to_degrees(),
-            yaw.to_degrees(),
-            t.frames as f64 / wall.max(1e-9),
-            t.t_s / wall.max(1e-9)
-        );
-        if let Some(s) = t.loop_stats {
-            line += &format!("  loop p99 {} us, {} overruns", s.jitter_p99_us, s.overruns);
-        }
         let mut stdout = std::io::stdout();
         if tty {
-            let _ = write!(stdout, "\r{line}");
+            let _ = write!(stdout, "\r{line}\x1b[K");
             let _ = stdout.flush();
         } else {
             let _ = writeln!(stdout, "{line}");
@@ -701,16 +996,55 @@ async fn status_line(mut telemetry: watch::Receiver<Telemetry>) {
     }
 }
 
+/// Several vehicles' status in one line: how many fly, armed, in each mode, and their altitudes.
+fn swarm_status(latest: &[Telemetry], count: usize, wall_s: f64) -> String {
+    let t_s = latest.iter().map(|t| t.t_s).fold(0.0, f64::max);
+    let armed = latest
+        .iter()
+        .filter(|t| t.status.is_some_and(|s| s.armed))
+        .count();
+    let mut modes: Vec<(&str, usize)> = Vec::new();
+    for s in latest.iter().filter_map(|t| t.status) {
+        match modes.iter_mut().find(|(m, _)| *m == s.mode.name()) {
+            Some((_, n)) => *n += 1,
+            None => modes.push((s.mode.name(), 1)),
+        }
+    }
+    let alts = latest
+        .iter()
+        .filter_map(|t| t.output.map(|o| -o.translation.pos_ned_m.z));
+    let (lo, hi) = alts.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), a| {
+        (lo.min(a), hi.max(a))
+    });
+    let modes: Vec<String> = modes.iter().map(|(m, n)| format!("{n} {m}")).collect();
+    let mut line = format!(
+        "t {t_s:6.1} s  {} of {count} vehicles flying, {armed} armed ({})",
+        latest.len(),
+        modes.join(", ")
+    );
+    if lo <= hi {
+        line += &format!("  alt {lo:.2} to {hi:.2} m");
+    }
+    line + &format!("  x{:.1} real time", t_s / wall_s)
+}
+
 fn main() -> std::process::ExitCode {
+    let cli = Cli::parse();
+    // A batch flies hundreds of vehicles: their own warnings (failsafes, faults) are in its CSV,
+    // not the log, unless RUST_LOG asks for them.
+    let quiet = "info,autopilot::vehicle=off,autopilot::flight=off";
+    let default = match cli.command {
+        Some(Command::Batch { .. }) => quiet,
+        _ => "info",
+    };
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default)),
         )
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .with_writer(std::io::stderr)
         .init();
-    let cli = Cli::parse();
     let result: Result<()> = match &cli.command {
         Some(Command::Replay {
             input,
@@ -722,6 +1056,57 @@ fn main() -> std::process::ExitCode {
             params,
             device_id,
         }) => mag_cal::run(input, params.as_deref(), *device_id),
+        Some(Command::Batch {
+            runs,
+            first,
+            seed,
+            jobs,
+            airframe,
+            params_dir,
+            params,
+            takeoff,
+            hover,
+            wind_max,
+            turbulence_max,
+            faults,
+            sensors,
+            output,
+        }) => (|| {
+            let dir = airframe::config::params_dir(params_dir.as_deref());
+            let airframe_path = if airframe.ends_with(".toml") {
+                PathBuf::from(airframe)
+            } else {
+                dir.join("airframes").join(format!("{airframe}.toml"))
+            };
+            let cfg = batch::BatchConfig {
+                runs: *runs,
+                first: *first,
+                seed: *seed,
+                takeoff_m: config::in_range(*takeoff, &config::TAKEOFF_RANGE_M, "m")
+                    .map_err(|e| anyhow::anyhow!("--takeoff: {e}"))?,
+                hover_s: config::in_range(*hover, &config::HOVER_RANGE_S, "s")
+                    .map_err(|e| anyhow::anyhow!("--hover: {e}"))?,
+                wind_max_m_s: *wind_max,
+                turbulence_max_m_s: *turbulence_max,
+                faults: faults
+                    .iter()
+                    .map(|f| batch::FaultKind::from_name(f.trim()))
+                    .collect::<Result<_>>()
+                    .context("--faults")?,
+                sensors: SensorPreset::from_name(sensors).with_context(|| {
+                    format!("--sensors must be ideal, typical or noisy, got {sensors:?}")
+                })?,
+            };
+            batch::run(
+                &cfg,
+                &airframe_path,
+                &params.clone().unwrap_or_else(|| dir.join("flight.toml")),
+                jobs.unwrap_or_else(batch::default_jobs),
+                &output
+                    .clone()
+                    .unwrap_or_else(|| batch::default_output(*seed)),
+            )
+        })(),
         None => fly(&cli),
     };
     match result {

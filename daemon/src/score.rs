@@ -26,6 +26,19 @@ pub struct FlightScore {
     pub max_height_m: f64,
     /// Fastest true descent within 0.3 m of the ground while landing (m/s).
     pub touchdown_m_s: f64,
+    /// Fastest true descent within 0.3 m of the ground from arming on, whatever the mode, armed
+    /// or not (m/s): a crash shows here.
+    pub impact_m_s: f64,
+    /// Largest true tilt from arming on (deg).
+    pub max_tilt_deg: f64,
+    /// The last true tilt (deg): one on its side or back is far from level.
+    pub tilt_deg: f64,
+    /// Farthest true horizontal distance from the take-off spot from arming on (m).
+    pub max_distance_m: f64,
+    /// The last true horizontal distance from the take-off spot (m): where it came down.
+    pub distance_m: f64,
+    /// A failsafe acted at some point.
+    pub failsafe: bool,
 }
 
 #[derive(Debug, Clone, Copy, Default)]
@@ -83,6 +96,17 @@ impl FlightScore {
         let height = -p.z;
         self.height_m = height;
         self.max_height_m = self.max_height_m.max(height);
+        // From arming on, armed or not (a vehicle that stops its motors in the air still falls).
+        self.distance_m = p.xy().norm();
+        self.max_distance_m = self.max_distance_m.max(self.distance_m);
+        // The body's down axis in NED: its angle from the vertical.
+        let down = truth.q.transform_vector(&Vector3::z());
+        self.tilt_deg = down.z.clamp(-1.0, 1.0).acos().to_degrees();
+        self.max_tilt_deg = self.max_tilt_deg.max(self.tilt_deg);
+        self.failsafe |= armed && status.failsafe;
+        if height < 0.3 {
+            self.impact_m_s = self.impact_m_s.max(truth.vel_ned_m_s.z);
+        }
         if status.mode == FlightMode::Loiter && status.landed == LandedState::InAir {
             self.hover.add(height - self.takeoff_m);
             self.hover_h.add(p.xy().norm());
@@ -172,5 +196,19 @@ mod tests {
         let drift = (0.5f64.powi(2) / 2.0).sqrt();
         assert!((s.hover_drift_rms_m().unwrap() - drift).abs() < 1e-6);
         assert!((s.max_height_m - 5.1).abs() < 1e-6);
+        assert!((s.max_distance_m - 0.5).abs() < 1e-6 && s.distance_m.abs() < 1e-6);
+        assert_eq!((s.max_tilt_deg, s.failsafe), (0.0, false));
+        // Tilted 30° about north, falling 3 m/s just above the ground in a failsafe.
+        let mut falling = truth(10.0, 0.0, 0.2);
+        falling.q = UnitQuaternion::from_euler_angles(30f64.to_radians(), 0.0, 0.0);
+        falling.vel_ned_m_s.z = 3.0;
+        let mut descend = status(FlightMode::Descend, LandedState::InAir);
+        descend.failsafe = true;
+        s.add(&falling, None, &descend, true);
+        assert!((s.max_tilt_deg - 30.0).abs() < 1e-9, "{}", s.max_tilt_deg);
+        assert_eq!(
+            (s.impact_m_s, s.touchdown_m_s, s.failsafe),
+            (3.0, 0.0, true)
+        );
     }
 }

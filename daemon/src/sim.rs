@@ -8,8 +8,7 @@ use crate::link::SensorLink;
 use anyhow::{Context, Result};
 use hil::{Decoded, SimulatorEnd};
 use mavlink::dialects::common::MavMessage;
-use sitl_core::sensors::{SensorConfig, SensorPreset};
-use sitl_core::sim::{SimConfig, Simulator};
+use sitl_core::sim::{Event, SimConfig, Simulator};
 use sitl_core::truth_csv::TruthCsv;
 use sitl_core::{Airframe, BodyState};
 use std::io;
@@ -35,22 +34,33 @@ pub struct EmbeddedSim {
 impl EmbeddedSim {
     /// A simulator of `airframe` with `sensors` seeded by `seed`, paced at `speed` × real time
     /// (`None`: as fast as lockstep allows), writing ground truth to `truth_csv` at 100 Hz.
+    #[cfg(test)]
     pub fn new(
         airframe: &Airframe,
         seed: u64,
-        sensors: SensorPreset,
+        sensors: sitl_core::sensors::SensorPreset,
         speed: Option<f64>,
         truth_csv: Option<&Path>,
     ) -> Result<Self> {
-        let sim = Simulator::new(
-            airframe,
-            SimConfig {
-                seed,
-                sensors: SensorConfig::preset(sensors),
-                ..SimConfig::default()
-            },
-            BodyState::default(),
-        )?;
+        let config = SimConfig {
+            seed,
+            sensors: sitl_core::sensors::SensorConfig::preset(sensors),
+            ..SimConfig::default()
+        };
+        Self::with_world(airframe, config, &[], speed, truth_csv)
+    }
+
+    /// A simulator of `airframe` in the world `config` describes (seed, sensors, home, wind),
+    /// with `events` scheduled (faults, gusts: the batch runs), otherwise as [`Self::new`].
+    pub fn with_world(
+        airframe: &Airframe,
+        config: SimConfig,
+        events: &[Event],
+        speed: Option<f64>,
+        truth_csv: Option<&Path>,
+    ) -> Result<Self> {
+        let mut sim = Simulator::new(airframe, config, BodyState::default())?;
+        sim.schedule(events)?;
         let truth = truth_csv
             .map(|p| {
                 TruthCsv::create(p, 100.0, airframe.rotors.len())
@@ -96,6 +106,11 @@ impl EmbeddedSim {
     #[cfg(test)]
     pub fn truth(&self) -> sitl_core::sim::TruthState {
         self.end.sim().truth()
+    }
+
+    /// Simulated time (s).
+    pub fn time_s(&self) -> f64 {
+        self.end.sim().time_s()
     }
 
     /// Writes the rest of the truth CSV.

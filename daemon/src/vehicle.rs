@@ -607,6 +607,12 @@ impl Vehicle {
                 }
             }
         };
+        // The world is still watched: the blind descent's landing is scored like any other.
+        if let Some(truth) = self.update.truth.take() {
+            let status = self.status();
+            self.score.add(&truth, None, &status, status.armed);
+            self.last_truth = Some(truth);
+        }
         let output = self.last?;
         if !self.commander.armed() {
             self.imu_frozen_since_usec = None;

@@ -59,7 +59,8 @@ pub struct Cli {
     /// The autopilot's HIL address; its port is offset by --instance.
     #[arg(long, default_value = "127.0.0.1:4560", value_name = "ADDR")]
     pub autopilot: SocketAddr,
-    /// Instance number N: talks to autopilot port 4560 + N (several vehicles on one machine).
+    /// Instance number N: talks to autopilot port 4560 + N, and its home is 3 N m east of the
+    /// scenario's (several vehicles on one machine, side by side).
     #[arg(short = 'i', long, default_value_t = 0)]
     pub instance: u16,
     /// Talk over a serial line instead of UDP, playing the flight board: a device such as
@@ -159,6 +160,7 @@ fn load_scenario(cli: &Cli) -> Result<Scenario> {
     if let Some(s) = cli.seed {
         scenario.sim.seed = s;
     }
+    scenario.sim.home = scenario.sim.home.for_instance(cli.instance);
     if let Some(p) = &cli.sensors {
         let preset = SensorPreset::from_name(p)
             .with_context(|| format!("--sensors must be ideal, typical or noisy, got {p:?}"))?;

@@ -40,7 +40,7 @@ use tokio::sync::{broadcast, mpsc, oneshot, watch};
 /// PX4 SITL's links: QGroundControl and MAVSDK ports pushed to, each from its own bound port,
 /// and a TCP server.
 pub const DEFAULT_ENDPOINTS: [&str; 3] = [
-    "udpout://127.0.0.1:14550?bind=18570",
+    "udpout://127.0.0.1:14550?bind=18570&shared",
     "udpout://127.0.0.1:14540?bind=14580",
     "tcpin://0.0.0.0:5760",
 ];
@@ -84,9 +84,12 @@ pub enum Endpoint {
 }
 
 impl Endpoint {
-    /// Parses an endpoint URL; every port is offset by `instance` (a port 0 stays 0: any).
+    /// Parses an endpoint URL; every port is offset by `instance` (a port 0 stays 0: any) but
+    /// a `udpout` target marked `shared`: one ground station that hears every vehicle on one
+    /// port, as QGroundControl does on 14550 (PX4's multi-vehicle ports: local 18570 + N,
+    /// remote 14550).
     pub fn parse(url: &str, instance: u16) -> Result<Self> {
-        let addr = |s: &str| -> Result<SocketAddr> {
+        let offset = |s: &str, instance: u16| -> Result<SocketAddr> {
             let mut a: SocketAddr = s.parse().with_context(|| {
                 format!("{url:?}: {s:?} is not an address like 127.0.0.1:14550")
             })?;
@@ -101,6 +104,7 @@ impl Endpoint {
             }
             Ok(a)
         };
+        let addr = |s: &str| offset(s, instance);
         let (scheme, rest) = url.split_once("://").with_context(|| {
             format!("{url:?}: expected udpout://, udpin://, tcpin:// or serial://")
         })?;
@@ -127,23 +131,25 @@ impl Endpoint {
                 baud,
             });
         }
-        let mut bind = None;
+        let (mut bind, mut shared) = (None, false);
         for kv in query.split('&').filter(|s| !s.is_empty()) {
             match kv.split_once('=') {
+                None if kv == "shared" => shared = true,
                 Some(("bind", p)) => {
                     let port: u16 = p
                         .parse()
                         .with_context(|| format!("{url:?}: bind={p} is not a port"))?;
                     bind = Some(addr(&format!("0.0.0.0:{port}"))?);
                 }
-                _ => bail!("{url:?}: unknown option {kv:?} (udpout takes bind=PORT)"),
+                _ => bail!("{url:?}: unknown option {kv:?} (udpout takes bind=PORT and shared)"),
             }
         }
         Ok(match scheme {
             "udpout" => Endpoint::UdpOut {
-                target: addr(host)?,
+                target: offset(host, if shared { 0 } else { instance })?,
                 bind: bind.unwrap_or_else(|| SocketAddr::from(([0, 0, 0, 0], 0))),
             },
+            "udpin" | "tcpin" if shared => bail!("{url:?}: shared is for udpout"),
             "udpin" if bind.is_none() => Endpoint::UdpIn { bind: addr(host)? },
             "tcpin" if bind.is_none() => Endpoint::TcpIn { bind: addr(host)? },
             "udpin" | "tcpin" => bail!("{url:?}: bind= is for udpout"),
@@ -581,6 +587,9 @@ pub struct Vehicle {
     pub signing_key_file: Option<std::path::PathBuf>,
     /// The MAVLink telemetry log, if one is kept.
     pub tlog: Option<Tlog>,
+    /// Whether a reboot is allowed: it restarts the process, so not for one of several
+    /// vehicles in it.
+    pub reboot_allowed: bool,
 }
 
 /// How often refused frames are reported in the log.
@@ -687,6 +696,7 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<Actio
         signing_key,
         signing_key_file,
         mut tlog,
+        reboot_allowed,
     } = vehicle;
     tracing::info!(
         "MAVLink signing {}",
@@ -714,7 +724,9 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<Actio
             tracing::warn!("ground-station endpoint not opened: {e:#}");
         }
     }
-    let mut gcs = GroundStation::new(system_id, mav_type).with_parameters(parameters, base_params);
+    let mut gcs = GroundStation::new(system_id, mav_type)
+        .with_parameters(parameters, base_params)
+        .with_reboot(reboot_allowed);
     let mut encoder = Encoder::with_ids(system_id, super::COMPONENT_ID);
     let mut out = Outbox::default();
     let mut tick = tokio::time::interval(POLL);

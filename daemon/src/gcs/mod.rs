@@ -219,6 +219,8 @@ pub struct GroundStation {
     mission_current_next_s: f64,
     /// What has been said of the magnetometer calibration.
     mag_cal_shown: calibration::Shown,
+    /// A reboot restarts the process: refused for one of several vehicles in it (`--count`).
+    reboot_allowed: bool,
 }
 
 impl GroundStation {
@@ -257,7 +259,15 @@ impl GroundStation {
             reached_shown: 0,
             mission_current_next_s: 0.0,
             mag_cal_shown: Default::default(),
+            reboot_allowed: true,
         }
+    }
+
+    /// Whether `MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN` may reboot: not for one of several vehicles
+    /// flown by one process, whose reboot would restart them all (a shutdown still ends it).
+    pub fn with_reboot(mut self, allowed: bool) -> Self {
+        self.reboot_allowed = allowed;
+        self
     }
 
     /// With this parameter table; a reset returns to `base`.
@@ -1078,6 +1088,13 @@ impl GroundStation {
                 };
                 if armed && action.is_some() {
                     return deny(self, out, "reboot: disarm first");
+                }
+                if action == Some(Action::Reboot) && !self.reboot_allowed {
+                    return deny(
+                        self,
+                        out,
+                        "reboot: one of several vehicles in one process; restart the process",
+                    );
                 }
                 out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED));
                 if let Some(a) = action {

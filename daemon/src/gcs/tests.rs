@@ -324,6 +324,15 @@ fn endpoints_parse_with_the_instance_offset() {
             bind: "0.0.0.0:18572".parse().unwrap(),
         }
     );
+    // QGroundControl's port, shared by every vehicle (PX4's multi-vehicle ports).
+    let e = links::Endpoint::parse("udpout://127.0.0.1:14550?bind=18570&shared", 2).unwrap();
+    assert_eq!(
+        e,
+        links::Endpoint::UdpOut {
+            target: "127.0.0.1:14550".parse().unwrap(),
+            bind: "0.0.0.0:18572".parse().unwrap(),
+        }
+    );
     let e = links::Endpoint::parse("tcpin://0.0.0.0:5760", 1).unwrap();
     assert_eq!(
         e,
@@ -350,6 +359,8 @@ fn endpoints_parse_with_the_instance_offset() {
         "udp://1.2.3.4:5",
         "udpout://localhost",
         "udpin://0.0.0.0:1?bind=3",
+        "udpin://0.0.0.0:1?shared",
+        "tcpin://0.0.0.0:1?shared",
         "udpout://1.2.3.4:5?speed=9",
         "serial://?baud=57600",
         "serial:///dev/ttyS0?baud=fast",
@@ -640,6 +651,17 @@ fn storage_reset_and_reboot_are_for_a_disarmed_vehicle() {
     let mut out = Outbox::default();
     g.on_message(&gcs_header(), &reboot(3.0), &ground, &mut out);
     assert_eq!(acks(&out)[0].result, MavResult::MAV_RESULT_DENIED);
+
+    // One of several vehicles in a process: a reboot would restart them all, so it is
+    // refused; a shutdown ends this one.
+    let mut g = g.with_reboot(false);
+    let mut out = Outbox::default();
+    g.on_message(&gcs_header(), &reboot(1.0), &ground, &mut out);
+    assert_eq!(acks(&out)[0].result, MavResult::MAV_RESULT_DENIED);
+    assert!(out.actions.is_empty());
+    let mut out = Outbox::default();
+    g.on_message(&gcs_header(), &reboot(2.0), &ground, &mut out);
+    assert_eq!(out.actions, [Action::Shutdown]);
 }
 
 #[test]

@@ -29,7 +29,22 @@ impl Default for Geodetic {
     }
 }
 
+/// How far apart several vehicles on one machine start (m): instance N's home is N times this
+/// east of the site's, so a ground station shows them side by side (`sitl -i N`,
+/// `autopilot --count`).
+pub const INSTANCE_SPACING_M: f64 = 3.0;
+
 impl Geodetic {
+    /// The home of instance `instance` of several vehicles around this site: [`INSTANCE_SPACING_M`]
+    /// times `instance` east of it.
+    pub fn for_instance(&self, instance: u16) -> Geodetic {
+        self.offset_by_ned(&Vector3::new(
+            0.0,
+            INSTANCE_SPACING_M * f64::from(instance),
+            0.0,
+        ))
+    }
+
     /// Meridian and prime-vertical radii of curvature at this latitude (m).
     fn radii(&self) -> (f64, f64) {
         let s = self.lat_deg.to_radians().sin();

@@ -1,0 +1,741 @@
+//! `autopilot batch`: Monte-Carlo runs of the take-off, hover and landing in the embedded
+//! simulator, over seeds, wind and faults, on every core, into one CSV of flight-quality figures.
+//!
+//! Run `i` of a batch draws everything it varies from the random stream `(seed, i)` alone
+//! ([`RunPlan::draw`]), so a batch gives the same rows whatever the number of workers and
+//! whichever finishes first, and one run can be flown again from its row (`--seed`, `--first`).
+
+use crate::flight::{self, Command, Pacing, Ports};
+use crate::link::{SensorLink, Source};
+use crate::sim::EmbeddedSim;
+use crate::vehicle::{AutoFlight, Vehicle};
+use anyhow::{Context, Result, bail};
+use flight_core::params::FlightParams;
+use nalgebra::Vector3;
+use sitl_core::Airframe;
+use sitl_core::environment::WindConfig;
+use sitl_core::rng::Rng;
+use sitl_core::sensors::{SensorConfig, SensorHealth, SensorKind, SensorPreset};
+use sitl_core::sim::{Action, Event, SimConfig};
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::time::{Duration, Instant};
+use tokio::sync::mpsc;
+
+/// What a batch varies and over what ranges.
+#[derive(Debug, Clone)]
+pub struct BatchConfig {
+    /// Runs to fly.
+    pub runs: u32,
+    /// The first run's number (to fly again part of a batch).
+    pub first: u32,
+    /// The batch's seed: run `i` draws from the stream `(seed, i)`.
+    pub seed: u64,
+    /// Take-off height (m) and hover time (s) of every flight.
+    pub takeoff_m: f64,
+    /// Hover time (s).
+    pub hover_s: f64,
+    /// Largest mean wind (m/s): each run's is drawn uniformly from 0 to this, from any direction.
+    pub wind_max_m_s: f64,
+    /// Largest Dryden turbulence intensity W20 (m/s), drawn likewise.
+    pub turbulence_max_m_s: f64,
+    /// The faults a run's one is drawn from, uniformly.
+    pub faults: Vec<FaultKind>,
+    /// Sensor quality.
+    pub sensors: SensorPreset,
+}
+
+/// The faults a batch can draw, each at a random moment of the hover.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FaultKind {
+    /// No fault.
+    None,
+    /// One motor's propeller loses part of its thrust (to 50–90 %).
+    Motor,
+    /// One motor stops.
+    MotorOff,
+    /// The GPS loses its fix for 5–15 s.
+    Gps,
+    /// A magnetic disturbance of 0.1–0.3 G, any direction, for 3–10 s.
+    Mag,
+    /// The barometer goes silent for 2–10 s.
+    Baro,
+    /// A 1 − cos gust of 3–8 m/s, horizontal, for 1–3 s.
+    Gust,
+    /// The IMU repeats one reading from then on.
+    Imu,
+}
+
+impl FaultKind {
+    /// Every fault, by its name on the command line and in the CSV.
+    pub const ALL: [(&'static str, FaultKind); 8] = [
+        ("none", FaultKind::None),
+        ("motor", FaultKind::Motor),
+        ("motor_off", FaultKind::MotorOff),
+        ("gps", FaultKind::Gps),
+        ("mag", FaultKind::Mag),
+        ("baro", FaultKind::Baro),
+        ("gust", FaultKind::Gust),
+        ("imu", FaultKind::Imu),
+    ];
+
+    /// The fault named `name`.
+    pub fn from_name(name: &str) -> Result<Self> {
+        Self::ALL
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map(|&(_, f)| f)
+            .with_context(|| {
+                let names: Vec<&str> = Self::ALL.iter().map(|(n, _)| *n).collect();
+                format!("unknown fault {name:?} (known: {})", names.join(", "))
+            })
+    }
+
+    /// Its name.
+    pub fn name(self) -> &'static str {
+        Self::ALL
+            .iter()
+            .find(|&&(_, f)| f == self)
+            .map_or("?", |(n, _)| n)
+    }
+}
+
+/// One run as drawn: its sensors' seed, its weather and its fault.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunPlan {
+    /// The run's number in the batch.
+    pub run: u32,
+    /// Seed of the simulator's random processes (sensor noise, turbulence).
+    pub sim_seed: u64,
+    /// Mean wind speed (m/s) and the direction it blows from (deg, clockwise from north).
+    pub wind_m_s: f64,
+    /// Direction the wind blows from (deg).
+    pub wind_from_deg: f64,
+    /// Turbulence intensity W20 (m/s).
+    pub turbulence_m_s: f64,
+    /// The fault, when it strikes (s of simulation time), and what exactly it is.
+    pub fault: FaultKind,
+    /// When the fault strikes (s); none without one.
+    pub fault_t_s: Option<f64>,
+    /// The fault's particulars, for the CSV (motor, strength, length).
+    pub fault_detail: String,
+    /// The simulator's events that make the fault.
+    pub events: Vec<Event>,
+}
+
+impl RunPlan {
+    /// Draws run `run` of `cfg` for a vehicle of `rotors` rotors, from the stream `(seed, run)`.
+    pub fn draw(cfg: &BatchConfig, run: u32, rotors: usize) -> Self {
+        let mut rng = Rng::stream(cfg.seed, u64::from(run));
+        let sim_seed = rng.next_u64();
+        let wind_m_s = cfg.wind_max_m_s * rng.uniform();
+        let wind_from_deg = 360.0 * rng.uniform();
+        let turbulence_m_s = cfg.turbulence_max_m_s * rng.uniform();
+        let fault =
+            cfg.faults[(rng.uniform() * cfg.faults.len() as f64) as usize % cfg.faults.len()];
+        // The hover begins after the spool-up (1 s after arming at about 1 s) and the climb
+        // (1.5 m/s, 1 m/s²); the fault strikes within it, a second clear of either end.
+        let hover_start_s = 3.5 + cfg.takeoff_m / 1.5;
+        let t = hover_start_s + 1.0 + (cfg.hover_s - 2.0).max(0.0) * rng.uniform();
+        let between = |rng: &mut Rng, lo: f64, hi: f64| lo + (hi - lo) * rng.uniform();
+        let horizontal = |rng: &mut Rng, size: f64| {
+            let a = std::f64::consts::TAU * rng.uniform();
+            Vector3::new(size * a.cos(), size * a.sin(), 0.0)
+        };
+        let at = |t_s, action| Event { t_s, action };
+        let (detail, events) = match fault {
+            FaultKind::None => (String::new(), Vec::new()),
+            FaultKind::Motor => {
+                let index = (rng.uniform() * rotors as f64) as usize % rotors;
+                let effectiveness = between(&mut rng, 0.5, 0.9);
+                (
+                    format!("motor {} at {:.0} %", index + 1, 100.0 * effectiveness),
+                    vec![at(
+                        t,
+                        Action::MotorEffectiveness {
+                            index,
+                            effectiveness,
+                        },
+                    )],
+                )
+            }
+            FaultKind::MotorOff => {
+                let index = (rng.uniform() * rotors as f64) as usize % rotors;
+                (
+                    format!("motor {} off", index + 1),
+                    vec![at(t, Action::MotorFail { index })],
+                )
+            }
+            FaultKind::Gps => {
+                let d = between(&mut rng, 5.0, 15.0);
+                (
+                    format!("fix lost {d:.1} s"),
+                    vec![
+                        at(t, Action::GpsFixLost(true)),
+                        at(t + d, Action::GpsFixLost(false)),
+                    ],
+                )
+            }
+            FaultKind::Mag => {
+                let size = between(&mut rng, 0.1, 0.3);
+                let d = between(&mut rng, 3.0, 10.0);
+                let mut field = Vector3::new(rng.normal(), rng.normal(), rng.normal());
+                field *= size / field.norm().max(1e-9);
+                (
+                    format!("{size:.2} G for {d:.1} s"),
+                    vec![
+                        at(t, Action::MagDisturbance(field)),
+                        at(t + d, Action::MagDisturbance(Vector3::zeros())),
+                    ],
+                )
+            }
+            FaultKind::Baro => {
+                let d = between(&mut rng, 2.0, 10.0);
+                let health = |health| Action::Sensor {
+                    sensor: SensorKind::Baro,
+                    health,
+                };
+                (
+                    format!("silent {d:.1} s"),
+                    vec![
+                        at(t, health(SensorHealth::Off)),
+                        at(t + d, health(SensorHealth::Ok)),
+                    ],
+                )
+            }
+            FaultKind::Gust => {
+                let peak = between(&mut rng, 3.0, 8.0);
+                let d = between(&mut rng, 1.0, 3.0);
+                (
+                    format!("{peak:.1} m/s over {d:.1} s"),
+                    vec![at(
+                        t,
+                        Action::Gust {
+                            peak_ned_m_s: horizontal(&mut rng, peak),
+                            duration_s: d,
+                        },
+                    )],
+                )
+            }
+            FaultKind::Imu => (
+                "stuck".into(),
+                vec![at(
+                    t,
+                    Action::Sensor {
+                        sensor: SensorKind::Imu,
+                        health: SensorHealth::Stuck,
+                    },
+                )],
+            ),
+        };
+        Self {
+            run,
+            sim_seed,
+            wind_m_s,
+            wind_from_deg,
+            turbulence_m_s,
+            fault,
+            fault_t_s: (fault != FaultKind::None).then_some(t),
+            fault_detail: detail,
+            events,
+        }
+    }
+
+    /// The simulated world of this run.
+    fn world(&self, sensors: SensorPreset) -> SimConfig {
+        // The wind blows from `wind_from_deg`: the air moves the other way.
+        let to = (self.wind_from_deg + 180.0).to_radians();
+        SimConfig {
+            seed: self.sim_seed,
+            sensors: SensorConfig::preset(sensors),
+            wind: WindConfig {
+                mean_ned_m_s: [self.wind_m_s * to.cos(), self.wind_m_s * to.sin(), 0.0],
+                turbulence_w20_m_s: self.turbulence_m_s,
+            },
+            ..SimConfig::default()
+        }
+    }
+}
+
+/// Faster than this at the ground (m/s) is a crash, not a landing: a fall from over half a metre.
+pub const CRASH_IMPACT_M_S: f64 = 3.0;
+/// Tilted more than this at the end (deg) is a vehicle on its side or back.
+pub const CRASH_TILT_DEG: f64 = 60.0;
+
+/// How a run ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Outcome {
+    /// On the ground, disarmed, upright, no faster than [`CRASH_IMPACT_M_S`] at the ground.
+    Landed,
+    /// It hit the ground faster than that, or lies on its side or back.
+    Crashed,
+    /// Still armed or off the ground when its time was up.
+    NotLanded,
+    /// The run could not be flown.
+    Error,
+}
+
+impl Outcome {
+    /// How `flight` ended.
+    pub fn of(flight: &Result<flight::FlightReport>) -> Self {
+        let Ok(f) = flight else {
+            return Outcome::Error;
+        };
+        let s = f.score();
+        if s.impact_m_s > CRASH_IMPACT_M_S || s.tilt_deg > CRASH_TILT_DEG {
+            Outcome::Crashed
+        } else if f.landed() {
+            Outcome::Landed
+        } else {
+            Outcome::NotLanded
+        }
+    }
+
+    /// Its name in the CSV.
+    pub fn name(self) -> &'static str {
+        match self {
+            Outcome::Landed => "landed",
+            Outcome::Crashed => "crashed",
+            Outcome::NotLanded => "not_landed",
+            Outcome::Error => "error",
+        }
+    }
+}
+
+/// One run's figures, or why it could not be flown.
+#[derive(Debug)]
+pub struct RunResult {
+    /// What was flown.
+    pub plan: RunPlan,
+    /// Its report.
+    pub flight: Result<flight::FlightReport>,
+}
+
+/// The simulator of a run, which stops the flight once its time is up (a vehicle that never
+/// comes to rest: upside down, a rotor short).
+struct TimeLimited {
+    sim: EmbeddedSim,
+    limit_s: f64,
+    stop: mpsc::Sender<Command>,
+    stopped: bool,
+}
+
+impl SensorLink for TimeLimited {
+    fn receive(&mut self, timeout: Duration, into: &mut hil::Decoded) -> std::io::Result<bool> {
+        if !self.stopped && self.sim.time_s() >= self.limit_s {
+            self.stopped = true;
+            // Drained before the next step.
+            let _ = self.stop.try_send(Command::Stop);
+        }
+        self.sim.receive(timeout, into)
+    }
+
+    fn send(&mut self, bytes: &[u8]) -> std::io::Result<()> {
+        self.sim.send(bytes)
+    }
+
+    fn describe(&self) -> String {
+        self.sim.describe()
+    }
+
+    fn silence_clock_s(&self) -> Option<f64> {
+        None
+    }
+}
+
+impl BatchConfig {
+    /// Simulated time after which a run is stopped wherever it is: the flight's own length
+    /// (the climb, the hover, the descent at 0.3 m/s) and a minute.
+    pub fn time_limit_s(&self) -> f64 {
+        3.5 + self.takeoff_m / 1.5 + self.hover_s + self.takeoff_m / 0.3 + 60.0
+    }
+}
+
+/// Flies one run: the take-off, hover and landing of `airframe` with `params`, lockstep as fast
+/// as it goes, no ground station, no logs; stopped at [`BatchConfig::time_limit_s`].
+pub fn fly_run(
+    cfg: &BatchConfig,
+    airframe: &Airframe,
+    params: &FlightParams,
+    plan: RunPlan,
+) -> RunResult {
+    let flight = (|| {
+        let auto = AutoFlight {
+            takeoff_m: cfg.takeoff_m,
+            hover_s: cfg.hover_s,
+        };
+        let mut vehicle = Vehicle::new(airframe, params, Some(auto))?;
+        if cfg.sensors == SensorPreset::Ideal {
+            vehicle.sensors_noise_free();
+        }
+        let sim =
+            EmbeddedSim::with_world(airframe, plan.world(cfg.sensors), &plan.events, None, None)?;
+        let (mut ports, stop, _telemetry) = Ports::new(1);
+        let mut link = TimeLimited {
+            sim,
+            limit_s: cfg.time_limit_s(),
+            stop,
+            stopped: false,
+        };
+        let system_id = 1;
+        flight::fly(
+            &mut link,
+            &mut vehicle,
+            system_id,
+            &mut ports,
+            Pacing::Lockstep,
+        )
+    })();
+    RunResult { plan, flight }
+}
+
+/// The CSV's columns, one row per run.
+pub const CSV_HEADER: &str = "run,sim_seed,wind_m_s,wind_from_deg,turbulence_w20_m_s,fault,fault_t_s,fault_detail,outcome,failsafe,max_alt_m,hover_alt_rms_m,hover_drift_rms_m,attitude_rms_deg,max_tilt_deg,final_tilt_deg,max_distance_m,landing_distance_m,touchdown_m_s,impact_m_s,sensor_timeouts,sim_time_s,error";
+
+/// A run as a CSV row (no newline).
+pub fn csv_row(r: &RunResult) -> String {
+    let p = &r.plan;
+    let opt = |x: Option<f64>| x.map_or(String::new(), |x| format!("{x:.4}"));
+    let quoted = |s: &str| format!("\"{}\"", s.replace('"', "'"));
+    let head = format!(
+        "{},{},{:.3},{:.1},{:.3},{},{},{}",
+        p.run,
+        p.sim_seed,
+        p.wind_m_s,
+        p.wind_from_deg,
+        p.turbulence_m_s,
+        p.fault.name(),
+        p.fault_t_s.map_or(String::new(), |t| format!("{t:.3}")),
+        quoted(&p.fault_detail)
+    );
+    match &r.flight {
+        Ok(f) => {
+            let s = f.score();
+            format!(
+                "{head},{},{},{:.4},{},{},{},{:.3},{:.3},{:.4},{:.4},{:.4},{:.4},{},{:.3},",
+                Outcome::of(&r.flight).name(),
+                s.failsafe,
+                s.max_height_m,
+                opt(s.hover_alt_rms_m()),
+                opt(s.hover_drift_rms_m()),
+                opt(s.attitude_rms_deg()),
+                s.max_tilt_deg,
+                s.tilt_deg,
+                s.max_distance_m,
+                s.distance_m,
+                s.touchdown_m_s,
+                s.impact_m_s,
+                f.sensor_timeouts(),
+                f.sim_time_s()
+            )
+        }
+        Err(e) => format!("{head},error,,,,,,,,,,,,,,{}", quoted(&format!("{e:#}"))),
+    }
+}
+
+/// The progress of a batch on standard error: a bar rewritten in place on a terminal, otherwise
+/// a line at every tenth of the runs.
+struct Progress {
+    total: u32,
+    done: u32,
+    landed: u32,
+    started: Instant,
+    tty: bool,
+    shown_tenths: u32,
+}
+
+impl Progress {
+    fn new(total: u32) -> Self {
+        Self {
+            total,
+            done: 0,
+            landed: 0,
+            started: Instant::now(),
+            tty: std::io::stderr().is_terminal(),
+            shown_tenths: 0,
+        }
+    }
+
+    fn add(&mut self, landed: bool) {
+        self.done += 1;
+        self.landed += u32::from(landed);
+        let elapsed = self.started.elapsed().as_secs_f64();
+        let rate = f64::from(self.done) / elapsed.max(1e-9);
+        let eta = f64::from(self.total - self.done) / rate.max(1e-9);
+        let width = 30;
+        let filled = (width * self.done / self.total.max(1)) as usize;
+        let line = format!(
+            "[{}{}] {}/{} runs, {} landed, {:.1} runs/s, {:.0} s left",
+            "#".repeat(filled),
+            "-".repeat(width as usize - filled),
+            self.done,
+            self.total,
+            self.landed,
+            rate,
+            eta
+        );
+        let mut err = std::io::stderr();
+        if self.tty {
+            let _ = write!(err, "\r{line}\x1b[K");
+            if self.done == self.total {
+                let _ = writeln!(err);
+            }
+        } else {
+            let tenths = 10 * self.done / self.total.max(1);
+            if tenths > self.shown_tenths {
+                self.shown_tenths = tenths;
+                let _ = writeln!(err, "{line}");
+            }
+        }
+    }
+}
+
+/// Runs the batch on `jobs` threads, each row written to `output` as its run ends (so an
+/// interrupted batch keeps the runs done); prints a summary. Fails if a run could not be flown.
+pub fn run(
+    cfg: &BatchConfig,
+    airframe_path: &Path,
+    params_path: &Path,
+    jobs: usize,
+    output: &Path,
+) -> Result<()> {
+    if cfg.runs == 0 || cfg.faults.is_empty() {
+        bail!("a batch needs at least one run and one fault kind (none is one)");
+    }
+    for (name, x, max) in [
+        ("--wind-max", cfg.wind_max_m_s, 30.0),
+        ("--turbulence-max", cfg.turbulence_max_m_s, 30.0),
+    ] {
+        if !(x.is_finite() && (0.0..=max).contains(&x)) {
+            bail!("{name} must be within [0, {max}] m/s, got {x}");
+        }
+    }
+    let airframe = Airframe::load(airframe_path)?;
+    let mut params = FlightParams::load(params_path)?;
+    Source::Embedded.preset_params(&mut params);
+    params.commander.takeoff_alt_m = cfg.takeoff_m;
+    let file =
+        std::fs::File::create(output).with_context(|| format!("creating {}", output.display()))?;
+    let mut csv = std::io::BufWriter::new(file);
+    writeln!(csv, "{CSV_HEADER}")?;
+    let jobs = jobs.clamp(1, cfg.runs as usize);
+    tracing::info!(
+        runs = cfg.runs,
+        jobs,
+        airframe = %airframe.name,
+        output = %output.display(),
+        "batch"
+    );
+    let next = AtomicU32::new(0);
+    let (tx, rx) = std::sync::mpsc::channel::<RunResult>();
+    let started = Instant::now();
+    let mut progress = Progress::new(cfg.runs);
+    let mut total = Tally::default();
+    let mut by_fault: Vec<(FaultKind, Tally)> = Vec::new();
+    std::thread::scope(|scope| -> Result<()> {
+        for _ in 0..jobs {
+            let tx = tx.clone();
+            let (next, airframe, params) = (&next, &airframe, &params);
+            scope.spawn(move || {
+                loop {
+                    let i = next.fetch_add(1, Ordering::Relaxed);
+                    if i >= cfg.runs {
+                        break;
+                    }
+                    let plan = RunPlan::draw(cfg, cfg.first + i, airframe.rotors.len());
+                    if tx.send(fly_run(cfg, airframe, params, plan)).is_err() {
+                        break;
+                    }
+                }
+            });
+        }
+        drop(tx);
+        for result in rx.iter() {
+            writeln!(csv, "{}", csv_row(&result))?;
+            csv.flush()?;
+            if let Err(e) = &result.flight {
+                tracing::error!(run = result.plan.run, "run failed: {e:#}");
+            }
+            total.add(&result);
+            match by_fault.iter_mut().find(|f| f.0 == result.plan.fault) {
+                Some((_, t)) => t.add(&result),
+                None => {
+                    let mut t = Tally::default();
+                    t.add(&result);
+                    by_fault.push((result.plan.fault, t));
+                }
+            }
+            progress.add(Outcome::of(&result.flight) == Outcome::Landed);
+        }
+        Ok(())
+    })?;
+    let wall = started.elapsed().as_secs_f64();
+    by_fault.sort_by_key(|f| FaultKind::ALL.iter().position(|(_, k)| *k == f.0));
+    for (fault, t) in &by_fault {
+        println!("batch fault={} {t}", fault.name());
+    }
+    println!(
+        "batch summary: {total} jobs={jobs} wall_time_s={wall:.2} runs_per_s={:.2} csv={}",
+        f64::from(cfg.runs) / wall.max(1e-9),
+        output.display()
+    );
+    let errors = total.outcomes[Outcome::Error as usize];
+    if errors > 0 {
+        bail!("{errors} of {} runs could not be flown", cfg.runs);
+    }
+    Ok(())
+}
+
+/// Runs counted by outcome, with their failsafes and the hardest impact.
+#[derive(Debug, Default)]
+struct Tally {
+    runs: u32,
+    /// By [`Outcome`], in its order.
+    outcomes: [u32; 4],
+    failsafes: u32,
+    max_impact_m_s: f64,
+}
+
+impl Tally {
+    fn add(&mut self, r: &RunResult) {
+        self.runs += 1;
+        self.outcomes[Outcome::of(&r.flight) as usize] += 1;
+        if let Ok(f) = &r.flight {
+            self.failsafes += u32::from(f.score().failsafe);
+            self.max_impact_m_s = self.max_impact_m_s.max(f.score().impact_m_s);
+        }
+    }
+}
+
+impl std::fmt::Display for Tally {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let [landed, crashed, not_landed, errors] = self.outcomes;
+        write!(
+            f,
+            "runs={} landed={landed} crashed={crashed} not_landed={not_landed} errors={errors} failsafes={} max_impact_m_s={:.2}",
+            self.runs, self.failsafes, self.max_impact_m_s
+        )
+    }
+}
+
+/// The default output file of a batch with `seed`.
+pub fn default_output(seed: u64) -> PathBuf {
+    PathBuf::from(format!("batch-{seed}.csv"))
+}
+
+/// The default number of workers: every CPU this process may run on.
+pub fn default_jobs() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    fn config(faults: &[FaultKind]) -> BatchConfig {
+        BatchConfig {
+            runs: 4,
+            first: 0,
+            seed: 9,
+            takeoff_m: 3.0,
+            hover_s: 6.0,
+            wind_max_m_s: 5.0,
+            turbulence_max_m_s: 2.0,
+            faults: faults.to_vec(),
+            sensors: SensorPreset::Typical,
+        }
+    }
+
+    #[test]
+    fn a_run_is_drawn_from_its_own_stream_alone() {
+        let cfg = config(&[FaultKind::Gps, FaultKind::Gust, FaultKind::Motor]);
+        let a = RunPlan::draw(&cfg, 7, 4);
+        assert_eq!(a, RunPlan::draw(&cfg, 7, 4), "the same run, the same draw");
+        assert_ne!(a, RunPlan::draw(&cfg, 8, 4));
+        let mut other = cfg.clone();
+        other.seed = 10;
+        assert_ne!(a.sim_seed, RunPlan::draw(&other, 7, 4).sim_seed);
+        // Every draw within its ranges; faults within the hover.
+        for run in 0..200 {
+            let p = RunPlan::draw(&cfg, run, 4);
+            assert!((0.0..=5.0).contains(&p.wind_m_s) && (0.0..360.0).contains(&p.wind_from_deg));
+            assert!((0.0..=2.0).contains(&p.turbulence_m_s));
+            let t = p.fault_t_s.unwrap();
+            assert!((3.5 + 2.0 + 1.0..=3.5 + 2.0 + 5.0).contains(&t), "{t}");
+            assert!(!p.events.is_empty());
+            if let Action::MotorEffectiveness {
+                index,
+                effectiveness,
+            } = p.events[0].action
+            {
+                assert!(index < 4 && (0.5..=0.9).contains(&effectiveness));
+            }
+        }
+        let none = RunPlan::draw(&config(&[FaultKind::None]), 0, 4);
+        assert!(none.events.is_empty() && none.fault_t_s.is_none());
+    }
+
+    /// A batch's rows are the same whatever the number of workers (each run draws from its own
+    /// stream; rows arrive in any order), a quad with no fault lands, and one that loses a
+    /// motor crashes (it cannot fly on three) and is counted so.
+    #[test]
+    fn a_batch_gives_the_same_rows_whatever_the_workers_and_tells_crashes_from_landings() {
+        let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../params");
+        let tmp = tempfile::tempdir().unwrap();
+        let mut cfg = config(&[FaultKind::None, FaultKind::MotorOff]);
+        cfg.runs = 6;
+        let rows = |jobs: usize, name: &str| {
+            let out = tmp.path().join(name);
+            run(
+                &cfg,
+                &dir.join("airframes/quad_x.toml"),
+                &dir.join("flight.toml"),
+                jobs,
+                &out,
+            )
+            .unwrap();
+            let text = std::fs::read_to_string(&out).unwrap();
+            let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+            assert_eq!(lines[0], CSV_HEADER);
+            lines[1..].sort_by_key(|l| l.split(',').next().unwrap().parse::<u32>().unwrap());
+            lines
+        };
+        let one = rows(1, "one.csv");
+        assert_eq!(one.len(), 7, "a header and six rows");
+        assert_eq!(one, rows(3, "three.csv"));
+        let column = |name: &str| CSV_HEADER.split(',').position(|c| c == name).unwrap();
+        let (fault, outcome) = (column("fault"), column("outcome"));
+        let (impact, tilt) = (column("impact_m_s"), column("final_tilt_deg"));
+        let mut seen = (0, 0);
+        for row in &one[1..] {
+            let cells: Vec<&str> = row.split(',').collect();
+            let value = |i: usize| cells[i].parse::<f64>().unwrap();
+            assert_eq!(
+                cells[outcome] == "crashed",
+                value(impact) > CRASH_IMPACT_M_S || value(tilt) > CRASH_TILT_DEG,
+                "{row}"
+            );
+            match cells[fault] {
+                "none" => {
+                    seen.0 += 1;
+                    assert_eq!(cells[outcome], "landed", "{row}");
+                }
+                "motor_off" => seen.1 += u32::from(cells[outcome] == "crashed"),
+                f => panic!("fault {f} was not asked for"),
+            }
+        }
+        // A quad cannot fly on three rotors: of this seed's five, three come down hard.
+        assert!(seen.0 > 0 && seen.1 > 0, "a landing and a crash: {seen:?}");
+    }
+
+    #[test]
+    fn fault_names_go_both_ways() {
+        for (name, f) in FaultKind::ALL {
+            assert_eq!(FaultKind::from_name(name).unwrap(), f);
+            assert_eq!(f.name(), name);
+        }
+        assert!(FaultKind::from_name("meteor").is_err());
+    }
+}
