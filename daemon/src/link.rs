@@ -42,6 +42,14 @@ pub enum Source {
         /// The simulator waits for each answer (default): silence is a paused world.
         lockstep: bool,
     },
+    /// A physics speaking ArduPilot's JSON interface at this UDP address
+    /// ([`crate::json_link`]).
+    Json {
+        /// The physics' address.
+        addr: SocketAddr,
+        /// Each rotor's servo channel (0-based); empty: rotor k on channel k.
+        channels: Vec<usize>,
+    },
     /// A flight board on a serial port.
     Serial {
         /// Device path.
@@ -89,7 +97,7 @@ impl Source {
     /// serial line.
     pub fn is_simulator(&self) -> bool {
         match self {
-            Self::Embedded | Self::Udp { .. } => true,
+            Self::Embedded | Self::Udp { .. } | Self::Json { .. } => true,
             Self::Serial { lockstep, .. } => *lockstep,
         }
     }
@@ -97,7 +105,7 @@ impl Source {
     /// Whether the source waits for each answer (its time is then the flight's clock).
     pub fn lockstep(&self) -> bool {
         match self {
-            Self::Embedded => true,
+            Self::Embedded | Self::Json { .. } => true,
             Self::Udp { lockstep, .. } | Self::Serial { lockstep, .. } => *lockstep,
         }
     }
@@ -110,8 +118,9 @@ impl Source {
             params.attitude.mag_calibration_id = SIMULATED_MAG_ID;
         }
     }
-    /// Parses `sim`, `udp://HOST:PORT[?lockstep=false]` or
-    /// `serial:///dev/ttyX[?baud=N&lockstep=true]`; a UDP port is offset by `instance`.
+    /// Parses `sim`, `udp://HOST:PORT[?lockstep=false]`, `json://HOST:PORT[?channels=1,2,3,4]`
+    /// or `serial:///dev/ttyX[?baud=N&lockstep=true]`; a UDP port is offset by `instance`, a
+    /// JSON physics' by 10 `instance` (ArduPilot's instances).
     pub fn parse(url: &str, instance: u16) -> Result<Self> {
         if url == "sim" {
             return Ok(Self::Embedded);
@@ -138,6 +147,49 @@ impl Source {
                 "lockstep",
             )?;
             return Ok(Self::Udp { addr: a, lockstep });
+        }
+        if let Some(rest) = url.strip_prefix("json://") {
+            let (addr, query) = rest.split_once('?').unwrap_or((rest, ""));
+            let mut a: SocketAddr = addr.parse().with_context(|| {
+                format!("{url:?}: expected json://ADDRESS:PORT, e.g. json://127.0.0.1:9002")
+            })?;
+            let offset = instance
+                .checked_mul(hil::json::JSON_INSTANCE_STRIDE)
+                .and_then(|o| a.port().checked_add(o))
+                .with_context(|| {
+                    format!("{url:?}: instance {instance} pushes the port past 65535")
+                })?;
+            a.set_port(offset);
+            let mut channels = Vec::new();
+            parse_options(
+                url,
+                query,
+                |k, v| {
+                    match k {
+                        "channels" => {
+                            for c in v.split(',') {
+                                let c: usize = c
+                                    .parse()
+                                    .ok()
+                                    .filter(|c| (1..=32).contains(c))
+                                    .with_context(|| {
+                                        format!(
+                                            "{url:?}: channels: {c:?} is not a servo channel 1-32"
+                                        )
+                                    })?;
+                                if channels.contains(&(c - 1)) {
+                                    bail!("{url:?}: channels: {c} given twice");
+                                }
+                                channels.push(c - 1);
+                            }
+                        }
+                        _ => return Ok(false),
+                    }
+                    Ok(true)
+                },
+                "channels",
+            )?;
+            return Ok(Self::Json { addr: a, channels });
         }
         if let Some(rest) = url.strip_prefix("serial://") {
             let (path, query) = rest.split_once('?').unwrap_or((rest, ""));
@@ -173,7 +225,7 @@ impl Source {
             });
         }
         bail!(
-            "unknown sensor source {url:?}: give sim, udp://ADDRESS:PORT or serial:///dev/ttyX?baud=N"
+            "unknown sensor source {url:?}: give sim, udp://ADDRESS:PORT, json://ADDRESS:PORT or serial:///dev/ttyX?baud=N"
         )
     }
 }
@@ -464,7 +516,24 @@ mod tests {
                 lockstep: true
             }
         );
+        // ArduPilot's instances: the JSON port 10 apart.
+        assert_eq!(
+            Source::parse("json://127.0.0.1:9002?channels=3,1,4,2", 2).unwrap(),
+            Source::Json {
+                addr: "127.0.0.1:9022".parse().unwrap(),
+                channels: vec![2, 0, 3, 1]
+            }
+        );
+        assert!(
+            Source::parse("json://127.0.0.1:9002", 0)
+                .unwrap()
+                .lockstep()
+        );
         for (bad, says) in [
+            ("json://localhost", "expected json://ADDRESS:PORT"),
+            ("json://127.0.0.1:9002?channels=1,1", "given twice"),
+            ("json://127.0.0.1:9002?channels=0", "not a servo channel"),
+            ("json://127.0.0.1:65530", "past 65535"),
             ("udp://nowhere", "expected udp://ADDRESS:PORT"),
             ("udp://0.0.0.0:65535", "past 65535"),
             ("serial://?baud=9600", "expected serial:///dev/"),

@@ -13,6 +13,7 @@ mod flight_csv;
 #[cfg(test)]
 mod fuzz;
 mod gcs;
+mod json_link;
 mod link;
 mod log_files;
 mod mag_cal;
@@ -61,7 +62,10 @@ struct Cli {
     #[arg(long, conflicts_with = "source")]
     sim: bool,
     /// Sensor source: `sim` (embedded simulator), `udp://0.0.0.0:4560` (a simulator process such
-    /// as `sitl`; the port is offset by --instance) or `serial:///dev/ttyUSB0?baud=921600` (a
+    /// as `sitl`; the port is offset by --instance), `json://127.0.0.1:9002` (a physics speaking
+    /// ArduPilot's JSON interface, such as `sitl --json`; the port is offset by 10 × --instance;
+    /// `?channels=3,1,4,2` puts rotor k on that servo channel; --sensors and --seed make the
+    /// magnetometer, barometer and GPS it lacks) or `serial:///dev/ttyUSB0?baud=921600` (a
     /// flight board streaming HIL messages).
     #[arg(long, value_name = "URL")]
     source: Option<String>,
@@ -655,6 +659,32 @@ fn fly(cli: &Cli) -> Result<()> {
                     tracing::info!(listening = %link.local_addr()?, airframe = %airframe.name, "waiting for a simulator");
                     let pacing = if lockstep { Pacing::Lockstep } else { deadlines };
                     let report = flight::fly(&mut link, &mut vehicle, system_id, ports, pacing)?;
+                    finish(vehicle, report)
+                }
+                Source::Json { addr, channels } => {
+                    let rotors = airframe.rotors.len();
+                    let channels = if channels.is_empty() {
+                        (0..rotors).collect()
+                    } else if channels.len() == rotors {
+                        channels
+                    } else {
+                        bail!(
+                            "json://…?channels= names {} channels for the {rotors} rotors of {}",
+                            channels.len(),
+                            airframe.name
+                        );
+                    };
+                    let mut link = json_link::JsonLink::connect(
+                        addr,
+                        channels,
+                        sensor_preset(&cfg)?,
+                        cfg.seed,
+                        Geodetic::default().for_instance(cfg.instance),
+                    )
+                    .with_context(|| format!("opening a UDP socket for {addr}"))?;
+                    tracing::info!(physics = %addr, airframe = %airframe.name, "sending servo packets to a JSON physics");
+                    let report =
+                        flight::fly(&mut link, &mut vehicle, system_id, ports, Pacing::Lockstep)?;
                     finish(vehicle, report)
                 }
                 Source::Serial {

@@ -7,6 +7,7 @@
 
 mod control;
 mod jsbsim;
+mod json_physics;
 mod run;
 
 use anyhow::{Context, Result, bail};
@@ -63,6 +64,15 @@ pub struct Cli {
     /// scenario's (several vehicles on one machine, side by side).
     #[arg(short = 'i', long, default_value_t = 0)]
     pub instance: u16,
+    /// Speak ArduPilot's JSON physics interface instead of the HIL link, as a physics for
+    /// ArduPilot's SITL (`--model JSON`) or `autopilot --source json://…`: listen on ADDR (its
+    /// port offset by 10 × --instance) for servo packets, step one exchange (--hil-rate) per new
+    /// packet with its PWM as the rotor commands (channel k, rotor k), and reply with the state
+    /// as JSON (the IMU, position, velocity, quaternion, battery). Lockstep: the world waits for
+    /// the next packet [default address: 127.0.0.1:9002].
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:9002",
+          conflicts_with_all = ["serial", "open_loop", "control"])]
+    pub json: Option<SocketAddr>,
     /// Talk over a serial line instead of UDP, playing the flight board: a device such as
     /// /dev/ttyUSB0, or `pty` to open a new pseudo-terminal pair and print the autopilot's end
     /// (`sitl serial: /dev/pts/N`) for `autopilot --source serial:///dev/pts/N`.
@@ -233,6 +243,8 @@ fn try_main(cli: &Cli) -> Result<()> {
             bail!("--open-loop needs a scenario with an [[open_loop]] script");
         }
         run::open_loop(&scenario, cli, speed, &stop)?
+    } else if cli.json.is_some() {
+        json_physics::run(&scenario, cli, speed, &stop)?
     } else {
         run::hil(&scenario, cli, speed, &stop)?
     };

@@ -20,11 +20,11 @@ pub struct Summary {
     sim_time_s: f64,
     wall_time_s: f64,
     steps: u64,
-    frames_sent: u64,
-    actuator_messages: u64,
-    lockstep_timeouts: u64,
-    malformed: u64,
-    stale: u64,
+    pub(crate) frames_sent: u64,
+    pub(crate) actuator_messages: u64,
+    pub(crate) lockstep_timeouts: u64,
+    pub(crate) malformed: u64,
+    pub(crate) stale: u64,
     other_messages: u64,
     clamped: u64,
     nonfinite: u64,
@@ -64,7 +64,7 @@ impl fmt::Display for Summary {
     }
 }
 
-fn build(scenario: &Scenario) -> Result<Simulator> {
+pub(crate) fn build(scenario: &Scenario) -> Result<Simulator> {
     let mut sim = Simulator::new(&scenario.airframe, scenario.sim.clone(), scenario.initial)?;
     sim.schedule(&scenario.events)?;
     if scenario.rotors_at_hover {
@@ -75,7 +75,7 @@ fn build(scenario: &Scenario) -> Result<Simulator> {
 }
 
 /// Who moves the rigid body this run.
-enum Dynamics {
+pub(crate) enum Dynamics {
     /// The simulator's own integrator.
     Builtin,
     /// JSBSim, in its bridge process.
@@ -85,7 +85,7 @@ enum Dynamics {
 impl Dynamics {
     /// Starts what `--physics` names for `sim` (JSBSim at the physics rate, from the scenario's
     /// initial state).
-    fn start(cli: &Cli, scenario: &Scenario, sim: &Simulator) -> Result<Self> {
+    pub(crate) fn start(cli: &Cli, scenario: &Scenario, sim: &Simulator) -> Result<Self> {
         match cli.physics {
             Physics::Builtin => Ok(Self::Builtin),
             Physics::Jsbsim => {
@@ -110,7 +110,7 @@ impl Dynamics {
     }
 
     /// One physics step under `controls`.
-    fn step(&mut self, sim: &mut Simulator, controls: &[f64]) -> Result<()> {
+    pub(crate) fn step(&mut self, sim: &mut Simulator, controls: &[f64]) -> Result<()> {
         match self {
             Self::Builtin => {
                 sim.step(controls);
@@ -121,7 +121,7 @@ impl Dynamics {
     }
 }
 
-fn finish(sim: &Simulator, started: Instant, mut s: Summary) -> Summary {
+pub(crate) fn finish(sim: &Simulator, started: Instant, mut s: Summary) -> Summary {
     let st = sim.stats();
     let t = sim.truth();
     s.sim_time_s = sim.time_s();
@@ -137,14 +137,14 @@ fn finish(sim: &Simulator, started: Instant, mut s: Summary) -> Summary {
 }
 
 /// Prints one status line per `interval` simulated seconds.
-struct Status {
+pub(crate) struct Status {
     interval_usec: u64,
     next_usec: u64,
     header_done: bool,
 }
 
 impl Status {
-    fn new(interval_s: f64) -> Self {
+    pub(crate) fn new(interval_s: f64) -> Self {
         Self {
             interval_usec: if interval_s > 0.0 {
                 (interval_s * 1e6) as u64
@@ -156,7 +156,7 @@ impl Status {
         }
     }
 
-    fn maybe_print(&mut self, sim: &Simulator, started: Instant) {
+    pub(crate) fn maybe_print(&mut self, sim: &Simulator, started: Instant) {
         let t = sim.truth();
         if self.interval_usec == u64::MAX || t.time_usec < self.next_usec {
             return;
@@ -198,15 +198,15 @@ impl Status {
 }
 
 /// Paces simulated time against the wall clock at a factor, by absolute deadlines.
-struct Pacer {
-    start: Instant,
-    factor: Option<f64>,
+pub(crate) struct Pacer {
+    pub(crate) start: Instant,
+    pub(crate) factor: Option<f64>,
 }
 
 impl Pacer {
     /// Paces from now on as if `sim_time_s` were due now (time spent waiting for an autopilot
     /// is not caught up in a burst).
-    fn restart_at(&mut self, sim_time_s: f64) {
+    pub(crate) fn restart_at(&mut self, sim_time_s: f64) {
         if let Some(f) = self.factor {
             let now = Instant::now();
             self.start = now
@@ -215,7 +215,7 @@ impl Pacer {
         }
     }
 
-    fn wait_until(&self, sim_time_s: f64) {
+    pub(crate) fn wait_until(&self, sim_time_s: f64) {
         if let Some(f) = self.factor {
             let due = self.start + Duration::from_secs_f64(sim_time_s / f);
             let now = Instant::now();
@@ -226,7 +226,7 @@ impl Pacer {
     }
 }
 
-fn open_truth(cli: &Cli, sim: &Simulator) -> Result<Option<TruthCsv>> {
+pub(crate) fn open_truth(cli: &Cli, sim: &Simulator) -> Result<Option<TruthCsv>> {
     cli.truth_csv
         .as_ref()
         .map(|p| {

@@ -3,7 +3,9 @@
 //!
 //! Encoding turns a [`SensorFrame`] and the truth into `HIL_SENSOR`, `HIL_GPS`, `ESC_STATUS` and
 //! `HIL_STATE_QUATERNION`; decoding splits a datagram into frames, counting every malformed one.
+//! [`json`] is the other protocol a physics may speak: ArduPilot's JSON interface.
 
+pub mod json;
 mod simulator_end;
 pub use simulator_end::{STATE_INTERVAL_USEC, SimulatorEnd};
 mod wire;

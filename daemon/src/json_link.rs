@@ -1,0 +1,401 @@
+//! ArduPilot's JSON physics interface as a sensor link (`--source json://127.0.0.1:9002`), so
+//! that a physics written for ArduPilot's SITL (`--model JSON`) flies this autopilot: the link
+//! plays ArduPilot's side ([`hil::json`]). Each answer of the vehicle goes out as a servo
+//! packet; the physics steps and replies with its state; the state comes in as the same HIL
+//! messages every other link carries, so the flight loop does not know the difference.
+//!
+//! What the state does not carry is made here, as ArduPilot's SITL makes it: the magnetometer
+//! (the site's field seen through the attitude), the barometer (ISA pressure at the height) and
+//! the GPS (position and velocity with latency), by the simulator's own sensor models at the
+//! preset asked for; the IMU is the physics' own. The truth (`HIL_STATE_QUATERNION`, for logs
+//! and scoring) is the state itself.
+
+use crate::link::SensorLink;
+use hil::json::{PhysicsState, ServoPacket, pwm_from_command};
+use hil::{Decoded, SIM_COMPONENT_ID, SIM_SYSTEM_ID, STATE_INTERVAL_USEC};
+use mavlink::MavHeader;
+use mavlink::dialects::common::MavMessage;
+use nalgebra::Vector3;
+use sitl_core::body::BodyState;
+use sitl_core::environment::isa;
+use sitl_core::geo::Geodetic;
+use sitl_core::sensors::{EarthField, SensorConfig, SensorPreset, SensorSuite, Truth};
+use sitl_core::sim::TruthState;
+use std::io;
+use std::net::{SocketAddr, UdpSocket};
+use std::time::{Duration, Instant};
+
+/// Without a reply this long, the last servo packet goes out again (ArduPilot does the same:
+/// the physics may have started after it, or lost a datagram).
+const RESEND_AFTER: Duration = Duration::from_secs(1);
+
+/// A state this much older than the last is a physics started again, not a late datagram (s).
+const RESTART_BACK_S: f64 = 0.5;
+
+/// The servo packets' `frame_rate`: the rate the autopilot answers at (Hz).
+const FRAME_RATE_HZ: u16 = 250;
+
+/// The link to a JSON physics.
+pub struct JsonLink {
+    socket: UdpSocket,
+    physics: SocketAddr,
+    /// Servo channel (0-based) of each rotor.
+    channels: Vec<usize>,
+    frame_count: u32,
+    packet: Vec<u8>,
+    sent_at: Option<Instant>,
+    sensors: SensorSuite,
+    home: Geodetic,
+    last_timestamp_s: Option<f64>,
+    next_truth_usec: u64,
+    buf: Vec<u8>,
+    answers: Decoded,
+    /// States dropped as older than the last (a resend crossing a reply).
+    stale: u64,
+}
+
+impl JsonLink {
+    /// A link to the physics at `physics`, its rotors on servo `channels` (0-based, one per
+    /// rotor), the sensors it lacks made at `preset` from `seed`, its origin at `home`.
+    pub fn connect(
+        physics: SocketAddr,
+        channels: Vec<usize>,
+        preset: SensorPreset,
+        seed: u64,
+        home: Geodetic,
+    ) -> io::Result<Self> {
+        let bind: SocketAddr = if physics.is_ipv4() {
+            ([0, 0, 0, 0], 0).into()
+        } else {
+            (std::net::Ipv6Addr::UNSPECIFIED, 0).into()
+        };
+        let socket = UdpSocket::bind(bind)?;
+        let sensors = SensorSuite::new(
+            SensorConfig::preset(preset),
+            EarthField::default(),
+            home,
+            Vector3::zeros(),
+            seed,
+        );
+        Ok(Self {
+            socket,
+            physics,
+            channels,
+            frame_count: 0,
+            packet: Vec::with_capacity(72),
+            sent_at: None,
+            sensors,
+            home,
+            last_timestamp_s: None,
+            next_truth_usec: 0,
+            buf: vec![0; 65_536],
+            answers: Decoded::default(),
+            stale: 0,
+        })
+    }
+
+    /// The servo packet for these rotor commands (disarmed: every channel at 1000 µs).
+    fn servo_packet(&mut self, controls: &[f64], armed: bool) {
+        let n = self.channels.iter().max().map_or(0, |&c| c + 1).max(16);
+        let mut pwm = vec![hil::json::PWM_MIN; n];
+        for (rotor, &channel) in self.channels.iter().enumerate() {
+            let c = if armed {
+                controls.get(rotor).copied().unwrap_or(0.0)
+            } else {
+                0.0
+            };
+            pwm[channel] = pwm_from_command(c);
+        }
+        self.frame_count = self.frame_count.wrapping_add(1);
+        self.packet.clear();
+        ServoPacket {
+            frame_rate: FRAME_RATE_HZ,
+            frame_count: self.frame_count,
+            pwm,
+        }
+        .encode(&mut self.packet);
+    }
+
+    fn send_packet(&mut self) -> io::Result<()> {
+        self.socket.send_to(&self.packet, self.physics)?;
+        self.sent_at = Some(Instant::now());
+        Ok(())
+    }
+
+    /// The HIL messages of one state: the sensor frame (the physics' IMU, the made sensors),
+    /// a GPS solution when one is delivered, the truth at 50 Hz.
+    fn messages(&mut self, s: &PhysicsState, into: &mut Decoded) {
+        let time_usec = (s.timestamp_s.max(0.0) * 1e6).round() as u64;
+        let gravity = Vector3::new(0.0, 0.0, sitl_core::GRAVITY_M_S2);
+        let accel_ned = s.q_ned_from_frd * s.accel_frd_m_s2 + gravity;
+        let truth = Truth {
+            time_usec,
+            pos_ned_m: s.pos_ned_m,
+            vel_ned_m_s: s.vel_ned_m_s,
+            accel_ned_m_s2: accel_ned,
+            q_ned_from_frd: s.q_ned_from_frd,
+            rate_frd_rad_s: s.gyro_frd_rad_s,
+            ang_accel_frd_rad_s2: Vector3::zeros(),
+            air: isa(self.home.alt_m - s.pos_ned_m.z),
+            rotor_speed_rad_s: &[],
+            rotor_max_speed_rad_s: &[],
+        };
+        let mut frame = self.sensors.sample(&truth).clone();
+        frame.accel_frd_m_s2 = s.accel_frd_m_s2;
+        frame.gyro_frd_rad_s = s.gyro_frd_rad_s;
+        let header = MavHeader {
+            system_id: SIM_SYSTEM_ID.into(),
+            component_id: SIM_COMPONENT_ID,
+            sequence: 0,
+        };
+        if let Some(fix) = &frame.gps {
+            into.messages.push((header, hil::hil_gps(time_usec, fix)));
+        }
+        if time_usec >= self.next_truth_usec {
+            self.next_truth_usec = time_usec + STATE_INTERVAL_USEC;
+            let (voltage, current) = s.battery.unwrap_or((0.0, 0.0));
+            let t = TruthState {
+                time_usec,
+                body: BodyState {
+                    pos_ned_m: s.pos_ned_m,
+                    vel_ned_m_s: s.vel_ned_m_s,
+                    q_ned_from_frd: s.q_ned_from_frd,
+                    rate_frd_rad_s: s.gyro_frd_rad_s,
+                },
+                accel_ned_m_s2: accel_ned,
+                position: self.home.offset_by_ned(&s.pos_ned_m),
+                wind_ned_m_s: Vector3::zeros(),
+                landed: false,
+                battery_voltage_v: voltage,
+                battery_current_a: current,
+                battery_remaining: 0.0,
+            };
+            into.messages.push((header, hil::hil_state_quaternion(&t)));
+        }
+        // The sensor frame last: it is what makes the vehicle step.
+        into.messages.push((header, hil::hil_sensor(&frame)));
+    }
+}
+
+impl SensorLink for JsonLink {
+    /// Waits up to `timeout` for the physics' next state; the first call starts the exchange
+    /// with a packet of motors off, and a packet unanswered for a second goes out again.
+    fn receive(&mut self, timeout: Duration, into: &mut Decoded) -> io::Result<bool> {
+        if self.sent_at.is_none_or(|t| t.elapsed() >= RESEND_AFTER) {
+            if self.packet.is_empty() {
+                self.servo_packet(&[], false);
+            }
+            self.send_packet()?;
+        }
+        let deadline = Instant::now() + timeout;
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            self.socket
+                .set_read_timeout(Some(left.max(Duration::from_micros(1))))?;
+            let (n, from) = match self.socket.recv_from(&mut self.buf) {
+                Ok(r) => r,
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut
+                    ) =>
+                {
+                    return Ok(false);
+                }
+                // A physics not (yet) listening: ICMP port unreachable. The packet goes out
+                // again after RESEND_AFTER.
+                Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => return Ok(false),
+                Err(e) => return Err(e),
+            };
+            if from != self.physics {
+                into.malformed += 1;
+                continue;
+            }
+            let state = match PhysicsState::parse_latest(&self.buf[..n]) {
+                Ok(s) => s,
+                Err(e) => {
+                    tracing::debug!("{e}");
+                    into.malformed += 1;
+                    continue;
+                }
+            };
+            if let Some(last) = self.last_timestamp_s
+                && state.timestamp_s <= last
+                && state.timestamp_s > last - RESTART_BACK_S
+            {
+                self.stale += 1;
+                continue;
+            }
+            self.last_timestamp_s = Some(state.timestamp_s);
+            self.messages(&state, into);
+            return Ok(true);
+        }
+    }
+
+    /// Takes the vehicle's `HIL_ACTUATOR_CONTROLS` and sends them as the next servo packet.
+    fn send(&mut self, bytes: &[u8]) -> io::Result<()> {
+        self.answers.messages.clear();
+        hil::decode_into(bytes, &mut self.answers);
+        let Some(cmd) = self.answers.messages.iter().find_map(|(_, m)| match m {
+            MavMessage::HIL_ACTUATOR_CONTROLS(c) => Some(hil::actuator_command(c)),
+            _ => None,
+        }) else {
+            return Ok(());
+        };
+        self.servo_packet(&cmd.controls, cmd.armed);
+        self.send_packet()
+    }
+
+    fn describe(&self) -> String {
+        format!("json://{}", self.physics)
+    }
+
+    /// Lockstep: the physics waits for each packet, so silence is a paused world.
+    fn silence_clock_s(&self) -> Option<f64> {
+        None
+    }
+}
+
+impl Drop for JsonLink {
+    fn drop(&mut self) {
+        if self.stale > 0 {
+            tracing::info!(
+                stale = self.stale,
+                "JSON states older than the last, dropped"
+            );
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    //! The link against a physics played by the test: the packets it sends, the messages it
+    //! makes of the replies, what it drops.
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+    use hil::json::command_from_pwm;
+    use mavlink::Message;
+
+    fn physics() -> UdpSocket {
+        let s = UdpSocket::bind("127.0.0.1:0").unwrap();
+        s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+        s
+    }
+
+    fn packet(physics: &UdpSocket) -> (ServoPacket, SocketAddr) {
+        let mut buf = [0u8; 256];
+        let (n, from) = physics.recv_from(&mut buf).unwrap();
+        (ServoPacket::decode(&buf[..n]).unwrap(), from)
+    }
+
+    fn reply(t: f64, z: f64) -> String {
+        // ArduPilot's documented form: Euler angles, extra keys.
+        format!(
+            "\n{{\"timestamp\": {t}, \"imu\": {{\"gyro\": [0, 0, 0.1], \"accel_body\": [0, 0, -9.80665]}}, \"position\": [0, 0, {z}], \"velocity\": [0, 0, 0], \"attitude\": [0, 0, 0.5], \"airspeed\": 0}}\n"
+        )
+    }
+
+    #[test]
+    fn plays_ardupilots_side_of_the_json_interface() {
+        let physics = physics();
+        let addr = physics.local_addr().unwrap();
+        // Rotors 1–4 on servo channels 3, 1, 4, 2.
+        let mut link = JsonLink::connect(
+            addr,
+            vec![2, 0, 3, 1],
+            SensorPreset::Ideal,
+            1,
+            Geodetic::default(),
+        )
+        .unwrap();
+        let mut into = Decoded::default();
+        // The first receive starts the exchange: motors off.
+        assert!(!link.receive(Duration::from_millis(20), &mut into).unwrap());
+        let (first, from) = packet(&physics);
+        assert_eq!((first.frame_count, first.frame_rate), (1, FRAME_RATE_HZ));
+        assert!(first.pwm.iter().all(|&p| p == 1000), "{:?}", first.pwm);
+
+        physics
+            .send_to(reply(0.004, -2.0).as_bytes(), from)
+            .unwrap();
+        assert!(link.receive(Duration::from_secs(5), &mut into).unwrap());
+        let kinds: Vec<&str> = into
+            .messages
+            .iter()
+            .map(|(_, m)| m.message_name())
+            .collect();
+        assert_eq!(kinds.last(), Some(&"HIL_SENSOR"), "{kinds:?}");
+        assert!(kinds.contains(&"HIL_STATE_QUATERNION"), "{kinds:?}");
+        let MavMessage::HIL_SENSOR(s) = &into.messages.last().unwrap().1 else {
+            unreachable!()
+        };
+        assert_eq!(s.time_usec, 4000);
+        assert_eq!((s.zacc, s.zgyro), (-9.80665, 0.1), "the physics' own IMU");
+        // The barometer it made: 2 m above home.
+        assert!(
+            (f64::from(s.pressure_alt) - (488.0 + 2.0)).abs() < 0.5,
+            "{}",
+            s.pressure_alt
+        );
+        // The magnetometer it made sees the 0.5 rad yaw: the site's field turned.
+        let field = EarthField::default().ned();
+        let yaw = nalgebra::UnitQuaternion::from_euler_angles(0.0, 0.0, 0.5);
+        let expected = yaw.inverse_transform_vector(&field);
+        let mag = Vector3::new(f64::from(s.xmag), f64::from(s.ymag), f64::from(s.zmag));
+        assert!((mag - expected).norm() < 1e-3, "{mag} vs {expected}");
+
+        // The answer goes out as the next packet, each rotor on its channel.
+        let answer = hil::actuator_controls(4000, &[0.1, 0.2, 0.3, 0.4], true);
+        let mut bytes = Vec::new();
+        hil::Encoder::with_ids(1, 1).push(&mut bytes, &answer);
+        link.send(&bytes).unwrap();
+        let (second, _) = packet(&physics);
+        assert_eq!(second.frame_count, 2);
+        let commands: Vec<f64> = [2, 0, 3, 1]
+            .iter()
+            .map(|&c| command_from_pwm(second.pwm[c]))
+            .collect();
+        assert_eq!(commands, [0.1, 0.2, 0.3, 0.4]);
+
+        // Dropped: a reply from elsewhere, garbage, a state older than the last; the newer one
+        // behind them is taken.
+        into.messages.clear();
+        let stranger = UdpSocket::bind("127.0.0.1:0").unwrap();
+        stranger
+            .send_to(reply(0.008, 0.0).as_bytes(), from)
+            .unwrap();
+        physics.send_to(b"{\"timestamp\": ", from).unwrap();
+        physics.send_to(reply(0.002, 0.0).as_bytes(), from).unwrap();
+        physics
+            .send_to(reply(0.008, -2.1).as_bytes(), from)
+            .unwrap();
+        assert!(link.receive(Duration::from_secs(5), &mut into).unwrap());
+        assert_eq!(into.malformed, 2);
+        assert_eq!(link.stale, 1);
+        let MavMessage::HIL_SENSOR(s) = &into.messages.last().unwrap().1 else {
+            unreachable!()
+        };
+        assert_eq!(s.time_usec, 8000);
+
+        // A physics started again (its time from zero, seconds back) is taken, not dropped as
+        // stale: the vehicle sees its clock go back and starts again.
+        for t in [3.0, 0.0] {
+            physics.send_to(reply(t, 0.0).as_bytes(), from).unwrap();
+            assert!(
+                link.receive(Duration::from_secs(5), &mut into).unwrap(),
+                "{t}"
+            );
+        }
+        assert_eq!(link.stale, 1);
+
+        // Unanswered for a second, the packet goes out again, the same frame count.
+        assert!(
+            !link
+                .receive(Duration::from_millis(1100), &mut into)
+                .unwrap()
+        );
+        assert!(!link.receive(Duration::ZERO, &mut into).unwrap());
+        let (again, _) = packet(&physics);
+        assert_eq!(again, second);
+    }
+}

@@ -1,0 +1,358 @@
+//! ArduPilot's JSON simulator interface (`sim_vehicle.py --model JSON`), both sides: the
+//! autopilot sends a binary servo packet to the physics on UDP 9002 (+ 10 per instance), and
+//! the physics answers each one with its state as one line of JSON
+//! (<https://ardupilot.org/dev/docs/sitl-with-JSON.html>, `libraries/SITL/SIM_JSON.cpp`).
+//!
+//! The servo packet, little-endian: `magic: u16` (18458 for 16 channels, 29569 for 32),
+//! `frame_rate: u16` (the autopilot's loop rate, Hz), `frame_count: u32` (one more every
+//! packet; the same again is a resend), `pwm: [u16; 16 | 32]` (µs, 1000 = off, 2000 = full).
+//!
+//! The state, newline-framed: `timestamp` (s of simulation time), `imu.gyro` (rad/s FRD),
+//! `imu.accel_body` (specific force, m/s² FRD: −9.8 down at rest), `position` and `velocity`
+//! (NED, m and m/s, from the physics' origin), and the attitude as `quaternion` ([w, x, y, z],
+//! body to NED) or `attitude` ([roll, pitch, yaw], rad). Other keys (`battery`, `rng_1`,
+//! `airspeed`, …) are optional; of them, `battery.voltage` and `battery.current` are read.
+
+use nalgebra::{UnitQuaternion, Vector3};
+
+/// The physics' UDP port for instance 0; instance N listens on this + 10 N.
+pub const JSON_PORT: u16 = 9002;
+/// Ports between instances.
+pub const JSON_INSTANCE_STRIDE: u16 = 10;
+/// Magic of the 16-channel servo packet.
+pub const MAGIC_16: u16 = 18458;
+/// Magic of the 32-channel servo packet.
+pub const MAGIC_32: u16 = 29569;
+/// PWM of a motor off and at full thrust (µs).
+pub const PWM_MIN: u16 = 1000;
+/// PWM at full thrust (µs).
+pub const PWM_MAX: u16 = 2000;
+
+/// Why bytes or text are not what the protocol says.
+#[derive(Debug, Clone, PartialEq)]
+pub enum JsonError {
+    /// A servo packet of the wrong size for its magic, or no known magic.
+    Packet(String),
+    /// A state that does not parse or lacks a required field.
+    State(String),
+}
+
+impl std::fmt::Display for JsonError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            JsonError::Packet(why) => write!(f, "servo packet: {why}"),
+            JsonError::State(why) => write!(f, "JSON state: {why}"),
+        }
+    }
+}
+
+impl std::error::Error for JsonError {}
+
+/// The autopilot's servo output.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ServoPacket {
+    /// The autopilot's loop rate (Hz).
+    pub frame_rate: u16,
+    /// Packet number: one more every packet, the same again for a resend.
+    pub frame_count: u32,
+    /// PWM of each channel (µs): 16 or 32 of them.
+    pub pwm: Vec<u16>,
+}
+
+impl ServoPacket {
+    /// Appends the packet's bytes to `out`: the 16-channel layout, or the 32-channel one when
+    /// there are more than 16 channels (missing channels 0).
+    pub fn encode(&self, out: &mut Vec<u8>) {
+        let (magic, n) = if self.pwm.len() > 16 {
+            (MAGIC_32, 32)
+        } else {
+            (MAGIC_16, 16)
+        };
+        out.extend_from_slice(&magic.to_le_bytes());
+        out.extend_from_slice(&self.frame_rate.to_le_bytes());
+        out.extend_from_slice(&self.frame_count.to_le_bytes());
+        for i in 0..n {
+            out.extend_from_slice(&self.pwm.get(i).copied().unwrap_or(0).to_le_bytes());
+        }
+    }
+
+    /// Reads a packet; a wrong magic or a size that is not its layout's is refused.
+    pub fn decode(bytes: &[u8]) -> Result<Self, JsonError> {
+        if bytes.len() < 8 {
+            return Err(JsonError::Packet(format!(
+                "{} bytes, too short",
+                bytes.len()
+            )));
+        }
+        let u16_at = |i: usize| u16::from_le_bytes([bytes[i], bytes[i + 1]]);
+        let n = match u16_at(0) {
+            MAGIC_16 => 16,
+            MAGIC_32 => 32,
+            m => return Err(JsonError::Packet(format!("unknown magic {m}"))),
+        };
+        if bytes.len() != 8 + 2 * n {
+            return Err(JsonError::Packet(format!(
+                "{} bytes, expected {} for {n} channels",
+                bytes.len(),
+                8 + 2 * n
+            )));
+        }
+        Ok(Self {
+            frame_rate: u16_at(2),
+            frame_count: u32::from_le_bytes([bytes[4], bytes[5], bytes[6], bytes[7]]),
+            pwm: (0..n).map(|i| u16_at(8 + 2 * i)).collect(),
+        })
+    }
+}
+
+/// A motor command in [0, 1] as PWM (µs); anything not finite is off.
+pub fn pwm_from_command(c: f64) -> u16 {
+    let c = if c.is_finite() {
+        c.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    PWM_MIN + (c * f64::from(PWM_MAX - PWM_MIN)).round() as u16
+}
+
+/// PWM (µs) as a motor command in [0, 1]: 1000 and below off, 2000 and above full.
+pub fn command_from_pwm(pwm: u16) -> f64 {
+    (f64::from(pwm.saturating_sub(PWM_MIN)) / f64::from(PWM_MAX - PWM_MIN)).min(1.0)
+}
+
+/// The physics' state, as one JSON reply carries it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PhysicsState {
+    /// Simulation time (s).
+    pub timestamp_s: f64,
+    /// Gyro, FRD (rad/s).
+    pub gyro_frd_rad_s: Vector3<f64>,
+    /// Specific force, FRD (m/s²).
+    pub accel_frd_m_s2: Vector3<f64>,
+    /// Position from the physics' origin, NED (m).
+    pub pos_ned_m: Vector3<f64>,
+    /// Velocity, NED (m/s).
+    pub vel_ned_m_s: Vector3<f64>,
+    /// Attitude, body (FRD) to NED.
+    pub q_ned_from_frd: UnitQuaternion<f64>,
+    /// Battery voltage (V) and current (A), when the physics has them.
+    pub battery: Option<(f64, f64)>,
+}
+
+impl PhysicsState {
+    /// The state as ArduPilot reads it: one line of JSON between newlines, the attitude as a
+    /// quaternion.
+    pub fn to_json(&self) -> String {
+        let v = |v: &Vector3<f64>| format!("[{:e}, {:e}, {:e}]", v.x, v.y, v.z);
+        let q = self.q_ned_from_frd.quaternion();
+        let mut s = format!(
+            "\n{{\"timestamp\": {:e}, \"imu\": {{\"gyro\": {}, \"accel_body\": {}}}, \"position\": {}, \"velocity\": {}, \"quaternion\": [{:e}, {:e}, {:e}, {:e}]",
+            self.timestamp_s,
+            v(&self.gyro_frd_rad_s),
+            v(&self.accel_frd_m_s2),
+            v(&self.pos_ned_m),
+            v(&self.vel_ned_m_s),
+            q.w,
+            q.i,
+            q.j,
+            q.k
+        );
+        if let Some((voltage, current)) = self.battery {
+            s += &format!(", \"battery\": {{\"voltage\": {voltage:e}, \"current\": {current:e}}}");
+        }
+        s + "}\n"
+    }
+
+    /// Parses one JSON state; unknown keys are ignored, every required one must be there and
+    /// finite, and a quaternion must have a length (it is normalised).
+    pub fn parse(text: &str) -> Result<Self, JsonError> {
+        let bad = |why: String| JsonError::State(why);
+        let root: serde_json::Value =
+            serde_json::from_str(text).map_err(|e| bad(format!("not JSON: {e}")))?;
+        let number = |v: Option<&serde_json::Value>, name: &str| -> Result<f64, JsonError> {
+            let x = v
+                .and_then(serde_json::Value::as_f64)
+                .ok_or_else(|| bad(format!("{name}: missing or not a number")))?;
+            if x.is_finite() {
+                Ok(x)
+            } else {
+                Err(bad(format!("{name}: not finite")))
+            }
+        };
+        let array = |v: Option<&serde_json::Value>, name: &str, n: usize| {
+            let items = v
+                .and_then(serde_json::Value::as_array)
+                .filter(|a| a.len() == n)
+                .ok_or_else(|| bad(format!("{name}: missing or not {n} numbers")))?;
+            items
+                .iter()
+                .map(|x| number(Some(x), name))
+                .collect::<Result<Vec<f64>, JsonError>>()
+        };
+        let vector = |v: Option<&serde_json::Value>, name: &str| {
+            array(v, name, 3).map(|a| Vector3::new(a[0], a[1], a[2]))
+        };
+        let imu = root.get("imu");
+        let q_ned_from_frd = match (root.get("quaternion"), root.get("attitude")) {
+            (Some(q), _) => {
+                let q = array(Some(q), "quaternion", 4)?;
+                let q = nalgebra::Quaternion::new(q[0], q[1], q[2], q[3]);
+                if q.norm() < 1e-6 {
+                    return Err(bad("quaternion: zero length".into()));
+                }
+                UnitQuaternion::from_quaternion(q)
+            }
+            (None, Some(a)) => {
+                let a = vector(Some(a), "attitude")?;
+                UnitQuaternion::from_euler_angles(a.x, a.y, a.z)
+            }
+            (None, None) => return Err(bad("neither quaternion nor attitude".into())),
+        };
+        let battery = match root.get("battery") {
+            Some(b) => Some((
+                number(b.get("voltage"), "battery.voltage")?,
+                b.get("current")
+                    .map_or(Ok(0.0), |c| number(Some(c), "battery.current"))?,
+            )),
+            None => None,
+        };
+        Ok(Self {
+            timestamp_s: number(root.get("timestamp"), "timestamp")?,
+            gyro_frd_rad_s: vector(imu.and_then(|i| i.get("gyro")), "imu.gyro")?,
+            accel_frd_m_s2: vector(imu.and_then(|i| i.get("accel_body")), "imu.accel_body")?,
+            pos_ned_m: vector(root.get("position"), "position")?,
+            vel_ned_m_s: vector(root.get("velocity"), "velocity")?,
+            q_ned_from_frd,
+            battery,
+        })
+    }
+
+    /// The newest state in a datagram (several lines may have queued): its last line that is
+    /// not blank.
+    pub fn parse_latest(datagram: &[u8]) -> Result<Self, JsonError> {
+        let text =
+            std::str::from_utf8(datagram).map_err(|_| JsonError::State("not UTF-8 text".into()))?;
+        let line = text
+            .lines()
+            .rev()
+            .find(|l| !l.trim().is_empty())
+            .ok_or_else(|| JsonError::State("empty".into()))?;
+        Self::parse(line)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    #[test]
+    fn the_servo_packet_is_laid_out_as_ardupilot_declares_it() {
+        let p = ServoPacket {
+            frame_rate: 400,
+            frame_count: 0x0102_0304,
+            pwm: vec![1000, 1500, 2000, 1100],
+        };
+        let mut bytes = Vec::new();
+        p.encode(&mut bytes);
+        // struct { uint16_t magic = 18458; uint16_t frame_rate; uint32_t frame_count;
+        // uint16_t pwm[16]; }, little-endian, no padding.
+        assert_eq!(bytes.len(), 40);
+        assert_eq!(
+            &bytes[..8],
+            &[0x1A, 0x48, 0x90, 0x01, 0x04, 0x03, 0x02, 0x01]
+        );
+        assert_eq!(&bytes[8..12], &[0xE8, 0x03, 0xDC, 0x05]);
+        assert!(bytes[16..].iter().all(|&b| b == 0), "unused channels 0");
+        let back = ServoPacket::decode(&bytes).unwrap();
+        assert_eq!(back.pwm.len(), 16);
+        assert_eq!(&back.pwm[..4], &p.pwm[..]);
+        assert_eq!((back.frame_rate, back.frame_count), (400, 0x0102_0304));
+
+        let wide = ServoPacket {
+            frame_rate: 1000,
+            frame_count: 7,
+            pwm: vec![1234; 20],
+        };
+        let mut bytes = Vec::new();
+        wide.encode(&mut bytes);
+        assert_eq!(
+            (bytes.len(), u16::from_le_bytes([bytes[0], bytes[1]])),
+            (72, MAGIC_32)
+        );
+        assert_eq!(ServoPacket::decode(&bytes).unwrap().pwm[19], 1234);
+
+        for bad in [&bytes[..7], &bytes[..40], &[0u8; 40][..]] {
+            assert!(ServoPacket::decode(bad).is_err(), "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn pwm_maps_to_commands_and_back() {
+        assert_eq!(pwm_from_command(0.0), 1000);
+        assert_eq!(pwm_from_command(0.5), 1500);
+        assert_eq!(pwm_from_command(1.7), 2000);
+        assert_eq!(pwm_from_command(f64::NAN), 1000);
+        assert_eq!(command_from_pwm(0), 0.0);
+        assert_eq!(command_from_pwm(1250), 0.25);
+        assert_eq!(command_from_pwm(2100), 1.0);
+    }
+
+    #[test]
+    fn ardupilots_documented_state_parses_and_ours_round_trips() {
+        // The documentation's example: Euler angles instead of a quaternion, other keys.
+        let doc = r#"{"timestamp": 2.5, "imu": {"gyro": [0.1, 0, 0], "accel_body": [0, 0, -9.8]},
+            "position": [1, 2, -3], "attitude": [0, 0, 1.5707963267948966],
+            "velocity": [0, 0.5, 0], "airspeed": 3.2, "rng_1": 4}"#;
+        let s = PhysicsState::parse(&doc.replace('\n', " ")).unwrap();
+        assert_eq!(s.timestamp_s, 2.5);
+        assert_eq!(s.pos_ned_m, Vector3::new(1.0, 2.0, -3.0));
+        assert_eq!(s.accel_frd_m_s2.z, -9.8);
+        // Yawed 90°: the nose points east.
+        let nose = s.q_ned_from_frd.transform_vector(&Vector3::x());
+        assert!((nose - Vector3::y()).norm() < 1e-12, "{nose}");
+        assert_eq!(s.battery, None);
+
+        let ours = PhysicsState {
+            timestamp_s: 12.004,
+            gyro_frd_rad_s: Vector3::new(0.01, -0.02, 0.3),
+            accel_frd_m_s2: Vector3::new(0.1, 0.2, -9.81),
+            pos_ned_m: Vector3::new(3.0, -4.0, -5.5),
+            vel_ned_m_s: Vector3::new(0.5, 0.0, -1.0),
+            q_ned_from_frd: UnitQuaternion::from_euler_angles(0.1, -0.2, 2.0),
+            battery: Some((15.9, 12.5)),
+        };
+        let text = ours.to_json();
+        assert!(text.starts_with('\n') && text.ends_with('\n'));
+        assert_eq!(text.trim().lines().count(), 1, "one line");
+        // Two states queued in one datagram: the newer is taken.
+        let mut older = ours;
+        older.timestamp_s = 12.0;
+        let datagram = older.to_json() + &text;
+        let mut back = PhysicsState::parse_latest(datagram.as_bytes()).unwrap();
+        // Every number exactly; the quaternion renormalised, within an ulp.
+        assert!(back.q_ned_from_frd.angle_to(&ours.q_ned_from_frd) < 1e-12);
+        back.q_ned_from_frd = ours.q_ned_from_frd;
+        assert_eq!(back, ours);
+    }
+
+    #[test]
+    fn states_missing_a_field_or_not_finite_are_refused() {
+        let good = r#"{"timestamp": 1, "imu": {"gyro": [0,0,0], "accel_body": [0,0,-9.8]}, "position": [0,0,0], "velocity": [0,0,0], "quaternion": [1,0,0,0]}"#;
+        assert!(PhysicsState::parse(good).is_ok());
+        for (from, to) in [
+            ("\"timestamp\": 1", "\"time\": 1"),
+            ("\"gyro\": [0,0,0]", "\"gyro\": [0,0]"),
+            ("\"position\": [0,0,0]", "\"position\": [0,0,\"x\"]"),
+            ("\"quaternion\": [1,0,0,0]", "\"quaternion\": [0,0,0,0]"),
+            ("\"quaternion\": [1,0,0,0]", "\"heading\": 3"),
+            ("\"timestamp\": 1", "\"timestamp\": 1e999"),
+        ] {
+            let text = good.replace(from, to);
+            assert!(PhysicsState::parse(&text).is_err(), "{text}");
+        }
+        assert!(PhysicsState::parse("{\"timestamp\": ").is_err());
+        assert!(PhysicsState::parse_latest(b"\n\n").is_err());
+        assert!(PhysicsState::parse_latest(&[0xff, 0xfe]).is_err());
+    }
+}
