@@ -7,8 +7,10 @@
 //! What the state does not carry is made here, as ArduPilot's SITL makes it: the magnetometer
 //! (the site's field seen through the attitude), the barometer (ISA pressure at the height) and
 //! the GPS (position and velocity with latency), by the simulator's own sensor models at the
-//! preset asked for; the IMU is the physics' own. The truth (`HIL_STATE_QUATERNION`, for logs
-//! and scoring) is the state itself.
+//! preset asked for; the IMU is the physics' own with the preset's noise and bias on it (as
+//! ArduPilot's SITL adds its `SIM_ACC_RND`, `SIM_GYR_RND`: a physics' IMU is often exact, and
+//! an exact IMU at rest reads the same twice, which the sensor monitor takes for a frozen one).
+//! The truth (`HIL_STATE_QUATERNION`, for logs and scoring) is the state itself.
 
 use crate::link::SensorLink;
 use hil::json::{PhysicsState, ServoPacket, pwm_from_command};
@@ -140,9 +142,9 @@ impl JsonLink {
             rotor_speed_rad_s: &[],
             rotor_max_speed_rad_s: &[],
         };
-        let mut frame = self.sensors.sample(&truth).clone();
-        frame.accel_frd_m_s2 = s.accel_frd_m_s2;
-        frame.gyro_frd_rad_s = s.gyro_frd_rad_s;
+        // The IMU models see the physics' specific force and rate (the acceleration is made
+        // from the specific force, so they give it back) and add their noise and bias.
+        let frame = self.sensors.sample(&truth).clone();
         let header = MavHeader {
             system_id: SIM_SYSTEM_ID.into(),
             component_id: SIM_COMPONENT_ID,
@@ -330,7 +332,11 @@ mod tests {
             unreachable!()
         };
         assert_eq!(s.time_usec, 4000);
-        assert_eq!((s.zacc, s.zgyro), (-9.80665, 0.1), "the physics' own IMU");
+        // The physics' own IMU (the ideal preset adds no noise).
+        assert!(
+            (s.zacc + 9.80665).abs() < 1e-5 && (s.zgyro - 0.1).abs() < 1e-6,
+            "{s:?}"
+        );
         // The barometer it made: 2 m above home.
         assert!(
             (f64::from(s.pressure_alt) - (488.0 + 2.0)).abs() < 0.5,

@@ -674,10 +674,14 @@ fn fly(cli: &Cli) -> Result<()> {
                             airframe.name
                         );
                     };
+                    let sensors = sensor_preset(&cfg)?;
+                    if sensors == SensorPreset::Ideal {
+                        vehicle.sensors_noise_free();
+                    }
                     let mut link = json_link::JsonLink::connect(
                         addr,
                         channels,
-                        sensor_preset(&cfg)?,
+                        sensors,
                         cfg.seed,
                         Geodetic::default().for_instance(cfg.instance),
                     )

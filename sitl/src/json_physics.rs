@@ -17,14 +17,16 @@ use std::time::{Duration, Instant};
 /// How long one wait for a packet lasts: how quickly Ctrl-C is noticed.
 const POLL: Duration = Duration::from_millis(100);
 
-/// The state after the last step, as a JSON reply.
+/// The state after the last step, as a JSON reply. The IMU is the true rate and specific force,
+/// as a JSON physics gives them: the autopilot adds its sensors' noise (ArduPilot's `SIM_*`).
 fn state(end: &SimulatorEnd) -> PhysicsState {
-    let frame = end.frame();
     let truth = end.sim().truth();
+    let q = truth.body.q_ned_from_frd;
+    let gravity = nalgebra::Vector3::new(0.0, 0.0, sitl_core::GRAVITY_M_S2);
     PhysicsState {
         timestamp_s: end.sim().time_s(),
-        gyro_frd_rad_s: frame.gyro_frd_rad_s,
-        accel_frd_m_s2: frame.accel_frd_m_s2,
+        gyro_frd_rad_s: truth.body.rate_frd_rad_s,
+        accel_frd_m_s2: q.inverse_transform_vector(&(truth.accel_ned_m_s2 - gravity)),
         pos_ned_m: truth.body.pos_ned_m,
         vel_ned_m_s: truth.body.vel_ned_m_s,
         q_ned_from_frd: truth.body.q_ned_from_frd,
