@@ -4,7 +4,7 @@
 //! count) gets the same reply again without a step, so the world moves once per command.
 
 use crate::Cli;
-use crate::run::{Dynamics, Pacer, Status, Summary, build, finish, open_truth};
+use crate::run::{AwaitAutopilot, Dynamics, Pacer, Status, Summary, build, finish, open_truth};
 use anyhow::{Context, Result, bail};
 use hil::json::{JSON_INSTANCE_STRIDE, PhysicsState, ServoPacket, command_from_pwm};
 use hil::{ActuatorCommand, SimulatorEnd};
@@ -74,7 +74,7 @@ pub fn run(
     let mut buf = vec![0u8; 2048];
     let mut last: Option<(u32, SocketAddr)> = None;
     let mut reply = String::new();
-    let mut waiting_logged: Option<Instant> = None;
+    let mut awaiting = AwaitAutopilot::new(started);
     while end.sim().time_s() < scenario.duration_s - 1e-9 && !stop.load(Ordering::Relaxed) {
         status.maybe_print(end.sim(), started);
         let (n, from) = match socket.recv_from(&mut buf) {
@@ -88,17 +88,7 @@ pub fn run(
                 ) =>
             {
                 if last.is_none() {
-                    let waited = started.elapsed().as_secs_f64();
-                    if cli.connect_timeout > 0.0 && waited > cli.connect_timeout {
-                        bail!(
-                            "no servo packet on {addr} within {:.1} s",
-                            cli.connect_timeout
-                        );
-                    }
-                    if waiting_logged.is_none_or(|t| t.elapsed() > Duration::from_secs(5)) {
-                        tracing::info!("waiting for servo packets on {addr}");
-                        waiting_logged = Some(Instant::now());
-                    }
+                    awaiting.unanswered(cli, &format!("{addr} (servo packets)"))?;
                 }
                 continue;
             }

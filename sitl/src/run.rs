@@ -197,6 +197,41 @@ impl Status {
     }
 }
 
+/// Waiting for the first word from an autopilot: said every 5 s, given up after
+/// `--connect-timeout`.
+pub(crate) struct AwaitAutopilot {
+    started: Instant,
+    said: Option<Instant>,
+}
+
+impl AwaitAutopilot {
+    /// Waiting since `started`.
+    pub(crate) fn new(started: Instant) -> Self {
+        Self {
+            started,
+            said: None,
+        }
+    }
+
+    /// Another wait went unanswered; `at` says where the autopilot is awaited.
+    pub(crate) fn unanswered(&mut self, cli: &Cli, at: &str) -> Result<()> {
+        if cli.connect_timeout > 0.0 && self.started.elapsed().as_secs_f64() > cli.connect_timeout {
+            bail!(
+                "no autopilot answered at {at} within {:.1} s",
+                cli.connect_timeout
+            );
+        }
+        if self
+            .said
+            .is_none_or(|t| t.elapsed() > Duration::from_secs(5))
+        {
+            tracing::info!("waiting for an autopilot at {at}");
+            self.said = Some(Instant::now());
+        }
+        Ok(())
+    }
+}
+
 /// Paces simulated time against the wall clock at a factor, by absolute deadlines.
 pub(crate) struct Pacer {
     pub(crate) start: Instant,
@@ -342,6 +377,7 @@ pub fn hil(
     let mut connected = false;
     let timeout = Duration::from_millis(cli.timeout_ms.max(1));
     let mut last_timeout_log: Option<Instant> = None;
+    let mut awaiting = AwaitAutopilot::new(started);
     while end.sim().time_s() < scenario.duration_s - 1e-9 && !stop.load(Ordering::Relaxed) {
         status.maybe_print(end.sim(), started);
         if let Some(c) = control.as_mut() {
@@ -380,17 +416,7 @@ pub fn hil(
                 end.apply(&cmd);
             }
             None if cli.mode == Mode::Lockstep && !connected => {
-                let waited_s = started.elapsed().as_secs_f64();
-                if cli.connect_timeout > 0.0 && waited_s > cli.connect_timeout {
-                    bail!(
-                        "no autopilot answered at {target} within {:.1} s",
-                        cli.connect_timeout
-                    );
-                }
-                if last_timeout_log.is_none_or(|t| t.elapsed() > Duration::from_secs(5)) {
-                    tracing::info!("waiting for an autopilot at {target}");
-                    last_timeout_log = Some(Instant::now());
-                }
+                awaiting.unanswered(cli, &target)?;
                 continue; // resend the same frame; physics waits
             }
             None if cli.mode == Mode::Lockstep => {

@@ -11,9 +11,9 @@ import time
 
 import pytest
 from conftest import ROOT, binary, greet, mavutil
+from test_ground_station import ack, armed, ready_to_arm, wait
 
 COUNT = 10
-PREARM_CHECK = mavutil.mavlink.MAV_SYS_STATUS_PREARM_CHECK
 
 
 def free_udp_ports(n):
@@ -35,24 +35,6 @@ def free_udp_ports(n):
             for s in held:
                 s.close()
     pytest.fail(f"no {n} consecutive free UDP ports")
-
-
-def wait(conn, what, condition, timeout=30):
-    """The first `what` from the autopilot on `conn` for which condition(msg) holds."""
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        m = conn.recv_match(type=what, blocking=True, timeout=0.5)
-        if m is not None and m.get_srcComponent() == 1 and condition(m):
-            return m
-    pytest.fail(f"{conn.address}: no {what} as expected within {timeout} s")
-
-
-def ack(conn, command):
-    return wait(conn, "COMMAND_ACK", lambda m: m.command == command, timeout=10).result
-
-
-def armed(m):
-    return bool(m.base_mode & mavutil.mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
 
 
 def request(conn, sysid, what):
@@ -129,7 +111,7 @@ def test_ten_vehicles_in_one_process_fly_on_one_clock(tmp_path):
         # Above MIS_TAKEOFF_ALT (2.5 m), the least a take-off climbs.
         heights = [3.0 + 0.25 * k for k in range(COUNT)]
         for k, c in enumerate(conns):
-            wait(c, "SYS_STATUS", lambda m: m.onboard_control_sensors_health & PREARM_CHECK)
+            ready_to_arm(c)
             home = wait(c, "GLOBAL_POSITION_INT", lambda m: True)
             c.mav.command_long_send(k + 1, 1, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0,
                                     1, 0, 0, 0, 0, 0, 0)
