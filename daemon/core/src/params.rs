@@ -469,6 +469,8 @@ mod tests {
         assert_eq!(
             ints,
             [
+                "ATT_MODE",
+                "ATT_MAG_LEARN",
                 "ATT_ALIGN_N",
                 "CAL_MAG0_ID",
                 "MC_ATT_LAW",

@@ -33,7 +33,8 @@ pub struct ReplayRow {
 
 /// Runs the attitude estimator over samples in time order.
 ///
-/// The first `align_samples` samples are a pre-roll, as the live estimator's alignment: if the
+/// With Castillo's observer (`ATT_MODE` 0) the first `align_samples` samples are a pre-roll, as
+/// the live estimator's alignment: if the
 /// vehicle was at rest then (rates steady), the initial gyro bias is their mean rate and the
 /// initial attitude the q-method of their mean vectors; otherwise the estimate starts at the first
 /// sample's q-method with zero bias. Either way every sample gets a row.
@@ -48,11 +49,18 @@ pub struct Replay {
 impl Replay {
     /// A replay with these parameters (gains, magnetometer calibration, Earth field).
     pub fn new(params: &AttitudeParams) -> Self {
+        // The tilt/heading filter needs no pre-roll: it starts from the first samples, at rest or
+        // not, and its estimate is written from the first magnetic heading on.
+        let filter = params.mode == 1;
+        let params = AttitudeParams {
+            align_samples: if filter { 1 } else { params.align_samples },
+            ..params.clone()
+        };
         Self {
-            estimator: AttitudeEstimator::new(params),
-            params: params.clone(),
+            estimator: AttitudeEstimator::new(&params),
+            params,
             last_t: None,
-            started: false,
+            started: filter,
             pending: Vec::new(),
         }
     }

@@ -1,6 +1,11 @@
 //! State estimation: attitude (q-method + nonlinear observer) and, later, translation.
 
 pub mod attitude;
+pub mod hard_iron;
+pub mod heading;
+pub mod lowpass;
 pub mod observer;
+pub mod rest;
+pub mod tilt_heading;
 pub mod translation;
 pub mod wahba;

@@ -1,0 +1,247 @@
+//! Heading from the magnetometer's horizontal part, with magnetic-disturbance rejection.
+//!
+//! The field, rotated by the tilt-corrected attitude into a frame that is level but of unknown
+//! heading, gives the heading offset `δ` that turns its horizontal part to magnetic north (plus
+//! the declination). `δ` follows that measurement with time constant `tau` — only about the
+//! vertical, so a magnet can turn the heading but never the tilt. At the start it is the running
+//! mean of the measurements (converged within `tau`, whatever the start).
+//!
+//! A disturbed field is recognised by its strength and dip against a reference learned from the
+//! clean field (as VQF does): then the heading is the gyro's. That lasts at most
+//! `max_rejection_s`, after which the field corrects again (the gyro's heading drifts without
+//! bound; a disturbance that long is more likely a changed field). A field that stays disturbed
+//! but steady for `new_reference_s` becomes the new reference (another place, a new calibration).
+
+use nalgebra::{UnitQuaternion, Vector3};
+use std::f64::consts::{PI, TAU};
+
+/// Settings of the heading correction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HeadingSettings {
+    /// Time constant of the heading correction (s).
+    pub tau_s: f64,
+    /// Magnetic declination (rad, positive east).
+    pub declination_rad: f64,
+    /// Largest departure of the field strength from the reference, as a fraction of it.
+    pub strength_tolerance: f64,
+    /// Largest departure of the dip from the reference (rad).
+    pub dip_tolerance_rad: f64,
+    /// Longest time a disturbed field is ignored (s).
+    pub max_rejection_s: f64,
+    /// Time a disturbed but steady field takes to become the new reference (s).
+    pub new_reference_s: f64,
+    /// Time constant of the reference's learning from the clean field (s).
+    pub reference_tau_s: f64,
+}
+
+impl Default for HeadingSettings {
+    fn default() -> Self {
+        Self {
+            tau_s: 15.0,
+            declination_rad: 0.0,
+            strength_tolerance: 0.1,
+            dip_tolerance_rad: 10f64.to_radians(),
+            max_rejection_s: 60.0,
+            new_reference_s: 20.0,
+            reference_tau_s: 20.0,
+        }
+    }
+}
+
+/// Strength and dip of a field.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct FieldShape {
+    strength: f64,
+    dip: f64,
+}
+
+impl FieldShape {
+    fn differs(&self, other: &FieldShape, s: &HeadingSettings) -> bool {
+        (self.strength - other.strength).abs() > s.strength_tolerance * other.strength
+            || (self.dip - other.dip).abs() > s.dip_tolerance_rad
+    }
+
+    fn approach(&mut self, other: &FieldShape, k: f64) {
+        self.strength += (other.strength - self.strength) * k;
+        self.dip += (other.dip - self.dip) * k;
+    }
+}
+
+/// The heading corrector.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HeadingCorrector {
+    settings: HeadingSettings,
+    delta: f64,
+    samples: f64,
+    reference: Option<FieldShape>,
+    candidate: Option<(FieldShape, f64)>,
+    disturbed_s: f64,
+    disturbed_samples: u64,
+    new_references: u64,
+    last_error: f64,
+    /// The gain `dt / tau` of the last sample.
+    k_nominal: f64,
+}
+
+/// `x` wrapped to [−π, π).
+fn wrap(x: f64) -> f64 {
+    (x + PI).rem_euclid(TAU) - PI
+}
+
+impl HeadingCorrector {
+    /// A corrector that has seen no field.
+    pub fn new(settings: HeadingSettings) -> Self {
+        Self {
+            settings,
+            delta: 0.0,
+            samples: 0.0,
+            reference: None,
+            candidate: None,
+            disturbed_s: 0.0,
+            disturbed_samples: 0,
+            new_references: 0,
+            last_error: 0.0,
+            k_nominal: 0.0,
+        }
+    }
+
+    /// Changes the settings, keeping the heading and the reference.
+    pub fn set_settings(&mut self, settings: HeadingSettings) {
+        self.delta += settings.declination_rad - self.settings.declination_rad;
+        self.settings = settings;
+    }
+
+    /// Sets the heading offset and forgets the field (the next one starts it again).
+    pub fn reset_to(&mut self, delta: f64) {
+        self.delta = delta;
+        self.samples = 0.0;
+    }
+
+    /// Whether the start (the running mean of the first `tau` seconds) is over.
+    pub fn converged(&self) -> bool {
+        self.samples > 0.0 && 1.0 / self.samples <= self.k_nominal
+    }
+
+    /// Whether a field has been taken.
+    pub fn started(&self) -> bool {
+        self.samples > 0.0
+    }
+
+    /// The rotation about the vertical from the level frame to NED.
+    pub fn rotation(&self) -> UnitQuaternion<f64> {
+        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), self.delta)
+    }
+
+    /// The learned field strength, once known.
+    pub fn reference_strength(&self) -> Option<f64> {
+        self.reference.map(|r| r.strength)
+    }
+
+    /// Samples rejected as disturbed.
+    pub fn disturbed_samples(&self) -> u64 {
+        self.disturbed_samples
+    }
+
+    /// Times a new reference was adopted.
+    pub fn new_references(&self) -> u64 {
+        self.new_references
+    }
+
+    /// The last measured heading error (rad).
+    pub fn last_error(&self) -> f64 {
+        self.last_error
+    }
+
+    /// Takes the field in the level frame, `dt` seconds after the previous one. Returns the
+    /// heading correction applied (rad), or `None` when none was (rejected, or unusable).
+    pub fn update(&mut self, m: &Vector3<f64>, dt: f64) -> Option<f64> {
+        let s = self.settings;
+        let horizontal = m.x.hypot(m.y);
+        let strength = m.norm();
+        if strength.is_nan() || strength <= 0.0 || horizontal < 0.05 * strength {
+            return None;
+        }
+        let shape = FieldShape {
+            strength,
+            dip: m.z.atan2(horizontal),
+        };
+        let target = s.declination_rad - m.y.atan2(m.x);
+        let error = wrap(target - self.delta);
+        self.last_error = error;
+        let Some(reference) = self.reference.as_mut() else {
+            self.reference = Some(shape);
+            self.delta = target;
+            self.samples = 1.0;
+            return None;
+        };
+        if shape.differs(reference, &s) {
+            self.disturbed_samples += 1;
+            self.disturbed_s += dt;
+            match self.candidate.as_mut() {
+                Some((c, steady_s)) if !shape.differs(c, &s) => {
+                    c.approach(&shape, (dt / s.reference_tau_s).min(1.0));
+                    *steady_s += dt;
+                    if *steady_s >= s.new_reference_s {
+                        *reference = *c;
+                        self.candidate = None;
+                        self.new_references += 1;
+                        self.disturbed_s = 0.0;
+                    }
+                }
+                _ => self.candidate = Some((shape, 0.0)),
+            }
+            if self.disturbed_s <= s.max_rejection_s {
+                return None;
+            }
+        } else {
+            self.disturbed_s = 0.0;
+            self.candidate = None;
+            reference.approach(&shape, (dt / s.reference_tau_s).min(1.0));
+        }
+        self.samples += 1.0;
+        self.k_nominal = dt / s.tau_s;
+        let k = self.k_nominal.max(1.0 / self.samples).min(1.0);
+        let step = k * error;
+        self.delta = wrap(self.delta + step);
+        Some(step)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn field(heading: f64) -> Vector3<f64> {
+        // Inclination 69°, strength 0.44, seen from a level frame turned by `heading`.
+        let (h, v) = (
+            0.44 * 69f64.to_radians().cos(),
+            0.44 * 69f64.to_radians().sin(),
+        );
+        Vector3::new(h * heading.cos(), -h * heading.sin(), v)
+    }
+
+    #[test]
+    fn converges_at_once_and_rejects_a_magnet_for_a_bounded_time() {
+        let s = HeadingSettings::default();
+        let mut c = HeadingCorrector::new(s);
+        let dt = 0.01;
+        for _ in 0..100 {
+            c.update(&field(1.0), dt);
+        }
+        assert!((c.delta - 1.0).abs() < 1e-9, "{}", c.delta);
+        // A magnet: stronger field pointing elsewhere. Rejected, so the heading holds.
+        let magnet = field(2.0) * 1.5;
+        for _ in 0..(15.0 / dt) as usize {
+            assert_eq!(c.update(&magnet, dt), None);
+        }
+        assert!((c.delta - 1.0).abs() < 1e-9);
+        assert_eq!(c.disturbed_samples(), 1500);
+        // A field that stays disturbed but steady becomes the reference (at 20 s): the heading
+        // follows it from then on.
+        for _ in 0..(40.0 / dt) as usize {
+            c.update(&magnet, dt);
+        }
+        assert_eq!(c.new_references(), 1);
+        assert!((c.delta - 2.0).abs() < 0.05, "{}", c.delta);
+    }
+}

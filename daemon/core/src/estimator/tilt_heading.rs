@@ -1,0 +1,279 @@
+//! The tilt/heading attitude filter: the estimator for real sensors (the default; Castillo's
+//! q-method observer stays selectable by `ATT_MODE`).
+//!
+//! Castillo's observer corrects the gyro attitude towards a q-method solution of the whole
+//! accelerometer and magnetometer vectors (80)–(105). On real recordings (the BROAD benchmark)
+//! that fails three ways: linear acceleration tilts the estimate, a magnet near the sensor tilts
+//! it too (the magnetic vector enters the tilt), and the bias is learned only when nothing moves.
+//! This filter keeps the observer's structure — gyro propagation (101) corrected towards the
+//! measurements — but splits the correction as VQF does (Laidig & Seel, "VQF: Highly accurate IMU
+//! orientation estimation with bias estimation and magnetic disturbance rejection", Information
+//! Fusion 91, 2023):
+//!
+//! - **Gyro**: `q_gyro ← q_gyro ⊗ exp((ω − b̂) T / 2)`, Castillo (101) with (104).
+//! - **Tilt**: the specific force rotated into that almost-inertial gyro frame, minus the
+//!   vehicle's acceleration when the position estimator knows it, is low-passed there with time
+//!   constant `tau_acc`. In an inertial frame a linear acceleration integrates to a change of
+//!   velocity, which is bounded, so its low-passed value vanishes while gravity stays; a
+//!   correction about a horizontal axis then turns the low-passed vector to the vertical.
+//! - **Heading**: only the horizontal part of the magnetic field corrects, only about the
+//!   vertical (no magnet can tilt the estimate), with time constant `tau_mag`, a fast start, and
+//!   disturbance rejection (see `heading.rs`); the body-fixed part of the field is learned online
+//!   (see `hard_iron.rs`).
+//! - **Gyro bias**: at rest the mean rate (`rest.rs`), fast; in motion the integral of the tilt
+//!   and heading corrections, slowly (Mahony's integral term), so a drifting bias is tracked.
+//!
+//! `q = q_heading ⊗ q_tilt ⊗ q_gyro`.
+
+use super::hard_iron::{HardIronEstimator, HardIronSettings};
+use super::heading::{HeadingCorrector, HeadingSettings};
+use super::lowpass::LowPass;
+use super::rest::{RestDetector, RestThresholds};
+use crate::GRAVITY_M_S2;
+use crate::quat;
+use nalgebra::{UnitQuaternion, Vector3};
+
+/// Settings of the tilt/heading filter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TiltHeadingSettings {
+    /// Time constant of the accelerometer's low-pass in the gyro frame (s).
+    pub tau_acc_s: f64,
+    /// Heading settings.
+    pub heading: HeadingSettings,
+    /// Time constant of bias learning at rest (s).
+    pub bias_tau_rest_s: f64,
+    /// Time constant of bias learning in motion, from the corrections (s); 0 switches it off.
+    pub bias_tau_motion_s: f64,
+    /// Largest bias estimate (rad/s).
+    pub bias_limit_rad_s: f64,
+    /// Largest body rate at which the bias is learned in motion (rad/s): faster, gyro scale and
+    /// axis errors drift the attitude as much as a bias would (PX4's attitude estimator keeps
+    /// the same limit).
+    pub bias_max_rate_rad_s: f64,
+    /// Whether the body-fixed field is learned online.
+    pub learn_hard_iron: bool,
+    /// Online hard-iron settings.
+    pub hard_iron: HardIronSettings,
+}
+
+impl Default for TiltHeadingSettings {
+    fn default() -> Self {
+        Self {
+            tau_acc_s: 3.0,
+            heading: HeadingSettings::default(),
+            bias_tau_rest_s: 3.0,
+            bias_tau_motion_s: 10.0,
+            bias_limit_rad_s: 0.1,
+            bias_max_rate_rad_s: 20f64.to_radians(),
+            learn_hard_iron: false,
+            hard_iron: HardIronSettings::default(),
+        }
+    }
+}
+
+/// Counters of the tilt/heading filter.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct TiltHeadingStatus {
+    /// Samples taken at rest.
+    pub at_rest: u64,
+    /// Magnetometer samples rejected as disturbed.
+    pub mag_disturbed: u64,
+    /// Times a new magnetic reference was adopted.
+    pub mag_new_reference: u64,
+    /// Online hard-iron fits accepted.
+    pub hard_iron_fits: u64,
+    /// Angle of the last tilt correction (rad).
+    pub tilt_correction_rad: f64,
+    /// Angle between the last magnetic heading and the estimate (rad).
+    pub heading_error_rad: f64,
+}
+
+/// The filter.
+#[derive(Debug, Clone)]
+pub struct TiltHeadingFilter {
+    settings: TiltHeadingSettings,
+    q_gyro: UnitQuaternion<f64>,
+    q_tilt: UnitQuaternion<f64>,
+    heading: HeadingCorrector,
+    bias: Vector3<f64>,
+    accel_lp: LowPass,
+    rest: RestDetector,
+    hard_iron: HardIronEstimator,
+    /// Time since the last magnetometer sample (s).
+    since_mag_s: f64,
+    /// Time since the tilt started (s).
+    running_s: f64,
+    status: TiltHeadingStatus,
+}
+
+impl TiltHeadingFilter {
+    /// A filter that starts from its first samples (no rest needed).
+    pub fn new(settings: TiltHeadingSettings) -> Self {
+        Self {
+            settings,
+            q_gyro: UnitQuaternion::identity(),
+            q_tilt: UnitQuaternion::identity(),
+            heading: HeadingCorrector::new(settings.heading),
+            bias: Vector3::zeros(),
+            accel_lp: LowPass::new(settings.tau_acc_s),
+            rest: RestDetector::new(RestThresholds {
+                max_bias_rad_s: settings.bias_limit_rad_s,
+                ..RestThresholds::default()
+            }),
+            hard_iron: HardIronEstimator::new(settings.hard_iron),
+            since_mag_s: 0.0,
+            running_s: 0.0,
+            status: TiltHeadingStatus::default(),
+        }
+    }
+
+    /// Changes the settings, keeping the estimate, bias and learned field.
+    pub fn set_settings(&mut self, settings: TiltHeadingSettings) {
+        if settings.tau_acc_s != self.settings.tau_acc_s {
+            let value = self.accel_lp.value();
+            let started = self.accel_lp.started();
+            self.accel_lp = LowPass::new(settings.tau_acc_s);
+            if started {
+                self.accel_lp.reset_to(value);
+            }
+        }
+        self.heading.set_settings(settings.heading);
+        self.settings = settings;
+    }
+
+    /// The attitude `q_ned_from_frd`.
+    pub fn attitude(&self) -> UnitQuaternion<f64> {
+        quat::shortest(&(self.heading.rotation() * self.q_tilt * self.q_gyro))
+    }
+
+    /// The gyro-bias estimate (rad/s).
+    pub fn bias(&self) -> Vector3<f64> {
+        self.bias
+    }
+
+    /// Sets the gyro-bias estimate.
+    pub fn set_bias(&mut self, bias: Vector3<f64>) {
+        self.bias = bias;
+    }
+
+    /// Starts again from `q` (the tilt and heading taken from it; the filters keep running).
+    pub fn start_at(&mut self, q: UnitQuaternion<f64>) {
+        self.q_gyro = q;
+        self.q_tilt = UnitQuaternion::identity();
+        self.heading.reset_to(0.0);
+        self.accel_lp.clear();
+        self.running_s = 0.0;
+    }
+
+    /// Whether the magnetic heading has been corrected at all.
+    pub fn heading_known(&self) -> bool {
+        self.heading.started()
+    }
+
+    /// Counters.
+    pub fn status(&self) -> TiltHeadingStatus {
+        TiltHeadingStatus {
+            hard_iron_fits: self.hard_iron.accepted(),
+            mag_disturbed: self.heading.disturbed_samples(),
+            mag_new_reference: self.heading.new_references(),
+            ..self.status
+        }
+    }
+
+    /// The body-fixed field learned online (calibrated units).
+    pub fn hard_iron(&self) -> Vector3<f64> {
+        self.hard_iron.offset()
+    }
+
+    /// One sample: gyro and specific force (FRD), the calibrated magnetic field if a new one came,
+    /// the vehicle's NED acceleration if known, after `dt` seconds. Inputs must be finite.
+    pub fn update(
+        &mut self,
+        gyro: &Vector3<f64>,
+        accel: &Vector3<f64>,
+        mag: Option<&Vector3<f64>>,
+        accel_ned: Option<&Vector3<f64>>,
+        dt: f64,
+    ) {
+        let s = self.settings;
+        // Gyro: Castillo (101), (104).
+        self.q_gyro = quat::propagate(&self.q_gyro, &(gyro - self.bias), dt);
+
+        // Bias at rest: the mean rate.
+        if self.rest.update(gyro, accel, mag, dt) {
+            self.status.at_rest += 1;
+            let k = (dt / s.bias_tau_rest_s).min(1.0);
+            self.bias += (self.rest.mean_rate() - self.bias) * k;
+        }
+        // In motion the bias is learned from the corrections, once the filter has converged.
+        self.running_s += dt;
+        let moving = !self.rest.at_rest()
+            && s.bias_tau_motion_s > 0.0
+            && self.running_s > s.tau_acc_s
+            && (gyro - self.bias).norm() < s.bias_max_rate_rad_s;
+
+        // Tilt: the specific force low-passed in the gyro frame, turned to the vertical.
+        let world_from_gyro = self.heading.rotation() * self.q_tilt;
+        let mut f = self.q_gyro * accel;
+        if let Some(a) = accel_ned {
+            f -= world_from_gyro.inverse() * a;
+        }
+        let lp = self.accel_lp.update(&f, dt);
+        let v = self.q_tilt * lp;
+        if v.norm() > 0.1 * GRAVITY_M_S2 {
+            let v = v.normalize();
+            let up = Vector3::new(0.0, 0.0, -1.0);
+            let axis = v.cross(&up);
+            let angle = axis.norm().atan2(v.dot(&up));
+            let phi = if axis.norm() > 1e-12 {
+                axis.normalize() * angle
+            } else {
+                Vector3::zeros()
+            };
+            self.q_tilt = UnitQuaternion::new_normalize(
+                (quat::from_rotation_vector(&phi) * self.q_tilt).into_inner(),
+            );
+            self.status.tilt_correction_rad = angle;
+            if moving {
+                // The correction as a body rate; the bias is its integral (Mahony's Ki term).
+                let body = (self.q_tilt * self.q_gyro).inverse() * phi;
+                self.learn_bias(&body, dt);
+            }
+        }
+
+        // Heading: the horizontal field only.
+        self.since_mag_s += dt;
+        if let Some(m) = mag {
+            let dt = std::mem::take(&mut self.since_mag_s);
+            let field = self.heading.reference_strength().unwrap_or(m.norm());
+            let m = if s.learn_hard_iron {
+                m - self.hard_iron.update(m, &self.q_gyro, field, dt)
+            } else {
+                *m
+            };
+            let m_world = (self.q_tilt * self.q_gyro) * m;
+            if let Some(step) = self.heading.update(&m_world, dt) {
+                self.status.heading_error_rad = self.heading.last_error();
+                if moving && self.heading.converged() {
+                    let body = self.attitude().inverse() * Vector3::new(0.0, 0.0, step);
+                    self.learn_bias(&body, dt);
+                }
+            }
+        }
+    }
+
+    /// Integrates a correction (rad, body frame) made over `dt` into the bias. A correction
+    /// faster than any bias could drift is something else (a disturbance, a convergence) and
+    /// is left out.
+    fn learn_bias(&mut self, correction_body: &Vector3<f64>, dt: f64) {
+        let s = &self.settings;
+        if correction_body.norm() > s.bias_limit_rad_s * dt {
+            return;
+        }
+        self.bias -= correction_body / s.bias_tau_motion_s;
+        let n = self.bias.norm();
+        if n > s.bias_limit_rad_s {
+            self.bias *= s.bias_limit_rad_s / n;
+        }
+    }
+}

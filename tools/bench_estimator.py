@@ -1,0 +1,130 @@
+#!/usr/bin/env python3
+"""Attitude-estimator benchmark on real IMU data: `autopilot replay` and VQF, same files, same run.
+
+    tools/bench_estimator.py [--autopilot BIN] [--trials DIR] [--params FILE] [--json OUT]
+
+For every BROAD trial in DIR (default ../shared/benchmarks/broad beside the repository), runs
+`autopilot replay` with each of the project's attitude estimators (ATT_MODE 1, the tilt/heading
+filter; ATT_MODE 0, Castillo's q-method observer; both with their default gains and only the
+site's magnetic field set) and VQF (PyPI `vqf`, default parameters) on the same samples, scores
+them with the benchmark's own scorer (`score.py`), and prints one table: total, heading and
+inclination RMSE per trial and the means. --json writes the figures for tests. Needs numpy and
+vqf (tests/requirements.txt).
+"""
+import argparse
+import gzip
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+from vqf import VQF
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+# The site's field (BROAD README: medians over the undisturbed rest phases; truth referenced to
+# magnetic north).
+SITE = {"mag_inclination_deg": 69.2, "mag_intensity_gauss": 0.437, "mag_declination_deg": 0.0}
+# The project's estimators, by ATT_MODE.
+MODES = {"tilt_heading": 1, "castillo": 0}
+# q_ned_from_enu: VQF's world frame is ENU (x east, y north, z up).
+NED_FROM_ENU = np.array([0.0, math.sqrt(0.5), math.sqrt(0.5), 0.0])
+
+
+def quat_mul(a, b):
+    """Hamilton product of a (4,) with rows of b (n, 4)."""
+    aw, ax, ay, az = a
+    w, x, y, z = b.T
+    return np.stack([aw * w - ax * x - ay * y - az * z,
+                     aw * x + ax * w + ay * z - az * y,
+                     aw * y - ax * z + ay * w + az * x,
+                     aw * z + ax * y - ay * x + az * w], 1)
+
+
+def run_vqf(trial_csv, out_csv):
+    """VQF on the trial's FRD samples: it gives q_enu_from_frd; written as q_ned_from_frd."""
+    d = np.genfromtxt(trial_csv, delimiter=",", names=True)
+    ts = float(np.median(np.diff(d["t"])))
+    col = lambda *k: np.ascontiguousarray(np.stack([d[c] for c in k], 1))
+    v = VQF(ts)
+    # VQF's magnetometer unit is free (it learns the norm); µT keeps its thresholds in range.
+    out = v.updateBatch(col("gx", "gy", "gz"), col("ax", "ay", "az"), col("mx", "my", "mz") * 100)
+    q = quat_mul(NED_FROM_ENU, out["quat9D"])
+    np.savetxt(out_csv, np.column_stack([d["t"], q]), delimiter=",", header="t,qw,qx,qy,qz",
+               comments="", fmt="%.9f")
+
+
+def score(scorer, trial_gz, est_csv):
+    out = subprocess.run([sys.executable, scorer, trial_gz, est_csv], check=True,
+                         capture_output=True, text=True).stdout
+    r = json.loads(out)
+    return {k: r[k + "_rmse_deg"] for k in ("total", "heading", "inclination")}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--autopilot", default=os.path.join(ROOT, "target", "release", "autopilot"))
+    ap.add_argument("--trials", default=os.path.join(ROOT, "..", "shared", "benchmarks", "broad"))
+    ap.add_argument("--params", help="a flight-parameter file for both modes; default: the "
+                    "site's field only")
+    ap.add_argument("--json", help="write the figures here")
+    a = ap.parse_args()
+    scorer = os.path.join(a.trials, "score.py")
+    trials = sorted(f for f in os.listdir(a.trials) if f.endswith(".csv.gz")) \
+        if os.path.isdir(a.trials) else []
+    if not trials or not os.path.exists(scorer):
+        sys.exit(f"{a.trials}: no BROAD trials (NN_name.csv.gz) and score.py there")
+    if not os.access(a.autopilot, os.X_OK):
+        sys.exit(f"{a.autopilot}: not found; build it (cargo build --release -p autopilot)")
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        base = open(a.params).read() if a.params else \
+            "[attitude]\n" + "".join(f"{k} = {v}\n" for k, v in SITE.items())
+        params = {}
+        for who, mode in MODES.items():
+            params[who] = os.path.join(tmp, f"{who}.toml")
+            with open(params[who], "w") as f:
+                f.write(base.replace("[attitude]\n", f"[attitude]\nmode = {mode}\n", 1))
+        for n, name in enumerate(trials, 1):
+            trial_gz = os.path.join(a.trials, name)
+            trial = os.path.join(tmp, name[:-3])
+            with gzip.open(trial_gz, "rb") as src, open(trial, "wb") as dst:
+                dst.write(src.read())
+            row = {"trial": name[:-7], "replay_s": 0.0}
+            for who in MODES:
+                est = os.path.join(tmp, f"{who}.csv")
+                t0 = time.perf_counter()
+                subprocess.run([a.autopilot, "replay", "--input", trial, "--output", est,
+                                "--params", params[who]], check=True)
+                row["replay_s"] += time.perf_counter() - t0
+                row[who] = score(scorer, trial_gz, est)
+            run_vqf(trial, os.path.join(tmp, "vqf.csv"))
+            row["vqf"] = score(scorer, trial_gz, os.path.join(tmp, "vqf.csv"))
+            rows.append(row)
+            os.remove(trial)
+            print(f"[{n}/{len(trials)}] {name[:-7]}", file=sys.stderr, flush=True)
+    who_all = list(MODES) + ["vqf"]
+    mean = {who: {k: sum(r[who][k] for r in rows) / len(rows)
+                  for k in ("total", "heading", "inclination")} for who in who_all}
+    print("RMSE (deg) on BROAD, scored by its score.py, same files, same run: total / heading / "
+          "inclination for autopilot replay with ATT_MODE 1 (tilt/heading) and 0 (Castillo), "
+          "and VQF (vqf, default parameters)")
+    print(f"| {'trial':<44} | tilt/heading (1) | Castillo (0) | VQF |")
+    print(f"|{'-' * 46}|---:|---:|---:|")
+    cell = lambda e: f"{e['total']:.2f} / {e['heading']:.2f} / {e['inclination']:.2f}"
+    for r in rows + [{"trial": "**mean**", **mean}]:
+        print(f"| {r['trial']:<44} | " + " | ".join(cell(r[w]) for w in who_all) + " |")
+    worst = max(rows, key=lambda r: r["tilt_heading"]["total"] / r["vqf"]["total"])
+    ratio = worst["tilt_heading"]["total"] / worst["vqf"]["total"]
+    print(f"tilt/heading: worst ratio to VQF {ratio:.2f} ({worst['trial']}); "
+          f"replay time {sum(r['replay_s'] for r in rows):.1f} s")
+    if a.json:
+        with open(a.json, "w") as f:
+            json.dump({"trials": rows, "mean": mean}, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()
