@@ -220,25 +220,20 @@ impl TiltHeadingFilter {
         }
         let lp = self.accel_lp.update(&f, dt);
         let v = self.q_tilt * lp;
-        if v.norm() > 0.1 * GRAVITY_M_S2 {
-            let v = v.normalize();
-            let up = Vector3::new(0.0, 0.0, -1.0);
-            let axis = v.cross(&up);
-            let angle = axis.norm().atan2(v.dot(&up));
-            let phi = if axis.norm() > 1e-12 {
-                axis.normalize() * angle
-            } else {
-                Vector3::zeros()
-            };
-            self.q_tilt = UnitQuaternion::new_normalize(
-                (quat::from_rotation_vector(&phi) * self.q_tilt).into_inner(),
-            );
-            self.status.tilt_correction_rad = angle;
-            if moving {
-                // The correction as a body rate; the bias is its integral (Mahony's Ki term).
-                let body = (self.q_tilt * self.q_gyro).inverse() * phi;
-                self.learn_bias(&body, dt);
-            }
+        let up = Vector3::new(0.0, 0.0, -1.0);
+        // The shortest turn of the low-passed vector to the vertical: about a horizontal axis.
+        let correction = (v.norm() > 0.1 * GRAVITY_M_S2)
+            .then(|| UnitQuaternion::rotation_between(&v, &up))
+            .flatten();
+        if let Some(c) = correction {
+            self.q_tilt = UnitQuaternion::new_normalize((c * self.q_tilt).into_inner());
+            self.status.tilt_correction_rad = c.angle();
+        }
+        // The level frame (tilt corrected, heading unknown) from the body.
+        let level_from_body = self.q_tilt * self.q_gyro;
+        if let (Some(c), true) = (correction, moving) {
+            // The correction as a body rate; the bias is its integral (Mahony's Ki term).
+            self.learn_bias(&(level_from_body.inverse() * c.scaled_axis()), dt);
         }
 
         // Heading: the horizontal field only.
@@ -251,11 +246,11 @@ impl TiltHeadingFilter {
             } else {
                 *m
             };
-            let m_world = (self.q_tilt * self.q_gyro) * m;
-            if let Some(step) = self.heading.update(&m_world, dt) {
+            if let Some(step) = self.heading.update(&(level_from_body * m), dt) {
                 self.status.heading_error_rad = self.heading.last_error();
                 if moving && self.heading.converged() {
-                    let body = self.attitude().inverse() * Vector3::new(0.0, 0.0, step);
+                    // A turn about the vertical, the same in the level frame and in NED.
+                    let body = level_from_body.inverse() * Vector3::new(0.0, 0.0, step);
                     self.learn_bias(&body, dt);
                 }
             }
