@@ -454,4 +454,6 @@ impl AttitudeEstimator {
 }
 
 #[cfg(test)]
+mod flight_bias_tests;
+#[cfg(test)]
 mod tests;

@@ -81,6 +81,8 @@ pub struct HeadingCorrector {
     last_error: f64,
     /// The gain `dt / tau` of the last sample.
     k_nominal: f64,
+    /// The gain of the last correction.
+    last_gain: f64,
 }
 
 /// `x` wrapped to [−π, π).
@@ -102,6 +104,7 @@ impl HeadingCorrector {
             new_references: 0,
             last_error: 0.0,
             k_nominal: 0.0,
+            last_gain: 0.0,
         }
     }
 
@@ -150,6 +153,11 @@ impl HeadingCorrector {
     /// The last measured heading error (rad).
     pub fn last_error(&self) -> f64 {
         self.last_error
+    }
+
+    /// The fraction of the error the last correction took.
+    pub fn last_gain(&self) -> f64 {
+        self.last_gain
     }
 
     /// Takes the field in the level frame, `dt` seconds after the previous one. Returns the
@@ -201,6 +209,7 @@ impl HeadingCorrector {
         self.samples += 1.0;
         self.k_nominal = dt / s.tau_s;
         let k = self.k_nominal.max(1.0 / self.samples).min(1.0);
+        self.last_gain = k;
         let step = k * error;
         self.delta = wrap(self.delta + step);
         Some(step)

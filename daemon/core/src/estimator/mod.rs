@@ -1,6 +1,7 @@
 //! State estimation: attitude (q-method + nonlinear observer) and, later, translation.
 
 pub mod attitude;
+pub mod bias;
 pub mod hard_iron;
 pub mod heading;
 pub mod lowpass;

@@ -20,11 +20,13 @@
 //!   vertical (no magnet can tilt the estimate), with time constant `tau_mag`, a fast start, and
 //!   disturbance rejection (see `heading.rs`); the body-fixed part of the field is learned online
 //!   (see `hard_iron.rs`).
-//! - **Gyro bias**: at rest the mean rate (`rest.rs`), fast; in motion the integral of the tilt
-//!   and heading corrections, slowly (Mahony's integral term), so a drifting bias is tracked.
+//! - **Gyro bias**: a Kalman filter (`bias.rs`) fed at rest by the mean rate (`rest.rs`) and in
+//!   motion by the tilt and heading corrections through a model of the filters that made them,
+//!   so a drifting bias is tracked in flight.
 //!
 //! `q = q_heading ⊗ q_tilt ⊗ q_gyro`.
 
+use super::bias::{BiasEstimator, BiasSettings};
 use super::hard_iron::{HardIronEstimator, HardIronSettings};
 use super::heading::{HeadingCorrector, HeadingSettings};
 use super::lowpass::LowPass;
@@ -71,6 +73,18 @@ impl Default for TiltHeadingSettings {
     }
 }
 
+impl TiltHeadingSettings {
+    /// The bias filter's settings.
+    pub fn bias_settings(&self) -> BiasSettings {
+        BiasSettings {
+            tau_rest_s: self.bias_tau_rest_s,
+            tau_motion_s: self.bias_tau_motion_s,
+            limit_rad_s: self.bias_limit_rad_s,
+            tau_acc_s: self.tau_acc_s,
+        }
+    }
+}
+
 /// Counters of the tilt/heading filter.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct TiltHeadingStatus {
@@ -95,7 +109,7 @@ pub struct TiltHeadingFilter {
     q_gyro: UnitQuaternion<f64>,
     q_tilt: UnitQuaternion<f64>,
     heading: HeadingCorrector,
-    bias: Vector3<f64>,
+    bias: BiasEstimator,
     accel_lp: LowPass,
     rest: RestDetector,
     hard_iron: HardIronEstimator,
@@ -114,7 +128,7 @@ impl TiltHeadingFilter {
             q_gyro: UnitQuaternion::identity(),
             q_tilt: UnitQuaternion::identity(),
             heading: HeadingCorrector::new(settings.heading),
-            bias: Vector3::zeros(),
+            bias: BiasEstimator::new(settings.bias_settings()),
             accel_lp: LowPass::new(settings.tau_acc_s),
             rest: RestDetector::new(RestThresholds {
                 max_bias_rad_s: settings.bias_limit_rad_s,
@@ -138,6 +152,7 @@ impl TiltHeadingFilter {
             }
         }
         self.heading.set_settings(settings.heading);
+        self.bias.set_settings(settings.bias_settings());
         self.settings = settings;
     }
 
@@ -148,12 +163,12 @@ impl TiltHeadingFilter {
 
     /// The gyro-bias estimate (rad/s).
     pub fn bias(&self) -> Vector3<f64> {
-        self.bias
+        self.bias.bias()
     }
 
     /// Sets the gyro-bias estimate.
     pub fn set_bias(&mut self, bias: Vector3<f64>) {
-        self.bias = bias;
+        self.bias.set_bias(bias);
     }
 
     /// Starts again from `q` (the tilt and heading taken from it; the filters keep running).
@@ -162,6 +177,7 @@ impl TiltHeadingFilter {
         self.q_tilt = UnitQuaternion::identity();
         self.heading.reset_to(0.0);
         self.accel_lp.clear();
+        self.bias.restart_tilt();
         self.running_s = 0.0;
     }
 
@@ -197,20 +213,22 @@ impl TiltHeadingFilter {
     ) {
         let s = self.settings;
         // Gyro: Castillo (101), (104).
-        self.q_gyro = quat::propagate(&self.q_gyro, &(gyro - self.bias), dt);
+        let bias = self.bias.bias();
+        self.q_gyro = quat::propagate(&self.q_gyro, &(gyro - bias), dt);
+        self.bias.predict(dt);
 
         // Bias at rest: the mean rate.
         if self.rest.update(gyro, accel, mag, dt) {
             self.status.at_rest += 1;
-            let k = (dt / s.bias_tau_rest_s).min(1.0);
-            self.bias += (self.rest.mean_rate() - self.bias) * k;
+            self.bias.at_rest(&self.rest.mean_rate(), dt);
         }
-        // In motion the bias is learned from the corrections, once the filter has converged.
+        // In motion the bias is learned from the corrections, below a rate where gyro scale
+        // and axis errors drift the attitude as much as a bias would.
         self.running_s += dt;
+        // The first tau_acc seconds are the low-pass's start, not a drift.
         let moving = !self.rest.at_rest()
-            && s.bias_tau_motion_s > 0.0
             && self.running_s > s.tau_acc_s
-            && (gyro - self.bias).norm() < s.bias_max_rate_rad_s;
+            && (gyro - bias).norm() < s.bias_max_rate_rad_s;
 
         // Tilt: the specific force low-passed in the gyro frame, turned to the vertical.
         let world_from_gyro = self.heading.rotation() * self.q_tilt;
@@ -231,10 +249,12 @@ impl TiltHeadingFilter {
         }
         // The level frame (tilt corrected, heading unknown) from the body.
         let level_from_body = self.q_tilt * self.q_gyro;
-        if let (Some(c), true) = (correction, moving) {
-            // The correction as a body rate; the bias is its integral (Mahony's Ki term).
-            self.learn_bias(&(level_from_body.inverse() * c.scaled_axis()), dt);
-        }
+        self.bias.tilt(
+            &level_from_body.to_rotation_matrix(),
+            correction.map(|c| c.scaled_axis()).as_ref(),
+            moving,
+            dt,
+        );
 
         // Heading: the horizontal field only.
         self.since_mag_s += dt;
@@ -248,27 +268,9 @@ impl TiltHeadingFilter {
             };
             if let Some(step) = self.heading.update(&(level_from_body * m), dt) {
                 self.status.heading_error_rad = self.heading.last_error();
-                if moving && self.heading.converged() {
-                    // A turn about the vertical, the same in the level frame and in NED.
-                    let body = level_from_body.inverse() * Vector3::new(0.0, 0.0, step);
-                    self.learn_bias(&body, dt);
-                }
+                let k = self.heading.last_gain();
+                self.bias.heading(step, k, moving, dt);
             }
-        }
-    }
-
-    /// Integrates a correction (rad, body frame) made over `dt` into the bias. A correction
-    /// faster than any bias could drift is something else (a disturbance, a convergence) and
-    /// is left out.
-    fn learn_bias(&mut self, correction_body: &Vector3<f64>, dt: f64) {
-        let s = &self.settings;
-        if correction_body.norm() > s.bias_limit_rad_s * dt {
-            return;
-        }
-        self.bias -= correction_body / s.bias_tau_motion_s;
-        let n = self.bias.norm();
-        if n > s.bias_limit_rad_s {
-            self.bias *= s.bias_limit_rad_s / n;
         }
     }
 }

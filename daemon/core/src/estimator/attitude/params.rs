@@ -135,7 +135,7 @@ pub const ATTITUDE_META: &[ParamMeta] = &[
         default: 10.0,
         min: 0.0,
         max: 1000.0,
-        description: "Tilt/heading filter: time constant of gyro-bias learning in motion (0: only at rest)",
+        description: "Tilt/heading filter: time constant of the gyro-bias Kalman filter in motion (0: learn only at rest)",
     },
     ParamMeta {
         name: "ATT_MAG_REJ_T",
