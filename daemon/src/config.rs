@@ -144,7 +144,10 @@ impl ConfigFile {
         if let Some(s) = &c.sensors
             && sitl_core::sensors::SensorPreset::from_name(s).is_none()
         {
-            bad("sensors", format!("{s:?} is not ideal, typical or noisy"));
+            bad(
+                "sensors",
+                format!("{s:?} is not ideal, typical, noisy or realistic"),
+            );
         }
         if !violations.is_empty() {
             return Err(ConfigError::Invalid { file, violations });

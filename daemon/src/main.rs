@@ -105,7 +105,7 @@ struct Cli {
     /// Embedded simulator: seed of the simulated sensors [default: 1].
     #[arg(long)]
     seed: Option<u64>,
-    /// Embedded simulator: sensor quality, ideal, typical or noisy (as `sitl --sensors`)
+    /// Embedded simulator: sensor quality, ideal, typical, noisy or realistic (as `sitl --sensors`)
     /// [default: typical].
     #[arg(long, value_name = "PRESET")]
     sensors: Option<String>,
@@ -255,7 +255,7 @@ enum Command {
             default_value = "none,motor,gps,mag,baro,gust"
         )]
         faults: Vec<String>,
-        /// Sensor quality: ideal, typical or noisy.
+        /// Sensor quality: ideal, typical, noisy or realistic.
         #[arg(long, default_value = "typical")]
         sensors: String,
         /// The CSV written [default: batch-SEED.csv].
@@ -583,7 +583,7 @@ fn prepare(
 fn sensor_preset(cfg: &Settings) -> Result<SensorPreset> {
     SensorPreset::from_name(&cfg.sensors).with_context(|| {
         format!(
-            "--sensors must be ideal, typical or noisy, got {:?}",
+            "--sensors must be ideal, typical, noisy or realistic, got {:?}",
             cfg.sensors
         )
     })
@@ -1128,7 +1128,7 @@ fn main() -> std::process::ExitCode {
                     .collect::<Result<_>>()
                     .context("--faults")?,
                 sensors: SensorPreset::from_name(sensors).with_context(|| {
-                    format!("--sensors must be ideal, typical or noisy, got {sensors:?}")
+                    format!("--sensors must be ideal, typical, noisy or realistic, got {sensors:?}")
                 })?,
             };
             batch::run(

@@ -115,7 +115,7 @@ pub struct Cli {
     /// Seed of every random process (overrides the scenario).
     #[arg(long)]
     pub seed: Option<u64>,
-    /// Sensor preset: ideal, typical or noisy (overrides the scenario).
+    /// Sensor preset: ideal, typical, noisy or realistic (overrides the scenario).
     #[arg(long, value_name = "PRESET")]
     pub sensors: Option<String>,
     /// Who moves the rigid body: the built-in physics or JSBSim (its rate is the physics rate).
@@ -172,8 +172,9 @@ fn load_scenario(cli: &Cli) -> Result<Scenario> {
     }
     scenario.sim.home = scenario.sim.home.for_instance(cli.instance);
     if let Some(p) = &cli.sensors {
-        let preset = SensorPreset::from_name(p)
-            .with_context(|| format!("--sensors must be ideal, typical or noisy, got {p:?}"))?;
+        let preset = SensorPreset::from_name(p).with_context(|| {
+            format!("--sensors must be ideal, typical, noisy or realistic, got {p:?}")
+        })?;
         scenario.sim.sensors = SensorConfig::preset(preset);
     }
     if let Some(i) = &cli.integrator {

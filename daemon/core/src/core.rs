@@ -407,6 +407,16 @@ impl FlightCore {
         }
     }
 
+    /// The rotors' mean thrust fraction over the interval just sampled (0 when they were not
+    /// driven): what the motor currents' magnetic field scales with.
+    fn thrust_fraction(&self) -> f64 {
+        let max = self.config.position.max_thrust_n;
+        match &self.last_mix {
+            Some(m) if max > 0.0 => m.thrust_n.iter().sum::<f64>() / max,
+            _ => 0.0,
+        }
+    }
+
     /// One step: estimate, then (armed) control toward `setpoint`.
     pub fn step(&mut self, s: &SensorSample, setpoint: &Setpoint, armed: bool) -> StepOutput {
         let raw_dt = self
@@ -433,6 +443,8 @@ impl FlightCore {
                 accel: s.accel,
                 mag: s.mag,
                 accel_ned_hint: hint,
+                vel_ned_hint: before.horizontal_valid.then_some(before.vel_ned_m_s),
+                thrust_fraction: self.thrust_fraction(),
             },
             raw_dt,
         );

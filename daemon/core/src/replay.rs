@@ -133,6 +133,8 @@ impl Replay {
             accel: s.accel,
             mag: s.mag,
             accel_ned_hint: None,
+            vel_ned_hint: None,
+            thrust_fraction: 0.0,
         };
         let e = self.estimator.update(&input, dt);
         ReplayRow {

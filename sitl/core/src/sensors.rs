@@ -39,15 +39,19 @@ pub enum SensorPreset {
     Typical,
     /// A poor installation: more noise and vibration, larger biases, a distorted magnetometer.
     Noisy,
+    /// What real recordings show and the typical preset spares: a turn-on gyro bias of about
+    /// 1°/s that drifts, rotor-frequency vibration, and a magnetic field from the motor currents.
+    Realistic,
 }
 
 impl SensorPreset {
-    /// Parses `ideal`, `typical` or `noisy`.
+    /// Parses `ideal`, `typical`, `noisy` or `realistic`.
     pub fn from_name(s: &str) -> Option<Self> {
         match s {
             "ideal" => Some(Self::Ideal),
             "typical" => Some(Self::Typical),
             "noisy" => Some(Self::Noisy),
+            "realistic" => Some(Self::Realistic),
             _ => None,
         }
     }
@@ -85,6 +89,9 @@ pub struct SensorConfig {
     /// Soft-iron matrix S: `raw = S m_body + offset`. Castillo (75)'s calibration
     /// `R E Rᵀ` is `S⁻¹`.
     pub mag_soft_iron: Matrix3<f64>,
+    /// Field of the motor currents at full thrust (gauss, body frame), scaled by the mean thrust
+    /// fraction `(ω/ω_max)²`: what PX4's `CAL_MAG0_COMP` compensates.
+    pub mag_motor_field: Vector3<f64>,
     /// Barometer output rate (Hz).
     pub baro_rate_hz: f64,
     /// Barometer white noise (Pa).
@@ -131,6 +138,7 @@ impl SensorConfig {
             mag_noise: 0.003,
             mag_hard_iron: Vector3::zeros(),
             mag_soft_iron: Matrix3::identity(),
+            mag_motor_field: Vector3::zeros(),
             baro_rate_hz: 50.0,
             baro_noise_pa: 3.0,
             baro_drift_pa: 0.3,
@@ -185,6 +193,19 @@ impl SensorConfig {
                 gps_latency_s: 0.2,
                 gps_satellites: 8,
                 rpm_noise: 0.02,
+                ..typical
+            },
+            SensorPreset::Realistic => Self {
+                // BROAD's gyros: a turn-on bias of 0.5–1.5°/s, not the one seen at the last
+                // calibration, drifting by about 0.05°/s a minute.
+                gyro_bias_sigma: 0.6f64.to_radians(),
+                gyro_bias_walk: 1.0e-4,
+                // Rotor imbalance: 0.6 m/s² per rotor at hover, at the rotor frequency.
+                accel_vibration: 1.5,
+                mag_noise: 0.004,
+                // A battery lead under the board: 0.08 gauss at full thrust, about 0.03 (7 % of
+                // the Earth's field) at hover.
+                mag_motor_field: Vector3::new(0.03, -0.02, 0.07),
                 ..typical
             },
         }
@@ -401,6 +422,15 @@ fn fast_sin(x: f64) -> f64 {
     y * (1.0 + y2 * series)
 }
 
+/// The mean thrust fraction of the rotors, `(ω/ω_max)²`.
+fn thrust_fraction(t: &Truth) -> f64 {
+    let rotors = t.rotor_speed_rad_s.iter().zip(t.rotor_max_speed_rad_s);
+    let (sum, n) = rotors.fold((0.0, 0usize), |(sum, n), (&w, &max)| {
+        (sum + (w / max.max(1e-9)).powi(2), n + 1)
+    });
+    if n == 0 { 0.0 } else { sum / n as f64 }
+}
+
 fn kind_index(k: SensorKind) -> usize {
     match k {
         SensorKind::Imu => 0,
@@ -560,7 +590,10 @@ impl SensorSuite {
         if self.mag_due.due(t.time_usec) {
             match self.health[1] {
                 SensorHealth::Ok => {
-                    let body = q_inv * (self.field_ned + self.mag_disturbance_ned);
+                    let mut body = q_inv * (self.field_ned + self.mag_disturbance_ned);
+                    if c.mag_motor_field != Vector3::zeros() {
+                        body += c.mag_motor_field * thrust_fraction(t);
+                    }
                     self.last.mag_frd_gauss = c.mag_soft_iron * body
                         + c.mag_hard_iron
                         + self.mag_rng.normal3(c.mag_noise);

@@ -66,8 +66,15 @@ pub struct AttitudeInput {
     pub accel: Vector3<f64>,
     /// Raw magnetometer, FRD (any unit consistent with the calibration), if fresh.
     pub mag: Option<Vector3<f64>>,
-    /// The vehicle's acceleration in NED (m/s²), when the position estimator knows it.
+    /// The vehicle's acceleration in NED (m/s²), when the position estimator knows it
+    /// (Castillo's observer).
     pub accel_ned_hint: Option<Vector3<f64>>,
+    /// The vehicle's velocity in NED (m/s), when the position estimator knows it (the
+    /// tilt/heading filter).
+    pub vel_ned_hint: Option<Vector3<f64>>,
+    /// The rotors' mean thrust fraction `(ω/ω_max)²` (0 when unknown or disarmed): the motor
+    /// currents' field `CAL_MAG0_[XYZ]COMP` times it is taken off the calibrated field.
+    pub thrust_fraction: f64,
 }
 
 /// The estimator's output.
@@ -128,6 +135,8 @@ pub const DT_RANGE_S: (f64, f64) = (1.25e-4, 0.02);
 pub struct AttitudeEstimator {
     params: AttitudeParams,
     mag_cal: MagCalibration,
+    /// The motor currents' field at full thrust (calibrated units, body frame).
+    mag_motor_field: Vector3<f64>,
     mag_ref_ned: Vector3<f64>,
     observer: Option<AttitudeObserver>,
     align_sum: (Vector3<f64>, Vector3<f64>, Vector3<f64>, u32, u32),
@@ -150,6 +159,7 @@ impl AttitudeEstimator {
             mag_ref_ned: params.earth_field_ned(),
             params: params.clone(),
             mag_cal,
+            mag_motor_field: Vector3::from(params.mag_comp),
             observer: None,
             align_sum: (Vector3::zeros(), Vector3::zeros(), Vector3::zeros(), 0, 0),
             last_mag: None,
@@ -173,6 +183,7 @@ impl AttitudeEstimator {
             f.set_settings(params.tilt_heading_settings());
         }
         self.mag_cal = params.mag_calibration();
+        self.mag_motor_field = Vector3::from(params.mag_comp);
         self.mag_ref_ned = params.earth_field_ned();
         if let Some(o) = self.observer.as_mut() {
             o.gain = params.observer_gain;
@@ -345,7 +356,7 @@ impl AttitudeEstimator {
         let measured = match (self.last_mag, input.mag.is_some()) {
             // Correct at the magnetometer's rate, with the freshest accelerometer sample.
             (Some(m), true) => {
-                let body = self.mag_cal.apply(&m);
+                let body = self.mag_body(&m, input);
                 self.measure(&input.accel, &body, hint)
             }
             // The magnetometer is gone: the field where the estimate says it is, so the q-method
@@ -381,13 +392,18 @@ impl AttitudeEstimator {
         self.estimate(&input.gyro)
     }
 
+    /// The calibrated field less the motor currents' (PX4's `CAL_MAG_COMP_TYP` by throttle).
+    fn mag_body(&self, raw: &Vector3<f64>, input: &AttitudeInput) -> Vector3<f64> {
+        self.mag_cal.apply(raw) - self.mag_motor_field * input.thrust_fraction.clamp(0.0, 1.0)
+    }
+
     /// [`Self::update`] with the tilt/heading filter: it starts from the first samples, at rest
     /// or not, and is flown once `align_samples` samples and a magnetic heading have been taken.
     fn update_filter(&mut self, input: &AttitudeInput, dt: f64) -> Option<AttitudeEstimate> {
         let mag = input
             .mag
             .filter(|m| m.iter().all(|x| x.is_finite()))
-            .map(|m| self.mag_cal.apply(&m));
+            .map(|m| self.mag_body(&m, input));
         if mag.is_some() {
             self.since_mag_s = 0.0;
         } else {
@@ -402,8 +418,8 @@ impl AttitudeEstimator {
             self.status.realigned += 1;
         }
         let hint = input
-            .accel_ned_hint
-            .filter(|a| a.iter().all(|x| x.is_finite()));
+            .vel_ned_hint
+            .filter(|v| v.iter().all(|x| x.is_finite()));
         filter.update(&input.gyro, &input.accel, mag.as_ref(), hint.as_ref(), dt);
         // The accelerometer corrects the tilt on every sample.
         self.status.since_correction_s = 0.0;

@@ -111,6 +111,8 @@ pub struct TiltHeadingFilter {
     heading: HeadingCorrector,
     bias: BiasEstimator,
     accel_lp: LowPass,
+    /// The vehicle's NED velocity, low-passed as the specific force is.
+    vel_lp: LowPass,
     rest: RestDetector,
     hard_iron: HardIronEstimator,
     /// Time since the last magnetometer sample (s).
@@ -130,6 +132,7 @@ impl TiltHeadingFilter {
             heading: HeadingCorrector::new(settings.heading),
             bias: BiasEstimator::new(settings.bias_settings()),
             accel_lp: LowPass::new(settings.tau_acc_s),
+            vel_lp: LowPass::new(settings.tau_acc_s),
             rest: RestDetector::new(RestThresholds {
                 max_bias_rad_s: settings.bias_limit_rad_s,
                 ..RestThresholds::default()
@@ -147,6 +150,7 @@ impl TiltHeadingFilter {
             let value = self.accel_lp.value();
             let started = self.accel_lp.started();
             self.accel_lp = LowPass::new(settings.tau_acc_s);
+            self.vel_lp = LowPass::new(settings.tau_acc_s);
             if started {
                 self.accel_lp.reset_to(value);
             }
@@ -177,6 +181,7 @@ impl TiltHeadingFilter {
         self.q_tilt = UnitQuaternion::identity();
         self.heading.reset_to(0.0);
         self.accel_lp.clear();
+        self.vel_lp.clear();
         self.bias.restart_tilt();
         self.running_s = 0.0;
     }
@@ -202,13 +207,14 @@ impl TiltHeadingFilter {
     }
 
     /// One sample: gyro and specific force (FRD), the calibrated magnetic field if a new one came,
-    /// the vehicle's NED acceleration if known, after `dt` seconds. Inputs must be finite.
+    /// the vehicle's NED velocity if known (from GPS, not from this attitude), after `dt`
+    /// seconds. Inputs must be finite.
     pub fn update(
         &mut self,
         gyro: &Vector3<f64>,
         accel: &Vector3<f64>,
         mag: Option<&Vector3<f64>>,
-        accel_ned: Option<&Vector3<f64>>,
+        vel_ned: Option<&Vector3<f64>>,
         dt: f64,
     ) {
         let s = self.settings;
@@ -230,14 +236,23 @@ impl TiltHeadingFilter {
             && self.running_s > s.tau_acc_s
             && (gyro - bias).norm() < s.bias_max_rate_rad_s;
 
-        // Tilt: the specific force low-passed in the gyro frame, turned to the vertical.
-        let world_from_gyro = self.heading.rotation() * self.q_tilt;
-        let mut f = self.q_gyro * accel;
-        if let Some(a) = accel_ned {
-            f -= world_from_gyro.inverse() * a;
-        }
-        let lp = self.accel_lp.update(&f, dt);
-        let v = self.q_tilt * lp;
+        // Tilt: the specific force low-passed in the gyro frame, less the vehicle's acceleration
+        // low-passed the same way, turned to the vertical. That acceleration is the derivative of
+        // the low-passed velocity (LP(a) = d/dt LP(v)): it needs no attitude, so the correction
+        // does not chase its own estimate (an acceleration made from R̂f would).
+        let accel_lp = match vel_ned {
+            Some(vel) => {
+                let before = self.vel_lp.started().then(|| self.vel_lp.value());
+                let now = self.vel_lp.update(vel, dt);
+                before.map_or(Vector3::zeros(), |b| (now - b) / dt)
+            }
+            None => {
+                self.vel_lp.clear();
+                Vector3::zeros()
+            }
+        };
+        let lp = self.accel_lp.update(&(self.q_gyro * accel), dt);
+        let v = self.q_tilt * lp - self.heading.rotation().inverse() * accel_lp;
         let up = Vector3::new(0.0, 0.0, -1.0);
         // The shortest turn of the low-passed vector to the vertical: about a horizontal axis.
         let correction = (v.norm() > 0.1 * GRAVITY_M_S2)

@@ -14,7 +14,7 @@ const DT: f64 = 0.004;
 const STEP_AT_S: f64 = 75.0;
 
 /// A flight with no rest: rolling and pitching by up to 14° and turning at about 9°/s, on
-/// thrust alone (so it accelerates whenever it tilts; the position estimator's acceleration is
+/// thrust alone (so it accelerates whenever it tilts; the position estimator's velocity is
 /// given, as the daemon gives it).
 fn attitude_at(t: f64) -> UnitQuaternion<f64> {
     UnitQuaternion::from_euler_angles(
@@ -59,12 +59,14 @@ fn fly(params: &AttitudeParams, duration_s: f64) -> BiasRun {
     let air = isa(100.0);
     let (mut error_by_second, mut sum_sq, mut n) = (Vec::new(), 0.0, 0usize);
     let steps = (duration_s / DT).round() as usize;
+    let mut vel = Vector3::zeros();
     for k in 1..=steps {
         let t = k as f64 * DT;
         let q = attitude_at(t);
         let rate = (attitude_at(t - DT).inverse() * q).scaled_axis() / DT;
         let up = q * Vector3::new(0.0, 0.0, -1.0);
         let a_ned = up * (G / -up.z) + Vector3::new(0.0, 0.0, G);
+        vel += a_ned * DT;
         let truth = Truth {
             time_usec: (t * 1e6).round() as u64,
             pos_ned_m: Vector3::zeros(),
@@ -83,6 +85,8 @@ fn fly(params: &AttitudeParams, duration_s: f64) -> BiasRun {
             accel: f.accel_frd_m_s2,
             mag: (f.fields_updated & fields::MAG != 0).then_some(f.mag_frd_gauss),
             accel_ned_hint: Some(a_ned),
+            vel_ned_hint: Some(vel),
+            thrust_fraction: 0.0,
         };
         let Some(e) = est.update(&input, DT) else {
             continue;

@@ -53,6 +53,9 @@ pub struct AttitudeParams {
     pub mag_calibration_id: u32,
     /// Hard-iron offset (gauss), Castillo (75): `CAL_MAG0_XOFF`…`ZOFF`.
     pub mag_offset: [f64; 3],
+    /// Field of the motor currents at full thrust (gauss, body frame), taken off in proportion
+    /// to the thrust: `CAL_MAG0_XCOMP`…`ZCOMP`.
+    pub mag_comp: [f64; 3],
     /// Diagonal of the soft-iron correction `R E Rᵀ` of Castillo (75): `CAL_MAG0_XSCALE`….
     pub mag_scale: [f64; 3],
     /// Off-diagonal of the same symmetric matrix, (xy, xz, yz): `CAL_MAG0_XODIAG`…`ZODIAG`,
@@ -89,6 +92,7 @@ impl Default for AttitudeParams {
             mag_intensity_gauss: 0.48,
             mag_calibration_id: 0,
             mag_offset: [0.0; 3],
+            mag_comp: [0.0; 3],
             mag_scale: [1.0; 3],
             mag_offdiag: [0.0; 3],
         }
@@ -377,6 +381,36 @@ pub const ATTITUDE_META: &[ParamMeta] = &[
         max: 1.0,
         description: "Soft-iron correction, yz",
     },
+    ParamMeta {
+        name: "CAL_MAG0_XCOMP",
+        key: "mag_comp[0]",
+        kind: ParamKind::Real32,
+        unit: "gauss",
+        default: 0.0,
+        min: -1.0,
+        max: 1.0,
+        description: "Motor-current field at full thrust, x, taken off in proportion to the mean thrust fraction (ω/ω_max)² (PX4's throttle compensation)",
+    },
+    ParamMeta {
+        name: "CAL_MAG0_YCOMP",
+        key: "mag_comp[1]",
+        kind: ParamKind::Real32,
+        unit: "gauss",
+        default: 0.0,
+        min: -1.0,
+        max: 1.0,
+        description: "Motor-current field at full thrust, y",
+    },
+    ParamMeta {
+        name: "CAL_MAG0_ZCOMP",
+        key: "mag_comp[2]",
+        kind: ParamKind::Real32,
+        unit: "gauss",
+        default: 0.0,
+        min: -1.0,
+        max: 1.0,
+        description: "Motor-current field at full thrust, z",
+    },
 ];
 
 impl AttitudeParams {
@@ -456,6 +490,7 @@ impl AttitudeParams {
         let i: usize = i.parse().ok().filter(|&i| i < 3)?;
         let array = match name {
             "mag_offset" => &self.mag_offset,
+            "mag_comp" => &self.mag_comp,
             "mag_scale" => &self.mag_scale,
             "mag_offdiag" => &self.mag_offdiag,
             _ => return None,
@@ -468,6 +503,7 @@ impl AttitudeParams {
         let name = key.split_once('[')?.0;
         let array = match name {
             "mag_offset" => &mut self.mag_offset,
+            "mag_comp" => &mut self.mag_comp,
             "mag_scale" => &mut self.mag_scale,
             _ => &mut self.mag_offdiag,
         };

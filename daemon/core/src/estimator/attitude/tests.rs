@@ -149,6 +149,8 @@ fn fly_mag_off(
             mag: (f.fields_updated & fields::MAG != 0 && t_fly < mag_off_s)
                 .then_some(f.mag_frd_gauss),
             accel_ned_hint: with_hint.then_some(a_ned),
+            vel_ned_hint: None,
+            thrust_fraction: 0.0,
         };
         let e = est.update(&input, dt);
         if t_fly >= settle {
@@ -337,6 +339,8 @@ fn recovers_from_173_degrees(params: &AttitudeParams, within_s: f64) {
         accel: q_true.inverse() * Vector3::new(0.0, 0.0, -G),
         mag: Some(q_true.inverse() * field),
         accel_ned_hint: None,
+        vel_ned_hint: None,
+        thrust_fraction: 0.0,
     };
     let mut converged_at = None;
     for k in 1..=(within_s * 250.0) as usize + 2500 {
@@ -394,6 +398,8 @@ fn bad_samples_are_counted_not_flown() {
         accel: Vector3::new(0.0, 0.0, -G),
         mag: Some(AttitudeParams::default().earth_field_ned()),
         accel_ned_hint: None,
+        vel_ned_hint: None,
+        thrust_fraction: 0.0,
     };
     est.update(
         &AttitudeInput {
@@ -455,6 +461,8 @@ fn a_gap_in_the_samples_takes_the_next_measurement_as_it_is() {
         accel: q.inverse() * Vector3::new(0.0, 0.0, -G),
         mag: Some(q.inverse() * field),
         accel_ned_hint: None,
+        vel_ned_hint: None,
+        thrust_fraction: 0.0,
     };
     for (p, (dt, realigned)) in [("", castillo()), ("", tilt_heading())]
         .into_iter()
