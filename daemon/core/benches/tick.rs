@@ -11,6 +11,7 @@ use airframe::Airframe;
 use criterion::{Criterion, criterion_group, criterion_main};
 use flight_core::control::position::PositionSetpoint;
 use flight_core::core::{FlightCore, FlightCoreConfig};
+use flight_core::params::FlightParams;
 use nalgebra::Vector3;
 use sitl_core::BodyState;
 use sitl_core::sim::{SimConfig, Simulator};
@@ -29,13 +30,21 @@ fn airframe(name: &str) -> Airframe {
 fn tick(c: &mut Criterion) {
     let mut g = c.benchmark_group("flight_core_tick");
     for name in ["quad_x", "dodeca"] {
-        for (label, pid) in [("ladrc", false), ("pid", true)] {
+        // The rate loop and the attitude estimator (ATT_MODE 0 Castillo, 1 tilt/heading).
+        for (label, pid, mode) in [
+            ("ladrc", false, 0),
+            ("pid", true, 0),
+            ("ladrc-tilt-heading", false, 1),
+        ] {
             let a = airframe(name);
             let n = a.rotors.len();
             let mut sim =
                 Simulator::new(&a, SimConfig::default(), BodyState::default()).expect("sim");
+            let mut p = FlightParams::default();
+            p.rate.controller = pid as u32;
+            p.attitude.mode = mode;
             let mut core =
-                FlightCore::new(&a, FlightCoreConfig::for_airframe(&a, pid)).expect("mixer");
+                FlightCore::new(&a, FlightCoreConfig::from_params(&p, &a)).expect("mixer");
             let sp = flight_core::control::Setpoint::Position(PositionSetpoint {
                 pos_ned_m: Vector3::new(0.0, 0.0, -5.0),
                 vel_ned_m_s: Vector3::zeros(),
