@@ -4,9 +4,8 @@
 
 use super::*;
 use crate::params::AttitudeParams;
-use sitl_core::environment::isa;
 use sitl_core::geo::Geodetic;
-use sitl_core::sensors::{EarthField, SensorConfig, SensorPreset, SensorSuite, Truth, fields};
+use sitl_core::sensors::{EarthField, SensorConfig, SensorPreset, SensorSuite, fields};
 
 const G: f64 = crate::GRAVITY_M_S2;
 const DT: f64 = 0.004;
@@ -54,9 +53,6 @@ fn fly(params: &AttitudeParams, duration_s: f64) -> BiasRun {
         7,
     );
     let mut est = AttitudeEstimator::new(params);
-    let speeds = [520.0; 4];
-    let max = [950.0; 4];
-    let air = isa(100.0);
     let (mut error_by_second, mut sum_sq, mut n) = (Vec::new(), 0.0, 0usize);
     let steps = (duration_s / DT).round() as usize;
     let mut vel = Vector3::zeros();
@@ -67,19 +63,7 @@ fn fly(params: &AttitudeParams, duration_s: f64) -> BiasRun {
         let up = q * Vector3::new(0.0, 0.0, -1.0);
         let a_ned = up * (G / -up.z) + Vector3::new(0.0, 0.0, G);
         vel += a_ned * DT;
-        let truth = Truth {
-            time_usec: (t * 1e6).round() as u64,
-            pos_ned_m: Vector3::zeros(),
-            vel_ned_m_s: Vector3::zeros(),
-            accel_ned_m_s2: a_ned,
-            q_ned_from_frd: q,
-            rate_frd_rad_s: rate,
-            ang_accel_frd_rad_s2: Vector3::zeros(),
-            air,
-            rotor_speed_rad_s: &speeds,
-            rotor_max_speed_rad_s: &max,
-        };
-        let f = sensors.sample(&truth).clone();
+        let f = super::tests::sample_at(&mut sensors, t, q, rate, a_ned);
         let input = AttitudeInput {
             gyro: f.gyro_frd_rad_s + true_bias(t),
             accel: f.accel_frd_m_s2,

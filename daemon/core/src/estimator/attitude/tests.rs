@@ -3,7 +3,9 @@ use crate::params::AttitudeParams;
 use nalgebra::Quaternion;
 use sitl_core::environment::isa;
 use sitl_core::geo::Geodetic;
-use sitl_core::sensors::{EarthField, SensorConfig, SensorPreset, SensorSuite, Truth, fields};
+use sitl_core::sensors::{
+    EarthField, SensorConfig, SensorFrame, SensorPreset, SensorSuite, Truth, fields,
+};
 
 const G: f64 = crate::GRAVITY_M_S2;
 
@@ -113,9 +115,6 @@ fn fly_mag_off(
         seed,
     );
     let mut est = AttitudeEstimator::new(params);
-    let speeds = [520.0; 4];
-    let max = [950.0; 4];
-    let air = isa(500.0);
     let (mut sum_tilt, mut sum_yaw, mut n, mut max_err) = (0.0, 0.0, 0usize, 0.0f64);
     let (mut bias_err, mut invalid) = (0.0, 0usize);
     // Three seconds at rest first: the initial alignment.
@@ -130,19 +129,7 @@ fn fly_mag_off(
             Vector3::zeros()
         };
         let a_ned = traj.accel_ned(tt);
-        let truth = Truth {
-            time_usec: (k as f64 * dt * 1e6).round() as u64,
-            pos_ned_m: Vector3::zeros(),
-            vel_ned_m_s: Vector3::zeros(),
-            accel_ned_m_s2: a_ned,
-            q_ned_from_frd: q,
-            rate_frd_rad_s: rate,
-            ang_accel_frd_rad_s2: Vector3::zeros(),
-            air,
-            rotor_speed_rad_s: &speeds,
-            rotor_max_speed_rad_s: &max,
-        };
-        let f = sensors.sample(&truth).clone();
+        let f = sample_at(&mut sensors, k as f64 * dt, q, rate, a_ned);
         let input = AttitudeInput {
             gyro: f.gyro_frd_rad_s,
             accel: f.accel_frd_m_s2,
@@ -175,6 +162,32 @@ fn fly_mag_off(
         status: est.status(),
         invalid,
     }
+}
+
+/// The sensors sampled at `t_s` for an attitude-only flight (position and velocity zero, rotors
+/// at hover speed, air at 500 m): attitude, body rate and NED acceleration.
+pub(super) fn sample_at(
+    sensors: &mut SensorSuite,
+    t_s: f64,
+    q: UnitQuaternion<f64>,
+    rate: Vector3<f64>,
+    a_ned: Vector3<f64>,
+) -> SensorFrame {
+    let speeds = [520.0; 4];
+    let max = [950.0; 4];
+    let truth = Truth {
+        time_usec: (t_s * 1e6).round() as u64,
+        pos_ned_m: Vector3::zeros(),
+        vel_ned_m_s: Vector3::zeros(),
+        accel_ned_m_s2: a_ned,
+        q_ned_from_frd: q,
+        rate_frd_rad_s: rate,
+        ang_accel_frd_rad_s2: Vector3::zeros(),
+        air: isa(500.0),
+        rotor_speed_rad_s: &speeds,
+        rotor_max_speed_rad_s: &max,
+    };
+    sensors.sample(&truth).clone()
 }
 
 fn report(name: &str, r: &Run) {
