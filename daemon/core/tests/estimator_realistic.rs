@@ -117,16 +117,15 @@ fn fly(params: &FlightParams, seed: u64) -> Scores {
     let (mut hover_tilt, mut hover_heading, mut magnet_tilt) =
         (Rms::default(), Rms::default(), Rms::default());
     let (mut orbit_tilt, mut orbit_heading, mut bank) = (Rms::default(), Rms::default(), 0.0f64);
-    let mut magnet_heading_max = 0.0f64;
+    let (mut magnet_heading_max, mut magnet_on) = (0.0f64, false);
     let steps = (ORBIT_SCORED.1 * 1000.0) as usize / DECIMATION;
     for _ in 0..steps {
         let t = sim.time_s();
-        if (t - MAGNET.0).abs() < 1e-9 {
+        if (MAGNET.0..MAGNET.1).contains(&t) != magnet_on {
+            magnet_on = !magnet_on;
             // A magnet 10 cm away: 0.3 gauss, half again the Earth's field.
-            sim.apply(Action::MagDisturbance(Vector3::new(0.1, 0.25, 0.1)));
-        }
-        if (t - MAGNET.1).abs() < 1e-9 {
-            sim.apply(Action::MagDisturbance(Vector3::zeros()));
+            let field = Vector3::new(0.1, 0.25, 0.1) * f64::from(u8::from(magnet_on));
+            sim.apply(Action::MagDisturbance(field));
         }
         let sample = common::control_interval(&mut sim, &commands[..n]);
         let truth = sim.truth();

@@ -78,15 +78,11 @@ impl BiasEstimator {
         b
     }
 
-    /// Changes the settings, keeping the estimate and its uncertainty.
+    /// Changes the settings, keeping the estimate, its uncertainty and the drift model.
     pub fn set_settings(&mut self, settings: BiasSettings) {
-        let tau_changed = settings.tau_acc_s != self.settings.tau_acc_s;
         self.settings = settings;
-        if tau_changed {
-            self.r_x = LowPass::new(settings.tau_acc_s);
-            self.r_y = LowPass::new(settings.tau_acc_s);
-            self.r_bias = LowPass::new(settings.tau_acc_s);
-            self.restart_tilt();
+        for f in [&mut self.r_x, &mut self.r_y, &mut self.r_bias] {
+            f.set_tau_s(settings.tau_acc_s);
         }
     }
 

@@ -49,6 +49,12 @@ impl LowPass {
         self.started
     }
 
+    /// Changes the time constant, keeping the state (the next sample uses the new coefficients).
+    pub fn set_tau_s(&mut self, tau_s: f64) {
+        self.tau_s = tau_s;
+        self.dt_s = f64::NAN;
+    }
+
     /// Sets the state to a steady `value`.
     pub fn reset_to(&mut self, value: Vector3<f64>) {
         self.x = [value; 2];
@@ -125,6 +131,10 @@ mod tests {
         }
         assert!((0.4..0.9).contains(&at_tau), "{at_tau}");
         assert!((f.value() - Vector3::y()).norm() < 0.05, "{}", f.value());
+        // A new time constant keeps the state: a steady input stays where it is.
+        let steady = f.value();
+        f.set_tau_s(3.0);
+        assert!((f.update(&steady, dt) - steady).norm() < 0.05);
     }
 
     #[test]

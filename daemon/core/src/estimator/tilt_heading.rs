@@ -146,15 +146,8 @@ impl TiltHeadingFilter {
 
     /// Changes the settings, keeping the estimate, bias and learned field.
     pub fn set_settings(&mut self, settings: TiltHeadingSettings) {
-        if settings.tau_acc_s != self.settings.tau_acc_s {
-            let value = self.accel_lp.value();
-            let started = self.accel_lp.started();
-            self.accel_lp = LowPass::new(settings.tau_acc_s);
-            self.vel_lp = LowPass::new(settings.tau_acc_s);
-            if started {
-                self.accel_lp.reset_to(value);
-            }
-        }
+        self.accel_lp.set_tau_s(settings.tau_acc_s);
+        self.vel_lp.set_tau_s(settings.tau_acc_s);
         self.heading.set_settings(settings.heading);
         self.bias.set_settings(settings.bias_settings());
         self.settings = settings;
@@ -207,8 +200,8 @@ impl TiltHeadingFilter {
     }
 
     /// One sample: gyro and specific force (FRD), the calibrated magnetic field if a new one came,
-    /// the vehicle's NED velocity if known (from GPS, not from this attitude), after `dt`
-    /// seconds. Inputs must be finite.
+    /// the vehicle's NED velocity if the position estimator knows it (GPS-corrected, so not
+    /// this attitude's own acceleration), after `dt` seconds. Inputs must be finite.
     pub fn update(
         &mut self,
         gyro: &Vector3<f64>,
