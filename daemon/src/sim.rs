@@ -108,6 +108,12 @@ impl EmbeddedSim {
         self.end.sim().truth()
     }
 
+    /// The simulated accelerometer's bias now (m/s², FRD).
+    #[cfg(test)]
+    pub fn accel_bias(&self) -> nalgebra::Vector3<f64> {
+        self.end.sim().sensors().accel_bias()
+    }
+
     /// Simulated time (s).
     pub fn time_s(&self) -> f64 {
         self.end.sim().time_s()

@@ -844,6 +844,7 @@ impl Vehicle {
                     origin: e.translation.origin,
                     health: Health {
                         attitude_valid: e.attitude.is_some_and(|a| a.valid),
+                        gyro_bias_settled: e.attitude.is_some_and(|a| a.bias_settled),
                         altitude_valid: e.translation.vertical_valid,
                         roll_pitch_rad: e.attitude.map_or((0.0, 0.0), |a| {
                             let (roll, pitch, _) = a.q.euler_angles();

@@ -254,6 +254,8 @@ pub struct CommanderInput {
 pub struct Health {
     /// Attitude estimate valid.
     pub attitude_valid: bool,
+    /// The gyro bias is known well enough to take off.
+    pub gyro_bias_settled: bool,
     /// Altitude estimate valid.
     pub altitude_valid: bool,
     /// Wall-clock time since the last ground-station heartbeat (s); `None` before the first.
@@ -276,6 +278,7 @@ impl Default for Health {
     fn default() -> Self {
         Self {
             attitude_valid: true,
+            gyro_bias_settled: true,
             altitude_valid: true,
             gcs_link_age_s: None,
             battery_remaining: None,
@@ -718,6 +721,7 @@ impl Commander {
         let mut failures = crate::safety::preflight(
             &PreflightInput {
                 attitude_valid: h.attitude_valid,
+                gyro_bias_settled: h.gyro_bias_settled,
                 position_valid: i.horizontal_valid,
                 altitude_valid: h.altitude_valid,
                 mode_needs_position: self.mode.needs_position(),

@@ -445,6 +445,7 @@ impl FlightCore {
                 accel_ned_hint: hint,
                 vel_ned_hint: before.horizontal_valid.then_some(before.vel_ned_m_s),
                 thrust_fraction: self.thrust_fraction(),
+                armed,
             },
             raw_dt,
         );

@@ -135,6 +135,7 @@ impl Replay {
             accel_ned_hint: None,
             vel_ned_hint: None,
             thrust_fraction: 0.0,
+            armed: false,
         };
         let e = self.estimator.update(&input, dt);
         ReplayRow {

@@ -625,6 +625,8 @@ impl Safety {
 pub struct PreflightInput {
     /// Attitude estimate valid (converged).
     pub attitude_valid: bool,
+    /// The gyro bias is known well enough to take off.
+    pub gyro_bias_settled: bool,
     /// Horizontal position estimate valid.
     pub position_valid: bool,
     /// Altitude estimate valid.
@@ -706,6 +708,11 @@ pub fn preflight(i: &PreflightInput, p: &SafetyParams) -> Vec<PreflightFailure> 
     }
     if !i.attitude_valid {
         fail("attitude estimate not converged".into(), true);
+    } else if !i.gyro_bias_settled {
+        fail(
+            "gyro bias not settled: keep the vehicle still for 2 s".into(),
+            true,
+        );
     }
     if i.mode_needs_position && !i.position_valid {
         fail(

@@ -75,6 +75,9 @@ pub struct AttitudeInput {
     /// The rotors' mean thrust fraction `(ω/ω_max)²` (0 when unknown or disarmed): the motor
     /// currents' field `CAL_MAG0_[XYZ]COMP` times it is taken off the calibrated field.
     pub thrust_fraction: f64,
+    /// The motors are armed: the vehicle is not at rest, whatever the sensors show (the
+    /// tilt/heading filter learns the bias at rest only when disarmed).
+    pub armed: bool,
 }
 
 /// The estimator's output.
@@ -88,6 +91,10 @@ pub struct AttitudeEstimate {
     pub gyro_bias: Vector3<f64>,
     /// Whether the estimate can be flown on: aligned, and corrected recently enough.
     pub valid: bool,
+    /// Whether the gyro bias is known well enough to take off (an arming check): Castillo's
+    /// observer takes it at the alignment; the tilt/heading filter once its uncertainty is
+    /// below 0.1°/s (a rest of 1.5 s, or learning in motion).
+    pub bias_settled: bool,
 }
 
 /// Counters and health of the attitude estimator.
@@ -238,6 +245,7 @@ impl AttitudeEstimator {
                 rate: gyro - f.bias(),
                 gyro_bias: f.bias(),
                 valid: self.status.since_correction_s <= self.params.max_uncorrected_s,
+                bias_settled: f.bias_settled(),
             });
         }
         let o = self.observer.as_ref()?;
@@ -246,6 +254,7 @@ impl AttitudeEstimator {
             rate: o.rate(gyro),
             gyro_bias: o.bias,
             valid: self.status.since_correction_s <= self.params.max_uncorrected_s,
+            bias_settled: true,
         })
     }
 
@@ -420,7 +429,14 @@ impl AttitudeEstimator {
         let hint = input
             .vel_ned_hint
             .filter(|v| v.iter().all(|x| x.is_finite()));
-        filter.update(&input.gyro, &input.accel, mag.as_ref(), hint.as_ref(), dt);
+        filter.update(
+            &input.gyro,
+            &input.accel,
+            mag.as_ref(),
+            hint.as_ref(),
+            input.armed,
+            dt,
+        );
         // The accelerometer corrects the tilt on every sample.
         self.status.since_correction_s = 0.0;
         if self.since_mag_s > MAG_SILENT_S {

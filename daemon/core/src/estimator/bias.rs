@@ -131,9 +131,28 @@ impl BiasEstimator {
         }
     }
 
+    /// Noise density of the mean rate at rest (rad/s·√s): the rest time constant relative to the
+    /// motion's.
+    fn rest_sigma(&self) -> f64 {
+        SIGMA_MOTION * self.settings.tau_rest_s / self.tracking_tau_s()
+    }
+
+    /// The first rest: the mean rate over `duration_s` of stillness is the bias, with the
+    /// uncertainty of that many seconds of rest measurements.
+    pub fn take_rest_mean(&mut self, mean_rate: &Vector3<f64>, duration_s: f64) {
+        let n = mean_rate.norm();
+        self.bias = if n > self.settings.limit_rad_s {
+            mean_rate * (self.settings.limit_rad_s / n)
+        } else {
+            *mean_rate
+        };
+        let sigma = self.rest_sigma();
+        self.p = Matrix3::from_diagonal_element(sigma * sigma / duration_s.max(1e-3));
+    }
+
     /// At rest: the mean rate measures the bias directly.
     pub fn at_rest(&mut self, mean_rate: &Vector3<f64>, dt: f64) {
-        let sigma = SIGMA_MOTION * self.settings.tau_rest_s / self.tracking_tau_s();
+        let sigma = self.rest_sigma();
         let w = sigma * sigma / dt;
         for (i, h) in [Vector3::x(), Vector3::y(), Vector3::z()]
             .iter()

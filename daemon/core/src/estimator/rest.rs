@@ -51,6 +51,9 @@ pub struct RestDetector {
     anchor: (Vector3<f64>, Option<Vector3<f64>>),
     since_mag_s: f64,
     still_s: f64,
+    /// How long the gyro and accelerometer low-passes, and the magnetometer's, have run (s).
+    age_s: f64,
+    mag_age_s: f64,
 }
 
 impl RestDetector {
@@ -64,6 +67,8 @@ impl RestDetector {
             anchor: (Vector3::zeros(), None),
             since_mag_s: 0.0,
             still_s: 0.0,
+            age_s: 0.0,
+            mag_age_s: 0.0,
         }
     }
 
@@ -79,13 +84,19 @@ impl RestDetector {
         let th = self.thresholds;
         let g = self.gyro_lp.update(gyro, dt);
         let a = self.accel_lp.update(accel, dt);
+        self.age_s += dt;
         self.since_mag_s += dt;
-        let m = mag.map(|m| {
+        // A low-pass starts at its first, noisy sample: its direction is an anchor only once it
+        // has averaged over a time constant (a 0.5° mean turn is within one sample's noise).
+        let m = mag.and_then(|m| {
             let dt = std::mem::take(&mut self.since_mag_s);
-            self.mag_lp.update(m, dt)
+            self.mag_age_s += dt;
+            let m = self.mag_lp.update(m, dt);
+            (self.mag_age_s >= th.tau_s).then_some(m)
         });
         let turned = |now: &Vector3<f64>, then: &Vector3<f64>| now.angle(then) > th.max_turn_rad;
-        let mut still = (gyro - g).norm() < th.gyro_rad_s
+        let mut still = self.age_s >= th.tau_s
+            && (gyro - g).norm() < th.gyro_rad_s
             && (accel - a).norm() < th.accel_m_s2
             && g.norm() < th.max_bias_rad_s;
         if still && self.still_s > 0.0 {
@@ -97,12 +108,18 @@ impl RestDetector {
             return false;
         }
         if self.still_s == 0.0 {
-            self.anchor = (a, m.or(self.mag_lp.started().then(|| self.mag_lp.value())));
+            let settled = self.mag_age_s >= th.tau_s;
+            self.anchor = (a, m.or(settled.then(|| self.mag_lp.value())));
         } else if self.anchor.1.is_none() {
             self.anchor.1 = m;
         }
         self.still_s += dt;
         self.at_rest()
+    }
+
+    /// Whatever the signals show, the sensor is not at rest now (the stillness starts again).
+    pub fn interrupt(&mut self) {
+        self.still_s = 0.0;
     }
 
     /// Whether the sensor has been still for the minimum time.
@@ -113,6 +130,16 @@ impl RestDetector {
     /// The low-passed gyro: the bias while at rest.
     pub fn mean_rate(&self) -> Vector3<f64> {
         self.gyro_lp.value()
+    }
+
+    /// The low-passed specific force: gravity while at rest.
+    pub fn mean_accel(&self) -> Vector3<f64> {
+        self.accel_lp.value()
+    }
+
+    /// How long the sensor must be still to be at rest (s).
+    pub fn min_time_s(&self) -> f64 {
+        self.thresholds.min_time_s
     }
 }
 
@@ -127,9 +154,16 @@ mod tests {
         let g = Vector3::new(0.0, 0.0, -9.8);
         let dt = 0.004;
         let m = Vector3::new(0.2, 0.0, 0.4);
-        for i in 0..500 {
-            let at_rest = r.update(&bias, &g, Some(&m), dt);
-            assert_eq!(at_rest, (i + 1) as f64 * dt >= 1.5 - 1e-9, "sample {i}");
+        // The low-passes settle for a time constant, then the stillness must last 1.5 s.
+        let first = (0..600)
+            .find(|_| r.update(&bias, &g, Some(&m), dt))
+            .map(|i| (i + 1) as f64 * dt);
+        assert!(
+            first.is_some_and(|t| (t - 2.0).abs() <= 1.5 * dt),
+            "{first:?}"
+        );
+        for _ in 0..100 {
+            assert!(r.update(&bias, &g, Some(&m), dt));
         }
         assert!((r.mean_rate() - bias).norm() < 1e-9);
         // A slow turn at 10°/s is not rest, though it is steady.

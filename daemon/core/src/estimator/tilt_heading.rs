@@ -100,6 +100,8 @@ pub struct TiltHeadingStatus {
     pub tilt_correction_rad: f64,
     /// Angle between the last magnetic heading and the estimate (rad).
     pub heading_error_rad: f64,
+    /// Standard deviation of the gyro-bias estimate, its largest component (rad/s).
+    pub bias_sigma_rad_s: f64,
 }
 
 /// The filter.
@@ -119,8 +121,14 @@ pub struct TiltHeadingFilter {
     since_mag_s: f64,
     /// Time since the tilt started (s).
     running_s: f64,
+    /// The first rest has set the bias and restarted the tilt and heading.
+    rest_aligned: bool,
     status: TiltHeadingStatus,
 }
+
+/// The gyro bias is known well enough to take off once its standard deviation is below this
+/// (rad/s): 0.1°/s, a tilt lag of 0.3° through the 3 s accelerometer low-pass.
+pub const BIAS_SETTLED_RAD_S: f64 = 0.1 * std::f64::consts::PI / 180.0;
 
 impl TiltHeadingFilter {
     /// A filter that starts from its first samples (no rest needed).
@@ -140,6 +148,7 @@ impl TiltHeadingFilter {
             hard_iron: HardIronEstimator::new(settings.hard_iron),
             since_mag_s: 0.0,
             running_s: 0.0,
+            rest_aligned: false,
             status: TiltHeadingStatus::default(),
         }
     }
@@ -184,12 +193,34 @@ impl TiltHeadingFilter {
         self.heading.started()
     }
 
+    /// Whether the gyro bias is known well enough to take off ([`BIAS_SETTLED_RAD_S`]).
+    pub fn bias_settled(&self) -> bool {
+        self.bias.sigma() <= BIAS_SETTLED_RAD_S
+    }
+
+    /// The first rest: the mean rate becomes the bias, and the tilt and heading start again from
+    /// the mean specific force and the next magnetometer samples. What the gyro integrated
+    /// before, with the bias unknown, is dropped: through the accelerometer's 3 s low-pass a
+    /// 0.5°/s bias leaves 1.5° of tilt that would take seconds to fade, and through the tilt
+    /// 4° of heading.
+    fn align_at_rest(&mut self) {
+        self.rest_aligned = true;
+        self.bias
+            .take_rest_mean(&self.rest.mean_rate(), self.rest.min_time_s());
+        let q = self.attitude();
+        let up = Vector3::new(0.0, 0.0, -1.0);
+        let level = UnitQuaternion::rotation_between(&(q * self.rest.mean_accel()), &up)
+            .map_or(q, |c| c * q);
+        self.start_at(level);
+    }
+
     /// Counters.
     pub fn status(&self) -> TiltHeadingStatus {
         TiltHeadingStatus {
             hard_iron_fits: self.hard_iron.accepted(),
             mag_disturbed: self.heading.disturbed_samples(),
             mag_new_reference: self.heading.new_references(),
+            bias_sigma_rad_s: self.bias.sigma(),
             ..self.status
         }
     }
@@ -201,13 +232,15 @@ impl TiltHeadingFilter {
 
     /// One sample: gyro and specific force (FRD), the calibrated magnetic field if a new one came,
     /// the vehicle's NED velocity if the position estimator knows it (GPS-corrected, so not
-    /// this attitude's own acceleration), after `dt` seconds. Inputs must be finite.
+    /// this attitude's own acceleration), whether the motors are armed, after `dt` seconds.
+    /// Inputs must be finite.
     pub fn update(
         &mut self,
         gyro: &Vector3<f64>,
         accel: &Vector3<f64>,
         mag: Option<&Vector3<f64>>,
         vel_ned: Option<&Vector3<f64>>,
+        armed: bool,
         dt: f64,
     ) {
         let s = self.settings;
@@ -216,9 +249,16 @@ impl TiltHeadingFilter {
         self.q_gyro = quat::propagate(&self.q_gyro, &(gyro - bias), dt);
         self.bias.predict(dt);
 
-        // Bias at rest: the mean rate.
-        if self.rest.update(gyro, accel, mag, dt) {
+        // Bias at rest: the mean rate. Armed, the vehicle is never at rest: a hover sways slowly
+        // enough to pass for stillness, and its rate would be learned as bias.
+        let at_rest = self.rest.update(gyro, accel, mag, dt);
+        if armed {
+            self.rest.interrupt();
+        } else if at_rest {
             self.status.at_rest += 1;
+            if !self.rest_aligned {
+                self.align_at_rest();
+            }
             self.bias.at_rest(&self.rest.mean_rate(), dt);
         }
         // In motion the bias is learned from the corrections, below a rate where gyro scale

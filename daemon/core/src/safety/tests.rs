@@ -551,6 +551,7 @@ fn inconsistent_battery_levels_are_reported() {
 fn preflight_checks_each_reason_and_what_force_skips() {
     let ok = PreflightInput {
         attitude_valid: true,
+        gyro_bias_settled: true,
         position_valid: true,
         altitude_valid: true,
         mode_needs_position: true,
@@ -576,7 +577,7 @@ fn preflight_checks_each_reason_and_what_force_skips() {
     let p = SafetyParams::default();
     assert!(preflight(&ok, &p).is_empty());
     type Change = fn(&mut PreflightInput);
-    let table: [(Change, &str, bool); 15] = [
+    let table: [(Change, &str, bool); 16] = [
         (|i| i.terminated = true, "flight terminated", false),
         (|i| i.sensors_lost.imu = true, "IMU", false),
         (|i| i.motor_failed = Some(3), "motor 3 failed", false),
@@ -593,6 +594,11 @@ fn preflight_checks_each_reason_and_what_force_skips() {
             false,
         ),
         (|i| i.attitude_valid = false, "attitude", true),
+        (
+            |i| i.gyro_bias_settled = false,
+            "gyro bias not settled",
+            true,
+        ),
         (|i| i.position_valid = false, "position", true),
         (|i| i.altitude_valid = false, "altitude", true),
         (

@@ -71,6 +71,7 @@ fn fly(params: &AttitudeParams, duration_s: f64) -> BiasRun {
             accel_ned_hint: Some(a_ned),
             vel_ned_hint: Some(vel),
             thrust_fraction: 0.0,
+            armed: true,
         };
         let Some(e) = est.update(&input, DT) else {
             continue;

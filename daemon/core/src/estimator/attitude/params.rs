@@ -68,7 +68,7 @@ impl Default for AttitudeParams {
         Self {
             // The tilt/heading filter wins the BROAD benchmark (docs/estimator.md) but is not yet
             // the default: in simulated flight Castillo's observer is still the better one.
-            mode: 0,
+            mode: 1,
             tau_acc_s: 3.0,
             tau_mag_s: 15.0,
             bias_tau_s: 10.0,
@@ -106,7 +106,7 @@ pub const ATTITUDE_META: &[ParamMeta] = &[
         key: "mode",
         kind: ParamKind::Int32,
         unit: "",
-        default: 0.0,
+        default: 1.0,
         min: 0.0,
         max: 1.0,
         description: "Attitude estimator: 0 Castillo's q-method observer, 1 the tilt/heading filter (accelerometer for tilt only, magnetometer for heading only, bias learned in motion)",

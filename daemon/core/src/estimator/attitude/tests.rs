@@ -49,6 +49,10 @@ struct Run {
     yaw_rms_deg: f64,
     max_err_deg: f64,
     bias_err_deg_s: f64,
+    /// The tilt the accelerometer's bias alone leaves (deg, its whole magnitude over g): no
+    /// estimator separates it from the tilt unless the magnetometer's vector is trusted for
+    /// the tilt, as Castillo's q-method does.
+    accel_bias_floor_deg: f64,
     status: AttitudeStatus,
 }
 
@@ -68,10 +72,9 @@ fn tilt_heading() -> AttitudeParams {
     }
 }
 
-/// The estimators held to the synthetic flights' targets. The tilt/heading filter is not yet:
-/// it learns the bias slower from a short rest and corrects the heading slower (docs/estimator.md).
-fn both() -> [(&'static str, AttitudeParams); 1] {
-    [("Castillo", castillo())]
+/// Both estimators, held to the synthetic flights' targets.
+fn both() -> [(&'static str, AttitudeParams); 2] {
+    [("Castillo", castillo()), ("tilt/heading", tilt_heading())]
 }
 
 /// Flies `traj` for `duration` s with typical sensors at 250 Hz after 3 s on the ground; scores
@@ -117,6 +120,8 @@ fn fly_mag_off(
     let mut est = AttitudeEstimator::new(params);
     let (mut sum_tilt, mut sum_yaw, mut n, mut max_err) = (0.0, 0.0, 0usize, 0.0f64);
     let (mut bias_err, mut invalid) = (0.0, 0usize);
+    // The velocity the position estimator would give: the acceleration integrated.
+    let mut vel = Vector3::zeros();
     // Three seconds at rest first: the initial alignment.
     let steps = ((duration + 3.0) / dt).round() as usize;
     for k in 1..=steps {
@@ -129,6 +134,7 @@ fn fly_mag_off(
             Vector3::zeros()
         };
         let a_ned = traj.accel_ned(tt);
+        vel += a_ned * dt;
         let f = sample_at(&mut sensors, k as f64 * dt, q, rate, a_ned);
         let input = AttitudeInput {
             gyro: f.gyro_frd_rad_s,
@@ -136,8 +142,9 @@ fn fly_mag_off(
             mag: (f.fields_updated & fields::MAG != 0 && t_fly < mag_off_s)
                 .then_some(f.mag_frd_gauss),
             accel_ned_hint: with_hint.then_some(a_ned),
-            vel_ned_hint: None,
+            vel_ned_hint: with_hint.then_some(vel),
             thrust_fraction: 0.0,
+            armed: t_fly > 0.0,
         };
         let e = est.update(&input, dt);
         if t_fly >= settle {
@@ -159,6 +166,7 @@ fn fly_mag_off(
         yaw_rms_deg: (sum_yaw / n as f64).sqrt().to_degrees(),
         max_err_deg: max_err.to_degrees(),
         bias_err_deg_s: bias_err.to_degrees(),
+        accel_bias_floor_deg: (sensors.accel_bias().norm() / G).atan().to_degrees(),
         status: est.status(),
         invalid,
     }
@@ -192,8 +200,9 @@ pub(super) fn sample_at(
 
 fn report(name: &str, r: &Run) {
     println!(
-        "{name:<34} roll/pitch RMS {:.3} deg, yaw RMS {:.3} deg, max {:.2} deg, bias error {:.4} deg/s, accel deweighted {} rejected {}",
+        "{name:<34} roll/pitch RMS {:.3} deg (accelerometer-bias floor {:.3}), yaw RMS {:.3} deg, max {:.2} deg, bias error {:.4} deg/s, accel deweighted {} rejected {}",
         r.roll_pitch_rms_deg,
+        r.accel_bias_floor_deg,
         r.yaw_rms_deg,
         r.max_err_deg,
         r.bias_err_deg_s,
@@ -215,10 +224,13 @@ fn hover() -> Trajectory {
     }
 }
 
-/// Repeated 60° banks: 1 s in, 3 s held, 1 s out, 2 s level.
+/// Repeated 60° banks, to the right and then to the left: 1 s in, 3 s held, 1 s out, 2 s
+/// level. The vehicle accelerates at up to 1.7 g one way and then back, so its speed stays
+/// bounded as a real flight's does.
 fn banks() -> Trajectory {
     Trajectory {
         euler: Box::new(|t| {
+            let side = if t % 14.0 < 7.0 { 1.0 } else { -1.0 };
             let c = t % 7.0;
             let s = |x: f64| x * x * (3.0 - 2.0 * x); // smoothstep
             let frac = if c < 1.0 {
@@ -230,7 +242,7 @@ fn banks() -> Trajectory {
             } else {
                 0.0
             };
-            (60f64.to_radians() * frac, 0.0, 0.3)
+            (side * 60f64.to_radians() * frac, 0.0, 0.3)
         }),
         accelerating: true,
     }
@@ -288,6 +300,12 @@ fn hover_accuracy_and_bias() {
     }
 }
 
+/// 60° banks with the vehicle's acceleration (Castillo) or velocity (tilt/heading) known. The
+/// tilt/heading filter turns the acceleration from NED into its level frame by its heading, so a
+/// heading error ε tilts it by about ε·a/g (here a reaches 1.7 g): 0.31° where the
+/// accelerometer's bias alone leaves 0.13°. Castillo's q-method takes the tilt from the
+/// magnetometer's vector too, which in this clean field beats the accelerometer's bias (and
+/// on BROAD's magnets fails).
 #[test]
 fn sixty_degree_banks() {
     for (name, p) in both() {
@@ -296,7 +314,8 @@ fn sixty_degree_banks() {
             &format!("{name}: 60 deg banks, NED accel known"),
             &with_hint,
         );
-        assert!(with_hint.roll_pitch_rms_deg <= 0.3 && with_hint.yaw_rms_deg <= 1.5);
+        let tilt_bound = if p.mode == 1 { 0.4 } else { 0.3 };
+        assert!(with_hint.roll_pitch_rms_deg <= tilt_bound && with_hint.yaw_rms_deg <= 1.5);
     }
     // Without the acceleration, tilt in accelerated flight is not observable: up to 18° of bank
     // |f| < 1.05 g looks like gravity and pulls the estimate toward level. Gating keeps the 2 g
@@ -354,6 +373,7 @@ fn recovers_from_173_degrees(params: &AttitudeParams, within_s: f64) {
         accel_ned_hint: None,
         vel_ned_hint: None,
         thrust_fraction: 0.0,
+        armed: false,
     };
     let mut converged_at = None;
     for k in 1..=(within_s * 250.0) as usize + 2500 {
@@ -413,6 +433,7 @@ fn bad_samples_are_counted_not_flown() {
         accel_ned_hint: None,
         vel_ned_hint: None,
         thrust_fraction: 0.0,
+        armed: false,
     };
     est.update(
         &AttitudeInput {
@@ -476,6 +497,7 @@ fn a_gap_in_the_samples_takes_the_next_measurement_as_it_is() {
         accel_ned_hint: None,
         vel_ned_hint: None,
         thrust_fraction: 0.0,
+        armed: false,
     };
     for (p, (dt, realigned)) in [("", castillo()), ("", tilt_heading())]
         .into_iter()
@@ -497,5 +519,77 @@ fn a_gap_in_the_samples_takes_the_next_measurement_as_it_is() {
             (e.gyro_bias - Vector3::new(0.001, 0.0, 0.0)).norm() < 1e-6,
             "bias kept"
         );
+    }
+}
+
+/// Powered up at rest with a 0.9°/s gyro bias, tilted 6° (the tilt/heading filter): until the
+/// first rest (a time constant of the rest detector's low-pass, then 1.5 s still) the bias is
+/// unknown and arming waits (`bias_settled`); then the mean rate is the bias and the tilt and
+/// heading start again from the mean specific force and the next magnetometer samples, so
+/// nothing the unknown bias integrated before is left. The tilt is then the accelerometer's own
+/// bias over g, which no estimator can separate at rest.
+#[test]
+fn the_first_rest_takes_the_bias_and_restarts_tilt_and_heading() {
+    let q = UnitQuaternion::from_euler_angles(0.08, -0.06, 0.8);
+    let cfg = SensorConfig {
+        gyro_bias_sigma: 0.9f64.to_radians() / 3f64.sqrt(),
+        ..SensorConfig::preset(SensorPreset::Typical)
+    };
+    for seed in 1..=3 {
+        let mut sensors = SensorSuite::new(
+            cfg.clone(),
+            EarthField::default(),
+            Geodetic::default(),
+            Vector3::zeros(),
+            seed,
+        );
+        let mut est = AttitudeEstimator::new(&tilt_heading());
+        let (mut settled_at, mut before_err) = (None, 0.0f64);
+        let mut last = None;
+        for k in 1..=2500 {
+            let t = k as f64 * 0.004;
+            let f = sample_at(&mut sensors, t, q, Vector3::zeros(), Vector3::zeros());
+            let input = AttitudeInput {
+                gyro: f.gyro_frd_rad_s,
+                accel: f.accel_frd_m_s2,
+                mag: (f.fields_updated & fields::MAG != 0).then_some(f.mag_frd_gauss),
+                accel_ned_hint: None,
+                vel_ned_hint: None,
+                thrust_fraction: 0.0,
+                armed: false,
+            };
+            let Some(e) = est.update(&input, 0.004) else {
+                continue;
+            };
+            if e.bias_settled {
+                settled_at.get_or_insert(t);
+            } else {
+                before_err = before_err.max(e.q.angle_to(&q));
+            }
+            last = Some(e);
+        }
+        let e = last.expect("aligned");
+        let settled_at = settled_at.expect("settled");
+        let tilt = (e.q.inverse() * Vector3::z()).angle(&(q.inverse() * Vector3::z()));
+        // The accelerometer's bias turns the specific force it measures at rest.
+        let gravity_body = q.inverse() * Vector3::new(0.0, 0.0, -G);
+        let floor = gravity_body.angle(&(gravity_body + sensors.accel_bias()));
+        let heading = (e.q.euler_angles().2 - q.euler_angles().2).abs();
+        let bias_err = (e.gyro_bias - sensors.gyro_bias()).norm();
+        println!(
+            "seed {seed}: bias {:.2} deg/s; settled at {settled_at:.2} s (error before up to \
+             {:.2} deg); at 10 s bias error {:.3} deg/s, tilt {:.3} deg (accelerometer-bias floor \
+             {:.3}), heading {:.2} deg",
+            sensors.gyro_bias().norm().to_degrees(),
+            before_err.to_degrees(),
+            bias_err.to_degrees(),
+            tilt.to_degrees(),
+            floor.to_degrees(),
+            heading.to_degrees()
+        );
+        assert!((1.9..=3.0).contains(&settled_at), "{settled_at}");
+        assert!(bias_err.to_degrees() < 0.02);
+        assert!(tilt <= floor + 0.05f64.to_radians());
+        assert!(heading.to_degrees() < 0.5);
     }
 }
