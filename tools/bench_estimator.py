@@ -8,8 +8,13 @@ For every BROAD trial in DIR (default ../shared/benchmarks/broad beside the repo
 filter; ATT_MODE 0, Castillo's q-method observer; both with their default gains and only the
 site's magnetic field set) and VQF (PyPI `vqf`, default parameters) on the same samples, scores
 them with the benchmark's own scorer (`score.py`), and prints one table: total, heading and
-inclination RMSE per trial and the means. --json writes the figures for tests. Needs numpy and
-vqf (tests/requirements.txt).
+inclination RMSE per trial and the means.
+
+Then the replay of a log that does not start at rest: every trial is cut at 20, 40, 60 and 80 %
+of its motion and replayed from there (the tilt/heading filter, and VQF on the same cut), and the
+time each takes to converge is measured against the truth: until the inclination error stays
+within 2° (and the total error within 5°) for 5 s. --json writes the figures for tests. Needs
+numpy and vqf (tests/requirements.txt).
 """
 import argparse
 import gzip
@@ -55,6 +60,62 @@ def run_vqf(trial_csv, out_csv):
     q = quat_mul(NED_FROM_ENU, out["quat9D"])
     np.savetxt(out_csv, np.column_stack([d["t"], q]), delimiter=",", header="t,qw,qx,qy,qz",
                comments="", fmt="%.9f")
+
+
+# Where the convergence runs cut the motion, and what converged means (deg, and for how long).
+CUTS = (0.2, 0.4, 0.6, 0.8)
+CONVERGED = {"inclination": 2.0, "total": 5.0}
+HOLD_S = 5.0
+
+
+def error_angles(q_est, q_true):
+    """Total and inclination error (deg) of q_est * conj(q_true), row by row (as score.py)."""
+    w = np.sum(q_est * q_true, 1)
+    z = (-q_est[:, 0] * q_true[:, 3] + q_est[:, 3] * q_true[:, 0]
+         - q_est[:, 1] * q_true[:, 2] + q_est[:, 2] * q_true[:, 1])
+    total = np.degrees(2 * np.arccos(np.clip(np.abs(w), 0, 1)))
+    inclination = np.degrees(2 * np.arccos(np.clip(np.sqrt(w * w + z * z), 0, 1)))
+    return {"total": total, "inclination": inclination}
+
+
+def settling_time(t, err, limit):
+    """The time from which err stays within limit for HOLD_S (or to the end of the log)."""
+    start = 0
+    for i in np.flatnonzero(err > limit):
+        if t[i] - t[start] >= HOLD_S:
+            break
+        start = i + 1
+    return float(t[min(start, len(t) - 1)] - t[0])
+
+
+def convergence(autopilot, params, trial_csv, tmp):
+    """Convergence times (s) of the tilt/heading filter and VQF replaying the trial from each cut
+    of its motion: {who: {"inclination": [...], "total": [...]}}."""
+    with open(trial_csv) as f:
+        header, *lines = f.read().splitlines()
+    d = np.genfromtxt(trial_csv, delimiter=",", names=True)
+    quat = lambda x: np.stack([x[k] for k in ("qw", "qx", "qy", "qz")], 1)
+    moving = np.flatnonzero(d["movement"] == 1)
+    out = {who: {k: [] for k in CONVERGED} for who in ("tilt_heading", "vqf")}
+    for frac in CUTS:
+        cut = moving[0] + int(frac * (moving[-1] - moving[0]))
+        cut_csv = os.path.join(tmp, "cut.csv")
+        with open(cut_csv, "w") as f:
+            f.write("\n".join([header] + lines[cut:]) + "\n")
+        truth = quat(d)[cut:]
+        known = np.isfinite(truth[:, 0])
+        for who in out:
+            est_csv = os.path.join(tmp, f"cut_{who}.csv")
+            if who == "vqf":
+                run_vqf(cut_csv, est_csv)
+            else:
+                subprocess.run([autopilot, "replay", "--input", cut_csv, "--output", est_csv,
+                                "--params", params], check=True)
+            e = np.genfromtxt(est_csv, delimiter=",", names=True)
+            errors = error_angles(quat(e)[known], truth[known])
+            for k, limit in CONVERGED.items():
+                out[who][k].append(settling_time(e["t"][known], errors[k], limit))
+    return out
 
 
 def score(scorer, trial_gz, est_csv):
@@ -103,6 +164,7 @@ def main():
                 row[who] = score(scorer, trial_gz, est)
             run_vqf(trial, os.path.join(tmp, "vqf.csv"))
             row["vqf"] = score(scorer, trial_gz, os.path.join(tmp, "vqf.csv"))
+            row["convergence_s"] = convergence(a.autopilot, params["tilt_heading"], trial, tmp)
             rows.append(row)
             os.remove(trial)
             print(f"[{n}/{len(trials)}] {name[:-7]}", file=sys.stderr, flush=True)
@@ -121,9 +183,24 @@ def main():
     ratio = worst["tilt_heading"]["total"] / worst["vqf"]["total"]
     print(f"tilt/heading: worst ratio to VQF {ratio:.2f} ({worst['trial']}); "
           f"replay time {sum(r['replay_s'] for r in rows):.1f} s")
+    settle = {who: {k: [x for r in rows for x in r["convergence_s"][who][k]] for k in CONVERGED}
+              for who in ("tilt_heading", "vqf")}
+    summary = {who: {k: {"median": float(np.median(v)), "p75": float(np.percentile(v, 75)),
+                         "max": float(np.max(v))} for k, v in by.items()}
+               for who, by in settle.items()}
+    print(f"\nReplay from the middle of the motion ({len(rows)} trials cut at "
+          f"{', '.join(f'{c:.0%}' for c in CUTS)}): seconds until the inclination error stays "
+          f"within {CONVERGED['inclination']:.0f}° and the total within "
+          f"{CONVERGED['total']:.0f}° for {HOLD_S:.0f} s; median / 75th percentile / largest")
+    print("| | inclination | total |")
+    print("|---|---:|---:|")
+    for who, name in (("tilt_heading", "tilt/heading (1)"), ("vqf", "VQF")):
+        cells = [f"{summary[who][k]['median']:.1f} / {summary[who][k]['p75']:.1f} / "
+                 f"{summary[who][k]['max']:.1f}" for k in CONVERGED]
+        print(f"| {name} | " + " | ".join(cells) + " |")
     if a.json:
         with open(a.json, "w") as f:
-            json.dump({"trials": rows, "mean": mean}, f, indent=1)
+            json.dump({"trials": rows, "mean": mean, "convergence_s": summary}, f, indent=1)
 
 
 if __name__ == "__main__":

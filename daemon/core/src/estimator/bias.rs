@@ -6,8 +6,8 @@
 //! the tilt correction undoes that drift after the accelerometer's low-pass `F`, so its rate is
 //! `c ≈ −F[R e]`. With the estimate `b̂` known, `y = −c + F[R b̂] ≈ F[R] b`: a linear
 //! measurement of the true bias whose matrix `F[R]` is `R` through the same low-pass. The
-//! filters start from zero when the tilt does (the drift starts then), so the model holds from
-//! the first sample, not only in steady state.
+//! filters start when the tilt does (the drift starts then), so the model holds from the first
+//! sample, not only in steady state.
 //!
 //! Beyond VQF, the heading correction measures the vertical row the same way. The corrector
 //! takes a fraction `k` of the heading error at each accepted magnetometer sample, and the error
@@ -101,11 +101,22 @@ impl BiasEstimator {
         self.p.diagonal().max().sqrt()
     }
 
-    /// The tilt starts again (its low-pass cleared): so does its drift model.
+    /// The tilt starts again (its low-pass cleared): so does its drift model, with the same
+    /// start (the running mean for a time constant), so `F` is one operator for both.
     pub fn restart_tilt(&mut self) {
         for f in [&mut self.r_x, &mut self.r_y, &mut self.r_bias] {
-            f.reset_to(Vector3::zeros());
+            f.clear();
         }
+        self.heading_live = false;
+    }
+
+    /// The tilt starts again from a steady state (at rest, `level_from_body` holding): so does
+    /// its drift model.
+    pub fn restart_tilt_at(&mut self, level_from_body: &Rotation3<f64>) {
+        let r = level_from_body.matrix();
+        self.r_x.reset_to(r.row(0).transpose());
+        self.r_y.reset_to(r.row(1).transpose());
+        self.r_bias.reset_to(r * self.bias);
         self.heading_live = false;
     }
 

@@ -10,7 +10,9 @@
 //! clean field (as VQF does): then the heading is the gyro's. That lasts at most
 //! `max_rejection_s`, after which the field corrects again (the gyro's heading drifts without
 //! bound; a disturbance that long is more likely a changed field). A field that stays disturbed
-//! but steady for `new_reference_s` becomes the new reference (another place, a new calibration).
+//! but steady for `new_reference_s` becomes the new reference (another place, a new calibration);
+//! until the first reference has held that long it may itself be the disturbed one, so a steady
+//! other field replaces it after `new_first_reference_s`, and the heading starts again from it.
 
 use nalgebra::{UnitQuaternion, Vector3};
 use std::f64::consts::{PI, TAU};
@@ -30,6 +32,9 @@ pub struct HeadingSettings {
     pub max_rejection_s: f64,
     /// Time a disturbed but steady field takes to become the new reference (s).
     pub new_reference_s: f64,
+    /// The same while the first reference is unconfirmed (s): the field at the start may be the
+    /// disturbed one (VQF's `magNewFirstTime`).
+    pub new_first_reference_s: f64,
     /// Time constant of the reference's learning from the clean field (s).
     pub reference_tau_s: f64,
 }
@@ -43,6 +48,7 @@ impl Default for HeadingSettings {
             dip_tolerance_rad: 10f64.to_radians(),
             max_rejection_s: 60.0,
             new_reference_s: 20.0,
+            new_first_reference_s: 5.0,
             reference_tau_s: 20.0,
         }
     }
@@ -74,6 +80,8 @@ pub struct HeadingCorrector {
     delta: f64,
     samples: f64,
     reference: Option<FieldShape>,
+    /// Time the reference has held (s); it is confirmed once that reaches `new_reference_s`.
+    reference_held_s: f64,
     candidate: Option<(FieldShape, f64)>,
     disturbed_s: f64,
     disturbed_samples: u64,
@@ -98,6 +106,7 @@ impl HeadingCorrector {
             delta: 0.0,
             samples: 0.0,
             reference: None,
+            reference_held_s: 0.0,
             candidate: None,
             disturbed_s: 0.0,
             disturbed_samples: 0,
@@ -182,18 +191,29 @@ impl HeadingCorrector {
             self.samples = 1.0;
             return None;
         };
+        let confirmed = self.reference_held_s >= s.new_reference_s;
         if shape.differs(reference, &s) {
             self.disturbed_samples += 1;
             self.disturbed_s += dt;
+            let new_after_s = if confirmed {
+                s.new_reference_s
+            } else {
+                s.new_first_reference_s
+            };
             match self.candidate.as_mut() {
                 Some((c, steady_s)) if !shape.differs(c, &s) => {
                     c.approach(&shape, (dt / s.reference_tau_s).min(1.0));
                     *steady_s += dt;
-                    if *steady_s >= s.new_reference_s {
+                    if *steady_s >= new_after_s {
                         *reference = *c;
                         self.candidate = None;
                         self.new_references += 1;
                         self.disturbed_s = 0.0;
+                        self.reference_held_s = 0.0;
+                        if !confirmed {
+                            // The start was in a disturbed field: the heading starts again.
+                            self.samples = 0.0;
+                        }
                     }
                 }
                 _ => self.candidate = Some((shape, 0.0)),
@@ -204,6 +224,7 @@ impl HeadingCorrector {
         } else {
             self.disturbed_s = 0.0;
             self.candidate = None;
+            self.reference_held_s += dt;
             reference.approach(&shape, (dt / s.reference_tau_s).min(1.0));
         }
         self.samples += 1.0;
@@ -234,7 +255,8 @@ mod tests {
         let s = HeadingSettings::default();
         let mut c = HeadingCorrector::new(s);
         let dt = 0.01;
-        for _ in 0..100 {
+        // 20 s of a clean field confirm it as the reference.
+        for _ in 0..2100 {
             c.update(&field(1.0), dt);
         }
         assert!((c.delta - 1.0).abs() < 1e-9, "{}", c.delta);
@@ -246,11 +268,34 @@ mod tests {
         assert!((c.delta - 1.0).abs() < 1e-9);
         assert_eq!(c.disturbed_samples(), 1500);
         // A field that stays disturbed but steady becomes the reference (at 20 s): the heading
-        // follows it from then on.
-        for _ in 0..(40.0 / dt) as usize {
+        // follows it from then on, with its time constant (15 s).
+        for _ in 0..(80.0 / dt) as usize {
             c.update(&magnet, dt);
         }
         assert_eq!(c.new_references(), 1);
         assert!((c.delta - 2.0).abs() < 0.05, "{}", c.delta);
+    }
+
+    /// A start in a disturbed field: the first reference is the magnet's, unconfirmed, so the
+    /// clean field that follows replaces it after 5 s (not 20 s), and the heading starts again
+    /// from it at once.
+    #[test]
+    fn a_disturbed_start_is_replaced_by_the_clean_field_after_five_seconds() {
+        let mut c = HeadingCorrector::new(HeadingSettings::default());
+        let dt = 0.01;
+        for _ in 0..300 {
+            c.update(&(field(2.0) * 1.5), dt);
+        }
+        assert!((c.delta - 2.0).abs() < 1e-9);
+        let mut replaced_at = None;
+        for k in 1..=1000 {
+            c.update(&field(1.0), dt);
+            if replaced_at.is_none() && c.new_references() == 1 {
+                replaced_at = Some(k as f64 * dt);
+            }
+        }
+        let t = replaced_at.expect("replaced");
+        assert!((t - 5.0).abs() < 0.05, "{t}");
+        assert!((c.delta - 1.0).abs() < 1e-9, "{}", c.delta);
     }
 }

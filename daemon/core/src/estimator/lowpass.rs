@@ -3,8 +3,10 @@
 //!
 //! The cut-off is `f_c = √2 / (2π τ)`, so a step settles in about `τ` (the convention of VQF,
 //! Laidig & Seel 2023). The coefficients come from the bilinear transform with pre-warping and are
-//! recomputed only when the sample interval changes by more than 1 %. The first sample fills the
-//! state (no start-up transient from zero).
+//! recomputed only when the sample interval changes by more than 1 %. As VQF's filters do, it
+//! starts with the running mean of its inputs for the first `τ` seconds and then fills the state
+//! with that mean: no start-up transient from zero, and no dependence on one first sample (a
+//! single accelerated or vibrating sample would otherwise stay in the output for seconds).
 
 use nalgebra::Vector3;
 
@@ -18,6 +20,8 @@ pub struct LowPass {
     x: [Vector3<f64>; 2],
     y: [Vector3<f64>; 2],
     started: bool,
+    /// While starting: the sum of the inputs, their count and the time they span (s).
+    start: Option<(Vector3<f64>, f64, f64)>,
 }
 
 impl LowPass {
@@ -31,6 +35,7 @@ impl LowPass {
             x: [Vector3::zeros(); 2],
             y: [Vector3::zeros(); 2],
             started: false,
+            start: None,
         }
     }
 
@@ -55,16 +60,18 @@ impl LowPass {
         self.dt_s = f64::NAN;
     }
 
-    /// Sets the state to a steady `value`.
+    /// Sets the state to a steady `value` (no start: it filters from the next sample).
     pub fn reset_to(&mut self, value: Vector3<f64>) {
         self.x = [value; 2];
         self.y = [value; 2];
         self.started = true;
+        self.start = None;
     }
 
-    /// Forgets the state: the next sample starts it again.
+    /// Forgets the state: the next sample starts it again (the running mean for `τ`).
     pub fn clear(&mut self) {
         self.started = false;
+        self.start = None;
         self.y = [Vector3::zeros(); 2];
     }
 
@@ -93,8 +100,20 @@ impl LowPass {
     /// Filters one sample taken `dt` seconds after the previous one.
     pub fn update(&mut self, x: &Vector3<f64>, dt: f64) -> Vector3<f64> {
         if !self.started {
-            self.reset_to(*x);
-            return *x;
+            self.started = true;
+            self.start = Some((Vector3::zeros(), 0.0, 0.0));
+        }
+        if let Some((sum, n, spanned_s)) = self.start.as_mut() {
+            *sum += x;
+            *n += 1.0;
+            *spanned_s += dt;
+            let (mean, done) = (*sum / *n, *spanned_s >= self.tau_s);
+            if done {
+                self.reset_to(mean);
+            } else {
+                self.y = [mean; 2];
+            }
+            return mean;
         }
         self.coefficients(dt);
         let y = x * self.b[0] + self.x[0] * self.b[1] + self.x[1] * self.b[2]
@@ -135,6 +154,33 @@ mod tests {
         let steady = f.value();
         f.set_tau_s(3.0);
         assert!((f.update(&steady, dt) - steady).norm() < 0.05);
+    }
+
+    /// For its first τ the output is the mean of the inputs so far, then the filter goes on
+    /// from that mean: one odd first sample does not linger.
+    #[test]
+    fn starts_with_the_running_mean_for_a_time_constant() {
+        let mut f = LowPass::new(1.0);
+        let dt = 0.01;
+        assert_eq!(f.update(&(Vector3::x() * 100.0), dt), Vector3::x() * 100.0);
+        for k in 2..=99 {
+            let y = f.update(&Vector3::x(), dt);
+            assert!(
+                (y.x - (100.0 + (k - 1) as f64) / k as f64).abs() < 1e-9,
+                "{k}: {y}"
+            );
+        }
+        // Past τ it filters from that mean (2), not from the first sample (100): by 4τ the odd
+        // sample is gone.
+        for _ in 0..300 {
+            f.update(&Vector3::x(), dt);
+        }
+        assert!((f.value() - Vector3::x()).norm() < 0.05, "{}", f.value());
+        // Cleared, it starts again; reset, it filters from a steady state at once.
+        f.clear();
+        assert_eq!(f.update(&Vector3::y(), dt), Vector3::y());
+        f.reset_to(Vector3::zeros());
+        assert!(f.update(&Vector3::y(), dt).norm() < 0.01);
     }
 
     #[test]

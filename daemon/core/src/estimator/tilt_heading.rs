@@ -113,8 +113,10 @@ pub struct TiltHeadingFilter {
     heading: HeadingCorrector,
     bias: BiasEstimator,
     accel_lp: LowPass,
-    /// The vehicle's NED velocity, low-passed as the specific force is.
-    vel_lp: LowPass,
+    /// The vehicle's NED acceleration from its velocity's differences, low-passed as the
+    /// specific force is, and the last velocity.
+    vel_accel_lp: LowPass,
+    last_vel: Option<Vector3<f64>>,
     rest: RestDetector,
     hard_iron: HardIronEstimator,
     /// Time since the last magnetometer sample (s).
@@ -140,7 +142,8 @@ impl TiltHeadingFilter {
             heading: HeadingCorrector::new(settings.heading),
             bias: BiasEstimator::new(settings.bias_settings()),
             accel_lp: LowPass::new(settings.tau_acc_s),
-            vel_lp: LowPass::new(settings.tau_acc_s),
+            vel_accel_lp: LowPass::new(settings.tau_acc_s),
+            last_vel: None,
             rest: RestDetector::new(RestThresholds {
                 max_bias_rad_s: settings.bias_limit_rad_s,
                 ..RestThresholds::default()
@@ -156,7 +159,7 @@ impl TiltHeadingFilter {
     /// Changes the settings, keeping the estimate, bias and learned field.
     pub fn set_settings(&mut self, settings: TiltHeadingSettings) {
         self.accel_lp.set_tau_s(settings.tau_acc_s);
-        self.vel_lp.set_tau_s(settings.tau_acc_s);
+        self.vel_accel_lp.set_tau_s(settings.tau_acc_s);
         self.heading.set_settings(settings.heading);
         self.bias.set_settings(settings.bias_settings());
         self.settings = settings;
@@ -183,7 +186,8 @@ impl TiltHeadingFilter {
         self.q_tilt = UnitQuaternion::identity();
         self.heading.reset_to(0.0);
         self.accel_lp.clear();
-        self.vel_lp.clear();
+        self.vel_accel_lp.clear();
+        self.last_vel = None;
         self.bias.restart_tilt();
         self.running_s = 0.0;
     }
@@ -209,9 +213,14 @@ impl TiltHeadingFilter {
             .take_rest_mean(&self.rest.mean_rate(), self.rest.min_time_s());
         let q = self.attitude();
         let up = Vector3::new(0.0, 0.0, -1.0);
-        let level = UnitQuaternion::rotation_between(&(q * self.rest.mean_accel()), &up)
-            .map_or(q, |c| c * q);
+        let mean_accel = self.rest.mean_accel();
+        let level = UnitQuaternion::rotation_between(&(q * mean_accel), &up).map_or(q, |c| c * q);
         self.start_at(level);
+        // Still at rest: the low-passes start steady at the rest's values, not from the samples
+        // to come (the take-off may be among them).
+        self.accel_lp.reset_to(self.q_gyro * mean_accel);
+        self.vel_accel_lp.reset_to(Vector3::zeros());
+        self.bias.restart_tilt_at(&self.q_gyro.to_rotation_matrix());
     }
 
     /// Counters.
@@ -266,21 +275,24 @@ impl TiltHeadingFilter {
         self.running_s += dt;
         // The first tau_acc seconds are the low-pass's start, not a drift.
         let moving = !self.rest.at_rest()
-            && self.running_s > s.tau_acc_s
+            && self.running_s > 2.0 * s.tau_acc_s
             && (gyro - bias).norm() < s.bias_max_rate_rad_s;
 
         // Tilt: the specific force low-passed in the gyro frame, less the vehicle's acceleration
-        // low-passed the same way, turned to the vertical. That acceleration is the derivative of
-        // the low-passed velocity (LP(a) = d/dt LP(v)): it needs no attitude, so the correction
-        // does not chase its own estimate (an acceleration made from R̂f would).
+        // low-passed the same way, turned to the vertical. That acceleration is the velocity's
+        // difference over the step (LP(Δv/Δt) = d/dt LP(v)): it needs no attitude, so the
+        // correction does not chase its own estimate (an acceleration made from R̂f would).
         let accel_lp = match vel_ned {
             Some(vel) => {
-                let before = self.vel_lp.started().then(|| self.vel_lp.value());
-                let now = self.vel_lp.update(vel, dt);
-                before.map_or(Vector3::zeros(), |b| (now - b) / dt)
+                let a = self
+                    .last_vel
+                    .map_or(Vector3::zeros(), |last| (vel - last) / dt);
+                self.last_vel = Some(*vel);
+                self.vel_accel_lp.update(&a, dt)
             }
             None => {
-                self.vel_lp.clear();
+                self.vel_accel_lp.clear();
+                self.last_vel = None;
                 Vector3::zeros()
             }
         };
