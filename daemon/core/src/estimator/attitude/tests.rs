@@ -302,7 +302,7 @@ fn hover_accuracy_and_bias() {
 
 /// 60° banks with the vehicle's acceleration (Castillo) or velocity (tilt/heading) known. The
 /// tilt/heading filter turns the acceleration from NED into its level frame by its heading, so a
-/// heading error ε tilts it by about ε·a/g (here a reaches 1.7 g): 0.31° where the
+/// heading error ε tilts it by about ε·a/g (here a reaches 1.7 g): 0.28° where the
 /// accelerometer's bias alone leaves 0.13°. Castillo's q-method takes the tilt from the
 /// magnetometer's vector too, which in this clean field beats the accelerometer's bias (and
 /// on BROAD's magnets fails).
