@@ -273,7 +273,8 @@ impl TiltHeadingFilter {
         // In motion the bias is learned from the corrections, below a rate where gyro scale
         // and axis errors drift the attitude as much as a bias would.
         self.running_s += dt;
-        // The first tau_acc seconds are the low-pass's start, not a drift.
+        // The first two time constants are the low-pass's start and the tilt's convergence (from
+        // a start in motion), not a drift.
         let moving = !self.rest.at_rest()
             && self.running_s > 2.0 * s.tau_acc_s
             && (gyro - bias).norm() < s.bias_max_rate_rad_s;
