@@ -100,8 +100,6 @@ pub struct TiltHeadingStatus {
     pub tilt_correction_rad: f64,
     /// Angle between the last magnetic heading and the estimate (rad).
     pub heading_error_rad: f64,
-    /// Standard deviation of the gyro-bias estimate, its largest component (rad/s).
-    pub bias_sigma_rad_s: f64,
 }
 
 /// The filter.
@@ -229,7 +227,6 @@ impl TiltHeadingFilter {
             hard_iron_fits: self.hard_iron.accepted(),
             mag_disturbed: self.heading.disturbed_samples(),
             mag_new_reference: self.heading.new_references(),
-            bias_sigma_rad_s: self.bias.sigma(),
             ..self.status
         }
     }
