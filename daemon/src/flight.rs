@@ -77,7 +77,7 @@ pub struct Telemetry {
     /// Battery voltage (V).
     pub battery_v: f64,
     /// The battery estimate (voltage, current, charge left).
-    pub battery: flight_core::battery::BatteryState,
+    pub battery: flight_core::sensors::battery::BatteryState,
     /// Sensor frames stepped.
     pub frames: u64,
     /// The deadline loop's timing over the last interval (none in lockstep).
@@ -89,7 +89,7 @@ pub struct Telemetry {
     /// Times the sensor source started again from an earlier time (the vehicle with it).
     pub source_restarts: u32,
     /// The magnetometer calibration under way, or the last one.
-    pub mag_cal: Option<flight_core::mag_calibrator::MagCalStatus>,
+    pub mag_cal: Option<flight_core::sensors::mag_calibrator::MagCalStatus>,
 }
 
 /// The control loop's side of its channels.

@@ -6,8 +6,8 @@
 //! format. The vehicle must have been turned through every orientation while it was recorded.
 
 use anyhow::{Context, Result, bail};
-use flight_core::mag_fit::{Ellipsoid, fit_ellipsoid};
 use flight_core::params::FlightParams;
+use flight_core::sensors::mag_fit::{Ellipsoid, fit_ellipsoid};
 use nalgebra::Vector3;
 use std::io::{BufRead, BufReader};
 use std::path::Path;
@@ -138,7 +138,7 @@ pub fn run(input: &Path, params: Option<&Path>, device_id: Option<u32>) -> Resul
         "calibrate-mag: {} samples, {} of {} directions covered, fit residual {:.2} % of the field",
         samples.len(),
         fit.coverage,
-        flight_core::mag_fit::COVERAGE_DIRECTIONS,
+        flight_core::sensors::mag_fit::COVERAGE_DIRECTIONS,
         100.0 * fit.residual_rms
     );
     println!(

@@ -1,8 +1,8 @@
 //! `autopilot replay`: CSV in, attitude estimate CSV out.
 
 use anyhow::{Context, Result, bail};
+use flight_core::estimator::replay::{Replay, ReplaySample};
 use flight_core::params::FlightParams;
-use flight_core::replay::{Replay, ReplaySample};
 use nalgebra::Vector3;
 use std::io::{BufRead, BufReader, BufWriter, Write};
 use std::path::Path;
@@ -91,7 +91,7 @@ pub fn run(input: &Path, output: &Path, params: Option<&Path>) -> Result<()> {
     Ok(())
 }
 
-fn write_row(out: &mut impl Write, r: &flight_core::replay::ReplayRow) -> Result<()> {
+fn write_row(out: &mut impl Write, r: &flight_core::estimator::replay::ReplayRow) -> Result<()> {
     let b = r.gyro_bias;
     match r.q {
         Some(q) => writeln!(

@@ -3,7 +3,6 @@
 
 use crate::failure_injection::{FailureInjector, Injection, Refusal};
 use anyhow::{Context, Result};
-use flight_core::battery::{BatteryConfig, BatteryEstimator, BatteryState};
 use flight_core::commander::{
     Commander, CommanderInput, CommanderStatus, Denial, FlightMode, Health, LandedState,
     OffboardTarget, Sticks,
@@ -12,14 +11,15 @@ use flight_core::control::Setpoint;
 use flight_core::control::position::PositionSetpoint;
 use flight_core::core::{FlightCore, FlightCoreConfig, SensorSample, StepOutput};
 use flight_core::estimator::translation::GpsMeasurement;
-use flight_core::failsafe::{BlindDescent, HoverCommands};
-use flight_core::geo::{LatLonAlt, LocalFrame};
-use flight_core::geofence::{FenceMonitor, GeoZone, Geofence};
-use flight_core::mag_calibrator::{MagCalState, MagCalStatus, MagCalibrator};
-use flight_core::mag_check::MagFieldMonitor;
+use flight_core::math::geo::{LatLonAlt, LocalFrame};
 use flight_core::mission::{MissionItem, MissionPoint, SpeedChange};
 use flight_core::params::FlightParams;
-use flight_core::sensor_monitor::SensorMonitor;
+use flight_core::safety::blind_descent::{BlindDescent, HoverCommands};
+use flight_core::safety::geofence::{FenceMonitor, GeoZone, Geofence};
+use flight_core::sensors::battery::{BatteryConfig, BatteryEstimator, BatteryState};
+use flight_core::sensors::mag_calibrator::{MagCalState, MagCalStatus, MagCalibrator};
+use flight_core::sensors::mag_check::MagFieldMonitor;
+use flight_core::sensors::monitor::SensorMonitor;
 use hil::SensorUpdate;
 use mavlink::dialects::common::MavMessage;
 use nalgebra::Vector3;

@@ -31,15 +31,16 @@
 //!
 //! Failsafes (link, battery, geofence, crash, estimator and sensors) are decided by the
 //! [`crate::safety`] state machine on every update and carried out here (Hold, Return, Land,
-//! Descend, disarm); arming asks its [`crate::safety::preflight`] checks.
+//! Descend, disarm); arming asks its [`crate::safety::preflight::preflight`] checks.
 
 use crate::control::position::PositionSetpoint;
 use crate::control::{AttitudeTarget, Setpoint};
-use crate::geo::LatLonAlt;
+use crate::math::geo::LatLonAlt;
 use crate::mission::MissionStatus;
-use crate::safety::{
-    Action, Condition, PreflightInput, Safety, SafetyEvent, SafetyInput, SafetyParams, SensorsLost,
+use crate::safety::failsafe::{
+    Action, Condition, Safety, SafetyEvent, SafetyInput, SafetyParams, SensorsLost,
 };
+use crate::safety::preflight::PreflightInput;
 use mission::{MissionRun, Stage};
 use nalgebra::{UnitQuaternion, Vector2, Vector3};
 use std::f64::consts::{PI, TAU};
@@ -271,7 +272,7 @@ pub struct Health {
     /// A motor marked failed (1-based), if any.
     pub motor_failed: Option<usize>,
     /// The magnetometer's calibration and the field it measures.
-    pub mag: crate::mag_check::MagStatus,
+    pub mag: crate::sensors::mag_check::MagStatus,
 }
 
 impl Default for Health {
@@ -286,7 +287,7 @@ impl Default for Health {
             sensors_lost: SensorsLost::default(),
             roll_pitch_rad: (0.0, 0.0),
             motor_failed: None,
-            mag: crate::mag_check::MagStatus::default(),
+            mag: crate::sensors::mag_check::MagStatus::default(),
         }
     }
 }
@@ -339,7 +340,7 @@ pub struct CommanderStatus {
     /// Disarmed and every arming check passes (`SYS_STATUS`'s pre-arm bit).
     pub prearm_ok: bool,
     /// The failsafe machine's events, numbered: each to be said once.
-    pub safety_log: crate::safety::SafetyLog,
+    pub safety_log: crate::safety::failsafe::SafetyLog,
 }
 
 /// A straight-line set-point profile from `from` to `to`: speed ramps up at `accel`, cruises
@@ -475,7 +476,7 @@ pub struct Commander {
     /// What it said since the caller last asked.
     safety_events: Vec<SafetyEvent>,
     /// What it said, numbered, for readers of [`Commander::status`].
-    safety_log: crate::safety::SafetyLog,
+    safety_log: crate::safety::failsafe::SafetyLog,
 }
 
 impl Commander {
@@ -513,7 +514,7 @@ impl Commander {
             failsafe: (Action::None, None),
             prearm_ok: false,
             safety_events: Vec::new(),
-            safety_log: crate::safety::SafetyLog::default(),
+            safety_log: crate::safety::failsafe::SafetyLog::default(),
         }
     }
 
@@ -716,9 +717,12 @@ impl Commander {
     }
 
     /// The arming checks that fail now (whatever the mode asks for besides).
-    fn preflight_failures(&self, i: &CommanderInput) -> Vec<crate::safety::PreflightFailure> {
+    fn preflight_failures(
+        &self,
+        i: &CommanderInput,
+    ) -> Vec<crate::safety::preflight::PreflightFailure> {
         let h = i.health;
-        let mut failures = crate::safety::preflight(
+        let mut failures = crate::safety::preflight::preflight(
             &PreflightInput {
                 attitude_valid: h.attitude_valid,
                 gyro_bias_settled: h.gyro_bias_settled,
@@ -738,7 +742,7 @@ impl Commander {
         );
         if !i.ready && self.mode.needs_position() && failures.is_empty() {
             // The caller's verdict on the estimate, when its parts are not known here.
-            failures.push(crate::safety::PreflightFailure {
+            failures.push(crate::safety::preflight::PreflightFailure {
                 text: "estimator not ready (attitude or position invalid)".into(),
                 skippable: true,
             });
@@ -869,7 +873,7 @@ impl Commander {
 
     /// The estimate is lost (sensors stopped, or it is unfit to fly on): on the ground the motors
     /// stop; in the air the vehicle descends (what flies it until they return is the caller's:
-    /// see [`crate::failsafe::BlindDescent`]). Returns whether it is in the air.
+    /// see [`crate::safety::blind_descent::BlindDescent`]). Returns whether it is in the air.
     pub fn sensors_stopped(&mut self) -> bool {
         if !self.armed {
             return false;

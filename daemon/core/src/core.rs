@@ -14,8 +14,10 @@ use crate::estimator::translation::{
     GpsMeasurement, TranslationEstimate, TranslationEstimator, TranslationParams,
 };
 use crate::mixer::{Mixer, MixerError, MixerInput, MixerOutput, WrenchRequest};
-use crate::motor_failure::{DetectorInput, MotorFailure, MotorFailureDetector, MotorFailureParams};
 use crate::params::{AttitudeParams, FlightParams};
+use crate::safety::motor_failure::{
+    DetectorInput, MotorFailure, MotorFailureDetector, MotorFailureParams,
+};
 use airframe::{Airframe, MAX_ROTORS};
 use nalgebra::Vector3;
 

@@ -6,7 +6,7 @@
 //! The MAVLink side (the upload and download protocol, which commands and frames are accepted)
 //! is the daemon's; the commander's Mission mode flies a `Vec<MissionItem>`.
 
-use crate::geo::{LatLonAlt, LocalFrame};
+use crate::math::geo::{LatLonAlt, LocalFrame};
 use nalgebra::Vector3;
 
 /// An altitude as a mission item gives it.

@@ -143,7 +143,6 @@ macro_rules! param_group_impl {
 }
 pub(crate) use param_group_impl as param_group;
 
-pub use crate::battery::{BATTERY_META, BatteryGroup};
 pub use crate::commander::{COMMANDER_META, CommanderParams};
 pub use crate::control::attitude::{ATTITUDE_CONTROL_META, AttitudeControlGroup};
 pub use crate::control::motor::{MOTOR_META, MotorGroup};
@@ -151,7 +150,8 @@ pub use crate::control::position::{POSITION_META, PositionGroup};
 pub use crate::control::rate::{RATE_META, RateGroup};
 pub use crate::estimator::attitude::{ATTITUDE_META, AttitudeParams};
 pub use crate::estimator::translation::{TRANSLATION_META, TranslationGroup};
-pub use crate::safety::{SAFETY_META, SafetyParams};
+pub use crate::safety::failsafe::{SAFETY_META, SafetyParams};
+pub use crate::sensors::battery::{BATTERY_META, BatteryGroup};
 
 /// Each group's title in the parameter reference, in [`FlightParams::metadata`]'s order.
 const GROUP_TITLES: [(&str, &str); 9] = [

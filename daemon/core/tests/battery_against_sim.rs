@@ -6,7 +6,7 @@
 #![allow(clippy::unwrap_used)]
 
 use airframe::Airframe;
-use flight_core::battery::{BatteryConfig, BatteryEstimator, BatteryGroup};
+use flight_core::sensors::battery::{BatteryConfig, BatteryEstimator, BatteryGroup};
 use sitl_core::powertrain::Battery;
 use std::path::PathBuf;
 

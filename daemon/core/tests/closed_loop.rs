@@ -527,7 +527,7 @@ fn attitude_and_rate_targets_are_flown_without_the_position_loop() {
 #[test]
 fn mission_legs_at_5_m_s_track_the_straight_line() {
     use flight_core::commander::{Commander, CommanderParams, FlightMode};
-    use flight_core::geo::LocalFrame;
+    use flight_core::math::geo::LocalFrame;
     use flight_core::mission::{MissionAltitude, MissionItem, MissionPoint, MissionState};
     use sitl_core::environment::WindConfig;
     let corners = [

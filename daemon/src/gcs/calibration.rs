@@ -10,7 +10,7 @@
 
 use super::{Action, GroundStation, Outbox};
 use crate::flight::Telemetry;
-use flight_core::mag_calibrator::{MagCalFailure, MagCalResult, MagCalState};
+use flight_core::sensors::mag_calibrator::{MagCalFailure, MagCalResult, MagCalState};
 use mavlink::dialects::common::*;
 
 /// The calibration protocol's version in its start message (QGroundControl checks it).
@@ -164,7 +164,7 @@ mod tests {
     use super::super::{Outgoing, VehicleCommand};
     use super::*;
     use flight_core::commander::FlightMode;
-    use flight_core::mag_calibrator::MagCalStatus as Progress;
+    use flight_core::sensors::mag_calibrator::MagCalStatus as Progress;
     use nalgebra::{Matrix3, Vector3};
 
     fn command(g: &mut GroundStation, p: [f32; 7]) -> Outbox {

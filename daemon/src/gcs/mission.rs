@@ -12,8 +12,8 @@
 //! [`RETRIES`] tries.
 
 use super::Outbox;
-use flight_core::geofence::GeoZone;
 use flight_core::mission::{MissionAltitude, MissionItem, MissionPoint, SpeedChange};
+use flight_core::safety::geofence::GeoZone;
 use mavlink::MavHeader;
 use mavlink::dialects::common::*;
 

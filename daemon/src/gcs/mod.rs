@@ -22,9 +22,9 @@ pub mod telemetry;
 use crate::flight::Telemetry;
 use crate::vehicle::VehicleCommand;
 use flight_core::commander::{CommanderStatus, FlightMode, LandedState, OffboardTarget, Sticks};
-use flight_core::geo::LatLonAlt;
+use flight_core::math::geo::LatLonAlt;
 use flight_core::params::FlightParams;
-use flight_core::safety::{Action as FailsafeAction, SafetyEvent};
+use flight_core::safety::failsafe::{Action as FailsafeAction, SafetyEvent};
 use mavlink::MavHeader;
 use mavlink::MessageData;
 use mavlink::dialects::common::*;
@@ -116,7 +116,7 @@ pub struct Outbox {
     /// A new mission for the commander (an upload finished, or the mission was cleared).
     pub mission: Option<mission::NewMission>,
     /// A new geofence (an upload finished, or the fence was cleared).
-    pub fence: Option<Vec<flight_core::geofence::GeoZone>>,
+    pub fence: Option<Vec<flight_core::safety::geofence::GeoZone>>,
     /// A ground station's heartbeat arrived (the link-loss failsafe's clock restarts).
     pub gcs_heartbeat: bool,
     /// The `id` of the last text sent in chunks.

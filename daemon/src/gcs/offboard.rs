@@ -7,7 +7,7 @@ use crate::flight::Telemetry;
 use flight_core::commander::OffboardTarget;
 use flight_core::control::position::PositionSetpoint;
 use flight_core::control::{AttitudeTarget, Setpoint};
-use flight_core::geo::{LatLonAlt, LocalFrame};
+use flight_core::math::geo::{LatLonAlt, LocalFrame};
 use mavlink::dialects::common::*;
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 

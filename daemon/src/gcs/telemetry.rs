@@ -4,8 +4,8 @@
 use crate::flight::Telemetry;
 use crate::gcs::modes;
 use flight_core::commander::{FlightMode, LandedState};
-use flight_core::geo::{LatLonAlt, LocalFrame};
-use flight_core::safety::{CONDITIONS, Condition};
+use flight_core::math::geo::{LatLonAlt, LocalFrame};
+use flight_core::safety::failsafe::{CONDITIONS, Condition};
 use mavlink::MessageData;
 use mavlink::dialects::common::*;
 

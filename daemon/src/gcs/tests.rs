@@ -975,7 +975,7 @@ fn mission_and_guided_commands_reach_the_vehicle() {
 /// failsafe's start, change and end is announced once.
 #[test]
 fn gcs_heartbeats_are_forwarded_and_failsafes_announced() {
-    use flight_core::safety::{Action, Condition, SafetyEvent};
+    use flight_core::safety::failsafe::{Action, Condition, SafetyEvent};
     let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
     let mut t = telemetry(true, FlightMode::Loiter);
     let heartbeat = |mavtype| {
@@ -1059,8 +1059,8 @@ fn gcs_heartbeats_are_forwarded_and_failsafes_announced() {
 /// arming checks; the battery estimate reaches `SYS_STATUS` and `BATTERY_STATUS`.
 #[test]
 fn sys_status_health_bits_and_battery_follow_the_checks() {
-    use flight_core::battery::BatteryState;
-    use flight_core::safety::{CONDITIONS, Condition};
+    use flight_core::safety::failsafe::{CONDITIONS, Condition};
+    use flight_core::sensors::battery::BatteryState;
     let bit = |c: Condition| 1u32 << CONDITIONS.iter().position(|k| *k == c).unwrap();
     let mut t = telemetry(false, FlightMode::Loiter);
     t.battery = BatteryState {

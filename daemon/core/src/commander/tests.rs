@@ -725,7 +725,7 @@ mod mission;
 const T0: f64 = 20.0;
 
 /// A commander flying at 10 m in Hold, home at the origin, at [`T0`].
-fn hovering(safety: crate::safety::SafetyParams) -> Commander {
+fn hovering(safety: crate::safety::failsafe::SafetyParams) -> Commander {
     let mut c = ready();
     c.set_safety_params(safety);
     c.takeoff(Some(10.0)).unwrap();
@@ -756,7 +756,7 @@ fn with(t: f64, f: impl Fn(&mut Health)) -> CommanderInput {
 /// operator takes over with a mode change; each change is said once.
 #[test]
 fn link_loss_holds_then_returns_and_the_operator_can_take_over() {
-    use crate::safety::{Action, Condition, SafetyEvent, SafetyParams};
+    use crate::safety::failsafe::{Action, Condition, SafetyEvent, SafetyParams};
     let mut c = hovering(SafetyParams {
         gcs_loss_action: 2,
         ..SafetyParams::default()
@@ -802,7 +802,7 @@ fn link_loss_holds_then_returns_and_the_operator_can_take_over() {
 /// skips a low battery but not an emergency one; a crash disarms.
 #[test]
 fn battery_emergency_lands_and_crash_disarms() {
-    use crate::safety::SafetyParams;
+    use crate::safety::failsafe::SafetyParams;
     let mut c = hovering(SafetyParams::default());
     step(&mut c, &with(3.0, |h| h.battery_remaining = Some(0.06)));
     assert_eq!(c.mode(), FlightMode::Rtl, "critical: Return");
@@ -829,7 +829,7 @@ fn battery_emergency_lands_and_crash_disarms() {
 /// `GF_MAX_HOR_DIST` / `GF_MAX_VER_DIST` from home: Hold (`GF_ACTION` 2) on the breach.
 #[test]
 fn the_distance_and_height_fences_hold_the_vehicle() {
-    use crate::safety::{Action, Condition, SafetyParams};
+    use crate::safety::failsafe::{Action, Condition, SafetyParams};
     let mut c = hovering(SafetyParams {
         fence_max_horizontal_m: 20.0,
         fence_max_vertical_m: 15.0,

@@ -9,7 +9,7 @@
 //! (4.12), is scaled by a weight below one so a large heading error never delays levelling), and
 //! body-rate limits.
 
-use crate::quat::{self, TiltYaw};
+use crate::math::quat::{self, TiltYaw};
 use nalgebra::{UnitQuaternion, Vector3};
 
 /// Parameters of the kinematic attitude law.

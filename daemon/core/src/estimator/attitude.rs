@@ -250,7 +250,7 @@ impl AttitudeEstimator {
         }
         let o = self.observer.as_ref()?;
         Some(AttitudeEstimate {
-            q: crate::quat::shortest(&o.q),
+            q: crate::math::quat::shortest(&o.q),
             rate: o.rate(gyro),
             gyro_bias: o.bias,
             valid: self.status.since_correction_s <= self.params.max_uncorrected_s,

@@ -14,7 +14,7 @@
 //! the pairs spanning the change keep the fit inconsistent; hence `ATT_MAG_LEARN` is off by
 //! default.
 
-use crate::quat;
+use crate::math::quat;
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 
 /// Length of one averaging block (s).

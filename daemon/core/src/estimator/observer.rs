@@ -14,7 +14,7 @@
 //! otherwise drive (102) into its bound for seconds), while the vehicle rotates fast, and while
 //! the accelerometer is doubted; the bias estimate is bounded.
 
-use crate::quat;
+use crate::math::quat;
 use nalgebra::{UnitQuaternion, Vector3};
 
 /// Observer state: attitude estimate and gyro-bias estimate.

@@ -186,14 +186,14 @@ mod tests {
                 0.0,
                 0.0,
             );
-            q = crate::quat::propagate(&q, &w, dt);
+            q = crate::math::quat::propagate(&q, &w, dt);
             rest_samples += r.update(&w, &(q.inverse() * g), Some(&(q.inverse() * m)), dt) as usize;
         }
         assert_eq!(rest_samples, 0);
         // Nor a slow yaw, seen by the magnetometer alone.
         for _ in 0..1000 {
             let w = Vector3::new(0.0, 0.0, 1f64.to_radians());
-            q = crate::quat::propagate(&q, &w, dt);
+            q = crate::math::quat::propagate(&q, &w, dt);
             rest_samples += r.update(&w, &(q.inverse() * g), Some(&(q.inverse() * m)), dt) as usize;
         }
         assert_eq!(rest_samples, 0);

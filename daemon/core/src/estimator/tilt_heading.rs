@@ -32,7 +32,7 @@ use super::heading::{HeadingCorrector, HeadingSettings};
 use super::lowpass::LowPass;
 use super::rest::{RestDetector, RestThresholds};
 use crate::GRAVITY_M_S2;
-use crate::quat;
+use crate::math::quat;
 use nalgebra::{UnitQuaternion, Vector3};
 
 /// Settings of the tilt/heading filter.

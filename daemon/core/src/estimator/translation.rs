@@ -11,7 +11,7 @@
 //! The origin (and home) is the first good fix; the barometer's reference is the mean of its
 //! first second of samples, so altitude is relative to where the vehicle started.
 
-use crate::geo::{LatLonAlt, LocalFrame};
+use crate::math::geo::{LatLonAlt, LocalFrame};
 use nalgebra::{UnitQuaternion, Vector3};
 use std::collections::VecDeque;
 

@@ -88,7 +88,7 @@ fn davenport_k(
 /// components: so `q_ned_from_frd = (q₀, q̄)`. Returned with `w ≥ 0`.
 fn from_k_eigenvector(v: &Vector4<f64>) -> UnitQuaternion<f64> {
     let q = nalgebra::Quaternion::new(v[3], v[0], v[1], v[2]);
-    crate::quat::shortest(&UnitQuaternion::new_normalize(q))
+    crate::math::quat::shortest(&UnitQuaternion::new_normalize(q))
 }
 
 /// Davenport's q-method: the eigenvector of K for its largest eigenvalue (Castillo (90)), by a
@@ -205,8 +205,9 @@ mod tests {
         // Tilt is where NED-down points in the body; only the heading should have moved.
         let tilt_err = (est.inverse() * Vector3::z()).angle(&(q.inverse() * Vector3::z()));
         assert!(tilt_err < 1e-3, "{tilt_err}");
-        let heading_err =
-            (crate::quat::TiltYaw::of(&est).yaw - crate::quat::TiltYaw::of(&q).yaw).abs();
+        let heading_err = (crate::math::quat::TiltYaw::of(&est).yaw
+            - crate::math::quat::TiltYaw::of(&q).yaw)
+            .abs();
         assert!(
             heading_err > 0.01,
             "the bent magnetometer must move the heading: {heading_err}"

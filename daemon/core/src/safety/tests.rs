@@ -1,8 +1,9 @@
 //! The failsafe state machine as tables: a script of inputs over time, and what must come out
 //! at each step (the action, and the events the operator hears).
 
-use super::*;
-use crate::mag_check::MagField;
+use super::failsafe::*;
+use super::preflight::*;
+use crate::sensors::mag_check::{MagField, MagStatus};
 use Action as A;
 use Condition as C;
 use SafetyEvent as E;

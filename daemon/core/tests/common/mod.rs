@@ -4,7 +4,7 @@
 
 use flight_core::core::SensorSample;
 use flight_core::estimator::translation::GpsMeasurement;
-use flight_core::geo::LatLonAlt;
+use flight_core::math::geo::LatLonAlt;
 use nalgebra::Vector3;
 use sitl_core::sensors::fields;
 use sitl_core::sim::Simulator;

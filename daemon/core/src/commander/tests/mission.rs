@@ -2,7 +2,7 @@
 //! set-point exactly (the commander's logic alone; closed-loop flights are in `tests/`).
 
 use super::*;
-use crate::geo::{LatLonAlt, LocalFrame};
+use crate::math::geo::{LatLonAlt, LocalFrame};
 use crate::mission::{MissionAltitude, MissionItem, MissionPoint, MissionState, SpeedChange};
 
 const ORIGIN: LatLonAlt = LatLonAlt {

@@ -1,6 +1,6 @@
 //! Onboard magnetometer calibration (`MAV_CMD_PREFLIGHT_CALIBRATION`, magnetometer): the raw
 //! field sampled while the vehicle is turned through every orientation, the orientations seen
-//! so far as progress, and at the end the ellipsoid fit of [`crate::mag_fit`] (Castillo
+//! so far as progress, and at the end the ellipsoid fit of [`crate::sensors::mag_fit`] (Castillo
 //! (75)–(79)) — the same fit `autopilot calibrate-mag` runs on a log.
 //!
 //! Progress counts the 26 directions of a cube's faces, edges and corners that the samples
@@ -16,7 +16,9 @@
 //! allocated once at the start, so collecting never allocates on the control loop.
 
 use crate::estimator::attitude::AttitudeParams;
-use crate::mag_fit::{COVERAGE_DIRECTIONS, FitError, MIN_COVERAGE, direction, fit_ellipsoid};
+use crate::sensors::mag_fit::{
+    COVERAGE_DIRECTIONS, FitError, MIN_COVERAGE, direction, fit_ellipsoid,
+};
 use nalgebra::{Matrix3, Vector3};
 
 /// Shortest interval between two samples kept (s): 40 per second.

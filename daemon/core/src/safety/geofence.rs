@@ -6,7 +6,7 @@
 //! estimator has an origin. (The cylinder about home, `GF_MAX_HOR_DIST`/`GF_MAX_VER_DIST`, is
 //! the commander's.)
 
-use crate::geo::{LatLonAlt, LocalFrame};
+use crate::math::geo::{LatLonAlt, LocalFrame};
 use nalgebra::Vector2;
 
 /// One zone of an uploaded fence, in geodetic coordinates.

@@ -5,7 +5,7 @@
 //! the altitude estimate still while the vehicle climbs), and the failsafe machine hears of it.
 
 use crate::core::SensorSample;
-use crate::safety::SensorsLost;
+use crate::safety::failsafe::SensorsLost;
 use nalgebra::Vector3;
 
 /// A sensor silent longer than this after its last fresh reading is lost (µs): magnetometer and
@@ -128,7 +128,7 @@ impl SensorMonitor {
 mod tests {
     use super::*;
     use crate::estimator::translation::GpsMeasurement;
-    use crate::geo::LatLonAlt;
+    use crate::math::geo::LatLonAlt;
 
     /// Sample `k` at 250 Hz with noise-like readings; mag every 2nd, baro every 5th, GPS every 25th.
     fn sample(k: u64) -> SensorSample {

@@ -1,0 +1,16 @@
+//! Safety: what keeps the vehicle and the people around it safe when something goes wrong.
+//!
+//! - [`failsafe`]: the failsafe state machine (conditions, actions, clear rules, take-over);
+//! - [`preflight`]: the arming checks;
+//! - [`blind_descent`]: the open-loop descent when the sensor frames stop in the air;
+//! - [`geofence`]: uploaded fence zones, breach prediction;
+//! - [`motor_failure`]: motor-failure detection.
+
+pub mod blind_descent;
+pub mod failsafe;
+pub mod geofence;
+pub mod motor_failure;
+pub mod preflight;
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,8 @@
+//! The sensors before the estimators: which are lost or frozen, the battery's state of charge,
+//! and the magnetometer's checks and calibration.
+
+pub mod battery;
+pub mod mag_calibrator;
+pub mod mag_check;
+pub mod mag_fit;
+pub mod monitor;
