@@ -1,4 +1,4 @@
-//! The floor under the control loop's timing: the same deadline pacing (`src/deadline.rs`) with
+//! The floor under the control loop's timing: the same deadline pacing (`src/control_loop/deadline.rs`) with
 //! no work in the tick, for `SECONDS` at `HZ`, pinned to `CPU` when given. What this shows is
 //! what the machine itself does to a loop (timer slack, other processes, a hypervisor taking its
 //! CPU); `tools/bench.sh` prints it beside the autopilot's own figures.
@@ -6,7 +6,7 @@
 //! `cargo run --release -p autopilot --example idle_loop -- SECONDS [HZ] [CPU]`
 
 #[allow(dead_code)]
-#[path = "../src/deadline.rs"]
+#[path = "../src/control_loop/deadline.rs"]
 mod deadline;
 
 use deadline::{Deadlines, LoopStats, sleep_until};

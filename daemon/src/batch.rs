@@ -5,11 +5,12 @@
 //! ([`RunPlan::draw`]), so a batch gives the same rows whatever the number of workers and
 //! whichever finishes first, and one run can be flown again from its row (`--seed`, `--first`).
 
-use crate::flight::{self, Command, Pacing, Ports};
+use crate::control_loop::{self, LoopCommand, Onboard, Pacing, Ports};
 use crate::link::{SensorLink, Source};
+use crate::records::FlightRecords;
 use crate::sim::EmbeddedSim;
-use crate::vehicle::{AutoFlight, Vehicle};
 use anyhow::{Context, Result, bail};
+use flight_core::autopilot::{AutoFlight, Autopilot};
 use flight_core::params::FlightParams;
 use nalgebra::Vector3;
 use sitl_core::Airframe;
@@ -278,7 +279,7 @@ pub enum Outcome {
 
 impl Outcome {
     /// How `flight` ended.
-    pub fn of(flight: &Result<flight::FlightReport>) -> Self {
+    pub fn of(flight: &Result<control_loop::FlightReport>) -> Self {
         let Ok(f) = flight else {
             return Outcome::Error;
         };
@@ -309,7 +310,7 @@ pub struct RunResult {
     /// What was flown.
     pub plan: RunPlan,
     /// Its report.
-    pub flight: Result<flight::FlightReport>,
+    pub flight: Result<control_loop::FlightReport>,
 }
 
 /// The simulator of a run, which stops the flight once its time is up (a vehicle that never
@@ -317,7 +318,7 @@ pub struct RunResult {
 struct TimeLimited {
     sim: EmbeddedSim,
     limit_s: f64,
-    stop: mpsc::Sender<Command>,
+    stop: mpsc::Sender<LoopCommand>,
     stopped: bool,
 }
 
@@ -326,7 +327,7 @@ impl SensorLink for TimeLimited {
         if !self.stopped && self.sim.time_s() >= self.limit_s {
             self.stopped = true;
             // Drained before the next step.
-            let _ = self.stop.try_send(Command::Stop);
+            let _ = self.stop.try_send(LoopCommand::Stop);
         }
         self.sim.receive(timeout, into)
     }
@@ -365,10 +366,11 @@ pub fn fly_run(
             takeoff_m: cfg.takeoff_m,
             hover_s: cfg.hover_s,
         };
-        let mut vehicle = Vehicle::new(airframe, params, Some(auto))?;
+        let mut autopilot = Autopilot::new(airframe, params, Some(auto))?;
         if cfg.sensors == SensorPreset::Ideal {
-            vehicle.sensors_noise_free();
+            autopilot.sensors_noise_free();
         }
+        let mut records = FlightRecords::new(cfg.takeoff_m);
         let sim =
             EmbeddedSim::with_world(airframe, plan.world(cfg.sensors), &plan.events, None, None)?;
         let (mut ports, stop, _telemetry) = Ports::new(1);
@@ -379,11 +381,14 @@ pub fn fly_run(
             stopped: false,
         };
         let system_id = 1;
-        flight::fly(
-            &mut link,
-            &mut vehicle,
-            system_id,
-            &mut ports,
+        control_loop::fly(
+            Onboard {
+                link: &mut link,
+                autopilot: &mut autopilot,
+                records: &mut records,
+                ports: &mut ports,
+                system_id,
+            },
             Pacing::Lockstep,
         )
     })();

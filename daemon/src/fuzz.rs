@@ -10,8 +10,10 @@
 //! The frame decoder's own fuzz targets are in `hil`'s `wire.rs`.
 
 #![allow(clippy::unwrap_used)]
+use crate::control_loop::frames::{FrameAssembler, answer};
 use crate::gcs::{GroundStation, Outbox};
-use crate::vehicle::{Vehicle, VehicleCommand};
+use flight_core::autopilot::command::AutopilotCommand;
+use flight_core::autopilot::{Autopilot, StepInputs};
 use flight_core::commander::FlightMode;
 use flight_core::params::FlightParams;
 use mavlink::dialects::common::{MavMessage, MavType};
@@ -69,7 +71,7 @@ fn quad() -> airframe::Airframe {
 }
 
 /// What the control loop shows: armed or not, in Hold.
-fn telemetry(armed: bool) -> crate::flight::Telemetry {
+fn telemetry(armed: bool) -> crate::control_loop::Telemetry {
     crate::gcs::tests::telemetry(armed, FlightMode::Loiter)
 }
 
@@ -82,26 +84,52 @@ fn cases(default: u32) -> ProptestConfig {
     ProptestConfig::with_cases(n)
 }
 
+/// The autopilot behind its HIL frames, as the control loop flies it.
+struct Vehicle {
+    autopilot: Autopilot,
+    frames: FrameAssembler,
+}
+
+impl Vehicle {
+    fn new(airframe: &sitl_core::Airframe, params: &FlightParams) -> Self {
+        Self {
+            autopilot: Autopilot::new(airframe, params, None).unwrap(),
+            frames: FrameAssembler::default(),
+        }
+    }
+
+    /// Folds one message in; a complete sensor frame is stepped on and answered.
+    fn on_message(&mut self, m: &MavMessage) -> Option<MavMessage> {
+        let (sample, _) = self.frames.absorb(m)?;
+        let out = self.autopilot.step(&sample, &StepInputs::default())?;
+        Some(answer(&out, self.autopilot.rotors()))
+    }
+
+    fn command(&mut self, c: AutopilotCommand) -> Result<(), String> {
+        self.autopilot.command(c)
+    }
+}
+
 /// Hands what the protocol produced to the vehicle, as the links and the control loop do.
 fn carry_out(gcs: &GroundStation, out: &mut Outbox, vehicle: &mut Vehicle) {
     for (cmd, _) in out.vehicle.drain(..) {
         let _ = vehicle.command(cmd);
     }
     if let Some(s) = out.sticks.take() {
-        let _ = vehicle.command(VehicleCommand::Sticks(s));
+        let _ = vehicle.command(AutopilotCommand::Sticks(s));
     }
     if let Some(t) = out.offboard.take() {
-        let _ = vehicle.command(VehicleCommand::Offboard(t));
+        let _ = vehicle.command(AutopilotCommand::Offboard(t));
     }
     if let Some(m) = out.mission.take() {
-        let _ = vehicle.command(VehicleCommand::SetMission(m));
+        let _ = vehicle.command(AutopilotCommand::SetMission(m));
     }
     if let Some(z) = out.fence.take() {
-        let _ = vehicle.command(VehicleCommand::SetFence(z));
+        let _ = vehicle.command(AutopilotCommand::SetFence(z));
     }
     for a in out.actions.drain(..) {
         if matches!(a, crate::gcs::Action::ParamsChanged) {
-            vehicle.set_params(gcs.parameters().values());
+            vehicle.autopilot.set_params(gcs.parameters().values());
         }
     }
     out.messages.clear();
@@ -120,7 +148,7 @@ proptest! {
     ) {
         let airframe = quad();
         let params = FlightParams::default();
-        let mut vehicle = Vehicle::new(&airframe, &params, None).unwrap();
+        let mut vehicle = Vehicle::new(&airframe, &params);
         let mut gcs = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR)
             .with_parameters(crate::gcs::params::Parameters::default(), params.clone());
         let mut out = Outbox::default();
@@ -131,7 +159,7 @@ proptest! {
                 Ok(m) => {
                     gcs.on_message(&header, &m, &t, &mut out);
                     if let Some(step) = vehicle.on_message(&m)
-                        && let MavMessage::HIL_ACTUATOR_CONTROLS(c) = &step.message
+                        && let MavMessage::HIL_ACTUATOR_CONTROLS(c) = &step
                     {
                         prop_assert!(
                             c.controls.iter().all(|u| u.is_finite() && u.abs() <= 1.0),
@@ -170,7 +198,7 @@ proptest! {
         seed in 0u64..1000,
     ) {
         let (mut vehicle, mut end) = flying(seed);
-        prop_assert!(vehicle.status().armed, "the warm-up armed it");
+        prop_assert!(vehicle.autopilot.status().armed, "the warm-up armed it");
         let mut gcs = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR)
             .with_parameters(crate::gcs::params::Parameters::default(), FlightParams::default());
         let mut out = Outbox::default();
@@ -180,8 +208,8 @@ proptest! {
             // A good frame from the simulator between the hostile ones, as a link would mix them.
             for m in sim_frame(&mut end) {
                 if let Some(step) = vehicle.on_message(&m) {
-                    check_motors(&step.message, &m)?;
-                    if let MavMessage::HIL_ACTUATOR_CONTROLS(c) = &step.message {
+                    check_motors(&step, &m)?;
+                    if let MavMessage::HIL_ACTUATOR_CONTROLS(c) = &step {
                         end.apply(&hil::actuator_command(c));
                     }
                 }
@@ -190,7 +218,7 @@ proptest! {
             if let Ok(m) = MavMessage::parse(MavlinkVersion::V2, *id, bytes) {
                 gcs.on_message(&header, &m, &t, &mut out);
                 if let Some(step) = vehicle.on_message(&m) {
-                    check_motors(&step.message, &m)?;
+                    check_motors(&step, &m)?;
                 }
             }
             carry_out(&gcs, &mut out, &mut vehicle);
@@ -226,7 +254,7 @@ fn sim_frame(end: &mut hil::SimulatorEnd) -> Vec<MavMessage> {
 fn flying(seed: u64) -> (Vehicle, hil::SimulatorEnd) {
     use sitl_core::sim::{SimConfig, Simulator};
     let airframe = quad();
-    let mut vehicle = Vehicle::new(&airframe, &FlightParams::default(), None).unwrap();
+    let mut vehicle = Vehicle::new(&airframe, &FlightParams::default());
     let sim = Simulator::new(
         &airframe,
         SimConfig {
@@ -240,13 +268,13 @@ fn flying(seed: u64) -> (Vehicle, hil::SimulatorEnd) {
     for i in 0..750 {
         if i == 500 {
             vehicle
-                .command(VehicleCommand::Arm { force: true })
+                .command(AutopilotCommand::Arm { force: true })
                 .unwrap();
-            vehicle.command(VehicleCommand::Takeoff(None)).unwrap();
+            vehicle.command(AutopilotCommand::Takeoff(None)).unwrap();
         }
         for m in sim_frame(&mut end) {
             if let Some(step) = vehicle.on_message(&m)
-                && let MavMessage::HIL_ACTUATOR_CONTROLS(c) = &step.message
+                && let MavMessage::HIL_ACTUATOR_CONTROLS(c) = &step
             {
                 end.apply(&hil::actuator_command(c));
             }

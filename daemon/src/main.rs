@@ -6,30 +6,26 @@
 
 mod batch;
 mod config;
-mod deadline;
-mod failure_injection;
-mod flight;
-mod flight_csv;
+mod control_loop;
 #[cfg(test)]
 mod fuzz;
 mod gcs;
 mod json_link;
 mod link;
-mod log_files;
 mod mag_cal;
-mod param_store;
+mod records;
 mod replay;
-mod score;
 mod sim;
-mod vehicle;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
-use flight::{Command as LoopCommand, FlightReport, Pacing, Ports, Telemetry};
+use control_loop::{FlightReport, LoopCommand, Onboard, Pacing, Ports, Telemetry};
+use flight_core::autopilot::{AutoFlight, Autopilot};
 use flight_core::params::FlightParams;
-use flight_csv::FlightCsv;
 use link::{SensorLink, SerialLink, Source, UdpLink};
-use param_store::ParamStore;
+use records::FlightRecords;
+use records::flight_csv::FlightCsv;
+use records::param_store::ParamStore;
 use sim::EmbeddedSim;
 use sitl_core::Airframe;
 use sitl_core::geo::Geodetic;
@@ -39,7 +35,6 @@ use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 use tokio::sync::{mpsc, watch};
-use vehicle::{AutoFlight, Vehicle};
 
 /// A MAVLink multirotor autopilot.
 #[derive(Debug, Parser)]
@@ -466,7 +461,8 @@ impl Settings {
 /// its ground-station side.
 struct Prepared {
     system_id: u8,
-    vehicle: Vehicle,
+    autopilot: Autopilot,
+    records: FlightRecords,
     ports: Ports,
     endpoints: Vec<gcs::links::EndpointSpec>,
     gcs: gcs::links::Vehicle,
@@ -513,17 +509,18 @@ fn prepare(
         takeoff_m,
         hover_s: cfg.hover_s,
     });
-    let mut vehicle = Vehicle::new(airframe, &params, auto)?;
+    let autopilot = Autopilot::new(airframe, &params, auto).context("building the mixer")?;
+    let mut records = FlightRecords::new(params.commander.takeoff_alt_m);
     let (flight_csv, tlog) = log_paths(cfg, instance, &mut notices);
     if let Some(path) = &flight_csv {
-        vehicle.log_to(
+        records.log_to(
             FlightCsv::create(path, airframe.rotors.len(), source.lockstep())
                 .with_context(|| format!("creating {}", path.display()))?,
         );
     }
     let tlog = match &tlog {
         Some(path) => Some(
-            log_files::Tlog::create(path)
+            records::log_files::Tlog::create(path)
                 .with_context(|| format!("creating {}", path.display()))?,
         ),
         None => None,
@@ -559,7 +556,8 @@ fn prepare(
     ports.params = Some(params_rx);
     Ok(Prepared {
         system_id,
-        vehicle,
+        autopilot,
+        records,
         ports,
         endpoints,
         gcs: gcs::links::Vehicle {
@@ -605,11 +603,12 @@ fn fly(cli: &Cli) -> Result<()> {
         // This thread runs the tasks around the loop, and the threads it starts (the log
         // writers, the runtime's) inherit where it may run: none on the loop's CPU. The loop's
         // own thread pins itself there.
-        deadline::keep_off_cpu(cpu).map_err(anyhow::Error::msg)?;
+        control_loop::deadline::keep_off_cpu(cpu).map_err(anyhow::Error::msg)?;
     }
     let Prepared {
         system_id,
-        mut vehicle,
+        mut autopilot,
+        mut records,
         mut ports,
         endpoints,
         gcs,
@@ -627,14 +626,14 @@ fn fly(cli: &Cli) -> Result<()> {
         .spawn(move || -> Result<FlightReport> {
             let ports = &mut ports;
             if let Some(cpu) = cfg.loop_cpu {
-                deadline::pin_to_cpu(cpu).map_err(anyhow::Error::msg)?;
+                control_loop::deadline::pin_to_cpu(cpu).map_err(anyhow::Error::msg)?;
                 tracing::info!(cpu, "control loop pinned");
             }
             match source {
                 Source::Embedded => {
                     let sensors = sensor_preset(&cfg)?;
                     if sensors == SensorPreset::Ideal {
-                        vehicle.sensors_noise_free();
+                        autopilot.sensors_noise_free();
                     }
                     let world = SimConfig {
                         seed: cfg.seed,
@@ -650,16 +649,16 @@ fn fly(cli: &Cli) -> Result<()> {
                         cfg.truth_csv.as_deref(),
                     )?;
                     let report =
-                        flight::fly(&mut link, &mut vehicle, system_id, ports, Pacing::Lockstep)?;
+                        control_loop::fly(Onboard { link: &mut link, autopilot: &mut autopilot, records: &mut records, ports, system_id }, Pacing::Lockstep)?;
                     link.finish()?;
-                    finish(vehicle, report)
+                    finish(&mut records, report)
                 }
                 Source::Udp { addr, lockstep } => {
                     let mut link = UdpLink::bind(addr, lockstep)?;
                     tracing::info!(listening = %link.local_addr()?, airframe = %airframe.name, "waiting for a simulator");
                     let pacing = if lockstep { Pacing::Lockstep } else { deadlines };
-                    let report = flight::fly(&mut link, &mut vehicle, system_id, ports, pacing)?;
-                    finish(vehicle, report)
+                    let report = control_loop::fly(Onboard { link: &mut link, autopilot: &mut autopilot, records: &mut records, ports, system_id }, pacing)?;
+                    finish(&mut records, report)
                 }
                 Source::Json { addr, channels } => {
                     let rotors = airframe.rotors.len();
@@ -676,7 +675,7 @@ fn fly(cli: &Cli) -> Result<()> {
                     };
                     let sensors = sensor_preset(&cfg)?;
                     if sensors == SensorPreset::Ideal {
-                        vehicle.sensors_noise_free();
+                        autopilot.sensors_noise_free();
                     }
                     let mut link = json_link::JsonLink::connect(
                         addr,
@@ -688,8 +687,8 @@ fn fly(cli: &Cli) -> Result<()> {
                     .with_context(|| format!("opening a UDP socket for {addr}"))?;
                     tracing::info!(physics = %addr, airframe = %airframe.name, "sending servo packets to a JSON physics");
                     let report =
-                        flight::fly(&mut link, &mut vehicle, system_id, ports, Pacing::Lockstep)?;
-                    finish(vehicle, report)
+                        control_loop::fly(Onboard { link: &mut link, autopilot: &mut autopilot, records: &mut records, ports, system_id }, Pacing::Lockstep)?;
+                    finish(&mut records, report)
                 }
                 Source::Serial {
                     path,
@@ -699,8 +698,8 @@ fn fly(cli: &Cli) -> Result<()> {
                     let mut link = SerialLink::open(path, baud, lockstep)?;
                     tracing::info!(port = %link.describe(), airframe = %airframe.name, "waiting for the flight board");
                     let pacing = if lockstep { Pacing::Lockstep } else { deadlines };
-                    let report = flight::fly(&mut link, &mut vehicle, system_id, ports, pacing)?;
-                    finish(vehicle, report)
+                    let report = control_loop::fly(Onboard { link: &mut link, autopilot: &mut autopilot, records: &mut records, ports, system_id }, pacing)?;
+                    finish(&mut records, report)
                 }
             }
         })
@@ -776,7 +775,7 @@ fn fly_together(cfg: Settings, source: Source) -> Result<()> {
     for k in 0..cfg.count {
         let mut p = prepare(&cfg, &source, &airframe, cfg.instance + k)?;
         if sensors == SensorPreset::Ideal {
-            p.vehicle.sensors_noise_free();
+            p.autopilot.sensors_noise_free();
         }
         let world = SimConfig {
             seed: cfg.seed.wrapping_add(k.into()),
@@ -791,7 +790,12 @@ fn fly_together(cfg: Settings, source: Source) -> Result<()> {
     let telemetry: Vec<_> = vehicles.iter().map(|p| p.gcs.telemetry.clone()).collect();
     let (mut cores, links): (Vec<_>, Vec<_>) = vehicles
         .into_iter()
-        .map(|p| ((p.system_id, p.vehicle, p.ports), (p.endpoints, p.gcs)))
+        .map(|p| {
+            (
+                (p.system_id, p.autopilot, p.records, p.ports),
+                (p.endpoints, p.gcs),
+            )
+        })
         .unzip();
     tracing::info!(
         vehicles = cfg.count,
@@ -802,20 +806,21 @@ fn fly_together(cfg: Settings, source: Source) -> Result<()> {
     let speed = cfg.speed;
     let control = std::thread::Builder::new()
         .name("control-loop".into())
-        .spawn(move || -> Result<flight::SwarmReport> {
+        .spawn(move || -> Result<control_loop::SwarmReport> {
             let members = cores
                 .iter_mut()
                 .zip(sims.iter_mut())
-                .map(|((system_id, vehicle, ports), sim)| flight::Member {
+                .map(|((system_id, autopilot, records, ports), sim)| Onboard {
                     link: sim,
-                    vehicle,
+                    autopilot,
+                    records,
                     ports,
                     system_id: *system_id,
                 })
                 .collect();
-            let mut report = flight::fly_together(members, sim::EXCHANGE_HZ, speed);
-            for ((system_id, vehicle, _), flight) in cores.iter_mut().zip(&mut report.flights) {
-                if let Err(e) = vehicle.finish_log()
+            let mut report = control_loop::fly_together(members, sim::EXCHANGE_HZ, speed);
+            for ((system_id, _, records, _), flight) in cores.iter_mut().zip(&mut report.flights) {
+                if let Err(e) = records.finish()
                     && flight.is_ok()
                 {
                     *flight = Err(e.context(format!("system {system_id}")));
@@ -883,7 +888,7 @@ fn log_paths(
             let now = std::time::SystemTime::now()
                 .duration_since(std::time::UNIX_EPOCH)
                 .map_or(0, |d| d.as_secs());
-            match log_files::run_stem(dir, now, instance) {
+            match records::log_files::run_stem(dir, now, instance) {
                 Ok(stem) => Some(stem),
                 Err(e) => {
                     tracing::warn!(dir = %dir.display(), "no logs: {e}");
@@ -912,8 +917,8 @@ fn reboot() -> Result<()> {
 }
 
 /// Flushes the vehicle's log and hands the report on.
-fn finish(mut vehicle: Vehicle, report: FlightReport) -> Result<FlightReport> {
-    vehicle.finish_log()?;
+fn finish(records: &mut FlightRecords, report: FlightReport) -> Result<FlightReport> {
+    records.finish()?;
     Ok(report)
 }
 

@@ -191,8 +191,11 @@ pub struct SensorSample {
     pub baro_alt_m: Option<f64>,
     /// GPS solution, when one arrived.
     pub gps: Option<GpsMeasurement>,
-    /// Battery voltage (V).
-    pub battery_v: f64,
+    /// Battery voltage (V), when the board (or simulator) reports it; the pack's nominal
+    /// voltage is flown otherwise.
+    pub battery_v: Option<f64>,
+    /// Current per ESC (A) by rotor, when reported (their sum is the pack's current).
+    pub esc_current_a: Option<[f64; MAX_ROTORS]>,
     /// Rotor speeds from ESC telemetry (rad/s), when fresh.
     pub rotor_speed_rad_s: Option<[f64; MAX_ROTORS]>,
 }
@@ -244,6 +247,8 @@ pub struct FlightCore {
     position_phase_s: f64,
     /// Air density from the last barometer sample (kg/m³).
     air_density_kg_m3: f64,
+    /// The pack's nominal voltage (V): 3.8 V a cell, flown while no voltage is reported.
+    nominal_battery_v: f64,
     /// Time steps clamped into the accepted range.
     pub dt_clamped: u64,
 }
@@ -253,6 +258,11 @@ fn rate_axes(p: &RateLoopParams) -> [RateAxis; 3] {
         RateLoopParams::Ladrc(l) => [0, 1, 2].map(|i| RateAxis::Ladrc(LadrcAxis::new(l[i]))),
         RateLoopParams::Pid(q) => [0, 1, 2].map(|i| RateAxis::Pid(PidAxis::new(q[i]))),
     }
+}
+
+/// The pack's nominal voltage (V): 3.8 V a LiPo cell.
+pub fn nominal_battery_v(airframe: &Airframe) -> f64 {
+    3.8 * airframe.battery.cells as f64
 }
 
 /// ISA air density from a pressure altitude (kg/m³).
@@ -280,6 +290,7 @@ impl FlightCore {
             since_position_s: 0.0,
             position_phase_s: 0.0,
             air_density_kg_m3: air_density(0.0),
+            nominal_battery_v: nominal_battery_v(airframe),
             dt_clamped: 0,
             config,
         })
@@ -570,12 +581,13 @@ impl FlightCore {
             self.air_density_kg_m3 = air_density(b);
         }
         let rho = self.air_density_kg_m3;
+        let battery_v = s.battery_v.unwrap_or(self.nominal_battery_v);
         let m = self.mixer.mix(&MixerInput {
             request: WrenchRequest {
                 thrust_n: sp.thrust_n,
                 torque_frd_n_m: torque,
             },
-            battery_v: s.battery_v,
+            battery_v,
             air_density: rho,
         });
         for (i, axis) in self.rate.iter_mut().enumerate() {
@@ -590,7 +602,7 @@ impl FlightCore {
         // Rotor speeds → commands: the inverse motor curve with the estimated gains, plus the speed
         // PI when rpm is measured (Lewis (4.40)–(4.41), (6.13)).
         let rpm = s.rotor_speed_rad_s.as_ref().map(|r| &r[..]);
-        out.commands = self.motor.update(&m.speed_rad_s, rpm, s.battery_v, dt);
+        out.commands = self.motor.update(&m.speed_rad_s, rpm, battery_v, dt);
         out.attitude_setpoint = Some(sp);
         out.rate_reference = rate_reference;
         out.mixer = Some(m);

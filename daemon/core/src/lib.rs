@@ -4,6 +4,7 @@
 //! function of its inputs and the sample time. Conventions (NED/FRD, Hamilton quaternions
 //! `q_ned_from_frd`, SI units) are those of `ARCHITECTURE.md`.
 
+pub mod autopilot;
 pub mod commander;
 pub mod control;
 pub mod core;

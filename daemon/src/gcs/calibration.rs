@@ -9,7 +9,7 @@
 //! flown at once and saved to the parameter store.
 
 use super::{Action, GroundStation, Outbox};
-use crate::flight::Telemetry;
+use crate::control_loop::Telemetry;
 use flight_core::sensors::mag_calibrator::{MagCalFailure, MagCalResult, MagCalState};
 use mavlink::dialects::common::*;
 
@@ -161,7 +161,7 @@ mod tests {
     use super::super::tests::{
         acks, command_long, gcs_header, param_values, statustexts, telemetry,
     };
-    use super::super::{Outgoing, VehicleCommand};
+    use super::super::{AutopilotCommand, Outgoing};
     use super::*;
     use flight_core::commander::FlightMode;
     use flight_core::sensors::mag_calibrator::MagCalStatus as Progress;
@@ -179,16 +179,16 @@ mod tests {
     fn the_magnetometer_is_calibrated_on_command_and_all_zeros_cancel() {
         let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
         let out = command(&mut g, [0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
-        assert_eq!(out.vehicle[0].0, VehicleCommand::CalibrateMag);
+        assert_eq!(out.vehicle[0].0, AutopilotCommand::CalibrateMag);
         // As MAVSDK sends it: the reserved params 6 and 7 NaN.
         let out = command(&mut g, [0.0, 1.0, 0.0, 0.0, 0.0, f32::NAN, f32::NAN]);
-        assert_eq!(out.vehicle[0].0, VehicleCommand::CalibrateMag);
+        assert_eq!(out.vehicle[0].0, AutopilotCommand::CalibrateMag);
         assert!(
             acks(&out).is_empty(),
             "acknowledged when the control loop has started it"
         );
         let out = command(&mut g, [0.0; 7]);
-        assert_eq!(out.vehicle[0].0, VehicleCommand::CancelCalibration);
+        assert_eq!(out.vehicle[0].0, AutopilotCommand::CancelCalibration);
         // The gyro, the accelerometer, or the magnetometer with another: unsupported, said why.
         for p in [
             [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],

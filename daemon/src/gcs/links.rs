@@ -20,11 +20,11 @@
 use super::params::Parameters;
 use super::signing::{SecretKey, Signing};
 use super::{AckTo, Action, GroundStation, Outbox, Outgoing};
-use crate::flight::{Command, Telemetry};
-use crate::log_files::Tlog;
-use crate::param_store::{Loaded, ParamStore};
-use crate::vehicle::VehicleCommand;
+use crate::control_loop::{LoopCommand, Telemetry};
+use crate::records::log_files::Tlog;
+use crate::records::param_store::{Loaded, ParamStore};
 use anyhow::{Context, Result, bail};
+use flight_core::autopilot::command::AutopilotCommand;
 use flight_core::params::FlightParams;
 use hil::{Decoded, Encoder, RawMessage, StreamDecoder};
 use mavlink::MavHeader;
@@ -570,7 +570,7 @@ pub struct Vehicle {
     /// The control loop's latest telemetry.
     pub telemetry: watch::Receiver<Telemetry>,
     /// Commands to the control loop.
-    pub commands: mpsc::Sender<Command>,
+    pub commands: mpsc::Sender<LoopCommand>,
     /// The parameter table and its store.
     pub parameters: Parameters,
     /// The values a parameter reset returns to.
@@ -621,7 +621,9 @@ fn setup_signing(
     let key = SecretKey(data.secret_key);
     let on = key.0 != [0; 32];
     let saved = match key_file {
-        Some(path) if on => crate::param_store::write_private(path, &format!("{}\n", key.to_hex())),
+        Some(path) if on => {
+            crate::records::param_store::write_private(path, &format!("{}\n", key.to_hex()))
+        }
         Some(path) => match std::fs::remove_file(path) {
             Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
                 Err(anyhow::Error::from(e).context(format!("removing {}", path.display())))
@@ -798,7 +800,10 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<Actio
         }
         for (cmd, to) in out.vehicle.drain(..) {
             let (tx, rx) = oneshot::channel();
-            if commands.try_send(Command::Vehicle(cmd, Some(tx))).is_err() {
+            if commands
+                .try_send(LoopCommand::Autopilot(cmd, Some(tx)))
+                .is_err()
+            {
                 let _ = answers_tx.try_send((to, Err("vehicle busy: try again".into())));
                 continue;
             }
@@ -812,28 +817,31 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<Actio
             });
         }
         if std::mem::take(&mut out.gcs_heartbeat) {
-            let _ = commands.try_send(Command::Vehicle(VehicleCommand::GcsHeartbeat, None));
+            let _ = commands.try_send(LoopCommand::GcsHeartbeat);
             for text in startup_notices.drain(..) {
                 out.say(MavSeverity::MAV_SEVERITY_WARNING, &text);
             }
         }
         if let Some(sticks) = out.sticks.take() {
             // A full queue loses these sticks only: the next ones follow within 50 ms.
-            let _ = commands.try_send(Command::Vehicle(VehicleCommand::Sticks(sticks), None));
+            let _ = commands.try_send(LoopCommand::Autopilot(
+                AutopilotCommand::Sticks(sticks),
+                None,
+            ));
         }
         // Plans must arrive (they were acknowledged): a full queue keeps them, in order, for the
         // next turn of this loop; a newer plan of a kind replaces one still waiting.
         if let Some(items) = out.mission.take() {
-            pending.retain(|c| !matches!(c, VehicleCommand::SetMission(_)));
-            pending.push_back(VehicleCommand::SetMission(items));
+            pending.retain(|c| !matches!(c, AutopilotCommand::SetMission(_)));
+            pending.push_back(AutopilotCommand::SetMission(items));
         }
         if let Some(zones) = out.fence.take() {
-            pending.retain(|c| !matches!(c, VehicleCommand::SetFence(_)));
-            pending.push_back(VehicleCommand::SetFence(zones));
+            pending.retain(|c| !matches!(c, AutopilotCommand::SetFence(_)));
+            pending.push_back(AutopilotCommand::SetFence(zones));
         }
         while let Some(c) = pending.pop_front() {
-            if let Err(mpsc::error::TrySendError::Full(Command::Vehicle(c, _))) =
-                commands.try_send(Command::Vehicle(c, None))
+            if let Err(mpsc::error::TrySendError::Full(LoopCommand::Autopilot(c, _))) =
+                commands.try_send(LoopCommand::Autopilot(c, None))
             {
                 pending.push_front(c);
                 break;
@@ -841,7 +849,10 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<Actio
         }
         if let Some(target) = out.offboard.take() {
             // Likewise a set-point of a stream.
-            let _ = commands.try_send(Command::Vehicle(VehicleCommand::Offboard(target), None));
+            let _ = commands.try_send(LoopCommand::Autopilot(
+                AutopilotCommand::Offboard(target),
+                None,
+            ));
         }
         for action in std::mem::take(&mut out.actions) {
             match action {
@@ -868,7 +879,7 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<Actio
                 Action::Reboot | Action::Shutdown => {
                     exit = Some(action);
                     // Disarmed (checked before): the loop may stop at once.
-                    let _ = commands.try_send(Command::Stop);
+                    let _ = commands.try_send(LoopCommand::Stop);
                 }
             }
         }

@@ -19,8 +19,8 @@ pub mod params;
 pub mod signing;
 pub mod telemetry;
 
-use crate::flight::Telemetry;
-use crate::vehicle::VehicleCommand;
+use crate::control_loop::Telemetry;
+use flight_core::autopilot::command::AutopilotCommand;
 use flight_core::commander::{CommanderStatus, FlightMode, LandedState, OffboardTarget, Sticks};
 use flight_core::math::geo::LatLonAlt;
 use flight_core::params::FlightParams;
@@ -106,7 +106,7 @@ pub struct Outbox {
     /// Messages to send.
     pub messages: Vec<Outgoing>,
     /// Commands for the control loop; each answer comes back to [`GroundStation::answered`].
-    pub vehicle: Vec<(VehicleCommand, AckTo)>,
+    pub vehicle: Vec<(AutopilotCommand, AckTo)>,
     /// Other work, in order.
     pub actions: Vec<Action>,
     /// The latest stick positions (`MANUAL_CONTROL`), for the control loop; never answered.
@@ -291,7 +291,7 @@ impl GroundStation {
     pub fn params_reloaded(
         &mut self,
         to: AckTo,
-        loaded: Result<crate::param_store::Loaded, String>,
+        loaded: Result<crate::records::param_store::Loaded, String>,
         out: &mut Outbox,
     ) {
         match loaded {
@@ -599,7 +599,7 @@ impl GroundStation {
                         ..requester(MavCmd::MAV_CMD_DO_SET_MISSION_CURRENT)
                     };
                     out.vehicle
-                        .push((VehicleCommand::SetMissionCurrent(m.seq), to));
+                        .push((AutopilotCommand::SetMissionCurrent(m.seq), to));
                 } else {
                     self.missions.on_message(from, msg, out);
                 }
@@ -822,7 +822,7 @@ impl GroundStation {
                 lon_deg: y as f64 * 1e-7,
                 alt_m: c.p[6] as f64,
             };
-            return out.vehicle.push((VehicleCommand::SetHomeGlobal(p), to));
+            return out.vehicle.push((AutopilotCommand::SetHomeGlobal(p), to));
         }
         self.command(c, to, t, out);
     }
@@ -861,7 +861,7 @@ impl GroundStation {
                 flight_core::mission::MissionAltitude::Amsl(z)
             }),
         };
-        let cmd = VehicleCommand::Reposition {
+        let cmd = AutopilotCommand::Reposition {
             at,
             speed_m_s: (p[0].is_finite() && p[0] > 0.0).then_some(p[0] as f64),
             yaw_rad: p[3].is_finite().then_some(p[3] as f64),
@@ -883,8 +883,8 @@ impl GroundStation {
             MavCmd::MAV_CMD_COMPONENT_ARM_DISARM => {
                 let force = p[1] == FORCE_MAGIC;
                 match p[0] {
-                    1.0 => vehicle(out, VehicleCommand::Arm { force }),
-                    0.0 => vehicle(out, VehicleCommand::Disarm { force }),
+                    1.0 => vehicle(out, AutopilotCommand::Arm { force }),
+                    0.0 => vehicle(out, AutopilotCommand::Disarm { force }),
                     x => deny(
                         self,
                         out,
@@ -895,27 +895,27 @@ impl GroundStation {
             MavCmd::MAV_CMD_NAV_TAKEOFF => {
                 // param7: altitude AMSL (PX4); NaN: the take-off altitude parameter.
                 if p[6].is_finite() {
-                    vehicle(out, VehicleCommand::TakeoffAmsl(p[6] as f64));
+                    vehicle(out, AutopilotCommand::TakeoffAmsl(p[6] as f64));
                 } else {
-                    vehicle(out, VehicleCommand::Takeoff(None));
+                    vehicle(out, AutopilotCommand::Takeoff(None));
                 }
             }
-            MavCmd::MAV_CMD_NAV_LAND => vehicle(out, VehicleCommand::SetMode(FlightMode::Land)),
+            MavCmd::MAV_CMD_NAV_LAND => vehicle(out, AutopilotCommand::SetMode(FlightMode::Land)),
             MavCmd::MAV_CMD_MISSION_START => {
                 // param1: the first item (0 and up); the last (param2) is not honoured.
                 let first = (p[0].is_finite() && p[0] >= 0.0).then_some(p[0] as u16);
-                vehicle(out, VehicleCommand::StartMission(first));
+                vehicle(out, AutopilotCommand::StartMission(first));
             }
             MavCmd::MAV_CMD_DO_SET_MISSION_CURRENT => {
                 if !(p[0].is_finite() && p[0] >= 0.0) {
                     // −1: no change.
                     return out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED));
                 }
-                vehicle(out, VehicleCommand::SetMissionCurrent(p[0] as u16));
+                vehicle(out, AutopilotCommand::SetMissionCurrent(p[0] as u16));
             }
             MavCmd::MAV_CMD_DO_PAUSE_CONTINUE => match p[0] {
-                0.0 => vehicle(out, VehicleCommand::SetMode(FlightMode::Loiter)),
-                1.0 => vehicle(out, VehicleCommand::SetMode(FlightMode::Mission)),
+                0.0 => vehicle(out, AutopilotCommand::SetMode(FlightMode::Loiter)),
+                1.0 => vehicle(out, AutopilotCommand::SetMode(FlightMode::Mission)),
                 x => deny(
                     self,
                     out,
@@ -923,7 +923,7 @@ impl GroundStation {
                 ),
             },
             MavCmd::MAV_CMD_DO_CHANGE_SPEED => match mission::speed_change(p[1]) {
-                Ok(change) => vehicle(out, VehicleCommand::ChangeSpeed(change)),
+                Ok(change) => vehicle(out, AutopilotCommand::ChangeSpeed(change)),
                 Err(_) => deny(self, out, &format!("change speed: {} m/s refused", p[1])),
             },
             MavCmd::MAV_CMD_CONDITION_YAW => {
@@ -933,7 +933,7 @@ impl GroundStation {
                 let rate = (p[1].is_finite() && p[1] > 0.0).then_some(p[1] as f64);
                 vehicle(
                     out,
-                    VehicleCommand::ConditionYaw {
+                    AutopilotCommand::ConditionYaw {
                         angle_deg: p[0] as f64,
                         rate_deg_s: rate,
                         direction: p[2].signum() as i8 * (p[2] != 0.0) as i8,
@@ -950,10 +950,10 @@ impl GroundStation {
                 self.reposition(c, global, MavFrame::MAV_FRAME_GLOBAL, to, out);
             }
             MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH => {
-                vehicle(out, VehicleCommand::SetMode(FlightMode::Rtl));
+                vehicle(out, AutopilotCommand::SetMode(FlightMode::Rtl));
             }
             MavCmd::MAV_CMD_NAV_LOITER_UNLIM => {
-                vehicle(out, VehicleCommand::SetMode(FlightMode::Loiter));
+                vehicle(out, AutopilotCommand::SetMode(FlightMode::Loiter));
             }
             MavCmd::MAV_CMD_DO_SET_MODE => {
                 let base = p[0] as u32;
@@ -961,7 +961,7 @@ impl GroundStation {
                     return deny(self, out, "set mode: only PX4 custom modes are supported");
                 }
                 match modes::from_px4(p[1] as u8, p[2] as u8) {
-                    Some(m) => vehicle(out, VehicleCommand::SetMode(m)),
+                    Some(m) => vehicle(out, AutopilotCommand::SetMode(m)),
                     None => deny(
                         self,
                         out,
@@ -970,19 +970,19 @@ impl GroundStation {
                 }
             }
             MavCmd::MAV_CMD_DO_SET_STANDARD_MODE => match modes::from_standard(p[0] as u32) {
-                Some(m) => vehicle(out, VehicleCommand::SetMode(m)),
+                Some(m) => vehicle(out, AutopilotCommand::SetMode(m)),
                 None => deny(self, out, &format!("no standard mode {}", p[0])),
             },
             MavCmd::MAV_CMD_DO_SET_HOME => {
                 if p[0] == 1.0 {
-                    vehicle(out, VehicleCommand::SetHome(None));
+                    vehicle(out, AutopilotCommand::SetHome(None));
                 } else if p[4].is_finite() && p[5].is_finite() && p[6].is_finite() {
                     let g = LatLonAlt {
                         lat_deg: p[4] as f64,
                         lon_deg: p[5] as f64,
                         alt_m: p[6] as f64,
                     };
-                    vehicle(out, VehicleCommand::SetHomeGlobal(g));
+                    vehicle(out, AutopilotCommand::SetHomeGlobal(g));
                 } else {
                     deny(
                         self,
@@ -1039,8 +1039,8 @@ impl GroundStation {
                 self.requested.push((id, p[1]));
             }
             MavCmd::MAV_CMD_INJECT_FAILURE => {
-                match crate::failure_injection::Injection::decode(p[0], p[1], p[2]) {
-                    Ok(i) => vehicle(out, VehicleCommand::InjectFailure(i)),
+                match flight_core::safety::failure_injection::Injection::decode(p[0], p[1], p[2]) {
+                    Ok(i) => vehicle(out, AutopilotCommand::InjectFailure(i)),
                     Err(why) => {
                         out.send(self.ack(to, MavResult::MAV_RESULT_UNSUPPORTED));
                         out.say(MavSeverity::MAV_SEVERITY_WARNING, &why.to_string());
@@ -1113,9 +1113,9 @@ impl GroundStation {
                 // reserved param left unset (MAVSDK leaves 6 and 7 so): 0.
                 let off = |x: f32| x == 0.0 || x.is_nan();
                 if p.iter().all(|&x| off(x)) {
-                    vehicle(out, VehicleCommand::CancelCalibration);
+                    vehicle(out, AutopilotCommand::CancelCalibration);
                 } else if p[1] == 1.0 && p.iter().enumerate().all(|(i, &x)| i == 1 || off(x)) {
-                    vehicle(out, VehicleCommand::CalibrateMag);
+                    vehicle(out, AutopilotCommand::CalibrateMag);
                 } else {
                     out.send(self.ack(to, MavResult::MAV_RESULT_UNSUPPORTED));
                     out.say(

@@ -10,7 +10,7 @@
 //! hanging. Accepted values go to the flight core and the [`ParamStore`].
 
 use super::{GroundStation, Outbox};
-use crate::param_store::ParamStore;
+use crate::records::param_store::ParamStore;
 use flight_core::params::{FlightParams, ParamKind, ParamMeta};
 use mavlink::dialects::common::*;
 

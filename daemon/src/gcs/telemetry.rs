@@ -1,7 +1,7 @@
 //! Telemetry messages built from the control loop's latest [`Telemetry`]: pure functions of it
 //! and the clock.
 
-use crate::flight::Telemetry;
+use crate::control_loop::Telemetry;
 use crate::gcs::modes;
 use flight_core::commander::{FlightMode, LandedState};
 use flight_core::math::geo::{LatLonAlt, LocalFrame};
@@ -270,9 +270,9 @@ pub fn build(id: u32, t: &Telemetry, unix_usec: u64) -> Option<MavMessage> {
             let cog = g.vel_ned_m_s.y.atan2(g.vel_ned_m_s.x).to_degrees();
             MavMessage::GPS_RAW_INT(GPS_RAW_INT_DATA {
                 time_usec: (t.t_s * 1e6) as u64,
-                lat: e7(g.lat_deg),
-                lon: e7(g.lon_deg),
-                alt: (g.alt_m * 1e3).round() as i32,
+                lat: e7(g.position.lat_deg),
+                lon: e7(g.position.lon_deg),
+                alt: (g.position.alt_m * 1e3).round() as i32,
                 eph: (g.h_acc_m * 100.0).clamp(0.0, 65534.0) as u16,
                 epv: u16::MAX,
                 vel: (speed * 100.0).clamp(0.0, 65534.0) as u16,

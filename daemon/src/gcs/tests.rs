@@ -1,6 +1,6 @@
 #![allow(clippy::unwrap_used)]
 use super::*;
-use crate::flight::Telemetry;
+use crate::control_loop::Telemetry;
 use flight_core::commander::CommanderStatus;
 use flight_core::commander::Sticks;
 use mavlink::Message;
@@ -82,7 +82,7 @@ fn commands_for_us_reach_the_vehicle_and_others_are_ignored() {
         );
     }
     assert_eq!(out.vehicle.len(), 3);
-    assert_eq!(out.vehicle[0].0, VehicleCommand::Arm { force: false });
+    assert_eq!(out.vehicle[0].0, AutopilotCommand::Arm { force: false });
     assert_eq!(
         (out.vehicle[0].1.system, out.vehicle[0].1.component),
         (255, 190)
@@ -107,7 +107,7 @@ fn commands_for_us_reach_the_vehicle_and_others_are_ignored() {
         &t,
         &mut out,
     );
-    assert_eq!(out.vehicle[0].0, VehicleCommand::Disarm { force: true });
+    assert_eq!(out.vehicle[0].0, AutopilotCommand::Disarm { force: true });
     let mut out = Outbox::default();
     let nan = [f32::NAN, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
     g.on_message(
@@ -293,7 +293,10 @@ fn set_mode_in_both_forms_names_px4_modes() {
         &t,
         &mut out,
     );
-    assert_eq!(out.vehicle[0].0, VehicleCommand::SetMode(FlightMode::Land));
+    assert_eq!(
+        out.vehicle[0].0,
+        AutopilotCommand::SetMode(FlightMode::Land)
+    );
     assert_eq!(out.vehicle[0].1.command, MavCmd::MAV_CMD_DO_SET_MODE);
     // COMMAND_LONG DO_SET_MODE to AUTO.RTL, and a mode that does not exist.
     let mut out = Outbox::default();
@@ -310,7 +313,7 @@ fn set_mode_in_both_forms_names_px4_modes() {
         );
     }
     assert_eq!(out.vehicle.len(), 1);
-    assert_eq!(out.vehicle[0].0, VehicleCommand::SetMode(FlightMode::Rtl));
+    assert_eq!(out.vehicle[0].0, AutopilotCommand::SetMode(FlightMode::Rtl));
     assert_eq!(acks(&out)[0].result, MavResult::MAV_RESULT_DENIED);
 }
 
@@ -877,12 +880,12 @@ fn mission_and_guided_commands_reach_the_vehicle() {
             [2.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
         ),
     ));
-    assert_eq!(v, VehicleCommand::StartMission(Some(2)));
+    assert_eq!(v, AutopilotCommand::StartMission(Some(2)));
     let (v, _) = one(run(
         &mut g,
         long(MavCmd::MAV_CMD_DO_PAUSE_CONTINUE, [0.0; 7]),
     ));
-    assert_eq!(v, VehicleCommand::SetMode(FlightMode::Loiter));
+    assert_eq!(v, AutopilotCommand::SetMode(FlightMode::Loiter));
     let (v, _) = one(run(
         &mut g,
         long(
@@ -890,7 +893,7 @@ fn mission_and_guided_commands_reach_the_vehicle() {
             [1.0, 7.5, -1.0, 0.0, 0.0, 0.0, 0.0],
         ),
     ));
-    assert_eq!(v, VehicleCommand::ChangeSpeed(SpeedChange::To(7.5)));
+    assert_eq!(v, AutopilotCommand::ChangeSpeed(SpeedChange::To(7.5)));
     let (v, _) = one(run(
         &mut g,
         long(
@@ -900,7 +903,7 @@ fn mission_and_guided_commands_reach_the_vehicle() {
     ));
     assert_eq!(
         v,
-        VehicleCommand::ConditionYaw {
+        AutopilotCommand::ConditionYaw {
             angle_deg: 90.0,
             rate_deg_s: Some(20.0),
             direction: -1,
@@ -927,7 +930,7 @@ fn mission_and_guided_commands_reach_the_vehicle() {
         }),
     ));
     match v {
-        VehicleCommand::Reposition {
+        AutopilotCommand::Reposition {
             at,
             speed_m_s: None,
             yaw_rad: Some(0.5),
@@ -947,7 +950,7 @@ fn mission_and_guided_commands_reach_the_vehicle() {
         ),
     ));
     match v {
-        VehicleCommand::Reposition { at, speed_m_s, .. } => {
+        AutopilotCommand::Reposition { at, speed_m_s, .. } => {
             assert_eq!(at.alt, None);
             assert_eq!(speed_m_s, Some(3.0));
         }
@@ -962,7 +965,7 @@ fn mission_and_guided_commands_reach_the_vehicle() {
             target_component: 1,
         }),
     ));
-    assert_eq!(v, VehicleCommand::SetMissionCurrent(3));
+    assert_eq!(v, AutopilotCommand::SetMissionCurrent(3));
     let mut out = Outbox::default();
     g.answered(to, Ok(()), &mut out);
     assert!(out.messages.is_empty());

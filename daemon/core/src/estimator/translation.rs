@@ -65,6 +65,8 @@ pub struct GpsMeasurement {
     pub vel_ned_m_s: Vector3<f64>,
     /// Horizontal accuracy (m).
     pub h_acc_m: f64,
+    /// Satellites visible.
+    pub satellites: u8,
 }
 
 /// The estimate.
@@ -431,6 +433,7 @@ mod tests {
                         position: pos,
                         vel_ned_m_s: g.vel_ned_m_s,
                         h_acc_m: g.h_acc_m,
+                        satellites: g.satellites,
                     },
                 );
             }
@@ -487,6 +490,7 @@ mod tests {
             },
             vel_ned_m_s: Vector3::zeros(),
             h_acc_m: 0.5,
+            satellites: 10,
         };
         est.fuse_gps(
             0,
@@ -499,6 +503,7 @@ mod tests {
             0,
             &GpsMeasurement {
                 h_acc_m: 50.0,
+                satellites: 10,
                 ..good
             },
         );

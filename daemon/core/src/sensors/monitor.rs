@@ -76,6 +76,11 @@ impl SensorMonitor {
         self.noise_free = true;
     }
 
+    /// Whether [`Self::noise_free`] was said.
+    pub fn is_noise_free(&self) -> bool {
+        self.noise_free
+    }
+
     /// What is lost as of the last update.
     pub fn lost(&self) -> SensorsLost {
         self.lost
@@ -150,8 +155,10 @@ mod tests {
                 },
                 vel_ned_m_s: Vector3::repeat(x),
                 h_acc_m: 1.0,
+                satellites: 10,
             }),
-            battery_v: 16.0,
+            battery_v: Some(16.0),
+            esc_current_a: None,
             rotor_speed_rad_s: None,
         }
     }

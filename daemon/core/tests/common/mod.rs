@@ -40,6 +40,7 @@ pub fn control_interval(sim: &mut Simulator, commands: &[f64]) -> SensorSample {
                 },
                 vel_ned_m_s: g.vel_ned_m_s,
                 h_acc_m: g.h_acc_m,
+                satellites: g.satellites,
             });
         }
     }
@@ -50,7 +51,8 @@ pub fn control_interval(sim: &mut Simulator, commands: &[f64]) -> SensorSample {
         mag,
         baro_alt_m: baro,
         gps,
-        battery_v: sim.truth().battery_voltage_v,
+        battery_v: Some(sim.truth().battery_voltage_v),
+        esc_current_a: None,
         rotor_speed_rad_s: rpm,
     }
 }

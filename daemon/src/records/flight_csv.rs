@@ -2,14 +2,13 @@
 //! asked to do, what it commanded, the simulator's truth where one reports it, and how late the
 //! control loop woke. For plots (`tools/plot_flight.py`, any spreadsheet, pandas, gnuplot) and
 //! for finding where an error comes from. Rows are written by a thread of their own
-//! ([`crate::log_files`]): the control loop copies each row and never formats or waits on the disk.
+//! ([`crate::records::log_files`]): the control loop copies each row and never formats or waits on the disk.
 
-use crate::log_files::LogFile;
-use crate::score::FlightScore;
+use crate::records::log_files::LogFile;
+use crate::records::score::FlightScore;
 use airframe::MAX_ROTORS;
+use flight_core::autopilot::AutopilotOutput;
 use flight_core::commander::{CommanderStatus, LandedState};
-use flight_core::control::Setpoint;
-use flight_core::core::{SensorSample, StepOutput};
 use hil::TruthReport;
 use nalgebra::{UnitQuaternion, Vector3};
 use std::io::Write;
@@ -28,7 +27,7 @@ pub struct FlightCsv {
 /// Rows are handed to the writer whenever this much flight time has passed since the last time,
 /// so a daemon killed outright (SIGKILL, power lost) loses at most the last half second of its
 /// log; one that is stopped (Ctrl-C, SIGTERM) writes the rest.
-pub const FLUSH_INTERVAL_S: f64 = crate::log_files::SHIP_INTERVAL_S;
+pub const FLUSH_INTERVAL_S: f64 = crate::records::log_files::SHIP_INTERVAL_S;
 
 /// Rows held before a flight-time interval is over (a row per frame at up to 2 kHz).
 const ROWS_PER_SHIP: usize = 1024;
@@ -154,29 +153,26 @@ impl FlightCsv {
     /// stepped on, raw (gyro rad/s, specific force m/s², magnetometer gauss, FRD; the
     /// magnetometer only when fresh), the columns `autopilot replay` and `calibrate-mag` read.
     /// The row is copied here and formatted by the writer thread.
-    #[allow(clippy::too_many_arguments)]
     pub fn record(
         &mut self,
-        t_s: f64,
         status: &CommanderStatus,
-        armed: bool,
-        setpoint: &Setpoint,
-        out: &StepOutput,
+        step: &AutopilotOutput,
         truth: Option<&TruthReport>,
         score: &FlightScore,
         loop_late: Option<Duration>,
-        sample: &SensorSample,
     ) -> std::io::Result<()> {
+        let (t_s, out, sample) = (step.t_usec as f64 * 1e-6, &step.estimate, &step.sample);
         let sp = out.attitude_setpoint;
         self.rows.push(Row {
             t_s,
             mode: status.mode.name(),
             landed: status.landed,
-            armed,
+            armed: step.armed,
             pos: out.translation.pos_ned_m,
             vel: out.translation.vel_ned_m_s,
             // Stick-to-attitude modes fly no position: its set-point columns are NaN.
-            sp_pos: setpoint
+            sp_pos: step
+                .setpoint
                 .position()
                 .map_or(Vector3::repeat(f64::NAN), |p| p.pos_ned_m),
             q: out.attitude.map(|a| a.q),

@@ -628,7 +628,7 @@ mod tests {
         let (mut saves, mut kills, mut last) = (0u64, 0u32, None::<u64>);
         while saves < 1000 {
             let mut child = std::process::Command::new(&exe)
-                .args(["param_store::tests::save_until_killed", "--exact"])
+                .args(["records::param_store::tests::save_until_killed", "--exact"])
                 .args(["--ignored", "--nocapture", "--test-threads=1"])
                 .env(CHILD_DIR, dir.path())
                 .stdout(std::process::Stdio::piped())

@@ -6,8 +6,8 @@
 //!
 //! Refused unless `SYS_FAILURE_EN` is 1, as in PX4.
 
-use flight_core::core::SensorSample;
-use flight_core::estimator::translation::GpsMeasurement;
+use crate::core::SensorSample;
+use crate::estimator::translation::GpsMeasurement;
 use nalgebra::Vector3;
 
 /// MAVLink `FAILURE_UNIT` values handled here.
@@ -51,21 +51,14 @@ pub struct Injection {
 }
 
 /// Why a command was not taken.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum Refusal {
     /// A unit, type or instance this autopilot cannot inject (`MAV_RESULT_UNSUPPORTED`).
+    #[error("failure injection: {0}")]
     Unsupported(String),
     /// Failure injection is switched off (`MAV_RESULT_DENIED`).
+    #[error("failure injection disabled (SYS_FAILURE_EN 0)")]
     Disabled,
-}
-
-impl std::fmt::Display for Refusal {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::Unsupported(why) => write!(f, "failure injection: {why}"),
-            Self::Disabled => f.write_str("failure injection disabled (SYS_FAILURE_EN 0)"),
-        }
-    }
 }
 
 impl Injection {
@@ -222,7 +215,8 @@ mod tests {
             mag: k.is_multiple_of(2).then_some(Vector3::repeat(k as f64)),
             baro_alt_m: Some(k as f64),
             gps: None,
-            battery_v: 16.0,
+            battery_v: Some(16.0),
+            esc_current_a: None,
             rotor_speed_rad_s: None,
         }
     }

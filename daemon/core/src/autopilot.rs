@@ -1,0 +1,573 @@
+//! The autopilot: one pure step from a sensor sample to motor commands, with everything a
+//! vehicle does around the flight core.
+//!
+//! ```text
+//! sample ─► failure injection ─► sensor monitor ─► frozen IMU? ─► magnetometer checks
+//!        ─► auto flight ─► geofence ─► commander (modes, failsafes) ─► FlightCore::step
+//!        ─► motor-failure report ─► hover memory ─► commands (failed motors at zero)
+//! ```
+//!
+//! The links around it (a simulator in-process or over UDP, a serial flight board) turn bytes
+//! into [`SensorSample`]s and commands into bytes; the records (flight-data CSV, telemetry log,
+//! the score against a simulator's truth) observe each [`AutopilotOutput`] from outside. Time
+//! comes with the sample; the ground-station link's age with [`StepInputs`]: no clock is read.
+
+mod blind;
+pub mod command;
+#[cfg(test)]
+mod tests;
+
+use crate::commander::{Commander, CommanderInput, CommanderStatus, Health, LandedState};
+use crate::control::Setpoint;
+use crate::control::position::PositionSetpoint;
+use crate::core::{FlightCore, FlightCoreConfig, SensorSample, StepOutput, nominal_battery_v};
+use crate::estimator::translation::GpsMeasurement;
+use crate::math::geo::LocalFrame;
+use crate::mixer::MixerError;
+use crate::params::FlightParams;
+use crate::safety::blind_descent::{BlindDescent, HoverCommands};
+use crate::safety::failure_injection::FailureInjector;
+use crate::safety::geofence::{FenceMonitor, GeoZone, Geofence};
+use crate::sensors::battery::{BatteryConfig, BatteryEstimator, BatteryState};
+use crate::sensors::mag_calibrator::{MagCalStatus, MagCalibrator};
+use crate::sensors::mag_check::MagFieldMonitor;
+use crate::sensors::monitor::SensorMonitor;
+use airframe::{Airframe, MAX_ROTORS};
+use nalgebra::Vector3;
+
+/// A flight flown without a ground station (the command line's `--takeoff`): arm and take off
+/// as soon as the estimator is ready, hold for `hover_s`, land; the run ends once disarmed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AutoFlight {
+    /// Take-off altitude above home (m).
+    pub takeoff_m: f64,
+    /// Time to hold before landing (s); infinite holds until told otherwise.
+    pub hover_s: f64,
+}
+
+/// How far back the sensor clock must jump for the source to count as started again (s): more
+/// than a lockstep resend or a serial line's backlog, less than any flight.
+pub const SOURCE_RESTART_S: f64 = 1.0;
+const SOURCE_RESTART_USEC: u64 = (SOURCE_RESTART_S * 1e6) as u64;
+
+/// What arrives with a sample from outside the sensors.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StepInputs {
+    /// Wall-clock time since the last ground-station heartbeat (s; `None` before the first),
+    /// for the link-loss failsafe: the control loop measures it.
+    pub gcs_link_age_s: Option<f64>,
+}
+
+/// What a step did with its sample.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StepKind {
+    /// The flight core flew the sample.
+    Flown,
+    /// The sample's time was the last one's (a lockstep simulator resending, a serial line's
+    /// backlog): the last answer again, nothing stepped.
+    Repeated,
+    /// The IMU is frozen: the hover commands, or the blind descent's; the loops untouched.
+    Blind,
+}
+
+/// One step's result.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AutopilotOutput {
+    /// Time of the sample (µs).
+    pub t_usec: u64,
+    /// What the rotors are told ∈ [0, 1] (failed motors injected at zero).
+    pub commands: [f64; MAX_ROTORS],
+    /// Motors armed.
+    pub armed: bool,
+    /// What the step did.
+    pub kind: StepKind,
+    /// The flight core's last output (this step's when flown).
+    pub estimate: StepOutput,
+    /// The set-point flown.
+    pub setpoint: Setpoint,
+    /// The sample as stepped: after failure injection and the sensor monitor.
+    pub sample: SensorSample,
+    /// The sensor source started again before this sample (its clock went back by more than
+    /// [`SOURCE_RESTART_S`]): the autopilot started afresh, and so do the records.
+    pub restarted: bool,
+}
+
+/// The autopilot: flight core, commander, and the checks and failsafes around them.
+pub struct Autopilot {
+    core: FlightCore,
+    commander: Commander,
+    /// For new parameters: the configuration is derived from them and the airframe.
+    airframe: Airframe,
+    /// The parameters flown (to start afresh when the sensor source does).
+    params: FlightParams,
+    rotors: usize,
+    nominal_v: f64,
+    /// Times the sensor source started again from an earlier time.
+    source_restarts: u32,
+    /// Samples that repeated or went back in time, answered or dropped without a step.
+    repeated_frames: u64,
+    auto: Option<AutoFlight>,
+    /// The auto flight has armed, or an operator asked to end: the run ends once disarmed.
+    end_when_disarmed: bool,
+    /// Why the auto flight may not arm, as last said (said again only when it changes).
+    auto_denial: Option<String>,
+    ended: bool,
+    /// The flight core's last output, and the last answer (repeated for a repeated sample).
+    last: Option<StepOutput>,
+    last_answer: Option<AutopilotOutput>,
+    /// The last sample stepped on (magnetometer and barometer as last seen), the set-point
+    /// flown (armed only), and the last GPS solution.
+    last_sample: Option<SensorSample>,
+    last_setpoint: Option<Setpoint>,
+    gps: Option<GpsMeasurement>,
+    last_t_usec: u64,
+    battery_v: f64,
+    /// State of charge from the reported voltage and current.
+    battery: BatteryEstimator,
+    /// The uploaded fence, and the same placed in the estimator's frame once it has an origin.
+    fence_zones: Vec<GeoZone>,
+    fence: Option<FenceMonitor>,
+    /// Failures injected by `MAV_CMD_INJECT_FAILURE`, and whether that is allowed
+    /// (`SYS_FAILURE_EN`).
+    injected: FailureInjector,
+    injection_enabled: bool,
+    /// Silent and frozen sensors.
+    monitor: SensorMonitor,
+    /// The magnetometer's field at rest, for the arming checks.
+    mag_field: MagFieldMonitor,
+    /// The last magnetometer calibration (under way or ended).
+    mag_cal: Option<MagCalibrator>,
+    /// The recent hover commands, and the open-loop descent flown on them without the IMU.
+    hover: HoverCommands,
+    blind: Option<BlindDescent>,
+    /// When the IMU froze while armed (sensor time): the loops cannot fly without it, and it
+    /// is not trusted again before the motors stop.
+    imu_frozen_since_usec: Option<u64>,
+}
+
+impl Autopilot {
+    /// An autopilot for `airframe`, flying `auto` on its own if given, else waiting for
+    /// commands.
+    pub fn new(
+        airframe: &Airframe,
+        params: &FlightParams,
+        auto: Option<AutoFlight>,
+    ) -> Result<Self, MixerError> {
+        let mut commander_params = params.commander;
+        if let Some(a) = auto {
+            commander_params.takeoff_alt_m = a.takeoff_m;
+        }
+        let mut commander = Commander::new(commander_params);
+        commander.set_safety_params(params.safety);
+        Ok(Self {
+            core: FlightCore::new(airframe, FlightCoreConfig::from_params(params, airframe))?,
+            commander,
+            airframe: airframe.clone(),
+            params: params.clone(),
+            rotors: airframe.rotors.len(),
+            nominal_v: nominal_battery_v(airframe),
+            source_restarts: 0,
+            repeated_frames: 0,
+            auto,
+            end_when_disarmed: false,
+            auto_denial: None,
+            ended: false,
+            last: None,
+            last_answer: None,
+            last_sample: None,
+            last_setpoint: None,
+            gps: None,
+            last_t_usec: 0,
+            battery_v: 0.0,
+            battery: BatteryEstimator::new(BatteryConfig::from_params(
+                &params.battery,
+                &airframe.battery,
+            )),
+            fence_zones: Vec::new(),
+            fence: None,
+            injected: FailureInjector::new(airframe.rotors.len()),
+            injection_enabled: params.safety.failure_injection != 0,
+            monitor: SensorMonitor::new(),
+            mag_field: MagFieldMonitor::default(),
+            mag_cal: None,
+            hover: HoverCommands::new(2.0),
+            blind: None,
+            imu_frozen_since_usec: None,
+        })
+    }
+
+    /// Flies with new parameters from the next step on (a ground station's PARAM_SET); the
+    /// estimates, integrators and the flight in progress are kept.
+    pub fn set_params(&mut self, params: &FlightParams) {
+        self.params = params.clone();
+        self.core
+            .set_config(FlightCoreConfig::from_params(params, &self.airframe));
+        self.commander.set_params(params.commander);
+        self.commander.set_safety_params(params.safety);
+        self.injection_enabled = params.safety.failure_injection != 0;
+        self.battery.set_config(BatteryConfig::from_params(
+            &params.battery,
+            &self.airframe.battery,
+        ));
+    }
+
+    /// How many rotors the airframe has.
+    pub fn rotors(&self) -> usize {
+        self.rotors
+    }
+
+    /// The commander's state.
+    pub fn status(&self) -> CommanderStatus {
+        self.commander.status()
+    }
+
+    /// Whether the armed state or the mode changed since the last call.
+    pub fn take_changed(&mut self) -> bool {
+        self.commander.take_changed()
+    }
+
+    /// The mission's progress.
+    pub fn mission_status(&self) -> crate::mission::MissionStatus {
+        self.commander.mission_status()
+    }
+
+    /// The last sample stepped on (magnetometer and barometer as last seen).
+    pub fn sample(&self) -> Option<SensorSample> {
+        self.last_sample
+    }
+
+    /// The set-point flown (armed only).
+    pub fn setpoint(&self) -> Option<Setpoint> {
+        self.last_setpoint
+    }
+
+    /// The flight core's last output.
+    pub fn estimate(&self) -> Option<StepOutput> {
+        self.last
+    }
+
+    /// The last GPS solution received.
+    pub fn gps(&self) -> Option<GpsMeasurement> {
+        self.gps
+    }
+
+    /// The largest collective thrust (N): what `ATTITUDE_TARGET`'s thrust is a fraction of.
+    pub fn max_thrust_n(&self) -> f64 {
+        self.core.config().position.max_thrust_n
+    }
+
+    /// The battery voltage (V): the board's report, else the pack's nominal voltage.
+    pub fn battery_v(&self) -> f64 {
+        self.battery_v
+    }
+
+    /// The battery as estimated from the board's (or simulator's) reports.
+    pub fn battery(&self) -> BatteryState {
+        self.battery.state()
+    }
+
+    /// The magnetometer calibration under way, or the last one.
+    pub fn mag_calibration(&self) -> Option<MagCalStatus> {
+        self.mag_cal.as_ref().map(MagCalibrator::status)
+    }
+
+    /// Whether the run is over: the auto flight has landed and disarmed, or an operator asked
+    /// to end and the vehicle is disarmed.
+    pub fn finished(&self) -> bool {
+        self.ended
+    }
+
+    /// The auto flight is waiting for the estimator before it takes off.
+    pub fn awaiting_takeoff(&self) -> bool {
+        self.auto.is_some() && !self.end_when_disarmed
+    }
+
+    /// Times the sensor source started again from an earlier time.
+    pub fn source_restarts(&self) -> u32 {
+        self.source_restarts
+    }
+
+    /// Samples that repeated or went back in time, answered or dropped without a step.
+    pub fn repeated_frames(&self) -> u64 {
+        self.repeated_frames
+    }
+
+    /// The sensors have no noise (the embedded simulator's ideal preset): repeated readings are
+    /// no sign of a frozen sensor.
+    pub fn sensors_noise_free(&mut self) {
+        self.monitor.noise_free();
+    }
+
+    /// Ends the run (Ctrl-C): lands first if in the air.
+    pub fn request_land(&mut self) {
+        self.end_when_disarmed = true;
+        self.auto = None;
+        if self.commander.armed() {
+            if let Err(e) = self.commander.set_mode(crate::commander::FlightMode::Land) {
+                tracing::warn!("landing: {e}");
+            }
+        } else {
+            self.ended = true;
+        }
+    }
+
+    /// One sensor sample: the whole chain, and what to tell the rotors. `None` for a sample
+    /// older than the last (stale: dropped). A sample more than [`SOURCE_RESTART_S`] older than
+    /// the last is a source that started again: the autopilot does too.
+    pub fn step(&mut self, sample: &SensorSample, inputs: &StepInputs) -> Option<AutopilotOutput> {
+        let t_usec = sample.t_usec;
+        let mut restarted = false;
+        if let Some(last) = &self.last_answer
+            && t_usec.saturating_add(SOURCE_RESTART_USEC) < last.t_usec
+        {
+            let back_s = (last.t_usec - t_usec) as f64 * 1e-6;
+            self.source_restarted(back_s);
+            restarted = true;
+        }
+        if let Some(last) = &self.last_answer
+            && t_usec <= last.t_usec
+        {
+            // A sample seen before: answered again without stepping; an older one is dropped.
+            self.repeated_frames += 1;
+            return (t_usec == last.t_usec).then_some(AutopilotOutput {
+                kind: StepKind::Repeated,
+                ..*last
+            });
+        }
+        let mut sample = *sample;
+        self.battery_v = sample.battery_v.unwrap_or(self.nominal_v);
+        if let Some(g) = sample.gps {
+            self.gps = Some(g);
+        }
+        if let Some(v) = sample.battery_v {
+            let current = sample
+                .esc_current_a
+                .map(|c| c[..self.rotors.min(c.len())].iter().sum::<f64>());
+            let throttle = self.last.map_or(0.0, |o| {
+                o.commands[..self.rotors].iter().sum::<f64>() / self.rotors.max(1) as f64
+            });
+            let dt = self.dt_since_last(t_usec);
+            self.battery.step(v, current, throttle, dt);
+        }
+        self.injected.apply_to_sample(&mut sample);
+        // Lost sensors are taken out: the estimators fall back as for a sensor that is off.
+        self.monitor.update(&mut sample);
+        if let Some(commands) = self.imu_frozen(t_usec) {
+            return self.blind_output(t_usec, commands, &sample, restarted);
+        }
+        if self.last.is_some() {
+            let dt = self.dt_since_last(t_usec);
+            let p = &self.core.config().attitude;
+            self.mag_field.update(sample.mag, &sample.accel, p, dt);
+        }
+        let t_s = t_usec as f64 * 1e-6;
+        if let Some(cal) = self.mag_cal.as_mut().filter(|c| c.collecting()) {
+            cal.step(t_s, sample.mag);
+            command::log_calibration_end(&cal.status());
+        }
+        let (setpoint, armed) = self.command_setpoint(t_s, inputs);
+        let status = self.commander.status();
+        if status.armed && status.landed == LandedState::OnGround {
+            // Spooling up on the ground: the position loop starts fresh at take-off.
+            self.core.reset_position_loop();
+        }
+        self.core.set_in_air(matches!(
+            status.landed,
+            LandedState::InAir | LandedState::Landing
+        ));
+        let output = self.core.step(&sample, &setpoint, armed);
+        if let Some(f) = output.motor_failure {
+            tracing::error!(
+                motor = f.rotor + 1,
+                by = ?f.by,
+                lost = format!("{:.0} %", 100.0 * f.lost_fraction),
+                reallocated = self.core.config().motor_failure.reallocate,
+                "motor failure detected"
+            );
+        }
+        // Magnetometer and barometer as last seen (a sample carries them only when fresh).
+        let prev = self.last_sample;
+        self.last_sample = Some(SensorSample {
+            mag: sample.mag.or(prev.and_then(|p| p.mag)),
+            baro_alt_m: sample.baro_alt_m.or(prev.and_then(|p| p.baro_alt_m)),
+            ..sample
+        });
+        self.last_setpoint = armed.then_some(setpoint);
+        if armed && !self.monitor.imu_repeating() {
+            // Not while the IMU repeats itself: if it is freezing, the loops fly blind and the
+            // blind descent must not inherit what they command meanwhile.
+            let dt = self.dt_since_last(t_usec);
+            self.hover.update(&output.commands, dt);
+        } else if !armed {
+            self.hover.reset();
+        }
+        self.last_t_usec = t_usec;
+        self.last = Some(output);
+        let mut commands = output.commands;
+        self.injected
+            .apply_to_commands(&mut commands[..self.rotors]);
+        let answer = AutopilotOutput {
+            t_usec,
+            commands,
+            armed,
+            kind: StepKind::Flown,
+            estimate: output,
+            setpoint,
+            sample,
+            restarted,
+        };
+        self.last_answer = Some(answer);
+        Some(answer)
+    }
+
+    /// Seconds from the last step to `t_usec`.
+    fn dt_since_last(&self, t_usec: u64) -> f64 {
+        t_usec.saturating_sub(self.last_t_usec) as f64 * 1e-6
+    }
+
+    /// The commander's set-point for this step, and whether the motors are armed: the auto
+    /// flight, the geofence and the failsafes decide with it. Before the flight core's first
+    /// output: the origin, disarmed.
+    fn command_setpoint(&mut self, t_s: f64, inputs: &StepInputs) -> (Setpoint, bool) {
+        let Some(e) = self.last else {
+            return (
+                Setpoint::Position(PositionSetpoint {
+                    pos_ned_m: Vector3::zeros(),
+                    vel_ned_m_s: Vector3::zeros(),
+                    accel_ned_m_s2: Vector3::zeros(),
+                    yaw_rad: 0.0,
+                }),
+                false,
+            );
+        };
+        let attitude_valid = e.attitude.is_some_and(|a| a.valid);
+        let ready =
+            attitude_valid && e.translation.horizontal_valid && e.translation.vertical_valid;
+        self.fly_auto();
+        if self.fence.is_none()
+            && let Some(o) = e.translation.origin
+        {
+            let fence = Geofence::new(&self.fence_zones, &LocalFrame::new(o));
+            self.fence = Some(FenceMonitor::new(fence));
+        }
+        // Outside the uploaded fence, or about to be: as PX4's GF_PREDICT, the point where a
+        // failsafe stop (MPC_ACC_FS_BRK) would come to rest must be inside too.
+        let in_air = self.commander.landed() == LandedState::InAir;
+        let brake = self.commander.params().failsafe_brake_m_s2;
+        let tr = &e.translation;
+        let outside_fence = tr.horizontal_valid
+            && self
+                .fence
+                .as_mut()
+                .is_some_and(|f| f.update(&tr.pos_ned_m.xy(), &tr.vel_ned_m_s.xy(), in_air, brake));
+        let p = &self.core.config().position;
+        let out = self.commander.update(&CommanderInput {
+            t_s,
+            ready,
+            horizontal_valid: tr.horizontal_valid,
+            pos_ned_m: tr.pos_ned_m,
+            vel_ned_m_s: tr.vel_ned_m_s,
+            yaw_rad: e.attitude.map_or(0.0, |a| a.q.euler_angles().2),
+            hover_thrust: p.mass_kg * crate::GRAVITY_M_S2 / p.max_thrust_n.max(1e-9),
+            origin: tr.origin,
+            health: Health {
+                attitude_valid,
+                gyro_bias_settled: e.attitude.is_some_and(|a| a.bias_settled),
+                altitude_valid: tr.vertical_valid,
+                roll_pitch_rad: e.attitude.map_or((0.0, 0.0), |a| {
+                    let (roll, pitch, _) = a.q.euler_angles();
+                    (roll, pitch)
+                }),
+                gcs_link_age_s: inputs.gcs_link_age_s,
+                motor_failed: self
+                    .core
+                    .failed_rotors()
+                    .iter()
+                    .position(|&f| f)
+                    .map(|i| i + 1),
+                sensors_lost: self.monitor.lost(),
+                battery_remaining: self.battery.state().remaining,
+                geofence_breached: outside_fence,
+                mag: self.mag_field.status(&self.core.config().attitude),
+            },
+        });
+        for e in self.commander.take_safety_events() {
+            tracing::warn!("{e}");
+        }
+        self.check_end();
+        out
+    }
+
+    /// The run ends when disarmed after the auto flight (or an operator's Ctrl-C).
+    fn check_end(&mut self) {
+        if self.end_when_disarmed && !self.commander.armed() {
+            self.ended = true;
+        }
+    }
+
+    /// The auto flight: take off when ready, land after the hold.
+    fn fly_auto(&mut self) {
+        let Some(a) = self.auto else {
+            return;
+        };
+        let c = &mut self.commander;
+        let s = c.status();
+        if !self.end_when_disarmed {
+            if s.ready && !s.armed {
+                if let Err(e) = c.takeoff(Some(a.takeoff_m)).and_then(|()| c.arm(false)) {
+                    if self.auto_denial.as_ref() != Some(&e) {
+                        tracing::warn!("auto flight: {e}");
+                        self.auto_denial = Some(e);
+                    }
+                    return;
+                }
+                tracing::info!(takeoff_m = a.takeoff_m, "auto flight: armed, taking off");
+                self.end_when_disarmed = true;
+            }
+        } else if s.mode == crate::commander::FlightMode::Loiter
+            && s.landed == LandedState::InAir
+            && s.in_mode_s >= a.hover_s
+        {
+            tracing::info!("auto flight: landing");
+            if let Err(e) = c.set_mode(crate::commander::FlightMode::Land) {
+                tracing::warn!("auto flight: {e}");
+            }
+        }
+    }
+
+    /// The sensor source started again (its clock went back by more than
+    /// [`SOURCE_RESTART_S`]): a simulator restarted, a flight board rebooted. Whatever the
+    /// autopilot believed is of another world: it starts afresh — disarmed, estimator aligning
+    /// again, commander on the ground —, as a board does when it boots. Kept, as a board's
+    /// storage keeps them: the parameters, the mission and the fence.
+    fn source_restarted(&mut self, back_s: f64) {
+        let mut fresh = match Autopilot::new(&self.airframe, &self.params, self.auto) {
+            Ok(a) => a,
+            Err(e) => {
+                // Built from the same airframe and parameters before: not expected.
+                tracing::error!("sensor source restarted, the autopilot not rebuilt: {e}");
+                return;
+            }
+        };
+        tracing::warn!(
+            back_s = format!("{back_s:.1}"),
+            was_armed = self.commander.armed(),
+            "sensor source restarted (its clock went back): the vehicle starts afresh"
+        );
+        fresh
+            .commander
+            .set_mission(self.commander.mission_items().to_vec());
+        fresh.fence_zones = std::mem::take(&mut self.fence_zones);
+        fresh.repeated_frames = self.repeated_frames;
+        fresh.source_restarts = self.source_restarts + 1;
+        if self.monitor.is_noise_free() {
+            fresh.monitor.noise_free();
+        }
+        // A calibration under way cannot go on in a clock that went back: ended, and said so.
+        fresh.mag_cal = self.mag_cal.take().map(|mut c| {
+            c.cancel();
+            c
+        });
+        *self = fresh;
+    }
+}

@@ -1,0 +1,227 @@
+//! What a ground station (or the operator) asks of the autopilot, and how it is carried out
+//! or refused.
+
+use super::Autopilot;
+use crate::commander::{Denial, FlightMode, OffboardTarget, Sticks};
+use crate::math::geo::{LatLonAlt, LocalFrame};
+use crate::mission::{MissionItem, MissionPoint, SpeedChange};
+use crate::safety::failure_injection::{Injection, Refusal};
+use crate::safety::geofence::{FenceMonitor, GeoZone, Geofence};
+use crate::sensors::mag_calibrator::{MagCalState, MagCalStatus, MagCalibrator};
+use nalgebra::Vector3;
+
+/// Magnetometer calibrations started in this process: each run's number, unique across the
+/// autopilots a reboot or a restarted source makes, so the ground-station side never takes a
+/// new run for one it has reported.
+static MAG_CAL_RUNS: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+
+/// What a ground station (or the operator) asks of the autopilot.
+#[derive(Debug, Clone, PartialEq)]
+pub enum AutopilotCommand {
+    /// Arm; `force` skips the estimator check.
+    Arm {
+        /// Skip what may be skipped.
+        force: bool,
+    },
+    /// Disarm; `force` also in the air.
+    Disarm {
+        /// Also in the air.
+        force: bool,
+    },
+    /// Switch flight mode.
+    SetMode(FlightMode),
+    /// Take off to this altitude above home (m), or the parameter's.
+    Takeoff(Option<f64>),
+    /// Take off to this altitude above mean sea level (m), as `MAV_CMD_NAV_TAKEOFF` param7
+    /// does in PX4: at least the parameter's altitude above home.
+    TakeoffAmsl(f64),
+    /// Set home here (NED, m), or at the current position.
+    SetHome(Option<Vector3<f64>>),
+    /// Set home at this global position.
+    SetHomeGlobal(LatLonAlt),
+    /// Stick positions (`MANUAL_CONTROL`); never answered.
+    Sticks(Sticks),
+    /// An offboard set-point (`SET_POSITION_TARGET_*`, `SET_ATTITUDE_TARGET`); never answered.
+    Offboard(OffboardTarget),
+    /// A new mission (an upload finished, or a clear); never answered.
+    SetMission(Vec<MissionItem>),
+    /// A new geofence (an upload finished, or a clear); never answered.
+    SetFence(Vec<GeoZone>),
+    /// Go on at this mission item.
+    SetMissionCurrent(u16),
+    /// Mission mode, from this item if given (`MAV_CMD_MISSION_START`).
+    StartMission(Option<u16>),
+    /// The speed of automatic flight (`DO_CHANGE_SPEED`).
+    ChangeSpeed(SpeedChange),
+    /// Turn (`CONDITION_YAW`): to `angle_deg`, or by it when `relative` (clockwise for
+    /// `direction` ≥ 0, counter-clockwise for −1), at `rate_deg_s` or the automatic rate.
+    ConditionYaw {
+        /// The heading, or the turn (deg).
+        angle_deg: f64,
+        /// The turn rate (deg/s).
+        rate_deg_s: Option<f64>,
+        /// −1 counter-clockwise, 1 clockwise, 0 the shortest way (relative turns: clockwise).
+        direction: i8,
+        /// `angle_deg` is a turn from the current heading.
+        relative: bool,
+    },
+    /// Fly to a point and hold there (`DO_REPOSITION`).
+    Reposition {
+        /// Where; a part left open keeps the current one.
+        at: MissionPoint,
+        /// Horizontal speed (m/s), else the cruise speed.
+        speed_m_s: Option<f64>,
+        /// Heading (rad), else kept.
+        yaw_rad: Option<f64>,
+        /// Switch to Hold (else only in Hold already).
+        change_mode: bool,
+    },
+    /// Make a motor or sensor fail, or work again (`MAV_CMD_INJECT_FAILURE`).
+    InjectFailure(Injection),
+    /// Start an onboard magnetometer calibration (`MAV_CMD_PREFLIGHT_CALIBRATION`, param2 1).
+    CalibrateMag,
+    /// Cancel a calibration under way (`MAV_CMD_PREFLIGHT_CALIBRATION`, every param 0).
+    CancelCalibration,
+}
+
+/// Logs how a magnetometer calibration ended, if it has.
+pub(super) fn log_calibration_end(s: &MagCalStatus) {
+    match s.state {
+        MagCalState::Collecting | MagCalState::Cancelled => {}
+        MagCalState::Succeeded(r) => tracing::info!(
+            samples = r.samples,
+            coverage = r.coverage,
+            residual = format!("{:.2} %", 100.0 * r.residual_rms),
+            offset = ?r.offset.as_slice(),
+            "magnetometer calibration done"
+        ),
+        MagCalState::Failed(f) => tracing::warn!("magnetometer calibration failed: {f}"),
+    }
+}
+
+impl Autopilot {
+    fn calibrating(&self) -> bool {
+        self.mag_cal.as_ref().is_some_and(MagCalibrator::collecting)
+    }
+
+    /// Carries out a command, or says why not.
+    pub fn command(&mut self, c: AutopilotCommand) -> Result<(), Denial> {
+        let arming = matches!(
+            c,
+            AutopilotCommand::Arm { .. }
+                | AutopilotCommand::Takeoff(_)
+                | AutopilotCommand::TakeoffAmsl(_)
+                | AutopilotCommand::StartMission(_)
+        );
+        if arming && self.calibrating() {
+            return Err("arming refused: calibrating the magnetometer".into());
+        }
+        let origin = self.last.and_then(|o| o.translation.origin);
+        let c_ = &mut self.commander;
+        match c {
+            AutopilotCommand::CalibrateMag => {
+                if c_.status().armed {
+                    return Err("calibration refused: disarm first".into());
+                }
+                if self.calibrating() {
+                    return Err("a magnetometer calibration is already running".into());
+                }
+                let run = MAG_CAL_RUNS.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                let strength = self.params.attitude.mag_intensity_gauss;
+                self.mag_cal = Some(MagCalibrator::new(run, strength));
+                tracing::info!(
+                    run,
+                    "magnetometer calibration started: turn the vehicle through every orientation"
+                );
+                Ok(())
+            }
+            AutopilotCommand::CancelCalibration => {
+                if let Some(cal) = self.mag_cal.as_mut().filter(|c| c.collecting()) {
+                    cal.cancel();
+                    tracing::warn!("magnetometer calibration cancelled");
+                }
+                Ok(())
+            }
+            AutopilotCommand::Arm { force } => c_.arm(force),
+            AutopilotCommand::Disarm { force } => c_.disarm(force),
+            AutopilotCommand::SetMode(m) => c_.set_mode(m),
+            AutopilotCommand::Takeoff(alt) => c_.takeoff(alt),
+            AutopilotCommand::SetHome(p) => c_.set_home(p),
+            AutopilotCommand::TakeoffAmsl(amsl_m) => {
+                let (Some(out), Some(origin)) = (self.last, origin) else {
+                    return Err("take-off refused: no global position yet".into());
+                };
+                let home_down = c_.home().map_or(out.translation.pos_ned_m.z, |h| h.z);
+                let home_amsl = origin.alt_m - home_down;
+                let above_home = (amsl_m - home_amsl).max(c_.params().takeoff_alt_m);
+                c_.takeoff(Some(above_home))
+            }
+            AutopilotCommand::SetHomeGlobal(p) => {
+                let Some(origin) = origin else {
+                    return Err("home refused: no global position yet".into());
+                };
+                c_.set_home(Some(LocalFrame::new(origin).to_ned(&p)))
+            }
+            AutopilotCommand::Sticks(s) => {
+                c_.manual_control(s);
+                Ok(())
+            }
+            AutopilotCommand::InjectFailure(_) if !self.injection_enabled => {
+                Err(Refusal::Disabled.to_string())
+            }
+            AutopilotCommand::InjectFailure(i) => {
+                let said = self.injected.inject(i).map_err(|e| e.to_string())?;
+                tracing::warn!("{said}");
+                Ok(())
+            }
+            AutopilotCommand::Offboard(t) => {
+                c_.offboard_setpoint(t);
+                Ok(())
+            }
+            AutopilotCommand::SetMission(items) => {
+                c_.set_mission(items);
+                Ok(())
+            }
+            AutopilotCommand::SetFence(zones) => {
+                self.fence =
+                    origin.map(|o| FenceMonitor::new(Geofence::new(&zones, &LocalFrame::new(o))));
+                self.fence_zones = zones;
+                Ok(())
+            }
+            AutopilotCommand::SetMissionCurrent(seq) => c_.set_mission_current(seq),
+            AutopilotCommand::StartMission(first) => c_.start_mission(first),
+            AutopilotCommand::ChangeSpeed(change) => c_.change_speed(change),
+            AutopilotCommand::ConditionYaw {
+                angle_deg,
+                rate_deg_s,
+                direction,
+                relative,
+            } => {
+                let yaw = self
+                    .last
+                    .and_then(|o| o.attitude)
+                    .map_or(0.0, |a| a.q.euler_angles().2);
+                let target = if relative {
+                    yaw + angle_deg.to_radians() * if direction < 0 { -1.0 } else { 1.0 }
+                } else {
+                    angle_deg.to_radians()
+                };
+                c_.condition_yaw(target, rate_deg_s.map(f64::to_radians))
+            }
+            AutopilotCommand::Reposition {
+                at,
+                speed_m_s,
+                yaw_rad,
+                change_mode,
+            } => {
+                let (Some(out), Some(origin)) = (self.last, origin) else {
+                    return Err("reposition refused: no global position yet".into());
+                };
+                let home = c_.home().unwrap_or(out.translation.pos_ned_m);
+                // The parts left open stay NaN: the commander keeps them.
+                let target = at.to_ned(&origin, &home, &Vector3::repeat(f64::NAN));
+                c_.reposition(target, speed_m_s, yaw_rad, change_mode)
+            }
+        }
+    }
+}

@@ -1,0 +1,84 @@
+//! The pure crates stay pure: the flight core, the simulator's physics and the airframe schema
+//! depend on no MAVLink, no async runtime and no clock. Time comes with their inputs, bytes are
+//! the links' business; a dependency or a clock read creeping in fails here.
+
+// Test code: a failed unwrap is a failed test.
+#![allow(clippy::unwrap_used)]
+
+use std::path::{Path, PathBuf};
+
+/// The workspace's pure crates, from this crate's directory.
+const PURE_CRATES: [&str; 3] = [".", "../../sitl/core", "../../airframe"];
+
+/// What a pure crate must neither depend on nor name.
+const FORBIDDEN_DEPENDENCIES: [&str; 3] = ["mavlink", "tokio", "serialport"];
+const FORBIDDEN_IN_SOURCES: [&str; 5] =
+    ["mavlink::", "tokio::", "Instant", "SystemTime", "std::net"];
+
+fn crate_dir(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
+}
+
+/// Every `.rs` file under `dir`.
+fn sources(dir: &Path, into: &mut Vec<PathBuf>) {
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_dir() {
+            sources(&path, into);
+        } else if path.extension().is_some_and(|e| e == "rs") {
+            into.push(path);
+        }
+    }
+}
+
+#[test]
+fn pure_crates_depend_on_no_mavlink_runtime_or_serial_port() {
+    for krate in PURE_CRATES {
+        let manifest = std::fs::read_to_string(crate_dir(krate).join("Cargo.toml")).unwrap();
+        let table: toml::Table = manifest.parse().unwrap();
+        for section in ["dependencies", "dev-dependencies", "build-dependencies"] {
+            let Some(deps) = table.get(section).and_then(|d| d.as_table()) else {
+                continue;
+            };
+            for name in FORBIDDEN_DEPENDENCIES {
+                assert!(
+                    !deps.contains_key(name),
+                    "{krate}/Cargo.toml [{section}] names {name}: a pure crate takes typed inputs"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn pure_crates_read_no_clock_and_name_no_mavlink() {
+    let mut checked = 0;
+    for krate in PURE_CRATES {
+        let mut files = Vec::new();
+        // Benchmarks read the clock: measuring is their job.
+        for dir in ["src", "tests"] {
+            let d = crate_dir(krate).join(dir);
+            if d.is_dir() {
+                sources(&d, &mut files);
+            }
+        }
+        for file in files {
+            if file.ends_with("purity.rs") {
+                continue; // this file names what it forbids
+            }
+            let text = std::fs::read_to_string(&file).unwrap();
+            for word in FORBIDDEN_IN_SOURCES {
+                assert!(
+                    !text.contains(word),
+                    "{} names {word}: the pure crates read no clock and speak no MAVLink",
+                    file.display()
+                );
+            }
+            checked += 1;
+        }
+    }
+    assert!(
+        checked > 50,
+        "only {checked} files found: wrong directories?"
+    );
+}

@@ -1,0 +1,666 @@
+//! The control loop. It owns the [`Autopilot`], the records of its flight and its sensor link;
+//! other tasks reach it only through [`Ports`]: a bounded channel of [`LoopCommand`]s in, the
+//! latest [`Telemetry`] out. Each frame the link delivers becomes a typed sample
+//! ([`frames`]), the autopilot steps on it, the records observe the step, and the answer goes
+//! back on the link.
+//!
+//! Two pacings ([`Pacing`]): in lockstep every sensor frame is a tick and its time the clock (a
+//! simulator that waits for each answer); with a flight board in the real world the loop wakes
+//! at absolute deadlines, reads whatever the link holds without waiting, steps on every complete
+//! frame, and counts its lateness and overruns ([`crate::control_loop::deadline`]).
+
+pub mod deadline;
+pub mod frames;
+
+use crate::link::SensorLink;
+use crate::records::FlightRecords;
+use crate::records::score::FlightScore;
+use anyhow::{Context, Result, bail};
+use deadline::{Deadlines, LoopStats, LoopSummary, sleep_until};
+use flight_core::autopilot::command::AutopilotCommand;
+use flight_core::autopilot::{Autopilot, StepInputs};
+use flight_core::commander::{CommanderStatus, Denial};
+use flight_core::control::Setpoint;
+use flight_core::core::{SensorSample, StepOutput};
+use flight_core::estimator::translation::GpsMeasurement;
+use flight_core::params::FlightParams;
+use frames::FrameAssembler;
+use hil::{Decoded, Encoder};
+use std::time::{Duration, Instant};
+use tokio::sync::{mpsc, oneshot, watch};
+
+/// The estimator converges in a few seconds at rest; a sequence still waiting after this long
+/// never will, and the flight stops with the reason instead of waiting forever.
+const READY_TIMEOUT_S: f64 = 60.0;
+
+/// Wall-clock time without any sensor frame before the loop says so (before the first frame,
+/// or from a lockstep simulator, whose world waits).
+const SILENCE_WARNING: Duration = Duration::from_secs(2);
+
+/// Silence of the sensor frames, on the link's clock, after which the estimate is invalid and
+/// the vehicle reacts (s). With the loop's poll period below, the reaction starts within 0.1 s.
+pub const SENSOR_TIMEOUT_S: f64 = 0.08;
+
+/// How long one wait for frames lasts in lockstep: the watchdog's resolution.
+const POLL: Duration = Duration::from_millis(10);
+
+/// Reads per deadline tick at most: a link flooded with datagrams cannot hold the loop.
+const MAX_READS_PER_TICK: usize = 32;
+
+/// Shortest wall-clock interval between two telemetry publications: every step in real time,
+/// about a thousand a second when lockstep runs faster (each wakes nobody but costs a notify).
+const TELEMETRY_INTERVAL: Duration = Duration::from_millis(1);
+
+/// What other tasks ask of the control loop.
+#[derive(Debug)]
+pub enum LoopCommand {
+    /// End the run: land if in the air, then stop (the first Ctrl-C).
+    Land,
+    /// Stop the loop at once (the second Ctrl-C).
+    Stop,
+    /// A ground station's heartbeat arrived: the loop keeps its wall-clock time for the
+    /// link-loss failsafe (the autopilot has no clock of its own).
+    GcsHeartbeat,
+    /// An autopilot command; the answer goes back on the channel given (if any).
+    Autopilot(
+        AutopilotCommand,
+        Option<oneshot::Sender<Result<(), Denial>>>,
+    ),
+}
+
+/// What the control loop publishes after every step: the latest value, for the status line
+/// and (later) the ground-station telemetry.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Telemetry {
+    /// Time of the last sensor frame (s).
+    pub t_s: f64,
+    /// The commander's state.
+    pub status: Option<CommanderStatus>,
+    /// The last step's output.
+    pub output: Option<StepOutput>,
+    /// The last GPS solution.
+    pub gps: Option<GpsMeasurement>,
+    /// The last sensor sample stepped on.
+    pub sample: Option<SensorSample>,
+    /// The position set-point flown (armed only).
+    pub setpoint: Option<Setpoint>,
+    /// The simulator's ground truth (SITL only).
+    pub truth: Option<hil::TruthReport>,
+    /// The largest collective thrust (N).
+    pub max_thrust_n: f64,
+    /// Battery voltage (V).
+    pub battery_v: f64,
+    /// The battery estimate (voltage, current, charge left).
+    pub battery: flight_core::sensors::battery::BatteryState,
+    /// Sensor frames stepped.
+    pub frames: u64,
+    /// The deadline loop's timing over the last interval (none in lockstep).
+    pub loop_stats: Option<LoopSummary>,
+    /// The loop has ended.
+    pub finished: bool,
+    /// The sensor frames have stopped (the watchdog has fired; the vehicle is reacting).
+    pub sensors_silent: bool,
+    /// Times the sensor source started again from an earlier time (the vehicle with it).
+    pub source_restarts: u32,
+    /// The magnetometer calibration under way, or the last one.
+    pub mag_cal: Option<flight_core::sensors::mag_calibrator::MagCalStatus>,
+}
+
+/// The control loop's side of its channels.
+pub struct Ports {
+    /// Commands from other tasks (bounded; drained before each step).
+    pub commands: mpsc::Receiver<LoopCommand>,
+    /// The latest telemetry.
+    pub telemetry: watch::Sender<Telemetry>,
+    /// The parameters to fly with, when something (the ground-station side) changes them.
+    pub params: Option<watch::Receiver<FlightParams>>,
+}
+
+impl Ports {
+    /// Channels whose other ends are returned: a command sender (capacity `capacity`) and a
+    /// telemetry receiver.
+    pub fn new(capacity: usize) -> (Self, mpsc::Sender<LoopCommand>, watch::Receiver<Telemetry>) {
+        let (tx, commands) = mpsc::channel(capacity);
+        let (telemetry, rx) = watch::channel(Telemetry::default());
+        (
+            Self {
+                commands,
+                telemetry,
+                params: None,
+            },
+            tx,
+            rx,
+        )
+    }
+}
+
+/// How the loop is paced.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Pacing {
+    /// Every sensor frame is a tick: the loop waits for it.
+    Lockstep,
+    /// Ticks at absolute deadlines every `period`; the last `spin` before each is spent
+    /// spinning on the clock rather than sleeping (see [`sleep_until`]).
+    Deadlines {
+        /// The tick period.
+        period: Duration,
+        /// Spin before each deadline.
+        spin: Duration,
+        /// How often the loop's timing is logged.
+        stats: Duration,
+    },
+}
+
+/// What happened, printed as one `key=value` line at the end.
+#[derive(Debug, Default)]
+pub struct FlightReport {
+    source: String,
+    sim_time_s: f64,
+    wall_time_s: f64,
+    frames: u64,
+    malformed: u64,
+    repeated: u64,
+    score: FlightScore,
+    disarmed: bool,
+    sensor_timeouts: u64,
+    /// The deadline loop's rate and timing over the whole run.
+    deadline_loop: Option<(f64, LoopSummary)>,
+}
+
+impl FlightReport {
+    /// The vehicle ended its run on the ground, disarmed.
+    pub fn landed(&self) -> bool {
+        self.disarmed && self.score.on_ground()
+    }
+
+    /// The flight's figures against the simulator's truth.
+    pub fn score(&self) -> &FlightScore {
+        &self.score
+    }
+
+    /// Sensor time flown (s).
+    pub fn sim_time_s(&self) -> f64 {
+        self.sim_time_s
+    }
+
+    /// Times the sensor frames stopped (the watchdog fired).
+    pub fn sensor_timeouts(&self) -> u64 {
+        self.sensor_timeouts
+    }
+}
+
+impl std::fmt::Display for FlightReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let opt = |x: Option<f64>| x.map_or("nan".to_owned(), |x| format!("{x:.3}"));
+        write!(
+            f,
+            "autopilot summary: source={} sim_time_s={:.2} wall_time_s={:.2} realtime_factor={:.1} frames={} frames_per_s={:.0} malformed={} repeated={} sensor_timeouts={} max_alt_m={:.2} hover_alt_rms_m={} hover_drift_rms_m={} attitude_rms_deg={} touchdown_m_s={:.2} impact_m_s={:.2} max_tilt_deg={:.1} max_distance_m={:.2} failsafe={} landed={} disarmed={}",
+            self.source,
+            self.sim_time_s,
+            self.wall_time_s,
+            self.sim_time_s / self.wall_time_s.max(1e-9),
+            self.frames,
+            self.frames as f64 / self.wall_time_s.max(1e-9),
+            self.malformed,
+            self.repeated,
+            self.sensor_timeouts,
+            self.score.max_height_m,
+            opt(self.score.hover_alt_rms_m()),
+            opt(self.score.hover_drift_rms_m()),
+            opt(self.score.attitude_rms_deg()),
+            self.score.touchdown_m_s,
+            self.score.impact_m_s,
+            self.score.max_tilt_deg,
+            self.score.max_distance_m,
+            self.score.failsafe,
+            self.score.on_ground(),
+            self.disarmed
+        )?;
+        match &self.deadline_loop {
+            None => write!(f, " pacing=lockstep"),
+            Some((hz, s)) => write!(
+                f,
+                " pacing=deadlines loop_hz={hz:.0} ticks={} jitter_p50_us={} jitter_p99_us={} jitter_max_us={} work_max_us={} overruns={}",
+                s.ticks,
+                s.jitter_p50_us,
+                s.jitter_p99_us,
+                s.jitter_max_us,
+                s.work_max_us,
+                s.overruns
+            ),
+        }
+    }
+}
+
+/// Whether the loop goes on.
+#[derive(Debug, PartialEq, Eq)]
+enum Flow {
+    Continue,
+    Stop,
+}
+
+/// The loop's state between ticks, whatever paces it.
+struct ControlLoop<'a> {
+    link: &'a mut dyn SensorLink,
+    autopilot: &'a mut Autopilot,
+    records: &'a mut FlightRecords,
+    ports: &'a mut Ports,
+    report: FlightReport,
+    encoder: Encoder,
+    decoded: Decoded,
+    frames: FrameAssembler,
+    rotors: usize,
+    answer: Vec<u8>,
+    last_frame: Instant,
+    silence_logged: bool,
+    done_at: Option<f64>,
+    t_s: f64,
+    /// The watchdog: the link-clock time of the last frame, and whether the vehicle reacted.
+    last_frame_clock: Option<f64>,
+    silent: bool,
+    silent_done_at: Option<f64>,
+    loop_stats: Option<LoopSummary>,
+    /// When telemetry was last published.
+    published: Instant,
+    /// When the last ground-station heartbeat arrived (wall clock).
+    gcs_heartbeat: Option<Instant>,
+}
+
+impl<'a> ControlLoop<'a> {
+    fn new(member: Onboard<'a>) -> Self {
+        let Onboard {
+            link,
+            autopilot,
+            records,
+            ports,
+            system_id,
+        } = member;
+        Self {
+            report: FlightReport {
+                source: link.describe(),
+                ..FlightReport::default()
+            },
+            rotors: autopilot.rotors(),
+            link,
+            autopilot,
+            records,
+            ports,
+            encoder: Encoder::with_ids(system_id, 1),
+            decoded: Decoded::default(),
+            frames: FrameAssembler::default(),
+            answer: Vec::with_capacity(128),
+            last_frame: Instant::now(),
+            silence_logged: false,
+            done_at: None,
+            t_s: 0.0,
+            last_frame_clock: None,
+            silent: false,
+            silent_done_at: None,
+            loop_stats: None,
+            published: Instant::now(),
+            gcs_heartbeat: None,
+        }
+    }
+
+    /// Drains the commands and takes new parameters.
+    fn commands(&mut self) -> Flow {
+        if let Some(params) = self.ports.params.as_mut()
+            && params.has_changed().unwrap_or(false)
+        {
+            let p = params.borrow_and_update().clone();
+            self.autopilot.set_params(&p);
+            tracing::debug!("flying with new parameters");
+        }
+        while let Ok(c) = self.ports.commands.try_recv() {
+            match c {
+                LoopCommand::Land => self.autopilot.request_land(),
+                LoopCommand::Stop => return Flow::Stop,
+                LoopCommand::GcsHeartbeat => {
+                    self.gcs_heartbeat = Some(Instant::now());
+                }
+                LoopCommand::Autopilot(c, reply) => {
+                    // Sticks and offboard set-points arrive tens of times a second: not logged.
+                    let what = match &c {
+                        AutopilotCommand::Sticks(_) | AutopilotCommand::Offboard(_) => None,
+                        AutopilotCommand::SetMission(items) => {
+                            Some(format!("SetMission({} items)", items.len()))
+                        }
+                        AutopilotCommand::SetFence(zones) => {
+                            Some(format!("SetFence({} zones)", zones.len()))
+                        }
+                        c => Some(format!("{c:?}")),
+                    };
+                    let result = self.autopilot.command(c);
+                    match (&result, what) {
+                        (_, None) => {}
+                        (Ok(()), Some(c)) => tracing::info!(command = c, "accepted"),
+                        (Err(e), Some(c)) => tracing::warn!(command = c, "{e}"),
+                    }
+                    if let Some(reply) = reply {
+                        // The asker may have given up waiting: nothing to do then.
+                        let _ = reply.send(result);
+                    }
+                }
+            }
+        }
+        Flow::Continue
+    }
+
+    /// Reads the link: waits up to `timeout`, then (`drain`) takes what else is there.
+    fn read(&mut self, timeout: Duration, drain: bool) -> Result<bool> {
+        self.decoded.messages.clear();
+        self.decoded.malformed = 0;
+        let mut arrived = self
+            .link
+            .receive(timeout, &mut self.decoded)
+            .with_context(|| format!("reading {}", self.link.describe()))?;
+        if drain && arrived {
+            for _ in 1..MAX_READS_PER_TICK {
+                if !self.link.receive(Duration::ZERO, &mut self.decoded)? {
+                    break;
+                }
+            }
+            arrived = true;
+        }
+        self.report.malformed += self.decoded.malformed as u64;
+        if !arrived && !self.silence_logged && self.last_frame.elapsed() > SILENCE_WARNING {
+            tracing::warn!(
+                link = %self.link.describe(),
+                mode = self.autopilot.status().mode.name(),
+                "no sensor frames for {:.0?}: waiting",
+                self.last_frame.elapsed()
+            );
+            self.silence_logged = true;
+        }
+        Ok(arrived)
+    }
+
+    /// The sensor watchdog: on the link's clock, frames silent for [`SENSOR_TIMEOUT_S`] make
+    /// the estimate invalid and the vehicle react; its commands keep going out meanwhile.
+    fn watchdog(&mut self) -> Result<Flow> {
+        let (Some(now), Some(last)) = (self.link.silence_clock_s(), self.last_frame_clock) else {
+            return Ok(Flow::Continue);
+        };
+        if now - last < SENSOR_TIMEOUT_S {
+            return Ok(Flow::Continue);
+        }
+        if !self.silent {
+            self.silent = true;
+            self.report.sensor_timeouts += 1;
+            self.autopilot.sensors_stopped();
+            // No step publishes while the frames are silent: the ground station hears of it
+            // (and of the failsafe) now.
+            let status = self.autopilot.status();
+            self.ports.telemetry.send_modify(|t| {
+                t.status = Some(status);
+                t.sensors_silent = true;
+            });
+        }
+        // Keep the motors on the failsafe's command (a board wants a steady stream).
+        let a = self.autopilot.silent_answer(now - last);
+        let message = hil::actuator_controls(a.t_usec, &a.commands[..self.rotors], a.armed);
+        self.send(&message)?;
+        if self.autopilot.finished() {
+            // Disarmed by the failsafe at the end of the run: a second more of motors-off,
+            // then stop.
+            if now - *self.silent_done_at.get_or_insert(now) > 1.0 {
+                return Ok(Flow::Stop);
+            }
+        }
+        Ok(Flow::Continue)
+    }
+
+    /// Steps the vehicle on every complete sensor frame read, and answers each.
+    fn frames(&mut self) -> Result<Flow> {
+        let inputs = StepInputs {
+            gcs_link_age_s: self.gcs_heartbeat.map(|t| t.elapsed().as_secs_f64()),
+        };
+        for i in 0..self.decoded.messages.len() {
+            let Some((sample, truth)) = self.frames.absorb(&self.decoded.messages[i].1) else {
+                continue;
+            };
+            let Some(step) = self.autopilot.step(&sample, &inputs) else {
+                continue;
+            };
+            let status = self.autopilot.status();
+            self.records.observe(&step, &status, truth);
+            self.last_frame = Instant::now();
+            self.silence_logged = false;
+            self.last_frame_clock = self.link.silence_clock_s();
+            if self.silent {
+                self.silent = false;
+                self.silent_done_at = None;
+                self.autopilot.sensors_resumed();
+            }
+            self.report.frames += 1;
+            self.t_s = step.t_usec as f64 * 1e-6;
+            self.send(&frames::answer(&step, self.rotors))?;
+            let changed = self.autopilot.take_changed();
+            let now = self.last_frame;
+            if now >= self.published + TELEMETRY_INTERVAL || changed {
+                self.published = now;
+                let a = &*self.autopilot;
+                self.ports.telemetry.send_replace(Telemetry {
+                    t_s: self.t_s,
+                    status: Some(status),
+                    gps: a.gps(),
+                    sample: a.sample(),
+                    setpoint: a.setpoint(),
+                    truth: self.records.truth(),
+                    max_thrust_n: a.max_thrust_n(),
+                    battery_v: a.battery_v(),
+                    battery: a.battery(),
+                    output: Some(step.estimate),
+                    frames: self.report.frames,
+                    loop_stats: self.loop_stats,
+                    finished: false,
+                    sensors_silent: false,
+                    source_restarts: a.source_restarts(),
+                    mag_cal: a.mag_calibration(),
+                });
+            }
+            if self.autopilot.awaiting_takeoff() && self.t_s > READY_TIMEOUT_S {
+                let out = &step.estimate;
+                bail!(
+                    "not ready to arm after {READY_TIMEOUT_S} s of sensor time: attitude valid {}, horizontal position valid {}, vertical valid {}",
+                    out.attitude.is_some_and(|a| a.valid),
+                    out.translation.horizontal_valid,
+                    out.translation.vertical_valid
+                );
+            }
+            if self.autopilot.finished() {
+                // A second on the ground after the run ended, then stop.
+                let t = *self.done_at.get_or_insert(self.t_s);
+                if self.t_s - t > 1.0 {
+                    return Ok(Flow::Stop);
+                }
+            }
+        }
+        Ok(Flow::Continue)
+    }
+
+    /// Encodes `message` and sends it on the link.
+    fn send(&mut self, message: &mavlink::dialects::common::MavMessage) -> Result<()> {
+        self.answer.clear();
+        self.encoder.push(&mut self.answer, message);
+        self.link
+            .send(&self.answer)
+            .with_context(|| format!("answering on {}", self.link.describe()))
+    }
+
+    /// One tick: commands, the link, the watchdog, the frames.
+    fn tick(&mut self, timeout: Duration, drain: bool) -> Result<Flow> {
+        if self.commands() == Flow::Stop {
+            return Ok(Flow::Stop);
+        }
+        let arrived = self.read(timeout, drain)?;
+        if self.watchdog()? == Flow::Stop || (arrived && self.frames()? == Flow::Stop) {
+            return Ok(Flow::Stop);
+        }
+        Ok(Flow::Continue)
+    }
+
+    /// The run's report, once the loop has ended (`started`: when it began).
+    fn into_report(self, started: Instant) -> FlightReport {
+        let mut report = self.report;
+        report.sim_time_s = self.t_s;
+        report.wall_time_s = started.elapsed().as_secs_f64();
+        report.score = self.records.score().clone();
+        report.repeated = self.autopilot.repeated_frames();
+        report.disarmed = !self.autopilot.status().armed;
+        report
+    }
+
+    /// Lockstep: every frame is a tick.
+    fn run_lockstep(&mut self) -> Result<()> {
+        while self.tick(POLL, false)? == Flow::Continue {}
+        Ok(())
+    }
+
+    /// Ticks at absolute deadlines, never waiting on the link.
+    fn run_deadlines(&mut self, period: Duration, spin: Duration, stats: Duration) -> Result<()> {
+        let start = Instant::now();
+        let mut deadlines = Deadlines::new(start, period);
+        let (mut interval, mut whole) = (LoopStats::default(), LoopStats::default());
+        let mut interval_start = start;
+        loop {
+            let due = deadlines.next();
+            sleep_until(due, spin);
+            let woke = Instant::now();
+            self.records
+                .set_loop_late(woke.saturating_duration_since(due));
+            let flow = self.tick(Duration::ZERO, true)?;
+            let end = Instant::now();
+            let missed = deadlines.advance(end);
+            interval.record(woke - due, end - woke, missed);
+            if end >= interval_start + stats || flow == Flow::Stop {
+                let s = interval.summary();
+                let elapsed = (end - interval_start).as_secs_f64();
+                tracing::info!(
+                    rate_hz = format!("{:.0}", s.ticks as f64 / elapsed),
+                    jitter_p50_us = s.jitter_p50_us,
+                    jitter_p99_us = s.jitter_p99_us,
+                    jitter_max_us = s.jitter_max_us,
+                    work_max_us = s.work_max_us,
+                    overruns = s.overruns,
+                    "control loop"
+                );
+                self.loop_stats = Some(s);
+                whole.merge(&interval);
+                interval.clear();
+                interval_start = end;
+            }
+            if flow == Flow::Stop {
+                break;
+            }
+        }
+        let wall = start.elapsed().as_secs_f64();
+        let s = whole.summary();
+        self.report.deadline_loop = Some((s.ticks as f64 / wall.max(1e-9), s));
+        Ok(())
+    }
+}
+
+/// Flies one vehicle until it has landed and disarmed, or a [`LoopCommand::Stop`] arrives.
+pub fn fly(vehicle: Onboard<'_>, pacing: Pacing) -> Result<FlightReport> {
+    let started = Instant::now();
+    let mut l = ControlLoop::new(vehicle);
+    let result = match pacing {
+        Pacing::Lockstep => l.run_lockstep(),
+        Pacing::Deadlines {
+            period,
+            spin,
+            stats,
+        } => l.run_deadlines(period, spin, stats),
+    };
+    l.ports.telemetry.send_modify(|t| t.finished = true);
+    result?;
+    Ok(l.into_report(started))
+}
+
+/// What the control loop flies for one vehicle: its sensor link, its autopilot, the records of
+/// its flight and its channels. Flown together ([`fly_together`]), each has a simulator of its
+/// own, in lockstep and unpaced.
+pub struct Onboard<'a> {
+    /// The sensor link: a simulator or a flight board.
+    pub link: &'a mut dyn SensorLink,
+    /// The autopilot.
+    pub autopilot: &'a mut Autopilot,
+    /// The records its steps feed.
+    pub records: &'a mut FlightRecords,
+    /// Its channels to the tasks around it (its ground stations).
+    pub ports: &'a mut Ports,
+    /// Its MAVLink system id.
+    pub system_id: u8,
+}
+
+/// How a flight of several vehicles together went.
+#[derive(Debug)]
+pub struct SwarmReport {
+    /// Each vehicle's report, or why its flight ended in error, in the members' order.
+    pub flights: Vec<Result<FlightReport>>,
+    /// Rounds flown: in each, every vehicle still flying took one sensor frame.
+    pub rounds: u64,
+    /// Simulated time of the last round (s).
+    pub sim_time_s: f64,
+    /// Wall-clock time (s).
+    pub wall_time_s: f64,
+    /// Paced (`speed`): the largest lag of a round behind its wall-clock time (s); a swarm
+    /// that runs in real time keeps it within a few exchange periods.
+    pub max_lag_s: f64,
+}
+
+/// Flies several vehicles on this thread, in lockstep on one clock: every round each vehicle
+/// still flying takes the next frame of its simulator (one exchange, `1 / exchange_hz` of
+/// simulated time) and answers it, so all worlds advance together. With `speed` the rounds are
+/// paced against the wall clock (× real time); without, they run as fast as they can. A vehicle
+/// whose run ends (landed and disarmed, `Stop`, an error) leaves the round; the others fly on.
+pub fn fly_together(
+    members: Vec<Onboard<'_>>,
+    exchange_hz: f64,
+    speed: Option<f64>,
+) -> SwarmReport {
+    let started = Instant::now();
+    let mut loops: Vec<Option<ControlLoop<'_>>> = members
+        .into_iter()
+        .map(|m| Some(ControlLoop::new(m)))
+        .collect();
+    let mut flights: Vec<Option<Result<FlightReport>>> = loops.iter().map(|_| None).collect();
+    let (mut rounds, mut max_lag_s) = (0u64, 0.0f64);
+    let mut flying = loops.len();
+    while flying > 0 {
+        for (slot, flight) in loops.iter_mut().zip(flights.iter_mut()) {
+            let Some(l) = slot.as_mut() else { continue };
+            let end = match l.tick(POLL, false) {
+                Ok(Flow::Continue) => continue,
+                Ok(Flow::Stop) => Ok(()),
+                Err(e) => Err(e),
+            };
+            let Some(l) = slot.take() else { continue };
+            l.ports.telemetry.send_modify(|t| t.finished = true);
+            *flight = Some(end.map(|()| l.into_report(started)));
+            flying -= 1;
+        }
+        rounds += 1;
+        if let Some(speed) = speed {
+            let due = started + Duration::from_secs_f64(rounds as f64 / exchange_hz / speed);
+            match due.checked_duration_since(Instant::now()) {
+                Some(wait) => std::thread::sleep(wait),
+                None => max_lag_s = max_lag_s.max(due.elapsed().as_secs_f64()),
+            }
+        }
+    }
+    SwarmReport {
+        flights: flights
+            .into_iter()
+            .map(|f| f.unwrap_or_else(|| Err(anyhow::anyhow!("never flown"))))
+            .collect(),
+        rounds,
+        sim_time_s: rounds as f64 / exchange_hz,
+        wall_time_s: started.elapsed().as_secs_f64(),
+        max_lag_s,
+    }
+}
+
+#[cfg(test)]
+mod tests;

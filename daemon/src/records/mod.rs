@@ -1,0 +1,113 @@
+//! What a run leaves behind, observed from outside the autopilot's step: the flight-data CSV,
+//! the score against a simulator's truth, the telemetry log's files and the parameter store.
+
+pub mod flight_csv;
+pub mod log_files;
+pub mod param_store;
+pub mod score;
+
+use anyhow::{Context, Result};
+use flight_core::autopilot::{AutopilotOutput, StepKind};
+use flight_core::commander::CommanderStatus;
+use flight_csv::FlightCsv;
+use hil::TruthReport;
+use score::FlightScore;
+use std::time::Duration;
+
+/// The records one vehicle's steps feed: its score, its flight-data CSV, the simulator's last
+/// truth.
+pub struct FlightRecords {
+    /// The take-off altitude the score measures the hover against (m).
+    takeoff_m: f64,
+    score: FlightScore,
+    csv: Option<FlightCsv>,
+    csv_error: Option<std::io::Error>,
+    /// How late the control loop woke for the frames it is stepping (deadline pacing only).
+    loop_late: Option<Duration>,
+    last_truth: Option<TruthReport>,
+}
+
+impl FlightRecords {
+    /// Records of a flight to `takeoff_m` above home.
+    pub fn new(takeoff_m: f64) -> Self {
+        Self {
+            takeoff_m,
+            score: FlightScore::new(takeoff_m),
+            csv: None,
+            csv_error: None,
+            loop_late: None,
+            last_truth: None,
+        }
+    }
+
+    /// Writes a flight-data row per step to `csv` from now on.
+    pub fn log_to(&mut self, csv: FlightCsv) {
+        self.csv = Some(csv);
+    }
+
+    /// How late the control loop woke for the frames it steps next (for the flight-data CSV).
+    pub fn set_loop_late(&mut self, late: Duration) {
+        self.loop_late = Some(late);
+    }
+
+    /// The flight's figures against the simulator's truth, where it sends one.
+    pub fn score(&self) -> &FlightScore {
+        &self.score
+    }
+
+    /// The simulator's last ground truth (SITL only).
+    pub fn truth(&self) -> Option<TruthReport> {
+        self.last_truth
+    }
+
+    /// Observes one step: the truth that came with its frame scores it, a flown step is a CSV
+    /// row. A repeated frame adds nothing; a frame flown blind is scored, with no estimate.
+    pub fn observe(
+        &mut self,
+        step: &AutopilotOutput,
+        status: &CommanderStatus,
+        truth: Option<TruthReport>,
+    ) {
+        if step.restarted {
+            // Another world: its flight is scored from the start.
+            self.score = FlightScore::new(self.takeoff_m);
+        }
+        match step.kind {
+            StepKind::Repeated => {}
+            StepKind::Blind => {
+                // The world is still watched: the blind descent's landing is scored too.
+                if let Some(truth) = truth {
+                    self.score.add(&truth, None, status, status.armed);
+                    self.last_truth = Some(truth);
+                }
+            }
+            StepKind::Flown => {
+                if let Some(truth) = &truth {
+                    self.last_truth = Some(*truth);
+                    let estimate = step.estimate.attitude.map(|a| a.q);
+                    self.score.add(truth, estimate, status, step.armed);
+                }
+                if let Some(csv) = self.csv.as_mut()
+                    && let Err(e) =
+                        csv.record(status, step, truth.as_ref(), &self.score, self.loop_late)
+                {
+                    // A full disk must not stop the flight: stop logging, report at the end.
+                    tracing::error!("flight-data CSV: {e}; logging stopped");
+                    self.csv = None;
+                    self.csv_error = Some(e);
+                }
+            }
+        }
+    }
+
+    /// Writes the rest of the flight-data CSV, reporting the first write error of the flight.
+    pub fn finish(&mut self) -> Result<()> {
+        if let Some(e) = self.csv_error.take() {
+            return Err(e).context("writing the flight-data CSV");
+        }
+        if let Some(csv) = self.csv.as_mut() {
+            csv.finish().context("writing the flight-data CSV")?;
+        }
+        Ok(())
+    }
+}
