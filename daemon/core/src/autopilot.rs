@@ -14,8 +14,6 @@
 
 mod blind;
 pub mod command;
-#[cfg(test)]
-mod tests;
 
 use crate::commander::{Commander, CommanderInput, CommanderStatus, Health, LandedState};
 use crate::control::Setpoint;

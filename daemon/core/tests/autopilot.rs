@@ -1,17 +1,22 @@
 //! The autopilot's step against the simulator's physics, in-process: what it does with samples
 //! that repeat, go back in time or lose a sensor.
 
+// Test code: a failed unwrap is a failed test.
 #![allow(clippy::unwrap_used)]
 
-use super::command::AutopilotCommand;
-use super::*;
-use crate::safety::failsafe::{Condition, SafetyEvent};
-use crate::safety::failure_injection::{FailureType, FailureUnit, Injection};
-use sitl_core::sensors::fields;
+use airframe::{Airframe, MAX_ROTORS};
+use flight_core::autopilot::command::AutopilotCommand;
+use flight_core::autopilot::{
+    AutoFlight, Autopilot, AutopilotOutput, SOURCE_RESTART_S, StepInputs, StepKind,
+};
+use flight_core::commander::LandedState;
+use flight_core::core::SensorSample;
+use flight_core::params::FlightParams;
+use flight_core::safety::failsafe::{Condition, SafetyEvent};
+use flight_core::safety::failure_injection::{FailureType, FailureUnit, Injection};
 use sitl_core::sim::{SimConfig, Simulator};
 
-/// Physics steps per sample: 1 kHz physics, 250 Hz samples (as the HIL link).
-const DECIMATION: usize = 4;
+mod common;
 
 fn quad() -> Airframe {
     Airframe::load(std::path::Path::new(concat!(
@@ -52,47 +57,9 @@ impl Flight {
         }
     }
 
-    /// One control interval of physics, and the sample it makes (the IMU averaged, the slower
-    /// sensors when fresh).
+    /// One control interval of physics, and the sample it makes.
     fn sample(&mut self) -> SensorSample {
-        let (mut gyro, mut accel) = (Vector3::zeros(), Vector3::zeros());
-        let (mut mag, mut baro, mut gps) = (None, None, None);
-        for _ in 0..DECIMATION {
-            self.sim.step(&self.commands[..4]);
-            let f = self.sim.sample_sensors();
-            gyro += f.gyro_frd_rad_s / DECIMATION as f64;
-            accel += f.accel_frd_m_s2 / DECIMATION as f64;
-            if f.fields_updated & fields::MAG != 0 {
-                mag = Some(f.mag_frd_gauss);
-            }
-            if f.fields_updated & fields::PRESSURE_ALT != 0 {
-                baro = Some(f.pressure_alt_m);
-            }
-            if let Some(g) = f.gps {
-                gps = Some(GpsMeasurement {
-                    fix_type: g.fix_type,
-                    position: crate::math::geo::LatLonAlt {
-                        lat_deg: g.position.lat_deg,
-                        lon_deg: g.position.lon_deg,
-                        alt_m: g.position.alt_m,
-                    },
-                    vel_ned_m_s: g.vel_ned_m_s,
-                    h_acc_m: g.h_acc_m,
-                    satellites: g.satellites,
-                });
-            }
-        }
-        SensorSample {
-            t_usec: self.sim.time_usec(),
-            gyro,
-            accel,
-            mag,
-            baro_alt_m: baro,
-            gps,
-            battery_v: Some(self.sim.truth().battery_voltage_v),
-            esc_current_a: None,
-            rotor_speed_rad_s: None,
-        }
+        common::control_interval(&mut self.sim, &self.commands[..4])
     }
 
     /// Flies one sample.
@@ -140,8 +107,8 @@ fn repeated_samples_are_answered_again_and_a_clock_that_goes_back_restarts_the_a
     assert!(f.autopilot.step(&older, &StepInputs::default()).is_none());
     assert_eq!(f.autopilot.repeated_frames(), 2);
 
-    let items = vec![crate::mission::MissionItem::Land {
-        at: crate::mission::MissionPoint {
+    let items = vec![flight_core::mission::MissionItem::Land {
+        at: flight_core::mission::MissionPoint {
             lat_lon_deg: None,
             alt: None,
         },
@@ -150,15 +117,15 @@ fn repeated_samples_are_answered_again_and_a_clock_that_goes_back_restarts_the_a
     f.autopilot
         .command(AutopilotCommand::SetMission(items))
         .unwrap();
-    // 0.8 s back is no restart (a serial line's backlog goes back that far): dropped.
+    // Less than SOURCE_RESTART_S back is no restart (a serial line's backlog goes back that far): dropped.
     let backlog = SensorSample {
-        t_usec: s.t_usec - 800_000,
+        t_usec: s.t_usec - (0.8 * SOURCE_RESTART_S * 1e6) as u64,
         ..s
     };
     assert!(f.autopilot.step(&backlog, &StepInputs::default()).is_none());
     assert_eq!(f.autopilot.source_restarts(), 0);
     let back = SensorSample {
-        t_usec: s.t_usec - 2_000_000,
+        t_usec: s.t_usec - (2.0 * SOURCE_RESTART_S * 1e6) as u64,
         ..s
     };
     let out = f.autopilot.step(&back, &StepInputs::default()).unwrap();
