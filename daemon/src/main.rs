@@ -621,9 +621,12 @@ fn fly(cli: &Cli) -> Result<()> {
     let (commands, telemetry) = (gcs.commands.clone(), gcs.telemetry.clone());
     // The control loop on its own thread owns the vehicle and the sensor link; this thread runs
     // the tasks that talk to it (ground stations, status line, Ctrl-C).
+    let ended = std::sync::Arc::new(tokio::sync::Notify::new());
+    let ended_guard = LoopEnded(ended.clone());
     let control = std::thread::Builder::new()
         .name("control-loop".into())
         .spawn(move || -> Result<FlightReport> {
+            let _ended = ended_guard;
             let ports = &mut ports;
             if let Some(cpu) = cfg.loop_cpu {
                 control_loop::deadline::pin_to_cpu(cpu).map_err(anyhow::Error::msg)?;
@@ -704,7 +707,12 @@ fn fly(cli: &Cli) -> Result<()> {
             }
         })
         .context("starting the control loop")?;
-    let exits = serve(vec![(endpoints, gcs)], vec![commands], vec![telemetry])?;
+    let exits = serve(
+        vec![(endpoints, gcs)],
+        vec![commands],
+        vec![telemetry],
+        ended,
+    )?;
     let report = control
         .join()
         .map_err(|_| anyhow::anyhow!("the control loop panicked"))??;
@@ -719,6 +727,16 @@ fn fly(cli: &Cli) -> Result<()> {
     Ok(())
 }
 
+/// Says the control loop's thread has ended when dropped (at its end, on an error or a panic
+/// alike), so the tasks around it stop at once rather than at their next poll.
+struct LoopEnded(std::sync::Arc<tokio::sync::Notify>);
+
+impl Drop for LoopEnded {
+    fn drop(&mut self) {
+        self.0.notify_one();
+    }
+}
+
 /// Runs the tasks around the control loop on this thread until the loop ends: every vehicle's
 /// ground stations, Ctrl-C for all of them, the status line. Returns what each vehicle's
 /// ground stations asked the process to do at the end (a reboot).
@@ -726,6 +744,7 @@ fn serve(
     vehicles: Vec<(Vec<gcs::links::EndpointSpec>, gcs::links::Vehicle)>,
     commands: Vec<mpsc::Sender<LoopCommand>>,
     telemetry: Vec<watch::Receiver<Telemetry>>,
+    ended: std::sync::Arc<tokio::sync::Notify>,
 ) -> Result<Vec<Option<gcs::Action>>> {
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
@@ -737,7 +756,7 @@ fn serve(
             .map(|(endpoints, vehicle)| tokio::spawn(gcs::links::run(endpoints, vehicle)))
             .collect();
         tokio::spawn(interrupts(commands));
-        status_line(telemetry).await;
+        status_line(telemetry, ended).await;
         // The ground-station side ends with the loop, after its last save.
         let mut exits = Vec::with_capacity(links.len());
         for l in links {
@@ -804,9 +823,12 @@ fn fly_together(cfg: Settings, source: Source) -> Result<()> {
         "flying together on one clock"
     );
     let speed = cfg.speed;
+    let ended = std::sync::Arc::new(tokio::sync::Notify::new());
+    let ended_guard = LoopEnded(ended.clone());
     let control = std::thread::Builder::new()
         .name("control-loop".into())
         .spawn(move || -> Result<control_loop::SwarmReport> {
+            let _ended = ended_guard;
             let members = cores
                 .iter_mut()
                 .zip(sims.iter_mut())
@@ -829,7 +851,7 @@ fn fly_together(cfg: Settings, source: Source) -> Result<()> {
             Ok(report)
         })
         .context("starting the control loop")?;
-    serve(links, commands, telemetry)?;
+    serve(links, commands, telemetry, ended)?;
     let report = control
         .join()
         .map_err(|_| anyhow::anyhow!("the control loop panicked"))??;
@@ -975,15 +997,24 @@ async fn interrupts(commands: Vec<mpsc::Sender<LoopCommand>>) {
 /// The live one-line status, four times a second from the latest telemetry, until the loop
 /// ends: on a terminal it rewrites itself, otherwise one line each time. One vehicle's line
 /// shows its state; several vehicles' a count of each mode and the spread of their altitudes.
-async fn status_line(mut telemetry: Vec<watch::Receiver<Telemetry>>) {
+async fn status_line(
+    mut telemetry: Vec<watch::Receiver<Telemetry>>,
+    ended: std::sync::Arc<tokio::sync::Notify>,
+) {
     let tty = std::io::stdout().is_terminal();
     let started = Instant::now();
     let mut tick = tokio::time::interval(Duration::from_millis(250));
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    let loop_ended = ended.notified();
+    tokio::pin!(loop_ended);
+    let mut ended_seen = false;
     loop {
         // Polled, not awaited on every change: the loop publishes at its own rate, and waking
-        // this thread that often would take CPU time from it.
-        tick.tick().await;
+        // this thread that often would take CPU time from it. Its end wakes it at once.
+        tokio::select! {
+            _ = tick.tick() => {}
+            _ = &mut loop_ended, if !ended_seen => ended_seen = true,
+        }
         let latest: Vec<Telemetry> = telemetry
             .iter_mut()
             .filter_map(|rx| {
