@@ -85,12 +85,12 @@ fn cases(default: u32) -> ProptestConfig {
 }
 
 /// The autopilot behind its HIL frames, as the control loop flies it.
-struct Vehicle {
+struct FuzzedVehicle {
     autopilot: Autopilot,
     frames: FrameAssembler,
 }
 
-impl Vehicle {
+impl FuzzedVehicle {
     fn new(airframe: &sitl_core::Airframe, params: &FlightParams) -> Self {
         Self {
             autopilot: Autopilot::new(airframe, params, None).unwrap(),
@@ -111,7 +111,7 @@ impl Vehicle {
 }
 
 /// Hands what the protocol produced to the vehicle, as the links and the control loop do.
-fn carry_out(gcs: &GroundStation, out: &mut Outbox, vehicle: &mut Vehicle) {
+fn carry_out(gcs: &GroundStation, out: &mut Outbox, vehicle: &mut FuzzedVehicle) {
     for (cmd, _) in out.vehicle.drain(..) {
         let _ = vehicle.command(cmd);
     }
@@ -148,7 +148,7 @@ proptest! {
     ) {
         let airframe = quad();
         let params = FlightParams::default();
-        let mut vehicle = Vehicle::new(&airframe, &params);
+        let mut vehicle = FuzzedVehicle::new(&airframe, &params);
         let mut gcs = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR)
             .with_parameters(crate::gcs::params::Parameters::default(), params.clone());
         let mut out = Outbox::default();
@@ -251,10 +251,10 @@ fn sim_frame(end: &mut hil::SimulatorEnd) -> Vec<MavMessage> {
 }
 
 /// A quad that has aligned at rest in the simulator (2 s), armed and climbed for 1 s.
-fn flying(seed: u64) -> (Vehicle, hil::SimulatorEnd) {
+fn flying(seed: u64) -> (FuzzedVehicle, hil::SimulatorEnd) {
     use sitl_core::sim::{SimConfig, Simulator};
     let airframe = quad();
-    let mut vehicle = Vehicle::new(&airframe, &FlightParams::default());
+    let mut vehicle = FuzzedVehicle::new(&airframe, &FlightParams::default());
     let sim = Simulator::new(
         &airframe,
         SimConfig {

@@ -88,9 +88,7 @@ fn parse_bool(url: &str, key: &str, v: &str) -> Result<bool> {
     }
 }
 
-/// The simulated magnetometer's device id, PX4's (`DRV_MAG_DEVTYPE_MAGSIM`): what a
-/// simulator source presets `CAL_MAG0_ID` to, as PX4's SITL start-up does.
-pub const SIMULATED_MAG_ID: u32 = 197_388;
+pub use flight_core::sensors::mag_check::SIMULATED_MAG_ID;
 
 impl Source {
     /// The other end is a simulator: the embedded one, one over UDP, or one in lockstep on a

@@ -68,6 +68,17 @@ pub enum StepKind {
     Blind,
 }
 
+/// The set-point before the commander has one: hold the origin, heading north (never flown:
+/// the motors are disarmed then).
+fn origin_setpoint() -> Setpoint {
+    Setpoint::Position(PositionSetpoint {
+        pos_ned_m: Vector3::zeros(),
+        vel_ned_m_s: Vector3::zeros(),
+        accel_ned_m_s2: Vector3::zeros(),
+        yaw_rad: 0.0,
+    })
+}
+
 /// One step's result.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AutopilotOutput {
@@ -110,15 +121,13 @@ pub struct Autopilot {
     /// Why the auto flight may not arm, as last said (said again only when it changes).
     auto_denial: Option<String>,
     ended: bool,
-    /// The flight core's last output, and the last answer (repeated for a repeated sample).
-    last: Option<StepOutput>,
+    /// The last answer (repeated for a repeated sample), with the flight core's last output.
     last_answer: Option<AutopilotOutput>,
     /// The last sample stepped on (magnetometer and barometer as last seen), the set-point
     /// flown (armed only), and the last GPS solution.
     last_sample: Option<SensorSample>,
     last_setpoint: Option<Setpoint>,
     gps: Option<GpsMeasurement>,
-    last_t_usec: u64,
     battery_v: f64,
     /// State of charge from the reported voltage and current.
     battery: BatteryEstimator,
@@ -170,12 +179,10 @@ impl Autopilot {
             end_when_disarmed: false,
             auto_denial: None,
             ended: false,
-            last: None,
             last_answer: None,
             last_sample: None,
             last_setpoint: None,
             gps: None,
-            last_t_usec: 0,
             battery_v: 0.0,
             battery: BatteryEstimator::new(BatteryConfig::from_params(
                 &params.battery,
@@ -241,7 +248,7 @@ impl Autopilot {
 
     /// The flight core's last output.
     pub fn estimate(&self) -> Option<StepOutput> {
-        self.last
+        self.last_answer.map(|a| a.estimate)
     }
 
     /// The last GPS solution received.
@@ -341,7 +348,7 @@ impl Autopilot {
             let current = sample
                 .esc_current_a
                 .map(|c| c[..self.rotors.min(c.len())].iter().sum::<f64>());
-            let throttle = self.last.map_or(0.0, |o| {
+            let throttle = self.estimate().map_or(0.0, |o| {
                 o.commands[..self.rotors].iter().sum::<f64>() / self.rotors.max(1) as f64
             });
             let dt = self.dt_since_last(t_usec);
@@ -353,7 +360,7 @@ impl Autopilot {
         if let Some(commands) = self.imu_frozen(t_usec) {
             return self.blind_output(t_usec, commands, &sample, restarted);
         }
-        if self.last.is_some() {
+        if self.last_answer.is_some() {
             let dt = self.dt_since_last(t_usec);
             let p = &self.core.config().attitude;
             self.mag_field.update(sample.mag, &sample.accel, p, dt);
@@ -399,8 +406,6 @@ impl Autopilot {
         } else if !armed {
             self.hover.reset();
         }
-        self.last_t_usec = t_usec;
-        self.last = Some(output);
         let mut commands = output.commands;
         self.injected
             .apply_to_commands(&mut commands[..self.rotors]);
@@ -418,25 +423,23 @@ impl Autopilot {
         Some(answer)
     }
 
-    /// Seconds from the last step to `t_usec`.
+    /// Time of the last answered sample (µs; 0 before the first).
+    fn last_t_usec(&self) -> u64 {
+        self.last_answer.map_or(0, |a| a.t_usec)
+    }
+
+    /// Seconds from the last step to `t_usec` (0 before the first).
     fn dt_since_last(&self, t_usec: u64) -> f64 {
-        t_usec.saturating_sub(self.last_t_usec) as f64 * 1e-6
+        self.last_answer
+            .map_or(0.0, |a| t_usec.saturating_sub(a.t_usec) as f64 * 1e-6)
     }
 
     /// The commander's set-point for this step, and whether the motors are armed: the auto
     /// flight, the geofence and the failsafes decide with it. Before the flight core's first
     /// output: the origin, disarmed.
     fn command_setpoint(&mut self, t_s: f64, inputs: &StepInputs) -> (Setpoint, bool) {
-        let Some(e) = self.last else {
-            return (
-                Setpoint::Position(PositionSetpoint {
-                    pos_ned_m: Vector3::zeros(),
-                    vel_ned_m_s: Vector3::zeros(),
-                    accel_ned_m_s2: Vector3::zeros(),
-                    yaw_rad: 0.0,
-                }),
-                false,
-            );
+        let Some(e) = self.estimate() else {
+            return (origin_setpoint(), false);
         };
         let attitude_valid = e.attitude.is_some_and(|a| a.valid);
         let ready =

@@ -31,7 +31,7 @@ fn quad() -> Airframe {
 fn params(att_mode: u32) -> FlightParams {
     let mut p = FlightParams::default();
     p.attitude.mode = att_mode;
-    p.attitude.mag_calibration_id = 197_388;
+    p.attitude.mag_calibration_id = flight_core::sensors::mag_check::SIMULATED_MAG_ID;
     p.safety.failure_injection = 1;
     p
 }

@@ -44,7 +44,7 @@ fn resting(a: &Airframe, seed: u64) -> Simulator {
 /// magnetometer needs no calibration (the daemon presets its calibration id).
 fn simulator_params() -> FlightParams {
     let mut p = FlightParams::default();
-    p.attitude.mag_calibration_id = 197_388;
+    p.attitude.mag_calibration_id = flight_core::sensors::mag_check::SIMULATED_MAG_ID;
     p
 }
 

@@ -3,12 +3,9 @@
 //! ([`crate::safety::blind_descent`]) brings the vehicle down open-loop.
 
 use super::{Autopilot, AutopilotOutput, StepKind};
-use crate::control::Setpoint;
-use crate::control::position::PositionSetpoint;
 use crate::core::SensorSample;
 use crate::safety::blind_descent::BlindDescent;
 use airframe::MAX_ROTORS;
-use nalgebra::Vector3;
 
 /// What to tell the rotors while the sensor samples are silent.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -39,7 +36,7 @@ impl Autopilot {
     /// What to tell the rotors while the samples are silent, `silence_s` after the last one:
     /// the blind descent's commands, else motors off.
     pub fn silent_answer(&mut self, silence_s: f64) -> SilentAnswer {
-        let t_usec = self.last_t_usec + (silence_s * 1e6) as u64;
+        let t_usec = self.last_t_usec() + (silence_s * 1e6) as u64;
         if let Some(d) = &self.blind {
             if let Some(commands) = d.commands(silence_s) {
                 return SilentAnswer {
@@ -63,7 +60,7 @@ impl Autopilot {
         let in_air = self.commander.sensors_stopped();
         if in_air {
             let home_down = self.commander.home().map_or(0.0, |h| h.z);
-            let (height, down) = self.last.map_or((0.0, 0.0), |o| {
+            let (height, down) = self.estimate().map_or((0.0, 0.0), |o| {
                 let t = &o.translation;
                 (home_down - t.pos_ned_m.z, t.vel_ned_m_s.z)
             });
@@ -130,7 +127,7 @@ impl Autopilot {
         sample: &SensorSample,
         restarted: bool,
     ) -> Option<AutopilotOutput> {
-        let estimate = self.last?;
+        let estimate = self.estimate()?;
         if !self.commander.armed() {
             self.imu_frozen_since_usec = None;
         }
@@ -138,21 +135,13 @@ impl Autopilot {
             Some(c) => (c, true),
             None => ([0.0; MAX_ROTORS], false),
         };
-        self.last_t_usec = t_usec;
         let answer = AutopilotOutput {
             t_usec,
             commands,
             armed,
             kind: StepKind::Blind,
             estimate,
-            setpoint: self
-                .last_setpoint
-                .unwrap_or(Setpoint::Position(PositionSetpoint {
-                    pos_ned_m: Vector3::zeros(),
-                    vel_ned_m_s: Vector3::zeros(),
-                    accel_ned_m_s2: Vector3::zeros(),
-                    yaw_rad: 0.0,
-                })),
+            setpoint: self.last_setpoint.unwrap_or_else(super::origin_setpoint),
             sample: *sample,
             restarted,
         };

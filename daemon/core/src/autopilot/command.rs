@@ -116,7 +116,8 @@ impl Autopilot {
         if arming && self.calibrating() {
             return Err("arming refused: calibrating the magnetometer".into());
         }
-        let origin = self.last.and_then(|o| o.translation.origin);
+        let last = self.estimate();
+        let origin = last.and_then(|o| o.translation.origin);
         let c_ = &mut self.commander;
         match c {
             AutopilotCommand::CalibrateMag => {
@@ -148,7 +149,7 @@ impl Autopilot {
             AutopilotCommand::Takeoff(alt) => c_.takeoff(alt),
             AutopilotCommand::SetHome(p) => c_.set_home(p),
             AutopilotCommand::TakeoffAmsl(amsl_m) => {
-                let (Some(out), Some(origin)) = (self.last, origin) else {
+                let (Some(out), Some(origin)) = (last, origin) else {
                     return Err("take-off refused: no global position yet".into());
                 };
                 let home_down = c_.home().map_or(out.translation.pos_ned_m.z, |h| h.z);
@@ -197,8 +198,7 @@ impl Autopilot {
                 direction,
                 relative,
             } => {
-                let yaw = self
-                    .last
+                let yaw = last
                     .and_then(|o| o.attitude)
                     .map_or(0.0, |a| a.q.euler_angles().2);
                 let target = if relative {
@@ -214,7 +214,7 @@ impl Autopilot {
                 yaw_rad,
                 change_mode,
             } => {
-                let (Some(out), Some(origin)) = (self.last, origin) else {
+                let (Some(out), Some(origin)) = (last, origin) else {
                     return Err("reposition refused: no global position yet".into());
                 };
                 let home = c_.home().unwrap_or(out.translation.pos_ned_m);

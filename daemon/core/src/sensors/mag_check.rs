@@ -8,6 +8,11 @@
 use crate::estimator::attitude::AttitudeParams;
 use nalgebra::Vector3;
 
+/// The simulated magnetometer's device id, PX4's (`DRV_MAG_DEVTYPE_MAGSIM`): what a
+/// simulator source presets `CAL_MAG0_ID` to, as PX4's SITL start-up does (its field needs no
+/// calibration).
+pub const SIMULATED_MAG_ID: u32 = 197_388;
+
 /// What the magnetometer measures, or what it should.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MagField {
