@@ -1,5 +1,6 @@
 #![allow(clippy::unwrap_used)]
 use super::*;
+use crate::control::AttitudeTarget;
 use nalgebra::UnitQuaternion;
 use std::f64::consts::FRAC_PI_2;
 

@@ -1,0 +1,86 @@
+//! Land: descend where it is (slower for the last metres, `MPC_LAND_CRWL` below
+//! `MPC_LAND_ALT3`), touchdown after standing still for a second, disarm. The same descent
+//! ends a return and a mission's Land item.
+
+use super::LandedState;
+use super::flight::{Flight, Tick, Touchdown};
+use super::task::FlightTask;
+use crate::commander::CommanderInput;
+use crate::control::Setpoint;
+use crate::control::position::PositionSetpoint;
+use nalgebra::Vector3;
+
+/// A landing descent over a point.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub(super) struct Landing {
+    /// Where it comes down (north, east; m): where it was at the first step unless given.
+    xy: Option<(f64, f64)>,
+    /// The descending set-point's down (m).
+    down: Option<f64>,
+    touchdown: Touchdown,
+    touched_down: bool,
+}
+
+impl Landing {
+    /// A landing over `north_east_m`.
+    pub(super) fn over(north_east_m: (f64, f64)) -> Self {
+        Self {
+            xy: Some(north_east_m),
+            ..Self::default()
+        }
+    }
+
+    /// One step: the set-point goes down steadily (slower near the ground); touchdown when
+    /// the vehicle has stopped moving down for a second while the set-point is well below it
+    /// (it cannot go lower).
+    pub(super) fn step(
+        &mut self,
+        f: &mut Flight,
+        i: &CommanderInput,
+        dt: f64,
+        yaw: f64,
+    ) -> PositionSetpoint {
+        let p = f.params;
+        f.landed = LandedState::Landing;
+        let (x, y) = *self.xy.get_or_insert((i.pos_ned_m.x, i.pos_ned_m.y));
+        let ground = f.home.map_or(i.pos_ned_m.z, |h| h.0.z);
+        let height = ground - i.pos_ned_m.z;
+        let speed = if height > p.final_height_m {
+            p.land_speed_m_s
+        } else {
+            p.final_speed_m_s
+        };
+        let down = self.down.get_or_insert(i.pos_ned_m.z);
+        *down = (*down + speed * dt).min(i.pos_ned_m.z + 1.0);
+        let down = *down;
+        let stopped = i.vel_ned_m_s.z.abs() < 0.15 && down - i.pos_ned_m.z > 0.5;
+        self.touched_down |= self.touchdown.check(f, stopped, i.t_s);
+        PositionSetpoint {
+            pos_ned_m: Vector3::new(x, y, down),
+            vel_ned_m_s: Vector3::new(0.0, 0.0, speed),
+            accel_ned_m_s2: Vector3::zeros(),
+            yaw_rad: yaw,
+        }
+    }
+
+    /// The vehicle is down.
+    pub(super) fn touched_down(&self) -> bool {
+        self.touched_down
+    }
+}
+
+/// Land mode.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub(super) struct Land {
+    landing: Landing,
+}
+
+impl FlightTask for Land {
+    fn update(&mut self, f: &mut Flight, t: &Tick) -> Setpoint {
+        Setpoint::Position(self.landing.step(f, t.i, t.dt, t.yaw))
+    }
+
+    fn is_finished(&self) -> bool {
+        self.landing.touched_down()
+    }
+}

@@ -1,0 +1,569 @@
+//! The commander: arming, flight modes and what each mode flies (PX4's commander and navigator
+//! in one pure state machine of time and the estimate).
+//!
+//! Commands ([`Commander::arm`], [`Commander::set_mode`], [`Commander::takeoff`], …) are answered
+//! at once with `Ok` or a denial that says why; [`Commander::update`] then turns the mode into a
+//! set-point for the flight core on every sample: a position set-point, or an attitude and thrust
+//! in the stick-to-attitude modes.
+//!
+//! The commander only chooses the mode and switches; each mode is flown by a flight task of
+//! its own (`task.rs`: `activate`, `update`, `is_finished`, as PX4's `FlightTask`), in one file
+//! per mode: `takeoff.rs`, `hold.rs` (Loiter), `land.rs`, `rtl.rs`, `mission.rs`,
+//! `manual_position.rs` (Posctl, Altctl), `stabilized.rs` (Stabilized, Manual), `offboard.rs`
+//! and `descend.rs` (a failsafe, left only by landing). What outlives a mode — armed, landed,
+//! home, the uploaded mission, the heading and speed of automatic flight — is `flight.rs`.
+//! A finished take-off hands over to Hold; a touchdown disarms; a stick or offboard stream
+//! that stops (`COM_RC_LOSS_T`, `COM_OF_LOSS_T`) switches to Hold or `COM_OBL_RC_ACT`'s mode.
+//!
+//! Failsafes (link, battery, geofence, crash, estimator and sensors) are decided by the
+//! [`crate::safety`] state machine on every update and carried out here (Hold, Return, Land,
+//! Descend, disarm); arming asks its [`crate::safety::preflight::preflight`] checks.
+
+pub use input::{CommanderInput, Health, OffboardTarget, Sticks};
+pub use params::{COMMANDER_META, CommanderParams};
+
+use crate::control::Setpoint;
+use crate::control::position::PositionSetpoint;
+use crate::mission::MissionStatus;
+use crate::safety::failsafe::{Action, Condition, Safety, SafetyEvent, SafetyLog, SafetyParams};
+use flight::{Flight, Tick, brake_point, hold_setpoint, spooled};
+use nalgebra::Vector3;
+use task::Task;
+/// The flight modes, in PX4's terms (the MAVLink layer maps them to PX4's `custom_mode`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum FlightMode {
+    /// PX4's Manual: on a multicopter the same as Stabilized.
+    Manual,
+    /// Sticks to attitude (self-levelling) and throttle to thrust; no altitude or position hold.
+    Stabilized,
+    /// Altitude hold: the throttle stick sets the climb rate (centre holds), the roll and pitch
+    /// sticks tilt the vehicle, the yaw stick turns it.
+    Altctl,
+    /// Position hold: the sticks set horizontal velocity in the heading's frame, climb rate and
+    /// yaw rate; centred sticks hold the position.
+    Posctl,
+    /// Climb to the take-off altitude, then Loiter.
+    Takeoff,
+    /// Hold position (PX4's AUTO.LOITER, "Hold").
+    Loiter,
+    /// Fly the uploaded mission (PX4's AUTO.MISSION).
+    Mission,
+    /// Return to home and land.
+    Rtl,
+    /// Land where it is.
+    Land,
+    /// Follow set-points streamed by a companion computer or script.
+    Offboard,
+    /// Failsafe: level and descend on what estimate is left.
+    Descend,
+}
+
+impl FlightMode {
+    /// Whether the mode flies on the horizontal position estimate.
+    pub fn needs_position(self) -> bool {
+        !matches!(
+            self,
+            Self::Manual | Self::Stabilized | Self::Altctl | Self::Descend
+        )
+    }
+
+    /// The mode's name as PX4 reports it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Manual => "MANUAL",
+            Self::Stabilized => "STABILIZED",
+            Self::Altctl => "ALTCTL",
+            Self::Posctl => "POSCTL",
+            Self::Takeoff => "TAKEOFF",
+            Self::Loiter => "LOITER",
+            Self::Mission => "MISSION",
+            Self::Rtl => "RTL",
+            Self::Land => "LAND",
+            Self::Offboard => "OFFBOARD",
+            Self::Descend => "DESCEND",
+        }
+    }
+}
+
+/// Where the vehicle is relative to the ground (MAVLink's `MAV_LANDED_STATE`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LandedState {
+    /// On the ground (armed or not).
+    OnGround,
+    /// Climbing away from the ground.
+    Takeoff,
+    /// Flying.
+    InAir,
+    /// Descending to land.
+    Landing,
+}
+
+/// Why a command was refused, in words for the operator (`STATUSTEXT`).
+pub type Denial = String;
+
+/// The commander's state as telemetry shows it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CommanderStatus {
+    /// Motors armed.
+    pub armed: bool,
+    /// The flight mode.
+    pub mode: FlightMode,
+    /// On the ground, taking off, flying or landing.
+    pub landed: LandedState,
+    /// Home position NED (m) and heading (rad), once set.
+    pub home: Option<(Vector3<f64>, f64)>,
+    /// A failsafe is flying the vehicle.
+    pub failsafe: bool,
+    /// The failsafe's action and the condition behind it, while one acts (a warning included).
+    pub failsafe_action: Option<(Action, Condition)>,
+    /// The estimator can be flown on.
+    pub ready: bool,
+    /// Time in the current mode (s).
+    pub in_mode_s: f64,
+    /// How often manual control was lost in a manual mode (Hold took over).
+    pub manual_losses: u32,
+    /// Manual control: never seen (`None`), arriving (`Some(true)`) or stale (`Some(false)`).
+    pub manual_control: Option<bool>,
+    /// How often the offboard set-points were lost in Offboard (and `COM_OBL_RC_ACT` took over).
+    pub offboard_losses: u32,
+    /// The mission's progress.
+    pub mission: MissionStatus,
+    /// A motor declared failed (1-based), if any.
+    pub motor_failed: Option<usize>,
+    /// The failsafe conditions acting (bit k: `safety::CONDITIONS[k]`).
+    pub failsafe_conditions: u32,
+    /// Disarmed and every arming check passes (`SYS_STATUS`'s pre-arm bit).
+    pub prearm_ok: bool,
+    /// The failsafe machine's events, numbered: each to be said once.
+    pub safety_log: crate::safety::failsafe::SafetyLog,
+}
+
+/// The commander.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Commander {
+    /// What outlives a mode: armed, landed, home, the mission, automatic flight's heading.
+    flight: Flight,
+    mode: FlightMode,
+    /// The task flying `mode`.
+    task: Task,
+    /// When the mode was entered (s).
+    since_s: f64,
+    armed_at_s: f64,
+    last: Option<CommanderInput>,
+    /// The mode changed since the caller last asked (heartbeat "right after a mode change").
+    changed: bool,
+    /// The last sticks and the time they arrived (s, the commander's clock).
+    sticks: Option<(Sticks, f64)>,
+    /// How often manual control was lost in a manual mode (and Hold took over).
+    manual_losses: u32,
+    /// The last offboard set-point and the time it arrived (s, the commander's clock).
+    offboard: Option<(OffboardTarget, f64)>,
+    /// How often the offboard set-points were lost in Offboard.
+    offboard_losses: u32,
+    /// The failsafe state machine.
+    safety: Safety,
+    /// Its last decision's action and cause.
+    failsafe: (Action, Option<Condition>),
+    /// Every arming check passed at the last update (checked there once, not per status read).
+    prearm_ok: bool,
+    /// What it said since the caller last asked.
+    safety_events: Vec<SafetyEvent>,
+    /// What it said, numbered, for readers of [`Commander::status`].
+    safety_log: SafetyLog,
+}
+
+impl Commander {
+    /// A disarmed commander in Loiter (Hold), PX4's default.
+    pub fn new(params: CommanderParams) -> Self {
+        Self {
+            flight: Flight::new(params),
+            mode: FlightMode::Loiter,
+            task: Task::of(FlightMode::Loiter),
+            since_s: 0.0,
+            armed_at_s: 0.0,
+            last: None,
+            changed: false,
+            sticks: None,
+            manual_losses: 0,
+            offboard: None,
+            offboard_losses: 0,
+            safety: Safety::new(SafetyParams::default()),
+            failsafe: (Action::None, None),
+            prearm_ok: false,
+            safety_events: Vec::new(),
+            safety_log: SafetyLog::default(),
+        }
+    }
+
+    /// New failsafe and arming-check parameters.
+    pub fn set_safety_params(&mut self, params: SafetyParams) {
+        self.safety.set_params(params);
+    }
+
+    /// What the failsafes said since the last call (for `STATUSTEXT`), oldest first.
+    pub fn take_safety_events(&mut self) -> Vec<SafetyEvent> {
+        std::mem::take(&mut self.safety_events)
+    }
+
+    /// A new offboard set-point, at the time of the last update.
+    pub fn offboard_setpoint(&mut self, target: OffboardTarget) {
+        self.offboard = Some((target, self.now()));
+    }
+
+    /// The offboard set-point, if it arrived within `COM_OF_LOSS_T`.
+    fn fresh_offboard(&self) -> Option<OffboardTarget> {
+        self.offboard
+            .filter(|&(_, t)| self.now() - t <= self.flight.params.offboard_loss_s)
+            .map(|(s, _)| s)
+    }
+
+    /// New stick positions (`MANUAL_CONTROL`), at the time of the last update.
+    pub fn manual_control(&mut self, sticks: Sticks) {
+        self.sticks = Some((sticks.clamped(), self.now()));
+    }
+
+    /// The sticks, if they arrived within `COM_RC_LOSS_T`.
+    fn fresh_sticks(&self) -> Option<Sticks> {
+        self.sticks
+            .filter(|&(_, t)| self.now() - t <= self.flight.params.manual_loss_s)
+            .map(|(s, _)| s)
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &CommanderParams {
+        &self.flight.params
+    }
+
+    /// Changes the parameters (a parameter set from a ground station); the flight in progress
+    /// uses the new values from its next stage.
+    pub fn set_params(&mut self, params: CommanderParams) {
+        self.flight.params = params;
+    }
+
+    /// The state as telemetry shows it.
+    pub fn status(&self) -> CommanderStatus {
+        let f = &self.flight;
+        CommanderStatus {
+            armed: f.armed,
+            mode: self.mode,
+            landed: f.landed,
+            home: f.home,
+            failsafe: self.mode == FlightMode::Descend || self.failsafe.0 > Action::Warn,
+            failsafe_action: match self.failsafe {
+                (a, Some(c)) if a > Action::None => Some((a, c)),
+                _ => None,
+            },
+            ready: self.ready(),
+            in_mode_s: self.last.map_or(0.0, |i| (i.t_s - self.since_s).max(0.0)),
+            manual_losses: self.manual_losses,
+            manual_control: self.sticks.map(|_| self.fresh_sticks().is_some()),
+            offboard_losses: self.offboard_losses,
+            mission: f.mission.status(),
+            motor_failed: self.last.and_then(|i| i.health.motor_failed),
+            failsafe_conditions: self.safety.active_mask(),
+            prearm_ok: !f.armed && self.prearm_ok,
+            safety_log: self.safety_log,
+        }
+    }
+
+    /// Motors armed.
+    pub fn armed(&self) -> bool {
+        self.flight.armed
+    }
+
+    /// The flight mode.
+    pub fn mode(&self) -> FlightMode {
+        self.mode
+    }
+
+    /// On the ground, taking off, flying or landing.
+    pub fn landed(&self) -> LandedState {
+        self.flight.landed
+    }
+
+    /// Home position NED (m), once set: where the position first became valid on the ground,
+    /// then where it armed (unless [`Commander::set_home`] set it).
+    pub fn home(&self) -> Option<Vector3<f64>> {
+        self.flight.home.map(|h| h.0)
+    }
+
+    /// Whether the armed state or the mode changed since the last call (and clears it).
+    pub fn take_changed(&mut self) -> bool {
+        std::mem::take(&mut self.changed)
+    }
+
+    fn now(&self) -> f64 {
+        self.last.map_or(0.0, |i| i.t_s)
+    }
+
+    fn ready(&self) -> bool {
+        self.last.is_some_and(|i| i.ready)
+    }
+
+    /// Enters `mode` with a fresh task.
+    fn enter(&mut self, mode: FlightMode) {
+        self.enter_with(mode, Task::of(mode));
+    }
+
+    /// Enters `mode`, flown by `task` from now on.
+    fn enter_with(&mut self, mode: FlightMode, task: Task) {
+        if mode != self.mode {
+            self.changed = true;
+        }
+        if self.mode == FlightMode::Mission {
+            self.flight.mission.left();
+        }
+        self.flight.yaw_goal = None;
+        self.mode = mode;
+        self.since_s = self.now();
+        self.task = task;
+        self.task.flight_task().activate(self.since_s);
+    }
+
+    /// Disarms. Refused in the air unless `force` (which stops the motors wherever it is).
+    pub fn disarm(&mut self, force: bool) -> Result<(), Denial> {
+        if !self.flight.armed {
+            return Ok(());
+        }
+        if self.flight.landed != LandedState::OnGround && !force {
+            return Err("disarming refused: in the air (land first, or force)".into());
+        }
+        self.disarmed();
+        Ok(())
+    }
+
+    /// The motors stopped (a touchdown, a forced disarm, the end of a failsafe): on the ground
+    /// from now on, in Loiter unless the mode needs no flight (a failsafe's Descend ends here).
+    pub fn disarmed(&mut self) {
+        if self.flight.armed {
+            self.changed = true;
+            if let Task::Mission(m) = &mut self.task {
+                m.touched_down(&mut self.flight.mission);
+            }
+        }
+        self.flight.armed = false;
+        self.flight.landed = LandedState::OnGround;
+        if matches!(
+            self.mode,
+            FlightMode::Land | FlightMode::Rtl | FlightMode::Descend | FlightMode::Takeoff
+        ) {
+            self.enter(FlightMode::Loiter);
+        }
+    }
+
+    /// Switches mode. Refused for modes not flown yet, for RTL without a home, and out of a
+    /// failsafe's Descend while it flies.
+    pub fn set_mode(&mut self, mode: FlightMode) -> Result<(), Denial> {
+        if mode == self.mode {
+            return Ok(());
+        }
+        if self.mode == FlightMode::Descend && self.flight.armed {
+            return Err("mode change refused: failsafe descent in progress".into());
+        }
+        if self.flight.armed && self.failsafe.0 > Action::Warn {
+            // The operator takes over (refused while a failsafe allows none).
+            self.safety.take_over()?;
+            self.failsafe = (Action::None, None);
+        }
+        match mode {
+            FlightMode::Takeoff | FlightMode::Loiter | FlightMode::Land => {}
+            FlightMode::Rtl => {
+                if self.flight.home.is_none() {
+                    return Err("RTL refused: no home position".into());
+                }
+            }
+            FlightMode::Posctl
+            | FlightMode::Altctl
+            | FlightMode::Manual
+            | FlightMode::Stabilized => {
+                if self.fresh_sticks().is_none() {
+                    return Err(format!(
+                        "{} refused: no manual control (MANUAL_CONTROL)",
+                        mode.name()
+                    ));
+                }
+            }
+            FlightMode::Offboard => {
+                if self.fresh_offboard().is_none() {
+                    return Err(format!(
+                        "OFFBOARD refused: no set-point stream in the last {} s (COM_OF_LOSS_T)",
+                        self.flight.params.offboard_loss_s
+                    ));
+                }
+            }
+            FlightMode::Mission => self.mission_entry()?,
+            FlightMode::Descend => return Err("DESCEND is a failsafe, not a mode to select".into()),
+        }
+        if mode == FlightMode::Takeoff && self.flight.armed && !self.ready() {
+            return Err("take-off refused: estimator not ready".into());
+        }
+        if mode == FlightMode::Takeoff && self.mode != FlightMode::Takeoff {
+            // The mode selected by itself climbs to today's MIS_TAKEOFF_ALT.
+            self.flight.takeoff_alt_m = self.flight.params.takeoff_alt_m;
+        }
+        self.enter(mode);
+        Ok(())
+    }
+
+    /// Take-off to `alt_above_home_m` (the parameter's altitude if `None`): switches to
+    /// Takeoff; a disarmed vehicle climbs once armed.
+    pub fn takeoff(&mut self, alt_above_home_m: Option<f64>) -> Result<(), Denial> {
+        let alt = alt_above_home_m.unwrap_or(self.flight.params.takeoff_alt_m);
+        if !(alt.is_finite() && alt > 0.0) {
+            return Err(format!(
+                "take-off refused: altitude {alt} m is not above home"
+            ));
+        }
+        if self.mode != FlightMode::Takeoff {
+            self.set_mode(FlightMode::Takeoff)?;
+        }
+        // A repeated command (a retransmission) keeps the climb in progress.
+        self.flight.takeoff_alt_m = alt;
+        Ok(())
+    }
+
+    /// Sets home to `pos_ned_m` (or to the current position if `None`).
+    pub fn set_home(&mut self, pos_ned_m: Option<Vector3<f64>>) -> Result<(), Denial> {
+        let Some(i) = self.last else {
+            return Err("home refused: no position estimate yet".into());
+        };
+        self.flight.set_home(pos_ned_m, &i)
+    }
+
+    /// The estimate is lost (sensors stopped, or it is unfit to fly on): on the ground the motors
+    /// stop; in the air the vehicle descends (what flies it until they return is the caller's:
+    /// see [`crate::safety::blind_descent::BlindDescent`]). Returns whether it is in the air.
+    pub fn sensors_stopped(&mut self) -> bool {
+        if !self.flight.armed {
+            return false;
+        }
+        if self.flight.landed == LandedState::OnGround {
+            self.disarmed();
+            return false;
+        }
+        if self.mode != FlightMode::Descend {
+            self.enter(FlightMode::Descend);
+            self.flight.landed = LandedState::Landing;
+        }
+        true
+    }
+
+    /// Advances; returns the set-point and whether the motors are armed.
+    pub fn update(&mut self, i: &CommanderInput) -> (Setpoint, bool) {
+        let p = self.flight.params;
+        let dt = self.last.map_or(0.0, |l| (i.t_s - l.t_s).max(0.0));
+        self.last = Some(*i);
+        self.failsafes(i);
+        self.prearm_ok = !self.flight.armed && self.preflight_failures(i).is_empty();
+        if !i.ready {
+            // The same reaction as to silent sensors, at this update's time.
+            self.sensors_stopped();
+        }
+        let f = &mut self.flight;
+        let yaw = f
+            .auto_yaw
+            .unwrap_or_else(|| f.home.map_or(i.yaw_rad, |h| h.1));
+        if !f.armed {
+            if f.home.is_none() && i.ready {
+                // As PX4: home as soon as the position is valid on the ground (ground stations
+                // and MAVSDK's health wait for it), then again at arming.
+                f.home = Some((i.pos_ned_m, i.yaw_rad));
+            }
+            return (Setpoint::Position(hold_setpoint(i.pos_ned_m, yaw)), false);
+        }
+        let since_arming_s = i.t_s - self.armed_at_s;
+        if f.landed == LandedState::OnGround
+            && self.mode != FlightMode::Takeoff
+            && p.disarm_preflight_s > 0.0
+            && since_arming_s >= p.disarm_preflight_s
+        {
+            // PX4's COM_DISARM_PRFLT: armed and left on the ground.
+            self.disarmed();
+            return (Setpoint::Position(hold_setpoint(i.pos_ned_m, yaw)), false);
+        }
+        let tick = Tick {
+            i,
+            dt,
+            home: f.home.map_or(i.pos_ned_m, |h| h.0),
+            yaw,
+            since_arming_s,
+            sticks: self.fresh_sticks(),
+            offboard: self.fresh_offboard(),
+        };
+        if let Some(sp) = self.stream_lost(&tick) {
+            return (Setpoint::Position(sp), self.flight.armed);
+        }
+        let sp = self.task.flight_task().update(&mut self.flight, &tick);
+        if std::mem::take(&mut self.flight.touched_down) {
+            self.disarmed();
+        } else if self.task.flight_task().is_finished() {
+            // A take-off done: Hold where it ended.
+            let held = self.task.held();
+            self.enter(FlightMode::Loiter);
+            if let Some(at) = held {
+                self.task.hold_at(at);
+            }
+        }
+        (sp, self.flight.armed)
+    }
+
+    /// The stream a mode flies on has stopped: the sticks (PX4's manual-control-loss
+    /// failsafe: Hold) or the offboard set-points (`COM_OBL_RC_ACT`'s mode, a stick mode only
+    /// with a joystick, else Hold). This update holds where braking stops the vehicle (on the
+    /// ground: stays there, in Hold). `None`: the stream is there, or the mode needs none.
+    fn stream_lost(&mut self, t: &Tick) -> Option<PositionSetpoint> {
+        let next = match self.mode {
+            FlightMode::Posctl
+            | FlightMode::Altctl
+            | FlightMode::Manual
+            | FlightMode::Stabilized
+                if t.sticks.is_none() =>
+            {
+                self.manual_losses += 1;
+                FlightMode::Loiter
+            }
+            FlightMode::Offboard if t.offboard.is_none() => {
+                self.offboard_losses += 1;
+                let sticks = t.sticks.is_some();
+                match self.flight.params.offboard_loss_action {
+                    0 if sticks => FlightMode::Posctl,
+                    1 if sticks => FlightMode::Altctl,
+                    2 if sticks => FlightMode::Stabilized,
+                    3 if self.flight.home.is_some() => FlightMode::Rtl,
+                    4 => FlightMode::Land,
+                    _ => FlightMode::Loiter,
+                }
+            }
+            _ => return None,
+        };
+        if self.flight.landed == LandedState::OnGround {
+            self.enter(FlightMode::Loiter);
+            return Some(spooled(t.home, t.yaw));
+        }
+        self.enter(next);
+        let at = brake_point(t.i, self.flight.params.accel_m_s2, t.yaw);
+        self.task.hold_at(at);
+        Some(hold_setpoint(at.0, at.1))
+    }
+}
+
+mod arming;
+mod descend;
+mod failsafes;
+mod flight;
+mod guided;
+mod hold;
+mod input;
+mod land;
+mod line;
+mod manual_position;
+mod mission;
+mod mission_run;
+mod offboard;
+mod params;
+mod rtl;
+mod stabilized;
+mod takeoff;
+mod task;
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,61 @@
+//! The commander's parameters.
+
+crate::params::param_group! {
+    /// What to fly, and the commander's limits. Names and types are PX4's where PX4 has the
+    /// parameter (`MIS_TAKEOFF_ALT`, `RTL_RETURN_ALT`, …), so that ground stations and MAVSDK
+    /// find them where they look.
+    CommanderParams, "commander", COMMANDER_META {
+        /// Take-off altitude above home (m).
+        takeoff_alt_m: f64 = 2.5, "MIS_TAKEOFF_ALT", "m", [0.5, 100.0], "Take-off altitude above home";
+        /// Climb speed of the take-off set-point (m/s).
+        takeoff_speed_m_s: f64 = 1.5, "MPC_TKO_SPEED", "m/s", [0.3, 5.0], "Climb speed of the take-off";
+        /// Spool-up time on the ground after arming (s).
+        spool_s: f64 = 1.0, "COM_SPOOLUP_TIME", "s", [0.0, 30.0], "Time on the ground after arming before a take-off climbs";
+        /// Descent speed while landing (m/s).
+        land_speed_m_s: f64 = 0.7, "MPC_LAND_SPEED", "m/s", [0.1, 3.0], "Descent speed while landing";
+        /// Descent speed for the last part of the landing (m/s), as PX4's two-stage landing.
+        final_speed_m_s: f64 = 0.3, "MPC_LAND_CRWL", "m/s", [0.1, 3.0], "Descent speed for the last metres of a landing";
+        /// Height above home where the final, slower descent begins (m).
+        final_height_m: f64 = 2.0, "MPC_LAND_ALT3", "m", [0.0, 20.0], "Height above home below which a landing descends at MPC_LAND_CRWL";
+        /// Return altitude above home (m).
+        rtl_return_alt_m: f64 = 30.0, "RTL_RETURN_ALT", "m", [0.0, 500.0], "Return altitude above home (a vehicle higher up returns at its altitude)";
+        /// Horizontal cruise speed of automatic flight (m/s).
+        cruise_speed_m_s: f64 = 5.0, "MPC_XY_CRUISE", "m/s", [0.5, 20.0], "Horizontal speed of automatic flight";
+        /// Acceleration of the automatic set-point profiles (m/s²).
+        accel_m_s2: f64 = 1.0, "MPC_ACC_HOR", "m/s^2", [0.2, 15.0], "Acceleration of the automatic set-point profiles";
+        /// Deceleration of a failsafe's stop (m/s²).
+        failsafe_brake_m_s2: f64 = 2.5, "MPC_ACC_FS_BRK", "m/s^2", [0.5, 15.0], "Deceleration of a failsafe's Hold (a fence breach, a lost link): it holds where the vehicle stops at this rate, not at the gentle MPC_ACC_HOR";
+        /// Disarm when armed on the ground this long without taking off (s; 0: never).
+        disarm_preflight_s: f64 = 10.0, "COM_DISARM_PRFLT", "s", [0.0, 3600.0], "Disarm when armed on the ground this long without taking off (0: never)";
+        /// Largest horizontal speed from the sticks in Posctl (m/s).
+        manual_speed_m_s: f64 = 5.0, "MPC_VEL_MANUAL", "m/s", [0.5, 20.0], "Horizontal speed at full stick in position mode";
+        /// Largest tilt from the sticks in Altctl (deg).
+        manual_tilt_deg: f64 = 35.0, "MPC_MAN_TILT_MAX", "deg", [1.0, 70.0], "Tilt at full stick in altitude, stabilized and manual modes";
+        /// Yaw rate at full stick (deg/s).
+        manual_yaw_rate_deg_s: f64 = 150.0, "MPC_MAN_Y_MAX", "deg/s", [0.0, 400.0], "Yaw rate at full stick";
+        /// Climb rate at full throttle stick (m/s).
+        manual_climb_m_s: f64 = 3.0, "MAN_Z_VEL_UP", "m/s", [0.3, 10.0], "Climb rate at full throttle stick in altitude and position modes";
+        /// Descent rate at zero throttle stick (m/s).
+        manual_sink_m_s: f64 = 1.0, "MAN_Z_VEL_DN", "m/s", [0.3, 10.0], "Descent rate at zero throttle stick in altitude and position modes";
+        /// Stick dead zone around the centre (fraction of full travel).
+        stick_deadzone: f64 = 0.1, "MPC_HOLD_DZ", "", [0.0, 0.5], "Stick dead zone around the centre, where the vehicle holds";
+        /// Manual control older than this is lost (s).
+        manual_loss_s: f64 = 0.5, "COM_RC_LOSS_T", "s", [0.1, 35.0], "Manual control lost after this long without MANUAL_CONTROL: manual modes switch to Hold";
+        /// Thrust at zero throttle stick in the stick-to-attitude modes (fraction of full thrust).
+        manual_thrust_min: f64 = 0.08, "MPC_MANTHR_MIN", "", [0.0, 0.3], "Thrust at zero throttle stick in Stabilized and Manual (fraction of full thrust)";
+        /// Offboard set-points older than this are lost (s).
+        offboard_loss_s: f64 = 0.5, "COM_OF_LOSS_T", "s", [0.05, 60.0], "Offboard set-points lost after this long without one: COM_OBL_RC_ACT takes over";
+        /// What flies when the offboard set-points stop.
+        offboard_loss_action: u32 = 0, "COM_OBL_RC_ACT", "", [0.0, 5.0], "Offboard loss: 0 Position, 1 Altitude, 2 Manual (each Hold without a joystick), 3 Return, 4 Land, 5 Hold";
+        /// Horizontal acceptance radius of mission waypoints that give none (m).
+        acceptance_m: f64 = 2.0, "NAV_ACC_RAD", "m", [0.05, 200.0], "Horizontal acceptance radius of mission waypoints that give none";
+        /// Vertical acceptance of mission waypoints (m).
+        alt_acceptance_m: f64 = 0.8, "NAV_MC_ALT_RAD", "m", [0.05, 200.0], "Vertical acceptance radius of mission waypoints";
+        /// Climb speed of automatic flight (m/s).
+        auto_climb_m_s: f64 = 3.0, "MPC_Z_V_AUTO_UP", "m/s", [0.5, 8.0], "Climb speed of missions and repositions";
+        /// Descent speed of automatic flight (m/s).
+        auto_sink_m_s: f64 = 1.5, "MPC_Z_V_AUTO_DN", "m/s", [0.5, 4.0], "Descent speed of missions and repositions";
+        /// Yaw rate of automatic flight (deg/s).
+        auto_yaw_rate_deg_s: f64 = 45.0, "MPC_YAWRAUTO_MAX", "deg/s", [5.0, 360.0], "Yaw rate of missions, repositions and CONDITION_YAW";
+    }
+}

@@ -1,0 +1,98 @@
+//! Return (RTL): climb to `RTL_RETURN_ALT` above home (if lower), fly home level on a limited
+//! profile, land there. A mission's return item flies the same.
+
+use super::LandedState;
+use super::flight::{Flight, Tick, spooled};
+use super::land::Landing;
+use super::line::Line;
+use super::task::FlightTask;
+use crate::commander::CommanderInput;
+use crate::control::Setpoint;
+use crate::control::position::PositionSetpoint;
+use nalgebra::Vector3;
+
+/// The stages of a return.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+enum RtlStage {
+    #[default]
+    Climb,
+    Return,
+    Land,
+}
+
+/// A return home.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub(super) struct Rtl {
+    stage: RtlStage,
+    line: Option<Line>,
+    landing: Landing,
+}
+
+impl Rtl {
+    /// The climb's or the way home's profile, once begun.
+    pub(super) fn line_mut(&mut self) -> Option<&mut Line> {
+        self.line.as_mut()
+    }
+
+    /// One step of the return to `home`, heading `yaw`.
+    pub(super) fn fly(
+        &mut self,
+        f: &mut Flight,
+        i: &CommanderInput,
+        dt: f64,
+        yaw: f64,
+        home: Vector3<f64>,
+    ) -> PositionSetpoint {
+        let p = f.params;
+        f.landed = LandedState::InAir;
+        loop {
+            match self.stage {
+                RtlStage::Climb => {
+                    let up_to = (home.z - p.rtl_return_alt_m).min(i.pos_ned_m.z);
+                    let line = self.line.get_or_insert_with(|| {
+                        let to = Vector3::new(i.pos_ned_m.x, i.pos_ned_m.y, up_to);
+                        Line::new(i.pos_ned_m, to, p.takeoff_speed_m_s, p.accel_m_s2)
+                    });
+                    let (sp, arrived) = line.step(dt, yaw);
+                    if !arrived {
+                        return sp;
+                    }
+                    self.stage = RtlStage::Return;
+                    self.line = None;
+                }
+                RtlStage::Return => {
+                    let line = self.line.get_or_insert_with(|| {
+                        let to = Vector3::new(home.x, home.y, i.pos_ned_m.z);
+                        Line::new(i.pos_ned_m, to, p.cruise_speed_m_s, p.accel_m_s2)
+                    });
+                    let to = line.end();
+                    let (sp, arrived) = line.step(dt, yaw);
+                    if !(arrived && (i.pos_ned_m.xy() - to.xy()).norm() < 1.0) {
+                        return sp;
+                    }
+                    self.stage = RtlStage::Land;
+                    self.landing = Landing::over((home.x, home.y));
+                }
+                RtlStage::Land => return self.landing.step(f, i, dt, yaw),
+            }
+        }
+    }
+
+    /// Landed at the end.
+    fn touched_down(&self) -> bool {
+        self.landing.touched_down()
+    }
+}
+
+impl FlightTask for Rtl {
+    fn update(&mut self, f: &mut Flight, t: &Tick) -> Setpoint {
+        if f.landed == LandedState::OnGround {
+            return Setpoint::Position(spooled(t.home, t.yaw));
+        }
+        Setpoint::Position(self.fly(f, t.i, t.dt, t.yaw, t.home))
+    }
+
+    fn is_finished(&self) -> bool {
+        self.touched_down()
+    }
+}
