@@ -166,6 +166,14 @@ pub fn actuator_command(m: &HIL_ACTUATOR_CONTROLS_DATA) -> ActuatorCommand {
     }
 }
 
+impl ActuatorCommand {
+    /// The command the simulator reads from the `HIL_ACTUATOR_CONTROLS` an autopilot sends for
+    /// `controls` (quantised to the message's f32), without the bytes in between.
+    pub fn as_sent(time_usec: u64, controls: &[f64], armed: bool) -> Self {
+        actuator_command(&actuator_controls_data(time_usec, controls, armed))
+    }
+}
+
 /// Accumulates the sensor frames of one exchange interval: IMU averaged (as a flight board's
 /// driver integrates), slower sensors forwarded when fresh.
 pub struct Accumulator {
@@ -223,19 +231,20 @@ impl Accumulator {
     }
 }
 
-/// Encodes one exchange: `HIL_GPS` and `ESC_STATUS` when fresh, `HIL_STATE_QUATERNION` when
-/// `send_state` (ground truth at its own rate), and `HIL_SENSOR` last. `HIL_SENSOR` closes the
-/// frame: an autopilot reading the stream steps on it with everything that came before it.
-pub fn encode_exchange(
-    encoder: &mut Encoder,
-    out: &mut Vec<u8>,
+/// The messages of one exchange, in order, to `emit`: `HIL_GPS` and `ESC_STATUS` when fresh,
+/// `HIL_STATE_QUATERNION` when `send_state` (ground truth at its own rate), and `HIL_SENSOR`
+/// last. `HIL_SENSOR` closes the frame: an autopilot reading the stream steps on it with
+/// everything that came before it. Encoded to bytes for a link, or folded straight into a
+/// [`SensorUpdate`] in-process: the same messages, so the same quantisation either way.
+pub fn exchange_messages(
     f: &SensorFrame,
     truth: &TruthState,
     rotors: usize,
     send_state: bool,
+    mut emit: impl FnMut(&MavMessage),
 ) {
     if let Some(fix) = &f.gps {
-        encoder.push(out, &hil_gps(f.time_usec, fix));
+        emit(&hil_gps(f.time_usec, fix));
     }
     if let Some(rpm) = &f.rotor_rpm {
         for m in esc_status(
@@ -244,22 +253,43 @@ pub fn encode_exchange(
             truth.battery_voltage_v,
             truth.battery_current_a,
         ) {
-            encoder.push(out, &m);
+            emit(&m);
         }
     }
     if send_state {
-        encoder.push(out, &hil_state_quaternion(truth));
+        emit(&hil_state_quaternion(truth));
     }
-    encoder.push(out, &hil_sensor(f));
+    emit(&hil_sensor(f));
+}
+
+/// Encodes one exchange ([`exchange_messages`]) to MAVLink 2 bytes.
+pub fn encode_exchange(
+    encoder: &mut Encoder,
+    out: &mut Vec<u8>,
+    f: &SensorFrame,
+    truth: &TruthState,
+    rotors: usize,
+    send_state: bool,
+) {
+    exchange_messages(f, truth, rotors, send_state, |m| encoder.push(out, m));
 }
 
 /// `HIL_ACTUATOR_CONTROLS` answering the sensor frame of `time_usec` (the autopilot's side).
 pub fn actuator_controls(time_usec: u64, controls: &[f64], armed: bool) -> MavMessage {
+    MavMessage::HIL_ACTUATOR_CONTROLS(actuator_controls_data(time_usec, controls, armed))
+}
+
+/// The payload of [`actuator_controls`].
+fn actuator_controls_data(
+    time_usec: u64,
+    controls: &[f64],
+    armed: bool,
+) -> HIL_ACTUATOR_CONTROLS_DATA {
     let mut c = [0f32; 16];
     for (o, x) in c.iter_mut().zip(controls) {
         *o = *x as f32;
     }
-    MavMessage::HIL_ACTUATOR_CONTROLS(HIL_ACTUATOR_CONTROLS_DATA {
+    HIL_ACTUATOR_CONTROLS_DATA {
         time_usec,
         flags: HilActuatorControlsFlags::HIL_ACTUATOR_CONTROLS_FLAGS_LOCKSTEP,
         controls: c,
@@ -268,7 +298,7 @@ pub fn actuator_controls(time_usec: u64, controls: &[f64], armed: bool) -> MavMe
         } else {
             MavModeFlag::empty()
         },
-    })
+    }
 }
 
 /// A GPS solution as the autopilot reads it from `HIL_GPS`.

@@ -1,7 +1,9 @@
 //! The simulator's end of the HIL exchange, shared by the `sitl` process and the autopilot's
 //! embedded simulator so that one seed gives the same bytes, and the same flight, on either.
 
-use crate::{Accumulator, ActuatorCommand, Encoder, encode_exchange};
+use crate::{
+    Accumulator, ActuatorCommand, Encoder, SensorUpdate, encode_exchange, exchange_messages,
+};
 use sitl_core::airframe::MAX_ROTORS;
 use sitl_core::sensors::SensorFrame;
 use sitl_core::sim::Simulator;
@@ -39,21 +41,35 @@ impl SimulatorEnd {
     /// Appends the current exchange's messages to `out` (`HIL_SENSOR` last; the truth when due)
     /// and returns the frame's time, which the answer must echo.
     pub fn encode_frame(&mut self, out: &mut Vec<u8>) -> u64 {
+        let send_state = self.state_due();
         let frame = self.acc.frame();
-        let send_state = frame.time_usec >= self.next_state_usec;
-        if send_state {
-            self.next_state_usec = frame.time_usec + STATE_INTERVAL_USEC;
-        }
         let rotors = self.sim.airframe().rotors.len();
-        encode_exchange(
-            &mut self.encoder,
-            out,
-            frame,
-            &self.sim.truth(),
-            rotors,
-            send_state,
-        );
+        let truth = self.sim.truth();
+        encode_exchange(&mut self.encoder, out, frame, &truth, rotors, send_state);
         frame.time_usec
+    }
+
+    /// The current exchange as an autopilot decodes it from [`Self::encode_frame`]'s bytes,
+    /// without the bytes: the same messages folded into `into`, their f32 and integer
+    /// quantisation included (the embedded simulator's road). Returns the frame's time.
+    pub fn frame_update(&mut self, into: &mut SensorUpdate) -> u64 {
+        let send_state = self.state_due();
+        let frame = self.acc.frame();
+        let rotors = self.sim.airframe().rotors.len();
+        exchange_messages(frame, &self.sim.truth(), rotors, send_state, |m| {
+            into.absorb(m);
+        });
+        frame.time_usec
+    }
+
+    /// Whether this exchange carries the ground truth (every [`STATE_INTERVAL_USEC`]).
+    fn state_due(&mut self) -> bool {
+        let t = self.acc.frame().time_usec;
+        let due = t >= self.next_state_usec;
+        if due {
+            self.next_state_usec = t + STATE_INTERVAL_USEC;
+        }
+        due
     }
 
     /// Takes an answer: an armed command's controls, all rotors off otherwise.
