@@ -10,23 +10,21 @@ mod control_loop;
 #[cfg(test)]
 mod fuzz;
 mod gcs;
-mod json_link;
-mod link;
+mod links;
 mod mag_cal;
 mod records;
 mod replay;
-mod sim;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use control_loop::{FlightReport, LoopCommand, Onboard, Pacing, Ports, Telemetry};
 use flight_core::autopilot::{AutoFlight, Autopilot};
 use flight_core::params::FlightParams;
-use link::{SensorLink, SerialLink, Source, UdpLink};
+use links::sim::{self, EmbeddedSim};
+use links::{SensorLink, SerialLink, Source, UdpLink, json_link};
 use records::FlightRecords;
 use records::flight_csv::FlightCsv;
 use records::param_store::ParamStore;
-use sim::EmbeddedSim;
 use sitl_core::Airframe;
 use sitl_core::geo::Geodetic;
 use sitl_core::sensors::{SensorConfig, SensorPreset};
