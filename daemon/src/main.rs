@@ -4,16 +4,14 @@
 //! with a live status line; `--source udp://0.0.0.0:4560` flies a simulator process (`sitl`) the
 //! same way. `autopilot replay` runs the attitude estimator over logged sensor data.
 
-mod batch;
 mod config;
 mod control_loop;
 #[cfg(test)]
 mod fuzz;
 mod gcs;
 mod links;
-mod mag_cal;
 mod records;
-mod replay;
+mod subcommands;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
@@ -29,6 +27,7 @@ use sitl_core::Airframe;
 use sitl_core::geo::Geodetic;
 use sitl_core::sensors::{SensorConfig, SensorPreset};
 use sitl_core::sim::SimConfig;
+use subcommands::{batch, mag_cal, replay};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
