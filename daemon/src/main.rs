@@ -9,6 +9,7 @@ mod control_loop;
 #[cfg(test)]
 mod fuzz;
 mod gcs;
+mod gcs_links;
 mod links;
 mod records;
 mod subcommands;
@@ -27,10 +28,10 @@ use sitl_core::Airframe;
 use sitl_core::geo::Geodetic;
 use sitl_core::sensors::{SensorConfig, SensorPreset};
 use sitl_core::sim::SimConfig;
-use subcommands::{batch, mag_cal, replay};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
+use subcommands::{batch, mag_cal, replay};
 use tokio::sync::{mpsc, watch};
 
 /// A MAVLink multirotor autopilot.
@@ -410,7 +411,7 @@ impl Settings {
             loop_cpu: cli.loop_cpu.or(file.loop_cpu),
             mavlink: if cli.mavlink.is_empty() {
                 file.mavlink.unwrap_or_else(|| {
-                    gcs::links::DEFAULT_ENDPOINTS
+                    gcs_links::DEFAULT_ENDPOINTS
                         .iter()
                         .map(|s| s.to_string())
                         .collect()
@@ -461,8 +462,8 @@ struct Prepared {
     autopilot: Autopilot,
     records: FlightRecords,
     ports: Ports,
-    endpoints: Vec<gcs::links::EndpointSpec>,
-    gcs: gcs::links::Vehicle,
+    endpoints: Vec<gcs_links::EndpointSpec>,
+    gcs: gcs_links::Vehicle,
 }
 
 /// Builds instance `instance`'s vehicle: its parameters (flight.toml, then what ground stations
@@ -534,7 +535,7 @@ fn prepare(
         .mavlink
         .iter()
         .filter(|u| u.as_str() != "none")
-        .map(|u| gcs::links::EndpointSpec::parse(u, instance))
+        .map(|u| gcs_links::EndpointSpec::parse(u, instance))
         .collect::<Result<Vec<_>>>()
         .context("--mavlink")?;
     let signing_key = match &cfg.signing_key_file {
@@ -557,7 +558,7 @@ fn prepare(
         records,
         ports,
         endpoints,
-        gcs: gcs::links::Vehicle {
+        gcs: gcs_links::Vehicle {
             system_id,
             mav_type: gcs::GroundStation::mav_type(airframe.rotors.len()),
             telemetry,
@@ -738,7 +739,7 @@ impl Drop for LoopEnded {
 /// ground stations, Ctrl-C for all of them, the status line. Returns what each vehicle's
 /// ground stations asked the process to do at the end (a reboot).
 fn serve(
-    vehicles: Vec<(Vec<gcs::links::EndpointSpec>, gcs::links::Vehicle)>,
+    vehicles: Vec<(Vec<gcs_links::EndpointSpec>, gcs_links::Vehicle)>,
     commands: Vec<mpsc::Sender<LoopCommand>>,
     telemetry: Vec<watch::Receiver<Telemetry>>,
     ended: std::sync::Arc<tokio::sync::Notify>,
@@ -750,7 +751,7 @@ fn serve(
     let exits = runtime.block_on(async move {
         let links: Vec<_> = vehicles
             .into_iter()
-            .map(|(endpoints, vehicle)| tokio::spawn(gcs::links::run(endpoints, vehicle)))
+            .map(|(endpoints, vehicle)| tokio::spawn(gcs_links::run(endpoints, vehicle)))
             .collect();
         tokio::spawn(interrupts(commands));
         status_line(telemetry, ended).await;

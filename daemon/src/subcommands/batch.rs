@@ -6,9 +6,9 @@
 //! whichever finishes first, and one run can be flown again from its row (`--seed`, `--first`).
 
 use crate::control_loop::{self, LoopCommand, Onboard, Pacing, Ports};
+use crate::links::sim::EmbeddedSim;
 use crate::links::{SensorLink, Source};
 use crate::records::FlightRecords;
-use crate::links::sim::EmbeddedSim;
 use anyhow::{Context, Result, bail};
 use flight_core::autopilot::{AutoFlight, Autopilot};
 use flight_core::params::FlightParams;
