@@ -65,11 +65,11 @@ pub struct Settings {
     pub sensors: String,
     /// Truth CSV (embedded simulator).
     pub truth_csv: Option<PathBuf>,
-    /// Flight-data CSV (none: LOG_DIR/<start time>.csv).
+    /// Flight-data CSV (none: `LOG_DIR/<start time>.csv`).
     pub flight_csv: Option<PathBuf>,
     /// Directory of every run's logs, or `"none"` (none given: `logs`); see [`Self::log_dir`].
     pub log_dir: Option<PathBuf>,
-    /// MAVLink telemetry log (none: LOG_DIR/<start time>.tlog).
+    /// MAVLink telemetry log (none: `LOG_DIR/<start time>.tlog`).
     pub tlog: Option<PathBuf>,
     /// Rate of the deadline-paced loop (Hz).
     pub loop_hz: f64,

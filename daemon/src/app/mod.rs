@@ -1,4 +1,4 @@
-//! A flight: the vehicle made ready ([`prepare`]), the control loop on its own thread, and on
+//! A flight: the vehicle made ready ([`prepare()`]), the control loop on its own thread, and on
 //! this one the tasks around it (ground-station links, Ctrl-C, the status line: [`console`])
 //! until the loop ends; the summary line; a reboot when a ground station asked for one.
 

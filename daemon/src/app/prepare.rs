@@ -149,7 +149,7 @@ pub(super) fn sensor_preset(cfg: &Settings) -> Result<SensorPreset> {
     })
 }
 
-/// The run's flight-data CSV and telemetry log: those named, else LOG_DIR/<start time>.csv and
+/// The run's flight-data CSV and telemetry log: those named, else `LOG_DIR/<start time>.csv` and
 /// .tlog. A log directory that cannot be made costs the default logs, not the flight: it is
 /// said in the log and to the first ground station.
 fn log_paths(
