@@ -12,7 +12,7 @@
 pub mod deadline;
 pub mod frames;
 
-use crate::link::SensorLink;
+use crate::links::SensorLink;
 use crate::records::FlightRecords;
 use crate::records::score::FlightScore;
 use anyhow::{Context, Result, bail};

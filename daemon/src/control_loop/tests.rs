@@ -4,7 +4,7 @@
 #![allow(clippy::unwrap_used)]
 
 use super::*;
-use crate::sim::{EXCHANGE_HZ, EmbeddedSim};
+use crate::links::sim::{EXCHANGE_HZ, EmbeddedSim};
 use flight_core::autopilot::AutoFlight;
 use flight_core::params::FlightParams;
 use mavlink::dialects::common::MavMessage;
@@ -236,7 +236,7 @@ fn fly_seed(fault: Fault, seed: u64) -> (FaultyLink, FlightReport, Autopilot) {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../params");
     let airframe = Airframe::load(&dir.join("airframes/quad_x.toml")).unwrap();
     let mut params = FlightParams::load(&dir.join("flight.toml")).unwrap();
-    crate::link::Source::Embedded.preset_params(&mut params);
+    crate::links::Source::Embedded.preset_params(&mut params);
     let auto = AutoFlight {
         takeoff_m: 5.0,
         hover_s: 30.0,
@@ -472,7 +472,7 @@ fn swarm_member(seed: u64) -> (Autopilot, FlightRecords, EmbeddedSim, Ports) {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../params");
     let airframe = Airframe::load(&dir.join("airframes/quad_x.toml")).unwrap();
     let mut params = FlightParams::load(&dir.join("flight.toml")).unwrap();
-    crate::link::Source::Embedded.preset_params(&mut params);
+    crate::links::Source::Embedded.preset_params(&mut params);
     let auto = AutoFlight {
         takeoff_m: 3.0,
         hover_s: 2.0,

@@ -12,7 +12,7 @@
 //! an exact IMU at rest reads the same twice, which the sensor monitor takes for a frozen one).
 //! The truth (`HIL_STATE_QUATERNION`, for logs and scoring) is the state itself.
 
-use crate::link::SensorLink;
+use super::SensorLink;
 use hil::json::{PhysicsState, ServoPacket, pwm_from_command};
 use hil::{Decoded, SIM_COMPONENT_ID, SIM_SYSTEM_ID, STATE_INTERVAL_USEC};
 use mavlink::MavHeader;

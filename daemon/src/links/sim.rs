@@ -4,7 +4,7 @@
 //! bytes. It runs the same [`SimulatorEnd`] as the `sitl` process, so one seed flies the same
 //! flight in-process and over UDP.
 
-use crate::link::SensorLink;
+use super::SensorLink;
 use anyhow::{Context, Result};
 use hil::{Decoded, SimulatorEnd};
 use mavlink::dialects::common::MavMessage;

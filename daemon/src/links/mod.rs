@@ -2,6 +2,9 @@
 //! embedded simulator, a simulator process over UDP and a flight board on a serial line all carry
 //! the same HIL messages; the flight loop does not know which one it talks to.
 
+pub mod json_link;
+pub mod sim;
+
 use anyhow::{Context, Result, bail};
 use hil::{Decoded, StreamDecoder};
 use std::io;
@@ -43,7 +46,7 @@ pub enum Source {
         lockstep: bool,
     },
     /// A physics speaking ArduPilot's JSON interface at this UDP address
-    /// ([`crate::json_link`]).
+    /// ([`json_link`]).
     Json {
         /// The physics' address.
         addr: SocketAddr,

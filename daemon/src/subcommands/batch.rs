@@ -6,9 +6,9 @@
 //! whichever finishes first, and one run can be flown again from its row (`--seed`, `--first`).
 
 use crate::control_loop::{self, LoopCommand, Onboard, Pacing, Ports};
-use crate::link::{SensorLink, Source};
+use crate::links::sim::EmbeddedSim;
+use crate::links::{SensorLink, Source};
 use crate::records::FlightRecords;
-use crate::sim::EmbeddedSim;
 use anyhow::{Context, Result, bail};
 use flight_core::autopilot::{AutoFlight, Autopilot};
 use flight_core::params::FlightParams;
@@ -635,112 +635,4 @@ pub fn default_jobs() -> usize {
 }
 
 #[cfg(test)]
-mod tests {
-    #![allow(clippy::unwrap_used)]
-    use super::*;
-
-    fn config(faults: &[FaultKind]) -> BatchConfig {
-        BatchConfig {
-            runs: 4,
-            first: 0,
-            seed: 9,
-            takeoff_m: 3.0,
-            hover_s: 6.0,
-            wind_max_m_s: 5.0,
-            turbulence_max_m_s: 2.0,
-            faults: faults.to_vec(),
-            sensors: SensorPreset::Typical,
-        }
-    }
-
-    #[test]
-    fn a_run_is_drawn_from_its_own_stream_alone() {
-        let cfg = config(&[FaultKind::Gps, FaultKind::Gust, FaultKind::Motor]);
-        let a = RunPlan::draw(&cfg, 7, 4);
-        assert_eq!(a, RunPlan::draw(&cfg, 7, 4), "the same run, the same draw");
-        assert_ne!(a, RunPlan::draw(&cfg, 8, 4));
-        let mut other = cfg.clone();
-        other.seed = 10;
-        assert_ne!(a.sim_seed, RunPlan::draw(&other, 7, 4).sim_seed);
-        // Every draw within its ranges; faults within the hover.
-        for run in 0..200 {
-            let p = RunPlan::draw(&cfg, run, 4);
-            assert!((0.0..=5.0).contains(&p.wind_m_s) && (0.0..360.0).contains(&p.wind_from_deg));
-            assert!((0.0..=2.0).contains(&p.turbulence_m_s));
-            let t = p.fault_t_s.unwrap();
-            assert!((3.5 + 2.0 + 1.0..=3.5 + 2.0 + 5.0).contains(&t), "{t}");
-            assert!(!p.events.is_empty());
-            if let Action::MotorEffectiveness {
-                index,
-                effectiveness,
-            } = p.events[0].action
-            {
-                assert!(index < 4 && (0.5..=0.9).contains(&effectiveness));
-            }
-        }
-        let none = RunPlan::draw(&config(&[FaultKind::None]), 0, 4);
-        assert!(none.events.is_empty() && none.fault_t_s.is_none());
-    }
-
-    /// A batch's rows are the same whatever the number of workers (each run draws from its own
-    /// stream; rows arrive in any order), a quad with no fault lands, and one that loses a
-    /// motor crashes (it cannot fly on three) and is counted so.
-    #[test]
-    fn a_batch_gives_the_same_rows_whatever_the_workers_and_tells_crashes_from_landings() {
-        let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../params");
-        let tmp = tempfile::tempdir().unwrap();
-        let mut cfg = config(&[FaultKind::None, FaultKind::MotorOff]);
-        cfg.runs = 6;
-        let rows = |jobs: usize, name: &str| {
-            let out = tmp.path().join(name);
-            run(
-                &cfg,
-                &dir.join("airframes/quad_x.toml"),
-                &dir.join("flight.toml"),
-                jobs,
-                &out,
-            )
-            .unwrap();
-            let text = std::fs::read_to_string(&out).unwrap();
-            let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
-            assert_eq!(lines[0], CSV_HEADER);
-            lines[1..].sort_by_key(|l| l.split(',').next().unwrap().parse::<u32>().unwrap());
-            lines
-        };
-        let one = rows(1, "one.csv");
-        assert_eq!(one.len(), 7, "a header and six rows");
-        assert_eq!(one, rows(3, "three.csv"));
-        let column = |name: &str| CSV_HEADER.split(',').position(|c| c == name).unwrap();
-        let (fault, outcome) = (column("fault"), column("outcome"));
-        let (impact, tilt) = (column("impact_m_s"), column("final_tilt_deg"));
-        let mut seen = (0, 0);
-        for row in &one[1..] {
-            let cells: Vec<&str> = row.split(',').collect();
-            let value = |i: usize| cells[i].parse::<f64>().unwrap();
-            assert_eq!(
-                cells[outcome] == "crashed",
-                value(impact) > CRASH_IMPACT_M_S || value(tilt) > CRASH_TILT_DEG,
-                "{row}"
-            );
-            match cells[fault] {
-                "none" => {
-                    seen.0 += 1;
-                    assert_eq!(cells[outcome], "landed", "{row}");
-                }
-                "motor_off" => seen.1 += u32::from(cells[outcome] == "crashed"),
-                f => panic!("fault {f} was not asked for"),
-            }
-        }
-        // A quad cannot fly on three rotors: of this seed's five, three come down hard.
-        assert!(seen.0 > 0 && seen.1 > 0, "a landing and a crash: {seen:?}");
-    }
-
-    #[test]
-    fn fault_names_go_both_ways() {
-        for (name, f) in FaultKind::ALL {
-            assert_eq!(FaultKind::from_name(name).unwrap(), f);
-            assert_eq!(f.name(), name);
-        }
-        assert!(FaultKind::from_name("meteor").is_err());
-    }
-}
+mod tests;

@@ -1,0 +1,349 @@
+//! A flight: the vehicle made ready ([`prepare()`]), the control loop on its own thread, and on
+//! this one the tasks around it (ground-station links, Ctrl-C, the status line: [`console`])
+//! until the loop ends; the summary line; a reboot when a ground station asked for one.
+
+mod console;
+mod prepare;
+
+use crate::control_loop::{self, FlightReport, LoopCommand, Onboard, Pacing, Telemetry};
+use crate::gcs;
+use crate::gcs_links;
+use crate::links::sim::{self, EmbeddedSim};
+use crate::links::{SensorLink, SerialLink, Source, UdpLink, json_link};
+use crate::records::FlightRecords;
+use crate::settings::Settings;
+use anyhow::{Context, Result, bail};
+use console::{interrupts, status_line};
+use prepare::{Prepared, prepare, sensor_preset};
+use sitl_core::Airframe;
+use sitl_core::geo::Geodetic;
+use sitl_core::sensors::{SensorConfig, SensorPreset};
+use sitl_core::sim::SimConfig;
+use std::time::Duration;
+use tokio::sync::{mpsc, watch};
+
+/// Flies what the settings say: one vehicle on its sensor link, or `--count` vehicles in the
+/// embedded simulator, each with its ground stations, until the flight ends; then the summary
+/// line (and a reboot if a ground station asked for one).
+pub fn fly(cfg: Settings) -> Result<()> {
+    let source = Source::parse(cfg.source(), cfg.instance)?;
+    if source != Source::Embedded && cfg.truth_csv.is_some() {
+        bail!(
+            "--truth-csv is for the embedded simulator; an external one writes its own (sitl --truth-csv)"
+        );
+    }
+    if cfg.count > 1 {
+        return fly_together(cfg, source);
+    }
+    let airframe = Airframe::load(&cfg.airframe_path())?;
+    if let Some(cpu) = cfg.loop_cpu {
+        // This thread runs the tasks around the loop, and the threads it starts (the log
+        // writers, the runtime's) inherit where it may run: none on the loop's CPU. The loop's
+        // own thread pins itself there.
+        control_loop::deadline::keep_off_cpu(cpu).map_err(anyhow::Error::msg)?;
+    }
+    let Prepared {
+        system_id,
+        mut autopilot,
+        mut records,
+        mut ports,
+        endpoints,
+        gcs,
+    } = prepare(&cfg, &source, &airframe, cfg.instance)?;
+    let deadlines = Pacing::Deadlines {
+        period: Duration::from_secs_f64(1.0 / cfg.loop_hz),
+        spin: Duration::from_secs_f64(cfg.loop_spin_us * 1e-6),
+        stats: Duration::from_secs_f64(cfg.loop_stats_s),
+    };
+    let (commands, telemetry) = (gcs.commands.clone(), gcs.telemetry.clone());
+    // The control loop on its own thread owns the vehicle and the sensor link; this thread runs
+    // the tasks that talk to it (ground stations, status line, Ctrl-C).
+    let ended = std::sync::Arc::new(tokio::sync::Notify::new());
+    let ended_guard = LoopEnded(ended.clone());
+    let control = std::thread::Builder::new()
+        .name("control-loop".into())
+        .spawn(move || -> Result<FlightReport> {
+            let _ended = ended_guard;
+            let ports = &mut ports;
+            if let Some(cpu) = cfg.loop_cpu {
+                control_loop::deadline::pin_to_cpu(cpu).map_err(anyhow::Error::msg)?;
+                tracing::info!(cpu, "control loop pinned");
+            }
+            match source {
+                Source::Embedded => {
+                    let sensors = sensor_preset(&cfg)?;
+                    if sensors == SensorPreset::Ideal {
+                        autopilot.sensors_noise_free();
+                    }
+                    let world = SimConfig {
+                        seed: cfg.seed,
+                        sensors: SensorConfig::preset(sensors),
+                        home: Geodetic::default().for_instance(cfg.instance),
+                        ..SimConfig::default()
+                    };
+                    let mut link = EmbeddedSim::with_world(
+                        &airframe,
+                        world,
+                        &[],
+                        cfg.realtime_factor()?,
+                        cfg.truth_csv.as_deref(),
+                    )?;
+                    let report =
+                        control_loop::fly(Onboard { link: &mut link, autopilot: &mut autopilot, records: &mut records, ports, system_id }, Pacing::Lockstep)?;
+                    link.finish()?;
+                    finish(&mut records, report)
+                }
+                Source::Udp { addr, lockstep } => {
+                    let mut link = UdpLink::bind(addr, lockstep)?;
+                    tracing::info!(listening = %link.local_addr()?, airframe = %airframe.name, "waiting for a simulator");
+                    let pacing = if lockstep { Pacing::Lockstep } else { deadlines };
+                    let report = control_loop::fly(Onboard { link: &mut link, autopilot: &mut autopilot, records: &mut records, ports, system_id }, pacing)?;
+                    finish(&mut records, report)
+                }
+                Source::Json { addr, channels } => {
+                    let rotors = airframe.rotors.len();
+                    let channels = if channels.is_empty() {
+                        (0..rotors).collect()
+                    } else if channels.len() == rotors {
+                        channels
+                    } else {
+                        bail!(
+                            "json://…?channels= names {} channels for the {rotors} rotors of {}",
+                            channels.len(),
+                            airframe.name
+                        );
+                    };
+                    let sensors = sensor_preset(&cfg)?;
+                    if sensors == SensorPreset::Ideal {
+                        autopilot.sensors_noise_free();
+                    }
+                    let mut link = json_link::JsonLink::connect(
+                        addr,
+                        channels,
+                        sensors,
+                        cfg.seed,
+                        Geodetic::default().for_instance(cfg.instance),
+                    )
+                    .with_context(|| format!("opening a UDP socket for {addr}"))?;
+                    tracing::info!(physics = %addr, airframe = %airframe.name, "sending servo packets to a JSON physics");
+                    let report =
+                        control_loop::fly(Onboard { link: &mut link, autopilot: &mut autopilot, records: &mut records, ports, system_id }, Pacing::Lockstep)?;
+                    finish(&mut records, report)
+                }
+                Source::Serial {
+                    path,
+                    baud,
+                    lockstep,
+                } => {
+                    let mut link = SerialLink::open(path, baud, lockstep)?;
+                    tracing::info!(port = %link.describe(), airframe = %airframe.name, "waiting for the flight board");
+                    let pacing = if lockstep { Pacing::Lockstep } else { deadlines };
+                    let report = control_loop::fly(Onboard { link: &mut link, autopilot: &mut autopilot, records: &mut records, ports, system_id }, pacing)?;
+                    finish(&mut records, report)
+                }
+            }
+        })
+        .context("starting the control loop")?;
+    let exits = serve(
+        vec![(endpoints, gcs)],
+        vec![commands],
+        vec![telemetry],
+        ended,
+    )?;
+    let report = control
+        .join()
+        .map_err(|_| anyhow::anyhow!("the control loop panicked"))??;
+    // The process's peak memory joins the summary (the bench quotes it).
+    match peak_rss_kib() {
+        Some(kib) => println!("{report} max_rss_kib={kib}"),
+        None => println!("{report}"),
+    }
+    if exits.first() == Some(&Some(gcs::Action::Reboot)) {
+        reboot()?;
+    }
+    Ok(())
+}
+
+/// Says the control loop's thread has ended when dropped (at its end, on an error or a panic
+/// alike), so the tasks around it stop at once rather than at their next poll.
+struct LoopEnded(std::sync::Arc<tokio::sync::Notify>);
+
+impl Drop for LoopEnded {
+    fn drop(&mut self) {
+        self.0.notify_one();
+    }
+}
+
+/// Runs the tasks around the control loop on this thread until the loop ends: every vehicle's
+/// ground stations, Ctrl-C for all of them, the status line. Returns what each vehicle's
+/// ground stations asked the process to do at the end (a reboot).
+fn serve(
+    vehicles: Vec<(Vec<gcs_links::EndpointSpec>, gcs_links::Vehicle)>,
+    commands: Vec<mpsc::Sender<LoopCommand>>,
+    telemetry: Vec<watch::Receiver<Telemetry>>,
+    ended: std::sync::Arc<tokio::sync::Notify>,
+) -> Result<Vec<Option<gcs::Action>>> {
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .context("starting the async runtime")?;
+    let exits = runtime.block_on(async move {
+        let links: Vec<_> = vehicles
+            .into_iter()
+            .map(|(endpoints, vehicle)| tokio::spawn(gcs_links::run(endpoints, vehicle)))
+            .collect();
+        tokio::spawn(interrupts(commands));
+        status_line(telemetry, ended).await;
+        // The ground-station side ends with the loop, after its last save.
+        let mut exits = Vec::with_capacity(links.len());
+        for l in links {
+            exits.push(l.await.ok().flatten());
+        }
+        exits
+    });
+    drop(runtime);
+    Ok(exits)
+}
+
+/// `--count N`: N vehicles in the embedded simulator, flown together on one control-loop thread
+/// in lockstep on one clock ([`control_loop::fly_together`]), each with its own ground stations.
+fn fly_together(cfg: Settings, source: Source) -> Result<()> {
+    if source != Source::Embedded {
+        bail!(
+            "--count flies vehicles in the embedded simulator (--sim); with simulator processes or flight boards run one autopilot per vehicle, each with its own --instance"
+        );
+    }
+    if cfg.truth_csv.is_some() || cfg.flight_csv.is_some() || cfg.tlog.is_some() {
+        bail!(
+            "--truth-csv, --flight-csv and --tlog name one vehicle's file; with --count every vehicle logs to --log-dir"
+        );
+    }
+    if let Some(p) = cfg.named_param_store() {
+        bail!(
+            "--param-store {} names one vehicle's file; with --count every vehicle keeps its own (the default) or none",
+            p.display()
+        );
+    }
+    let airframe = Airframe::load(&cfg.airframe_path())?;
+    let sensors = sensor_preset(&cfg)?;
+    let mut vehicles = Vec::with_capacity(cfg.count.into());
+    let mut sims = Vec::with_capacity(cfg.count.into());
+    for k in 0..cfg.count {
+        let mut p = prepare(&cfg, &source, &airframe, cfg.instance + k)?;
+        if sensors == SensorPreset::Ideal {
+            p.autopilot.sensors_noise_free();
+        }
+        let world = SimConfig {
+            seed: cfg.seed.wrapping_add(k.into()),
+            sensors: SensorConfig::preset(sensors),
+            home: Geodetic::default().for_instance(cfg.instance + k),
+            ..SimConfig::default()
+        };
+        sims.push(EmbeddedSim::with_world(&airframe, world, &[], None, None)?);
+        vehicles.push(p);
+    }
+    let commands: Vec<_> = vehicles.iter().map(|p| p.gcs.commands.clone()).collect();
+    let telemetry: Vec<_> = vehicles.iter().map(|p| p.gcs.telemetry.clone()).collect();
+    let (mut cores, links): (Vec<_>, Vec<_>) = vehicles
+        .into_iter()
+        .map(|p| {
+            (
+                (p.system_id, p.autopilot, p.records, p.ports),
+                (p.endpoints, p.gcs),
+            )
+        })
+        .unzip();
+    tracing::info!(
+        vehicles = cfg.count,
+        first_system_id = cfg.instance + 1,
+        airframe = %airframe.name,
+        "flying together on one clock"
+    );
+    let speed = cfg.realtime_factor()?;
+    let ended = std::sync::Arc::new(tokio::sync::Notify::new());
+    let ended_guard = LoopEnded(ended.clone());
+    let control = std::thread::Builder::new()
+        .name("control-loop".into())
+        .spawn(move || -> Result<control_loop::SwarmReport> {
+            let _ended = ended_guard;
+            let members = cores
+                .iter_mut()
+                .zip(sims.iter_mut())
+                .map(|((system_id, autopilot, records, ports), sim)| Onboard {
+                    link: sim,
+                    autopilot,
+                    records,
+                    ports,
+                    system_id: *system_id,
+                })
+                .collect();
+            let mut report = control_loop::fly_together(members, sim::EXCHANGE_HZ, speed);
+            for ((system_id, _, records, _), flight) in cores.iter_mut().zip(&mut report.flights) {
+                if let Err(e) = records.finish()
+                    && flight.is_ok()
+                {
+                    *flight = Err(e.context(format!("system {system_id}")));
+                }
+            }
+            Ok(report)
+        })
+        .context("starting the control loop")?;
+    serve(links, commands, telemetry, ended)?;
+    let report = control
+        .join()
+        .map_err(|_| anyhow::anyhow!("the control loop panicked"))??;
+    let mut failed = 0;
+    let mut landed = 0;
+    for (k, flight) in report.flights.iter().enumerate() {
+        let system_id = usize::from(cfg.instance) + k + 1;
+        match flight {
+            Ok(r) => {
+                landed += usize::from(r.landed());
+                println!("{} system_id={system_id}", r);
+            }
+            Err(e) => {
+                failed += 1;
+                eprintln!("autopilot: system {system_id}: error: {e:#}");
+            }
+        }
+    }
+    println!(
+        "swarm summary: vehicles={} rounds={} sim_time_s={:.2} wall_time_s={:.2} realtime_factor={:.2} max_lag_s={:.3} landed={landed} failed={failed} max_rss_kib={}",
+        cfg.count,
+        report.rounds,
+        report.sim_time_s,
+        report.wall_time_s,
+        report.sim_time_s / report.wall_time_s.max(1e-9),
+        report.max_lag_s,
+        peak_rss_kib().unwrap_or(0),
+    );
+    if failed > 0 {
+        bail!("{failed} of {} vehicles ended in error", cfg.count);
+    }
+    Ok(())
+}
+
+/// The process's peak resident memory (KiB), where Linux's /proc tells it.
+fn peak_rss_kib() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
+}
+
+/// `PREFLIGHT_REBOOT_SHUTDOWN` reboot: the process starts again with the same arguments, as a
+/// flight board does (the new process reads the saved parameters, aligns, waits for commands).
+fn reboot() -> Result<()> {
+    use std::os::unix::process::CommandExt;
+    let exe = std::env::current_exe().context("reboot: finding the executable")?;
+    tracing::info!("rebooting");
+    let err = std::process::Command::new(exe)
+        .args(std::env::args_os().skip(1))
+        .exec();
+    Err(err).context("reboot")
+}
+
+/// Flushes the vehicle's log and hands the report on.
+fn finish(records: &mut FlightRecords, report: FlightReport) -> Result<FlightReport> {
+    records.finish()?;
+    Ok(report)
+}

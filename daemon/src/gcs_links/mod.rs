@@ -1,0 +1,440 @@
+//! The links to ground stations (tokio tasks), like mavlink-router: several endpoints at once,
+//! every frame the vehicle sends goes out on all of them, every frame received on any of them
+//! reaches the one [`GroundStation`].
+//!
+//! - `udpout://HOST:PORT?bind=LOCAL`: pushes to HOST:PORT (where QGroundControl, pymavlink or
+//!   MAVSDK listen) from the bound LOCAL port, and also answers every peer that writes to it.
+//! - `udpin://ADDR:PORT`: a bound port that answers every peer that writes to it.
+//! - `tcpin://ADDR:PORT`: a TCP server; every client gets the stream.
+//!
+//! Every endpoint also takes `trusted` (a physically secure link, such as a USB cable: exempt
+//! from signing, and the only kind that may set the signing key) and `sysids=255,250` (only
+//! these systems are heard; others are refused).
+//!
+//! A frame that does not parse is counted and dropped; it never closes a link. With a signing
+//! key ([`crate::gcs::signing`]) frames that are unsigned, wrongly signed or replayed are refused
+//! before they are parsed, and the vehicle's frames go out signed. A UDP peer is answered only
+//! once it has sent a frame that was accepted. Sending never waits on a slow peer: a link that
+//! falls behind loses frames, not the vehicle's time.
+
+pub mod endpoint;
+#[cfg(test)]
+mod tests;
+mod transport;
+
+pub use endpoint::EndpointSpec;
+
+use crate::control_loop::{LoopCommand, Telemetry};
+use crate::gcs::params::Parameters;
+use crate::gcs::signing::{SecretKey, Signing};
+use crate::gcs::{AckTo, Action, COMPONENT_ID, GroundStation, Outbox, Outgoing};
+use crate::records::log_files::Tlog;
+use crate::records::param_store::{Loaded, ParamStore};
+use anyhow::Result;
+use flight_core::autopilot::command::AutopilotCommand;
+use flight_core::params::FlightParams;
+use hil::Encoder;
+use mavlink::dialects::common::{MavMessage, MavSeverity, MavType};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+use tokio::sync::{broadcast, mpsc, oneshot, watch};
+use transport::{Guard, Inbound, Notices, open};
+
+/// PX4 SITL's links: QGroundControl and MAVSDK ports pushed to, each from its own bound port,
+/// and a TCP server.
+pub const DEFAULT_ENDPOINTS: [&str; 3] = [
+    "udpout://127.0.0.1:14550?bind=18570&shared",
+    "udpout://127.0.0.1:14540?bind=14580",
+    "tcpin://0.0.0.0:5760",
+];
+
+/// How often the streams are looked at.
+const POLL: Duration = Duration::from_millis(10);
+/// How long a command waits for the control loop's answer.
+const ANSWER_TIMEOUT: Duration = Duration::from_secs(2);
+
+/// The vehicle side the links serve.
+pub struct Vehicle {
+    /// MAVLink system id.
+    pub system_id: u8,
+    /// MAVLink vehicle type.
+    pub mav_type: MavType,
+    /// The control loop's latest telemetry.
+    pub telemetry: watch::Receiver<Telemetry>,
+    /// Commands to the control loop.
+    pub commands: mpsc::Sender<LoopCommand>,
+    /// The parameter table and its store.
+    pub parameters: Parameters,
+    /// The values a parameter reset returns to.
+    pub base_params: FlightParams,
+    /// The parameters the control loop flies with.
+    pub params: watch::Sender<FlightParams>,
+    /// What the first ground station to connect is told (`STATUSTEXT` warnings, ≤ 50 bytes
+    /// each), such as a damaged parameter store.
+    pub notices: Vec<String>,
+    /// The MAVLink signing key (none: signing off), and the file a key set by `SETUP_SIGNING`
+    /// is kept in.
+    pub signing_key: Option<SecretKey>,
+    /// Where a key set by `SETUP_SIGNING` is saved (none: kept in memory only).
+    pub signing_key_file: Option<std::path::PathBuf>,
+    /// The MAVLink telemetry log, if one is kept.
+    pub tlog: Option<Tlog>,
+    /// Whether a reboot is allowed: it restarts the process, so not for one of several
+    /// vehicles in it.
+    pub reboot_allowed: bool,
+}
+
+/// How often refused frames are reported in the log.
+const REFUSALS_REPORT: Duration = Duration::from_secs(5);
+
+/// Microseconds since the Unix epoch.
+fn unix_usec() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_micros() as u64)
+}
+
+/// `SETUP_SIGNING` (<https://mavlink.io/en/guide/message_signing.html>): only from a trusted
+/// link; the key is used at once and saved (mode 0600) where the daemon was told to keep it;
+/// an all-zero key turns signing off (and removes the file). Returns what to tell the sender.
+fn setup_signing(
+    signing: &Mutex<Signing>,
+    key_file: Option<&std::path::Path>,
+    data: &mavlink::dialects::common::SETUP_SIGNING_DATA,
+    trusted: bool,
+) -> (MavSeverity, String) {
+    if !trusted {
+        tracing::warn!("SETUP_SIGNING refused: it came over a link not marked trusted");
+        return (
+            MavSeverity::MAV_SEVERITY_WARNING,
+            "SETUP_SIGNING refused: link not trusted".into(),
+        );
+    }
+    let key = SecretKey(data.secret_key);
+    let on = key.0 != [0; 32];
+    let saved = match key_file {
+        Some(path) if on => {
+            crate::records::param_store::write_private(path, &format!("{}\n", key.to_hex()))
+        }
+        Some(path) => match std::fs::remove_file(path) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                Err(anyhow::Error::from(e).context(format!("removing {}", path.display())))
+            }
+            _ => Ok(()),
+        },
+        None => Ok(()),
+    };
+    let mut s = signing.lock().unwrap_or_else(|e| e.into_inner());
+    s.set_key(key, data.initial_timestamp);
+    let state = if s.active() {
+        "signing on"
+    } else {
+        "signing off"
+    };
+    drop(s);
+    match saved {
+        Ok(()) => {
+            tracing::info!(
+                file = ?key_file,
+                "SETUP_SIGNING from a trusted link: MAVLink {state}"
+            );
+            (MavSeverity::MAV_SEVERITY_INFO, format!("MAVLink {state}"))
+        }
+        Err(e) => {
+            tracing::error!("SETUP_SIGNING: MAVLink {state}, but the key is not kept: {e:#}");
+            (
+                MavSeverity::MAV_SEVERITY_ERROR,
+                format!("MAVLink {state}; key not saved"),
+            )
+        }
+    }
+}
+
+/// Saves every store it is handed, the latest first (a burst of sets is one write), and says
+/// so when a save fails.
+async fn saver(mut stores: watch::Receiver<Option<ParamStore>>, notices: Notices) {
+    while stores.changed().await.is_ok() {
+        let Some(store) = stores.borrow_and_update().clone() else {
+            continue;
+        };
+        let result = tokio::task::spawn_blocking(move || store.save()).await;
+        let failure = match result {
+            Ok(Ok(())) => continue,
+            Ok(Err(e)) => format!("{e:#}"),
+            Err(e) => format!("saving parameters: {e}"),
+        };
+        tracing::error!("{failure}");
+        let _ = notices
+            .send((
+                MavSeverity::MAV_SEVERITY_ERROR,
+                format!("parameters not saved: {failure}"),
+            ))
+            .await;
+    }
+}
+
+/// Runs the ground-station side until the control loop ends: opens `endpoints`, answers what
+/// arrives, streams telemetry, passes vehicle commands and parameters to the control loop and
+/// saves the parameter store. Returns the reboot or shutdown a ground station asked for, once
+/// the store is saved.
+pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<Action> {
+    let Vehicle {
+        system_id,
+        mav_type,
+        mut telemetry,
+        commands,
+        parameters,
+        base_params,
+        params,
+        notices: mut startup_notices,
+        signing_key,
+        signing_key_file,
+        mut tlog,
+        reboot_allowed,
+    } = vehicle;
+    tracing::info!(
+        "MAVLink signing {}",
+        if signing_key.is_some() {
+            "on: unsigned, wrongly signed and replayed frames are refused"
+        } else {
+            "off"
+        }
+    );
+    let signing = Arc::new(Mutex::new(Signing::new(signing_key)));
+    let not_allowed = Arc::new(AtomicU64::new(0));
+    let (frames, _) = broadcast::channel::<Arc<[u8]>>(1024);
+    let (inbound_tx, mut inbound) = mpsc::channel::<Inbound>(256);
+    let (answers_tx, mut answers) = mpsc::channel::<(AckTo, Result<(), String>)>(64);
+    let (notices_tx, mut notices) = mpsc::channel::<(MavSeverity, String)>(8);
+    let (save_tx, save_rx) = watch::channel(None::<ParamStore>);
+    let saving = tokio::spawn(saver(save_rx, notices_tx.clone()));
+    for e in &endpoints {
+        let guard = Guard {
+            options: e.options.clone(),
+            signing: signing.clone(),
+            not_allowed: not_allowed.clone(),
+        };
+        if let Err(e) = open(e, guard, &inbound_tx, &frames, &notices_tx).await {
+            tracing::warn!("ground-station endpoint not opened: {e:#}");
+        }
+    }
+    let mut gcs = GroundStation::new(system_id, mav_type)
+        .with_parameters(parameters, base_params)
+        .with_reboot(reboot_allowed);
+    let mut encoder = Encoder::with_ids(system_id, COMPONENT_ID);
+    let mut out = Outbox::default();
+    let mut tick = tokio::time::interval(POLL);
+    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    let start = Instant::now();
+    let mut malformed = 0u64;
+    let mut exit = None;
+    let mut pending = std::collections::VecDeque::new();
+    let mut refusals_reported = (Default::default(), 0u64);
+    let mut refusals_next = Instant::now();
+    loop {
+        tokio::select! {
+            Some(i) = inbound.recv() => {
+                malformed += i.malformed as u64;
+                if let Some(log) = tlog.as_mut() {
+                    log_heard(log, &i);
+                }
+                let t = *telemetry.borrow();
+                for (h, m) in &i.messages {
+                    match m {
+                        MavMessage::SETUP_SIGNING(d) if d.target_system == system_id => {
+                            let (severity, text) =
+                                setup_signing(&signing, signing_key_file.as_deref(), d, i.trusted);
+                            out.say(severity, &text);
+                        }
+                        _ => gcs.on_message(h, m, &t, &mut out),
+                    }
+                }
+                for raw in &i.unparsed {
+                    gcs.on_unparsed(raw, &mut out);
+                }
+            }
+            Some((to, result)) = answers.recv() => gcs.answered(to, result, &mut out),
+            Some((severity, text)) = notices.recv() => {
+                out.say(severity, &text);
+            }
+            _ = tick.tick() => {
+                let t = *telemetry.borrow_and_update();
+                if t.finished || telemetry.has_changed().is_err() {
+                    break;
+                }
+                gcs.poll(start.elapsed().as_secs_f64(), &t, &mut out);
+                if let Some(log) = tlog.as_mut()
+                    && let Err(e) = log.ship_if_due(unix_usec())
+                {
+                    // A full disk stops the log, not the links.
+                    tracing::error!(file = %log.path().display(), "telemetry log: {e}; logging stopped");
+                    tlog = None;
+                }
+                if Instant::now() >= refusals_next {
+                    refusals_next = Instant::now() + REFUSALS_REPORT;
+                    let now = (
+                        signing.lock().unwrap_or_else(|e| e.into_inner()).refused,
+                        not_allowed.load(Ordering::Relaxed),
+                    );
+                    if now != refusals_reported {
+                        refusals_reported = now;
+                        let (r, n) = now;
+                        tracing::warn!(
+                            unsigned = r.unsigned,
+                            bad_signature = r.bad_signature,
+                            replayed = r.replayed,
+                            not_on_allow_list = n,
+                            "frames refused so far"
+                        );
+                    }
+                }
+            }
+        }
+        for (cmd, to) in out.vehicle.drain(..) {
+            let (tx, rx) = oneshot::channel();
+            if commands
+                .try_send(LoopCommand::Autopilot(cmd, Some(tx)))
+                .is_err()
+            {
+                let _ = answers_tx.try_send((to, Err("vehicle busy: try again".into())));
+                continue;
+            }
+            let answers = answers_tx.clone();
+            tokio::spawn(async move {
+                let result = match tokio::time::timeout(ANSWER_TIMEOUT, rx).await {
+                    Ok(Ok(r)) => r,
+                    _ => Err("the control loop did not answer".into()),
+                };
+                let _ = answers.send((to, result)).await;
+            });
+        }
+        if std::mem::take(&mut out.gcs_heartbeat) {
+            let _ = commands.try_send(LoopCommand::GcsHeartbeat);
+            for text in startup_notices.drain(..) {
+                out.say(MavSeverity::MAV_SEVERITY_WARNING, &text);
+            }
+        }
+        if let Some(sticks) = out.sticks.take() {
+            // A full queue loses these sticks only: the next ones follow within 50 ms.
+            let _ = commands.try_send(LoopCommand::Autopilot(
+                AutopilotCommand::Sticks(sticks),
+                None,
+            ));
+        }
+        // Plans must arrive (they were acknowledged): a full queue keeps them, in order, for the
+        // next turn of this loop; a newer plan of a kind replaces one still waiting.
+        if let Some(items) = out.mission.take() {
+            pending.retain(|c| !matches!(c, AutopilotCommand::SetMission(_)));
+            pending.push_back(AutopilotCommand::SetMission(items));
+        }
+        if let Some(zones) = out.fence.take() {
+            pending.retain(|c| !matches!(c, AutopilotCommand::SetFence(_)));
+            pending.push_back(AutopilotCommand::SetFence(zones));
+        }
+        while let Some(c) = pending.pop_front() {
+            if let Err(mpsc::error::TrySendError::Full(LoopCommand::Autopilot(c, _))) =
+                commands.try_send(LoopCommand::Autopilot(c, None))
+            {
+                pending.push_front(c);
+                break;
+            }
+        }
+        if let Some(target) = out.offboard.take() {
+            // Likewise a set-point of a stream.
+            let _ = commands.try_send(LoopCommand::Autopilot(
+                AutopilotCommand::Offboard(target),
+                None,
+            ));
+        }
+        for action in std::mem::take(&mut out.actions) {
+            match action {
+                Action::ParamsChanged => {
+                    params.send_replace(gcs.parameters().values().clone());
+                }
+                Action::SaveParams => {
+                    save_tx.send_replace(Some(gcs.parameters().store().clone()));
+                }
+                Action::ReloadParams(to) => {
+                    let loaded = match gcs.parameters().store().path() {
+                        Some(path) => ParamStore::load(path, gcs.base_parameters())
+                            .map_err(|e| format!("{e:#}")),
+                        None => Ok(Loaded {
+                            store: gcs.parameters().store().clone(),
+                            params: gcs.parameters().values().clone(),
+                            warnings: Vec::new(),
+                            from_previous_copy: false,
+                        }),
+                    };
+                    gcs.params_reloaded(to, loaded, &mut out);
+                    params.send_replace(gcs.parameters().values().clone());
+                }
+                Action::Reboot | Action::Shutdown => {
+                    exit = Some(action);
+                    // Disarmed (checked before): the loop may stop at once.
+                    let _ = commands.try_send(LoopCommand::Stop);
+                }
+            }
+        }
+        if !out.messages.is_empty() {
+            signing
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .tick(unix_usec());
+        }
+        for m in out.messages.drain(..) {
+            let mut bytes = Vec::with_capacity(64);
+            match &m {
+                Outgoing::Message(m) => encoder.push(&mut bytes, m),
+                Outgoing::Raw(id, payload) => encoder.push_raw(&mut bytes, *id, payload),
+            }
+            signing
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .sign(&mut bytes);
+            if let Some(log) = tlog.as_mut() {
+                log.record(unix_usec(), &bytes);
+            }
+            // No endpoint listening is not an error.
+            let _ = frames.send(bytes.into());
+        }
+    }
+    let refused = signing.lock().unwrap_or_else(|e| e.into_inner()).refused;
+    tracing::info!(
+        malformed,
+        dropped = gcs.dropped,
+        refused_unsigned = refused.unsigned,
+        refused_bad_signature = refused.bad_signature,
+        refused_replayed = refused.replayed,
+        refused_not_on_allow_list = not_allowed.load(Ordering::Relaxed),
+        "ground-station links closed"
+    );
+    if let Some(log) = tlog {
+        let path = log.path().to_owned();
+        match tokio::task::spawn_blocking(move || log.finish()).await {
+            Ok(Ok(())) => tracing::info!(file = %path.display(), "telemetry log written"),
+            Ok(Err(e)) => tracing::error!(file = %path.display(), "telemetry log: {e}"),
+            Err(e) => tracing::error!(file = %path.display(), "telemetry log: {e}"),
+        }
+    }
+    drop(save_tx);
+    let _ = saving.await;
+    exit
+}
+
+/// Records in the telemetry log what a link heard, each message framed again as its sender
+/// sent it (header and sequence kept; a signature is not).
+fn log_heard(log: &mut Tlog, i: &Inbound) {
+    let now = unix_usec();
+    let mut frame = Vec::with_capacity(280);
+    for (h, m) in &i.messages {
+        frame.clear();
+        Encoder::push_heard(&mut frame, h, m);
+        log.record(now, &frame);
+    }
+    for raw in &i.unparsed {
+        frame.clear();
+        Encoder::push_raw_heard(&mut frame, &raw.header, raw.msg_id, &raw.payload);
+        log.record(now, &frame);
+    }
+}
