@@ -10,8 +10,8 @@
 //! The frame decoder's own fuzz targets are in `hil`'s `wire.rs`.
 
 #![allow(clippy::unwrap_used)]
-use crate::control_loop::frames::{FrameAssembler, answer};
 use crate::gcs::{GroundStation, Outbox};
+use crate::links::frames::{FrameAssembler, answer};
 use flight_core::autopilot::command::AutopilotCommand;
 use flight_core::autopilot::{Autopilot, StepInputs};
 use flight_core::commander::FlightMode;
@@ -99,9 +99,9 @@ impl FuzzedVehicle {
     }
 
     /// Folds one message in; a complete sensor frame is stepped on and answered.
-    fn on_message(&mut self, m: &MavMessage) -> Option<MavMessage> {
-        let (sample, _) = self.frames.absorb(m)?;
-        let out = self.autopilot.step(&sample, &StepInputs::default())?;
+    fn on_message(&mut self, m: &MavMessage) -> Option<hil::ActuatorCommand> {
+        let frame = self.frames.absorb(m)?;
+        let out = self.autopilot.step(&frame.sample, &StepInputs::default())?;
         Some(answer(&out, self.autopilot.rotors()))
     }
 
@@ -158,9 +158,7 @@ proptest! {
             match MavMessage::parse(MavlinkVersion::V2, *id, bytes) {
                 Ok(m) => {
                     gcs.on_message(&header, &m, &t, &mut out);
-                    if let Some(step) = vehicle.on_message(&m)
-                        && let MavMessage::HIL_ACTUATOR_CONTROLS(c) = &step
-                    {
+                    if let Some(c) = vehicle.on_message(&m) {
                         prop_assert!(
                             c.controls.iter().all(|u| u.is_finite() && u.abs() <= 1.0),
                             "motor commands {:?} after {}", c.controls, m.message_name()
@@ -209,9 +207,7 @@ proptest! {
             for m in sim_frame(&mut end) {
                 if let Some(step) = vehicle.on_message(&m) {
                     check_motors(&step, &m)?;
-                    if let MavMessage::HIL_ACTUATOR_CONTROLS(c) = &step {
-                        end.apply(&hil::actuator_command(c));
-                    }
+                    end.apply(&step);
                 }
             }
             end.advance(|_| Ok::<(), std::convert::Infallible>(())).unwrap();
@@ -227,15 +223,13 @@ proptest! {
 }
 
 /// The motor commands of a step are finite and in [-1, 1].
-fn check_motors(answer: &MavMessage, after: &MavMessage) -> Result<(), TestCaseError> {
-    if let MavMessage::HIL_ACTUATOR_CONTROLS(c) = answer {
-        prop_assert!(
-            c.controls.iter().all(|u| u.is_finite() && u.abs() <= 1.0),
-            "motor commands {:?} after {:?}",
-            c.controls,
-            after
-        );
-    }
+fn check_motors(c: &hil::ActuatorCommand, after: &MavMessage) -> Result<(), TestCaseError> {
+    prop_assert!(
+        c.controls.iter().all(|u| u.is_finite() && u.abs() <= 1.0),
+        "motor commands {:?} after {:?}",
+        c.controls,
+        after
+    );
     Ok(())
 }
 
@@ -273,10 +267,8 @@ fn flying(seed: u64) -> (FuzzedVehicle, hil::SimulatorEnd) {
             vehicle.command(AutopilotCommand::Takeoff(None)).unwrap();
         }
         for m in sim_frame(&mut end) {
-            if let Some(step) = vehicle.on_message(&m)
-                && let MavMessage::HIL_ACTUATOR_CONTROLS(c) = &step
-            {
-                end.apply(&hil::actuator_command(c));
+            if let Some(step) = vehicle.on_message(&m) {
+                end.apply(&step);
             }
         }
         end.advance(|_| Ok::<(), std::convert::Infallible>(()))

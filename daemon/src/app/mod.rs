@@ -89,15 +89,15 @@ pub fn fly(cfg: Settings) -> Result<()> {
                         cfg.truth_csv.as_deref(),
                     )?;
                     let report =
-                        control_loop::fly(Onboard { link: &mut link, autopilot: &mut autopilot, records: &mut records, ports, system_id }, Pacing::Lockstep)?;
+                        control_loop::fly(Onboard { link: &mut link, autopilot: &mut autopilot, records: &mut records, ports }, Pacing::Lockstep)?;
                     link.finish()?;
                     finish(&mut records, report)
                 }
                 Source::Udp { addr, lockstep } => {
-                    let mut link = UdpLink::bind(addr, lockstep)?;
+                    let mut link = UdpLink::bind(addr, lockstep, system_id)?;
                     tracing::info!(listening = %link.local_addr()?, airframe = %airframe.name, "waiting for a simulator");
                     let pacing = if lockstep { Pacing::Lockstep } else { deadlines };
-                    let report = control_loop::fly(Onboard { link: &mut link, autopilot: &mut autopilot, records: &mut records, ports, system_id }, pacing)?;
+                    let report = control_loop::fly(Onboard { link: &mut link, autopilot: &mut autopilot, records: &mut records, ports }, pacing)?;
                     finish(&mut records, report)
                 }
                 Source::Json { addr, channels } => {
@@ -127,7 +127,7 @@ pub fn fly(cfg: Settings) -> Result<()> {
                     .with_context(|| format!("opening a UDP socket for {addr}"))?;
                     tracing::info!(physics = %addr, airframe = %airframe.name, "sending servo packets to a JSON physics");
                     let report =
-                        control_loop::fly(Onboard { link: &mut link, autopilot: &mut autopilot, records: &mut records, ports, system_id }, Pacing::Lockstep)?;
+                        control_loop::fly(Onboard { link: &mut link, autopilot: &mut autopilot, records: &mut records, ports }, Pacing::Lockstep)?;
                     finish(&mut records, report)
                 }
                 Source::Serial {
@@ -135,10 +135,10 @@ pub fn fly(cfg: Settings) -> Result<()> {
                     baud,
                     lockstep,
                 } => {
-                    let mut link = SerialLink::open(path, baud, lockstep)?;
+                    let mut link = SerialLink::open(path, baud, lockstep, system_id)?;
                     tracing::info!(port = %link.describe(), airframe = %airframe.name, "waiting for the flight board");
                     let pacing = if lockstep { Pacing::Lockstep } else { deadlines };
-                    let report = control_loop::fly(Onboard { link: &mut link, autopilot: &mut autopilot, records: &mut records, ports, system_id }, pacing)?;
+                    let report = control_loop::fly(Onboard { link: &mut link, autopilot: &mut autopilot, records: &mut records, ports }, pacing)?;
                     finish(&mut records, report)
                 }
             }
@@ -269,12 +269,11 @@ fn fly_together(cfg: Settings, source: Source) -> Result<()> {
             let members = cores
                 .iter_mut()
                 .zip(sims.iter_mut())
-                .map(|((system_id, autopilot, records, ports), sim)| Onboard {
+                .map(|((_, autopilot, records, ports), sim)| Onboard {
                     link: sim,
                     autopilot,
                     records,
                     ports,
-                    system_id: *system_id,
                 })
                 .collect();
             let mut report = control_loop::fly_together(members, sim::EXCHANGE_HZ, speed);

@@ -1,8 +1,8 @@
 //! The control loop. It owns the [`Autopilot`], the records of its flight and its sensor link;
 //! other tasks reach it only through [`Ports`]: a bounded channel of [`LoopCommand`]s in, the
-//! latest [`Telemetry`] out. Each frame the link delivers becomes a typed sample
-//! ([`frames`]), the autopilot steps on it, the records observe the step, and the answer goes
-//! back on the link.
+//! latest [`Telemetry`] out. Each typed frame the link delivers ([`crate::links::frames`]) is
+//! stepped on by the autopilot, the records observe the step, and the answer goes back on the
+//! link.
 //!
 //! Two pacings ([`Pacing`]): in lockstep every sensor frame is a tick and its time the clock (a
 //! simulator that waits for each answer); with a flight board in the real world the loop wakes
@@ -10,9 +10,9 @@
 //! frame, and counts its lateness and overruns ([`crate::control_loop::deadline`]).
 
 pub mod deadline;
-pub mod frames;
 
 use crate::links::SensorLink;
+use crate::links::frames::{self, Received};
 use crate::records::FlightRecords;
 use crate::records::score::FlightScore;
 use anyhow::{Context, Result, bail};
@@ -24,8 +24,7 @@ use flight_core::control::Setpoint;
 use flight_core::core::{SensorSample, StepOutput};
 use flight_core::estimator::translation::GpsMeasurement;
 use flight_core::params::FlightParams;
-use frames::FrameAssembler;
-use hil::{Decoded, Encoder};
+use hil::ActuatorCommand;
 use std::time::{Duration, Instant};
 use tokio::sync::{mpsc, oneshot, watch};
 
@@ -246,11 +245,8 @@ struct ControlLoop<'a> {
     records: &'a mut FlightRecords,
     ports: &'a mut Ports,
     report: FlightReport,
-    encoder: Encoder,
-    decoded: Decoded,
-    frames: FrameAssembler,
+    received: Received,
     rotors: usize,
-    answer: Vec<u8>,
     last_frame: Instant,
     silence_logged: bool,
     done_at: Option<f64>,
@@ -273,7 +269,6 @@ impl<'a> ControlLoop<'a> {
             autopilot,
             records,
             ports,
-            system_id,
         } = member;
         Self {
             report: FlightReport {
@@ -285,10 +280,7 @@ impl<'a> ControlLoop<'a> {
             autopilot,
             records,
             ports,
-            encoder: Encoder::with_ids(system_id, 1),
-            decoded: Decoded::default(),
-            frames: FrameAssembler::default(),
-            answer: Vec::with_capacity(128),
+            received: Received::default(),
             last_frame: Instant::now(),
             silence_logged: false,
             done_at: None,
@@ -348,21 +340,21 @@ impl<'a> ControlLoop<'a> {
 
     /// Reads the link: waits up to `timeout`, then (`drain`) takes what else is there.
     fn read(&mut self, timeout: Duration, drain: bool) -> Result<bool> {
-        self.decoded.messages.clear();
-        self.decoded.malformed = 0;
+        self.received.frames.clear();
+        self.received.malformed = 0;
         let mut arrived = self
             .link
-            .receive(timeout, &mut self.decoded)
+            .receive(timeout, &mut self.received)
             .with_context(|| format!("reading {}", self.link.describe()))?;
         if drain && arrived {
             for _ in 1..MAX_READS_PER_TICK {
-                if !self.link.receive(Duration::ZERO, &mut self.decoded)? {
+                if !self.link.receive(Duration::ZERO, &mut self.received)? {
                     break;
                 }
             }
             arrived = true;
         }
-        self.report.malformed += self.decoded.malformed as u64;
+        self.report.malformed += self.received.malformed as u64;
         if !arrived && !self.silence_logged && self.last_frame.elapsed() > SILENCE_WARNING {
             tracing::warn!(
                 link = %self.link.describe(),
@@ -398,8 +390,8 @@ impl<'a> ControlLoop<'a> {
         }
         // Keep the motors on the failsafe's command (a board wants a steady stream).
         let a = self.autopilot.silent_answer(now - last);
-        let message = hil::actuator_controls(a.t_usec, &a.commands[..self.rotors], a.armed);
-        self.send(&message)?;
+        let command = ActuatorCommand::as_sent(a.t_usec, &a.commands[..self.rotors], a.armed);
+        self.send(&command)?;
         if self.autopilot.finished() {
             // Disarmed by the failsafe at the end of the run: a second more of motors-off,
             // then stop.
@@ -415,15 +407,20 @@ impl<'a> ControlLoop<'a> {
         let inputs = StepInputs {
             gcs_link_age_s: self.gcs_heartbeat.map(|t| t.elapsed().as_secs_f64()),
         };
-        for i in 0..self.decoded.messages.len() {
-            let Some((sample, truth)) = self.frames.absorb(&self.decoded.messages[i].1) else {
-                continue;
-            };
-            let Some(step) = self.autopilot.step(&sample, &inputs) else {
+        let received = std::mem::take(&mut self.received.frames);
+        let flow = self.step_on(&received, inputs);
+        self.received.frames = received;
+        flow
+    }
+
+    /// Steps on `frames` in order, answering each.
+    fn step_on(&mut self, frames: &[frames::LinkFrame], inputs: StepInputs) -> Result<Flow> {
+        for frame in frames {
+            let Some(step) = self.autopilot.step(&frame.sample, &inputs) else {
                 continue;
             };
             let status = self.autopilot.status();
-            self.records.observe(&step, &status, truth);
+            self.records.observe(&step, &status, frame.truth);
             self.last_frame = Instant::now();
             self.silence_logged = false;
             self.last_frame_clock = self.link.silence_clock_s();
@@ -479,12 +476,10 @@ impl<'a> ControlLoop<'a> {
         Ok(Flow::Continue)
     }
 
-    /// Encodes `message` and sends it on the link.
-    fn send(&mut self, message: &mavlink::dialects::common::MavMessage) -> Result<()> {
-        self.answer.clear();
-        self.encoder.push(&mut self.answer, message);
+    /// Sends `command` on the link.
+    fn send(&mut self, command: &ActuatorCommand) -> Result<()> {
         self.link
-            .send(&self.answer)
+            .send(command)
             .with_context(|| format!("answering on {}", self.link.describe()))
     }
 
@@ -590,8 +585,6 @@ pub struct Onboard<'a> {
     pub records: &'a mut FlightRecords,
     /// Its channels to the tasks around it (its ground stations).
     pub ports: &'a mut Ports,
-    /// Its MAVLink system id.
-    pub system_id: u8,
 }
 
 /// How a flight of several vehicles together went.

@@ -7,7 +7,6 @@ use super::*;
 use crate::links::sim::{EXCHANGE_HZ, EmbeddedSim};
 use flight_core::autopilot::AutoFlight;
 use flight_core::params::FlightParams;
-use mavlink::dialects::common::MavMessage;
 use nalgebra::Vector3;
 use sitl_core::Airframe;
 use sitl_core::sensors::SensorPreset;
@@ -49,8 +48,8 @@ struct FaultyLink {
     max_height_m: f64,
     horizontal_at_fault: Vector3<f64>,
     max_drift_after_m: f64,
-    /// The reading a frozen IMU repeats.
-    frozen_imu: Option<[f32; 6]>,
+    /// The reading a frozen IMU repeats: gyro, accelerometer.
+    frozen_imu: Option<(Vector3<f64>, Vector3<f64>)>,
     /// The seed and airframe of a simulator started again, and whether it has been.
     seed: u64,
     airframe: Airframe,
@@ -145,7 +144,7 @@ impl FaultyLink {
 }
 
 impl SensorLink for FaultyLink {
-    fn receive(&mut self, timeout: Duration, into: &mut Decoded) -> io::Result<bool> {
+    fn receive(&mut self, timeout: Duration, into: &mut Received) -> io::Result<bool> {
         if self.now_s() > 300.0 {
             return Err(io::Error::other("the flight did not end within 300 s"));
         }
@@ -174,49 +173,33 @@ impl SensorLink for FaultyLink {
             self.silent_waits += 1;
             return Ok(false);
         }
-        let before = into.messages.len();
+        let before = into.frames.len();
         self.sim.receive(timeout, into)?;
         self.observe();
-        if matches!(self.fault, Fault::Gps) && self.began_s.is_some() {
-            let mut i = before;
-            while i < into.messages.len() {
-                if matches!(into.messages[i].1, MavMessage::HIL_GPS(_)) {
-                    into.messages.remove(i);
-                } else {
-                    i += 1;
-                }
+        for frame in &mut into.frames[before..] {
+            let s = &mut frame.sample;
+            if matches!(self.fault, Fault::Gps) && self.began_s.is_some() {
+                s.gps = None;
             }
-        }
-        if matches!(self.fault, Fault::ImuFrozen) && self.began_s.is_some() {
-            for (_, m) in &mut into.messages[before..] {
-                if let MavMessage::HIL_SENSOR(s) = m {
-                    let [ax, ay, az, gx, gy, gz] = *self
-                        .frozen_imu
-                        .get_or_insert([s.xacc, s.yacc, s.zacc, s.xgyro, s.ygyro, s.zgyro]);
-                    (s.xacc, s.yacc, s.zacc) = (ax, ay, az);
-                    (s.xgyro, s.ygyro, s.zgyro) = (gx, gy, gz);
-                }
+            if matches!(self.fault, Fault::ImuFrozen) && self.began_s.is_some() {
+                (s.gyro, s.accel) = *self.frozen_imu.get_or_insert((s.gyro, s.accel));
             }
         }
         self.last_frame_s = self.now_s();
         Ok(true)
     }
 
-    fn send(&mut self, bytes: &[u8]) -> io::Result<()> {
-        for (_, msg) in hil::decode(bytes).messages {
-            if let MavMessage::HIL_ACTUATOR_CONTROLS(m) = msg {
-                let armed = hil::actuator_command(&m).armed;
-                if armed && self.armed_at_s.is_none() {
-                    self.armed_at_s = Some(self.now_s());
-                }
-                // The first answer sent into the silence (not the one to the last frame).
-                if self.silent_waits > 0 && self.reaction_s.is_none() {
-                    self.reaction_s = Some(self.now_s() - self.last_frame_s);
-                }
-                self.last_answer_armed = armed;
-            }
+    fn send(&mut self, command: &hil::ActuatorCommand) -> io::Result<()> {
+        let armed = command.armed;
+        if armed && self.armed_at_s.is_none() {
+            self.armed_at_s = Some(self.now_s());
         }
-        self.sim.send(bytes)
+        // The first answer sent into the silence (not the one to the last frame).
+        if self.silent_waits > 0 && self.reaction_s.is_none() {
+            self.reaction_s = Some(self.now_s() - self.last_frame_s);
+        }
+        self.last_answer_armed = armed;
+        self.sim.send(command)
     }
 
     fn describe(&self) -> String {
@@ -250,7 +233,6 @@ fn fly_seed(fault: Fault, seed: u64) -> (FaultyLink, FlightReport, Autopilot) {
         autopilot: &mut autopilot,
         records: &mut records,
         ports: &mut ports,
-        system_id: 1,
     };
     let report = fly(vehicle, Pacing::Lockstep).unwrap();
     eprintln!(
@@ -449,15 +431,15 @@ struct FailingLink {
 }
 
 impl SensorLink for FailingLink {
-    fn receive(&mut self, timeout: Duration, into: &mut Decoded) -> io::Result<bool> {
+    fn receive(&mut self, timeout: Duration, into: &mut Received) -> io::Result<bool> {
         if self.frames == 0 {
             return Err(io::Error::other("the simulator went away"));
         }
         self.frames -= 1;
         self.sim.receive(timeout, into)
     }
-    fn send(&mut self, bytes: &[u8]) -> io::Result<()> {
-        self.sim.send(bytes)
+    fn send(&mut self, command: &hil::ActuatorCommand) -> io::Result<()> {
+        self.sim.send(command)
     }
     fn describe(&self) -> String {
         "failing".into()
@@ -498,13 +480,11 @@ fn ten_vehicles_fly_together_on_one_clock_each_as_it_flies_alone() {
     let mut failing = FailingLink { sim, frames: 500 };
     let mut all: Vec<Onboard<'_>> = members
         .iter_mut()
-        .enumerate()
-        .map(|(k, (autopilot, records, sim, ports))| Onboard {
+        .map(|(autopilot, records, sim, ports)| Onboard {
             link: sim,
             autopilot,
             records,
             ports,
-            system_id: k as u8 + 1,
         })
         .collect();
     all.push(Onboard {
@@ -512,7 +492,6 @@ fn ten_vehicles_fly_together_on_one_clock_each_as_it_flies_alone() {
         autopilot: &mut failing_autopilot,
         records: &mut failing_records,
         ports: &mut failing_ports,
-        system_id: 11,
     });
     let swarm = fly_together(all, EXCHANGE_HZ, None);
     assert_eq!(swarm.flights.len(), 11);
@@ -540,7 +519,6 @@ fn ten_vehicles_fly_together_on_one_clock_each_as_it_flies_alone() {
             autopilot: &mut autopilot,
             records: &mut records,
             ports: &mut ports,
-            system_id: 1,
         };
         let alone = fly(vehicle, Pacing::Lockstep).unwrap();
         let together = swarm.flights[seed as usize - 1].as_ref().unwrap();

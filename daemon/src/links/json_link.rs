@@ -1,8 +1,9 @@
 //! ArduPilot's JSON physics interface as a sensor link (`--source json://127.0.0.1:9002`), so
 //! that a physics written for ArduPilot's SITL (`--model JSON`) flies this autopilot: the link
 //! plays ArduPilot's side ([`hil::json`]). Each answer of the vehicle goes out as a servo
-//! packet; the physics steps and replies with its state; the state comes in as the same HIL
-//! messages every other link carries, so the flight loop does not know the difference.
+//! packet; the physics steps and replies with its state; the state is made into the same HIL
+//! messages every other link carries (their quantisation included) and folded into a typed
+//! frame, so the flight loop does not know the difference.
 //!
 //! What the state does not carry is made here, as ArduPilot's SITL makes it: the magnetometer
 //! (the site's field seen through the attitude), the barometer (ISA pressure at the height) and
@@ -13,10 +14,9 @@
 //! The truth (`HIL_STATE_QUATERNION`, for logs and scoring) is the state itself.
 
 use super::SensorLink;
+use super::frames::{Received, close};
 use hil::json::{PhysicsState, ServoPacket, pwm_from_command};
-use hil::{Decoded, SIM_COMPONENT_ID, SIM_SYSTEM_ID, STATE_INTERVAL_USEC};
-use mavlink::MavHeader;
-use mavlink::dialects::common::MavMessage;
+use hil::{ActuatorCommand, STATE_INTERVAL_USEC, SensorUpdate};
 use nalgebra::Vector3;
 use sitl_core::body::BodyState;
 use sitl_core::environment::isa;
@@ -51,7 +51,8 @@ pub struct JsonLink {
     last_timestamp_s: Option<f64>,
     next_truth_usec: u64,
     buf: Vec<u8>,
-    answers: Decoded,
+    /// What the states so far have told the autopilot's side.
+    update: SensorUpdate,
     /// States dropped as older than the last (a resend crossing a reply).
     stale: u64,
 }
@@ -91,7 +92,7 @@ impl JsonLink {
             last_timestamp_s: None,
             next_truth_usec: 0,
             buf: vec![0; 65_536],
-            answers: Decoded::default(),
+            update: SensorUpdate::default(),
             stale: 0,
         })
     }
@@ -124,9 +125,9 @@ impl JsonLink {
         Ok(())
     }
 
-    /// The HIL messages of one state: the sensor frame (the physics' IMU, the made sensors),
-    /// a GPS solution when one is delivered, the truth at 50 Hz.
-    fn messages(&mut self, s: &PhysicsState, into: &mut Decoded) {
+    /// The frame of one state, folded from its HIL messages: the sensor frame (the physics'
+    /// IMU, the made sensors), a GPS solution when one is delivered, the truth at 50 Hz.
+    fn frame(&mut self, s: &PhysicsState, into: &mut Received) {
         let time_usec = (s.timestamp_s.max(0.0) * 1e6).round() as u64;
         let gravity = Vector3::new(0.0, 0.0, sitl_core::GRAVITY_M_S2);
         let accel_ned = s.q_ned_from_frd * s.accel_frd_m_s2 + gravity;
@@ -145,13 +146,8 @@ impl JsonLink {
         // The IMU models see the physics' specific force and rate (the acceleration is made
         // from the specific force, so they give it back) and add their noise and bias.
         let frame = self.sensors.sample(&truth).clone();
-        let header = MavHeader {
-            system_id: SIM_SYSTEM_ID.into(),
-            component_id: SIM_COMPONENT_ID,
-            sequence: 0,
-        };
         if let Some(fix) = &frame.gps {
-            into.messages.push((header, hil::hil_gps(time_usec, fix)));
+            self.update.absorb(&hil::hil_gps(time_usec, fix));
         }
         if time_usec >= self.next_truth_usec {
             self.next_truth_usec = time_usec + STATE_INTERVAL_USEC;
@@ -172,17 +168,18 @@ impl JsonLink {
                 battery_current_a: current,
                 battery_remaining: 0.0,
             };
-            into.messages.push((header, hil::hil_state_quaternion(&t)));
+            self.update.absorb(&hil::hil_state_quaternion(&t));
         }
         // The sensor frame last: it is what makes the vehicle step.
-        into.messages.push((header, hil::hil_sensor(&frame)));
+        self.update.absorb(&hil::hil_sensor(&frame));
+        into.frames.extend(close(&mut self.update));
     }
 }
 
 impl SensorLink for JsonLink {
     /// Waits up to `timeout` for the physics' next state; the first call starts the exchange
     /// with a packet of motors off, and a packet unanswered for a second goes out again.
-    fn receive(&mut self, timeout: Duration, into: &mut Decoded) -> io::Result<bool> {
+    fn receive(&mut self, timeout: Duration, into: &mut Received) -> io::Result<bool> {
         if self.sent_at.is_none_or(|t| t.elapsed() >= RESEND_AFTER) {
             if self.packet.is_empty() {
                 self.servo_packet(&[], false);
@@ -229,21 +226,13 @@ impl SensorLink for JsonLink {
                 continue;
             }
             self.last_timestamp_s = Some(state.timestamp_s);
-            self.messages(&state, into);
+            self.frame(&state, into);
             return Ok(true);
         }
     }
 
-    /// Takes the vehicle's `HIL_ACTUATOR_CONTROLS` and sends them as the next servo packet.
-    fn send(&mut self, bytes: &[u8]) -> io::Result<()> {
-        self.answers.messages.clear();
-        hil::decode_into(bytes, &mut self.answers);
-        let Some(cmd) = self.answers.messages.iter().find_map(|(_, m)| match m {
-            MavMessage::HIL_ACTUATOR_CONTROLS(c) => Some(hil::actuator_command(c)),
-            _ => None,
-        }) else {
-            return Ok(());
-        };
+    /// Sends the vehicle's command as the next servo packet.
+    fn send(&mut self, cmd: &ActuatorCommand) -> io::Result<()> {
         self.servo_packet(&cmd.controls, cmd.armed);
         self.send_packet()
     }
@@ -276,7 +265,6 @@ mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
     use hil::json::command_from_pwm;
-    use mavlink::Message;
 
     fn physics() -> UdpSocket {
         let s = UdpSocket::bind("127.0.0.1:0").unwrap();
@@ -310,7 +298,7 @@ mod tests {
             Geodetic::default(),
         )
         .unwrap();
-        let mut into = Decoded::default();
+        let mut into = Received::default();
         // The first receive starts the exchange: motors off.
         assert!(!link.receive(Duration::from_millis(20), &mut into).unwrap());
         let (first, from) = packet(&physics);
@@ -321,40 +309,29 @@ mod tests {
             .send_to(reply(0.004, -2.0).as_bytes(), from)
             .unwrap();
         assert!(link.receive(Duration::from_secs(5), &mut into).unwrap());
-        let kinds: Vec<&str> = into
-            .messages
-            .iter()
-            .map(|(_, m)| m.message_name())
-            .collect();
-        assert_eq!(kinds.last(), Some(&"HIL_SENSOR"), "{kinds:?}");
-        assert!(kinds.contains(&"HIL_STATE_QUATERNION"), "{kinds:?}");
-        let MavMessage::HIL_SENSOR(s) = &into.messages.last().unwrap().1 else {
-            unreachable!()
-        };
-        assert_eq!(s.time_usec, 4000);
+        assert_eq!(into.frames.len(), 1);
+        let f = into.frames.pop().unwrap();
+        assert!(f.truth.is_some(), "the truth comes with the first frame");
+        let s = f.sample;
+        assert_eq!(s.t_usec, 4000);
         // The physics' own IMU (the ideal preset adds no noise).
         assert!(
-            (s.zacc + 9.80665).abs() < 1e-5 && (s.zgyro - 0.1).abs() < 1e-6,
+            (s.accel.z + 9.80665).abs() < 1e-5 && (s.gyro.z - 0.1).abs() < 1e-6,
             "{s:?}"
         );
         // The barometer it made: 2 m above home.
-        assert!(
-            (f64::from(s.pressure_alt) - (488.0 + 2.0)).abs() < 0.5,
-            "{}",
-            s.pressure_alt
-        );
+        let baro = s.baro_alt_m.unwrap();
+        assert!((baro - (488.0 + 2.0)).abs() < 0.5, "{baro}");
         // The magnetometer it made sees the 0.5 rad yaw: the site's field turned.
         let field = EarthField::default().ned();
         let yaw = nalgebra::UnitQuaternion::from_euler_angles(0.0, 0.0, 0.5);
         let expected = yaw.inverse_transform_vector(&field);
-        let mag = Vector3::new(f64::from(s.xmag), f64::from(s.ymag), f64::from(s.zmag));
+        let mag = s.mag.unwrap();
         assert!((mag - expected).norm() < 1e-3, "{mag} vs {expected}");
 
         // The answer goes out as the next packet, each rotor on its channel.
-        let answer = hil::actuator_controls(4000, &[0.1, 0.2, 0.3, 0.4], true);
-        let mut bytes = Vec::new();
-        hil::Encoder::with_ids(1, 1).push(&mut bytes, &answer);
-        link.send(&bytes).unwrap();
+        let answer = ActuatorCommand::as_sent(4000, &[0.1, 0.2, 0.3, 0.4], true);
+        link.send(&answer).unwrap();
         let (second, _) = packet(&physics);
         assert_eq!(second.frame_count, 2);
         let commands: Vec<f64> = [2, 0, 3, 1]
@@ -365,7 +342,7 @@ mod tests {
 
         // Dropped: a reply from elsewhere, garbage, a state older than the last; the newer one
         // behind them is taken.
-        into.messages.clear();
+        into.frames.clear();
         let stranger = UdpSocket::bind("127.0.0.1:0").unwrap();
         stranger
             .send_to(reply(0.008, 0.0).as_bytes(), from)
@@ -378,10 +355,8 @@ mod tests {
         assert!(link.receive(Duration::from_secs(5), &mut into).unwrap());
         assert_eq!(into.malformed, 2);
         assert_eq!(link.stale, 1);
-        let MavMessage::HIL_SENSOR(s) = &into.messages.last().unwrap().1 else {
-            unreachable!()
-        };
-        assert_eq!(s.time_usec, 8000);
+        assert_eq!(into.frames.len(), 1);
+        assert_eq!(into.frames[0].sample.t_usec, 8000);
 
         // A physics started again (its time from zero, seconds back) is taken, not dropped as
         // stale: the vehicle sees its clock go back and starts again.

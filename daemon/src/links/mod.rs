@@ -1,24 +1,28 @@
-//! Sensor links: where the sensor frames come from and where the actuator commands go. The
-//! embedded simulator, a simulator process over UDP and a flight board on a serial line all carry
-//! the same HIL messages; the flight loop does not know which one it talks to.
+//! Sensor links: where the sensor frames come from and where the actuator commands go. Every
+//! link hands the flight loop typed frames ([`frames::LinkFrame`]) and takes typed commands
+//! ([`ActuatorCommand`]); the bytes stay at its edge: HIL messages over UDP or a serial line,
+//! ArduPilot's JSON, or none at all for the embedded simulator. The flight loop does not know
+//! which one it talks to.
 
+pub mod frames;
 pub mod json_link;
 pub mod sim;
 
 use anyhow::{Context, Result, bail};
-use hil::{Decoded, StreamDecoder};
+use frames::{FrameAssembler, Received};
+use hil::{ActuatorCommand, Encoder, StreamDecoder};
 use std::io;
 use std::net::{SocketAddr, UdpSocket};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-/// A source of HIL sensor messages that takes `HIL_ACTUATOR_CONTROLS` back.
+/// A source of sensor frames that takes actuator commands back.
 pub trait SensorLink {
-    /// Waits up to `timeout` for messages and appends them (and the count of malformed frames)
-    /// to `into`. Returns false when nothing arrived in time.
-    fn receive(&mut self, timeout: Duration, into: &mut Decoded) -> io::Result<bool>;
-    /// Sends the answer (MAVLink frames) back to whoever sent the last sensor frame.
-    fn send(&mut self, bytes: &[u8]) -> io::Result<()>;
+    /// Waits up to `timeout` for input and appends the complete sensor frames (and the count of
+    /// malformed input) to `into`. Returns false when nothing arrived in time.
+    fn receive(&mut self, timeout: Duration, into: &mut Received) -> io::Result<bool>;
+    /// Sends the answer back to whoever sent the last sensor frame.
+    fn send(&mut self, command: &ActuatorCommand) -> io::Result<()>;
     /// What the link is, for messages.
     fn describe(&self) -> String;
     /// The clock that measures sensor silence (s): wall-clock time for a flight board in the
@@ -251,11 +255,14 @@ pub struct UdpLink {
     read_timeout: Option<Duration>,
     /// Answers dropped because the socket's buffer was full (non-blocking).
     dropped: u64,
+    frames: FrameAssembler,
+    encoder: Encoder,
+    tx: Vec<u8>,
 }
 
 impl UdpLink {
-    /// Binds `addr`; `lockstep`: the simulator waits for each answer.
-    pub fn bind(addr: SocketAddr, lockstep: bool) -> Result<Self> {
+    /// Binds `addr`; `lockstep`: the simulator waits for each answer, sent as `system_id`.
+    pub fn bind(addr: SocketAddr, lockstep: bool, system_id: u8) -> Result<Self> {
         let socket = UdpSocket::bind(addr).with_context(|| {
             format!("binding the simulator port {addr} (is another autopilot using it? try -i N)")
         })?;
@@ -266,6 +273,9 @@ impl UdpLink {
             lockstep,
             read_timeout: None,
             dropped: 0,
+            frames: FrameAssembler::default(),
+            encoder: Encoder::with_ids(system_id, 1),
+            tx: Vec::with_capacity(128),
         })
     }
 
@@ -276,7 +286,7 @@ impl UdpLink {
 }
 
 impl SensorLink for UdpLink {
-    fn receive(&mut self, timeout: Duration, into: &mut Decoded) -> io::Result<bool> {
+    fn receive(&mut self, timeout: Duration, into: &mut Received) -> io::Result<bool> {
         if self.read_timeout != Some(timeout) {
             // A zero timeout reads without waiting (the deadline-paced loop).
             self.socket.set_nonblocking(timeout.is_zero())?;
@@ -291,7 +301,9 @@ impl SensorLink for UdpLink {
                     tracing::info!(simulator = %from, "sensor frames arriving");
                     self.peer = Some(from);
                 }
-                hil::decode_into(&self.rx[..len], into);
+                let datagram = &self.rx[..len];
+                self.frames
+                    .absorb_bytes(into, |d| hil::decode_into(datagram, d));
                 Ok(true)
             }
             // Connection refused: an ICMP answer to an earlier send; the simulator may come back.
@@ -300,11 +312,12 @@ impl SensorLink for UdpLink {
         }
     }
 
-    fn send(&mut self, bytes: &[u8]) -> io::Result<()> {
+    fn send(&mut self, command: &ActuatorCommand) -> io::Result<()> {
         let Some(peer) = self.peer else {
             return Ok(());
         };
-        match self.socket.send_to(bytes, peer) {
+        encode(&mut self.encoder, &mut self.tx, command);
+        match self.socket.send_to(&self.tx, peer) {
             // The simulator went away; it may come back.
             Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => Ok(()),
             // Non-blocking and the buffer is full: this answer is lost, the next one goes.
@@ -342,6 +355,9 @@ pub struct SerialLink {
     baud: u32,
     port: Option<serialport::TTYPort>,
     decoder: StreamDecoder,
+    frames: FrameAssembler,
+    encoder: Encoder,
+    tx: Vec<u8>,
     rx: Vec<u8>,
     retry_at: Instant,
     backoff: Duration,
@@ -353,8 +369,8 @@ pub struct SerialLink {
 impl SerialLink {
     /// Opens `path` at `baud`; a port that cannot be opened now is an error (a typo should stop
     /// the daemon), one that vanishes later is retried. `lockstep`: the other end is a
-    /// simulator that waits for each answer.
-    pub fn open(path: PathBuf, baud: u32, lockstep: bool) -> Result<Self> {
+    /// simulator that waits for each answer. Answers go out as `system_id`.
+    pub fn open(path: PathBuf, baud: u32, lockstep: bool, system_id: u8) -> Result<Self> {
         let port = Self::open_port(&path, baud)
             .with_context(|| format!("opening serial port {}", path.display()))?;
         Ok(Self {
@@ -362,6 +378,9 @@ impl SerialLink {
             baud,
             port: Some(port),
             decoder: StreamDecoder::default(),
+            frames: FrameAssembler::default(),
+            encoder: Encoder::with_ids(system_id, 1),
+            tx: Vec::with_capacity(128),
             rx: vec![0; 4096],
             retry_at: Instant::now(),
             backoff: Duration::from_millis(100),
@@ -386,7 +405,7 @@ impl SerialLink {
 }
 
 impl SensorLink for SerialLink {
-    fn receive(&mut self, timeout: Duration, into: &mut Decoded) -> io::Result<bool> {
+    fn receive(&mut self, timeout: Duration, into: &mut Received) -> io::Result<bool> {
         use std::io::Read;
         let Some(port) = self.port.as_mut() else {
             let now = Instant::now();
@@ -408,7 +427,6 @@ impl SensorLink for SerialLink {
             return Ok(false);
         };
         serialport::SerialPort::set_timeout(port, timeout)?;
-        let before = into.messages.len();
         match port.read(&mut self.rx) {
             // End of file: the other side closed (a pty whose simulator exited).
             Ok(0) => {
@@ -416,8 +434,8 @@ impl SensorLink for SerialLink {
                 Ok(false)
             }
             Ok(n) => {
-                self.decoder.push(&self.rx[..n], into);
-                Ok(into.messages.len() > before)
+                let (decoder, bytes) = (&mut self.decoder, &self.rx[..n]);
+                Ok(self.frames.absorb_bytes(into, |d| decoder.push(bytes, d)))
             }
             Err(e) if nothing_yet(&e) => Ok(false),
             Err(e) => {
@@ -427,12 +445,13 @@ impl SensorLink for SerialLink {
         }
     }
 
-    fn send(&mut self, bytes: &[u8]) -> io::Result<()> {
+    fn send(&mut self, command: &ActuatorCommand) -> io::Result<()> {
         use std::io::Write;
         let Some(port) = self.port.as_mut() else {
             return Ok(());
         };
-        match port.write_all(bytes) {
+        encode(&mut self.encoder, &mut self.tx, command);
+        match port.write_all(&self.tx) {
             Ok(()) => {}
             // The deadline-paced loop writes without waiting: a full output buffer loses this
             // answer (the board's parser skips a partial frame), not the port.
@@ -454,6 +473,13 @@ impl SensorLink for SerialLink {
     fn silence_clock_s(&self) -> Option<f64> {
         (!self.lockstep).then(wall_clock_s)
     }
+}
+
+/// `command` as `HIL_ACTUATOR_CONTROLS` bytes in `tx`.
+fn encode(encoder: &mut Encoder, tx: &mut Vec<u8>, command: &ActuatorCommand) {
+    tx.clear();
+    let msg = hil::actuator_controls(command.time_usec, &command.controls, command.armed);
+    encoder.push(tx, &msg);
 }
 
 #[cfg(test)]

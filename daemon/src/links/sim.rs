@@ -1,13 +1,14 @@
-//! The embedded simulator: `sitl`'s physics in-process, behind the same message boundary as an
-//! external simulator or a flight board. Every exchange is encoded to MAVLink 2 HIL bytes and
-//! decoded again on the autopilot's side, and the answer travels back as `HIL_ACTUATOR_CONTROLS`
-//! bytes. It runs the same [`SimulatorEnd`] as the `sitl` process, so one seed flies the same
-//! flight in-process and over UDP.
+//! The embedded simulator: `sitl`'s physics in-process, behind the same typed boundary as an
+//! external simulator or a flight board. Each exchange's HIL messages are folded straight into a
+//! frame, and the answer taken as it would be read from `HIL_ACTUATOR_CONTROLS`, without the
+//! bytes in between but with the messages' quantisation ([`SimulatorEnd::frame_update`],
+//! [`hil::ActuatorCommand::as_sent`]). It runs the same [`SimulatorEnd`] as the `sitl` process,
+//! so one seed flies the same flight in-process and over UDP.
 
 use super::SensorLink;
+use super::frames::{Received, close};
 use anyhow::{Context, Result};
-use hil::{Decoded, SimulatorEnd};
-use mavlink::dialects::common::MavMessage;
+use hil::{ActuatorCommand, SensorUpdate, SimulatorEnd};
 use sitl_core::sim::{Event, SimConfig, Simulator};
 use sitl_core::truth_csv::TruthCsv;
 use sitl_core::{Airframe, BodyState};
@@ -21,9 +22,8 @@ pub const EXCHANGE_HZ: f64 = 250.0;
 /// The simulator as a sensor link.
 pub struct EmbeddedSim {
     end: SimulatorEnd,
-    bytes: Vec<u8>,
-    /// The autopilot's answers, decoded (kept to reuse its allocation).
-    answers: Decoded,
+    /// What the exchanges so far have told the autopilot's side.
+    update: SensorUpdate,
     started: Option<Instant>,
     speed: Option<f64>,
     truth: Option<TruthCsv>,
@@ -69,8 +69,7 @@ impl EmbeddedSim {
             .transpose()?;
         Ok(Self {
             end: SimulatorEnd::new(sim, EXCHANGE_HZ),
-            bytes: Vec::with_capacity(512),
-            answers: Decoded::default(),
+            update: SensorUpdate::default(),
             started: None,
             speed,
             truth,
@@ -134,7 +133,7 @@ impl EmbeddedSim {
 impl SensorLink for EmbeddedSim {
     /// Steps physics over one exchange with the last answer (lockstep: the answer, or the last
     /// command if none came, as `sitl` does on a timeout) and hands over the next frame.
-    fn receive(&mut self, _timeout: Duration, into: &mut Decoded) -> io::Result<bool> {
+    fn receive(&mut self, _timeout: Duration, into: &mut Received) -> io::Result<bool> {
         if !self.first {
             self.advance_world();
         }
@@ -146,20 +145,13 @@ impl SensorLink for EmbeddedSim {
                 std::thread::sleep(wait);
             }
         }
-        self.bytes.clear();
-        self.end.encode_frame(&mut self.bytes);
-        hil::decode_into(&self.bytes, into);
+        self.end.frame_update(&mut self.update);
+        into.frames.extend(close(&mut self.update));
         Ok(true)
     }
 
-    fn send(&mut self, bytes: &[u8]) -> io::Result<()> {
-        self.answers.messages.clear();
-        hil::decode_into(bytes, &mut self.answers);
-        for (_, msg) in &self.answers.messages {
-            if let MavMessage::HIL_ACTUATOR_CONTROLS(m) = msg {
-                self.end.apply(&hil::actuator_command(m));
-            }
-        }
+    fn send(&mut self, command: &ActuatorCommand) -> io::Result<()> {
+        self.end.apply(command);
         Ok(())
     }
 

@@ -6,6 +6,7 @@
 //! whichever finishes first, and one run can be flown again from its row (`--seed`, `--first`).
 
 use crate::control_loop::{self, LoopCommand, Onboard, Pacing, Ports};
+use crate::links::frames::Received;
 use crate::links::sim::EmbeddedSim;
 use crate::links::{SensorLink, Source};
 use crate::records::FlightRecords;
@@ -323,7 +324,7 @@ struct TimeLimited {
 }
 
 impl SensorLink for TimeLimited {
-    fn receive(&mut self, timeout: Duration, into: &mut hil::Decoded) -> std::io::Result<bool> {
+    fn receive(&mut self, timeout: Duration, into: &mut Received) -> std::io::Result<bool> {
         if !self.stopped && self.sim.time_s() >= self.limit_s {
             self.stopped = true;
             // Drained before the next step.
@@ -332,8 +333,8 @@ impl SensorLink for TimeLimited {
         self.sim.receive(timeout, into)
     }
 
-    fn send(&mut self, bytes: &[u8]) -> std::io::Result<()> {
-        self.sim.send(bytes)
+    fn send(&mut self, command: &hil::ActuatorCommand) -> std::io::Result<()> {
+        self.sim.send(command)
     }
 
     fn describe(&self) -> String {
@@ -380,14 +381,12 @@ pub fn fly_run(
             stop,
             stopped: false,
         };
-        let system_id = 1;
         control_loop::fly(
             Onboard {
                 link: &mut link,
                 autopilot: &mut autopilot,
                 records: &mut records,
                 ports: &mut ports,
-                system_id,
             },
             Pacing::Lockstep,
         )

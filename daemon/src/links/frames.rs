@@ -1,0 +1,105 @@
+//! What a sensor link delivers and takes, typed: a sensor frame as the autopilot's
+//! [`SensorSample`] (with the simulator's truth), and the answer as an [`ActuatorCommand`].
+//! Links that carry MAVLink bytes fold the decoded HIL messages into frames here; the embedded
+//! simulator folds the same messages without the bytes.
+
+use flight_core::autopilot::AutopilotOutput;
+use flight_core::core::SensorSample;
+use flight_core::estimator::translation::GpsMeasurement;
+use flight_core::math::geo::LatLonAlt;
+use hil::{ActuatorCommand, Decoded, SensorUpdate, TruthReport};
+use mavlink::dialects::common::MavMessage;
+
+/// One sensor frame: the autopilot's sample and, from a simulator, its ground truth.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinkFrame {
+    /// What the sensors measured.
+    pub sample: SensorSample,
+    /// The simulator's truth, when this frame carried it (for logs and scoring only).
+    pub truth: Option<TruthReport>,
+}
+
+/// What reads of a link brought.
+#[derive(Debug, Default)]
+pub struct Received {
+    /// Complete sensor frames, oldest first.
+    pub frames: Vec<LinkFrame>,
+    /// Malformed input counted on the way (bad frames, junk, a stranger's datagrams).
+    pub malformed: u32,
+}
+
+/// What has arrived since the last sensor frame, until `HIL_SENSOR` closes it.
+#[derive(Debug, Default)]
+pub struct FrameAssembler {
+    update: SensorUpdate,
+    /// Reused to decode bytes into.
+    decoded: Decoded,
+}
+
+impl FrameAssembler {
+    /// Folds one message in; `HIL_SENSOR` closes a frame: its sample (with what arrived before
+    /// it: GPS, rotor speeds, battery) and the simulator's truth, if one came.
+    pub fn absorb(&mut self, msg: &MavMessage) -> Option<LinkFrame> {
+        if !self.update.absorb(msg) {
+            return None;
+        }
+        close(&mut self.update)
+    }
+
+    /// Decodes a datagram (or a stream's bytes, split by `split`) and folds every message in,
+    /// complete frames into `into`. Returns whether any message was decoded.
+    pub fn absorb_bytes(&mut self, into: &mut Received, split: impl FnOnce(&mut Decoded)) -> bool {
+        self.decoded.messages.clear();
+        self.decoded.malformed = 0;
+        split(&mut self.decoded);
+        into.malformed += self.decoded.malformed;
+        let messages = std::mem::take(&mut self.decoded.messages);
+        for (_, m) in &messages {
+            if let Some(f) = self.absorb(m) {
+                into.frames.push(f);
+            }
+        }
+        let any = !messages.is_empty();
+        self.decoded.messages = messages;
+        any
+    }
+}
+
+/// The frame a [`SensorUpdate`] holds once `HIL_SENSOR` has closed it: fresh readings are taken
+/// out of it, the IMU and the pack's state stay (they are what the next frame repeats if it
+/// has none). `None` before the first IMU reading.
+pub fn close(u: &mut SensorUpdate) -> Option<LinkFrame> {
+    let (t_usec, gyro, accel) = (u.time_usec?, u.gyro_frd?, u.accel_frd?);
+    let sample = SensorSample {
+        t_usec,
+        gyro,
+        accel,
+        mag: u.mag_frd.take(),
+        baro_alt_m: u.pressure_alt_m.take(),
+        gps: u.gps.take().map(|g| GpsMeasurement {
+            fix_type: g.fix_type,
+            position: LatLonAlt {
+                lat_deg: g.lat_deg,
+                lon_deg: g.lon_deg,
+                alt_m: g.alt_m,
+            },
+            vel_ned_m_s: g.vel_ned_m_s,
+            h_acc_m: g.h_acc_m,
+            satellites: g.satellites,
+        }),
+        // The pack's state as last reported (ESC_STATUS comes at its own rate).
+        battery_v: u.battery_v,
+        esc_current_a: u.esc_current_a,
+        rotor_speed_rad_s: u.rotor_speed_rad_s.take(),
+    };
+    Some(LinkFrame {
+        sample,
+        truth: u.truth.take(),
+    })
+}
+
+/// The answer to a step: the first `rotors` commands of `out`, quantised as
+/// `HIL_ACTUATOR_CONTROLS` carries them.
+pub fn answer(out: &AutopilotOutput, rotors: usize) -> ActuatorCommand {
+    ActuatorCommand::as_sent(out.t_usec, &out.commands[..rotors], out.armed)
+}
