@@ -13,6 +13,8 @@ echo "== cargo fmt --check"
 cargo fmt --all -- --check
 echo "== cargo clippy"
 cargo clippy --workspace --all-targets --quiet -- -D warnings
+echo "== layout lints (file length, unique type names)"
+python3 tools/lint.py
 echo "== cargo test"
 cargo test --workspace
 # The Python tests drive the debug binaries that `cargo test` has just built.

@@ -105,7 +105,7 @@ impl FuzzedVehicle {
         Some(answer(&out, self.autopilot.rotors()))
     }
 
-    fn command(&mut self, c: AutopilotCommand) -> Result<(), String> {
+    fn command(&mut self, c: AutopilotCommand) -> Result<(), flight_core::commander::Denial> {
         self.autopilot.command(c)
     }
 }
@@ -128,7 +128,7 @@ fn carry_out(gcs: &GroundStation, out: &mut Outbox, vehicle: &mut FuzzedVehicle)
         let _ = vehicle.command(AutopilotCommand::SetFence(z));
     }
     for a in out.actions.drain(..) {
-        if matches!(a, crate::gcs::Action::ParamsChanged) {
+        if matches!(a, crate::gcs::HostAction::ParamsChanged) {
             vehicle.autopilot.set_params(gcs.parameters().values());
         }
     }

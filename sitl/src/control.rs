@@ -18,7 +18,7 @@ use mavlink::dialects::common::{
 };
 use nalgebra::Vector3;
 use sitl_core::environment::WindConfig;
-use sitl_core::sim::Action;
+use sitl_core::sim::SimAction;
 use std::net::{SocketAddr, UdpSocket};
 use std::time::{Duration, Instant};
 
@@ -141,7 +141,7 @@ impl Weather {
     }
 
     /// Sets `name` at simulation time `t_s`: the actions to apply now, or why not.
-    pub fn set(&mut self, name: &str, value: f64, t_s: f64) -> Result<Vec<Action>, String> {
+    pub fn set(&mut self, name: &str, value: f64, t_s: f64) -> Result<Vec<SimAction>, String> {
         let i = Self::index(name).ok_or_else(|| format!("no parameter {name}"))?;
         let m = &META[i];
         if !(value.is_finite() && (m.min..=m.max).contains(&value)) {
@@ -163,23 +163,23 @@ impl Weather {
                 }
                 Vec::new()
             }
-            "SIM_TUMBLE_S" => vec![Action::Tumble { duration_s: value }],
+            "SIM_TUMBLE_S" => vec![SimAction::Tumble { duration_s: value }],
             _ => Vec::new(),
         })
     }
 
     /// The mean wind and turbulence the parameters describe.
-    fn wind(&self) -> Action {
+    fn wind(&self) -> SimAction {
         let mut mean = from_direction(self.values[0], self.values[1]);
         mean.z = self.vertical_m_s;
-        Action::Wind {
+        SimAction::Wind {
             mean_ned_m_s: mean,
             turbulence_w20_m_s: self.values[2],
         }
     }
 
     /// The gust due at `t_s`, if one is.
-    pub fn due(&mut self, t_s: f64) -> Vec<Action> {
+    pub fn due(&mut self, t_s: f64) -> Vec<SimAction> {
         let Some(start) = self.next_gust_s.filter(|s| *s <= t_s + 1e-9) else {
             return Vec::new();
         };
@@ -193,7 +193,7 @@ impl Weather {
         if peak <= 0.0 {
             return Vec::new();
         }
-        vec![Action::Gust {
+        vec![SimAction::Gust {
             peak_ned_m_s: from_direction(peak, from),
             duration_s: length,
         }]
@@ -246,7 +246,7 @@ impl Control {
 
     /// Answers what arrived and returns the actions due at simulation time `t_s`. Never blocks;
     /// a socket error is logged and the simulation goes on.
-    pub fn poll(&mut self, t_s: f64) -> Vec<Action> {
+    pub fn poll(&mut self, t_s: f64) -> Vec<SimAction> {
         let mut actions = self.weather.due(t_s);
         loop {
             match self.socket.recv_from(&mut self.rx) {
@@ -284,7 +284,7 @@ impl Control {
         actions
     }
 
-    fn handle(&mut self, msg: &MavMessage, t_s: f64) -> Vec<Action> {
+    fn handle(&mut self, msg: &MavMessage, t_s: f64) -> Vec<SimAction> {
         let ours = |system: u8, component: u8| {
             (system == 0 || system == hil::SIM_SYSTEM_ID)
                 && (component == 0 || component == hil::SIM_COMPONENT_ID)
@@ -361,10 +361,10 @@ impl Control {
 mod tests {
     use super::*;
 
-    fn wind_of(actions: &[Action]) -> (Vector3<f64>, f64) {
+    fn wind_of(actions: &[SimAction]) -> (Vector3<f64>, f64) {
         match actions {
             [
-                Action::Wind {
+                SimAction::Wind {
                     mean_ned_m_s,
                     turbulence_w20_m_s,
                 },
@@ -420,7 +420,7 @@ mod tests {
         let a = w.set("SIM_GUST_SPD", 6.0, 10.0).unwrap();
         match a.as_slice() {
             [
-                Action::Gust {
+                SimAction::Gust {
                     peak_ned_m_s,
                     duration_s,
                 },

@@ -3,7 +3,7 @@
 //! its PWM as the rotor commands and replies with the state. A resent packet (the same frame
 //! count) gets the same reply again without a step, so the world moves once per command.
 
-use crate::Cli;
+use crate::SitlCli;
 use crate::run::{AwaitAutopilot, Dynamics, Pacer, Status, Summary, build, finish, open_truth};
 use anyhow::{Context, Result, bail};
 use hil::json::{JSON_INSTANCE_STRIDE, PhysicsState, ServoPacket, command_from_pwm};
@@ -37,7 +37,7 @@ fn state(end: &SimulatorEnd) -> PhysicsState {
 /// Serves servo packets on `--json`'s address until the scenario's time is up or Ctrl-C.
 pub fn run(
     scenario: &Scenario,
-    cli: &Cli,
+    cli: &SitlCli,
     speed: Option<f64>,
     stop: &AtomicBool,
 ) -> Result<Summary> {

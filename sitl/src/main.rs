@@ -9,6 +9,7 @@ mod control;
 mod jsbsim;
 mod json_physics;
 mod run;
+mod transport;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, ValueEnum};
@@ -42,7 +43,7 @@ pub enum Physics {
 /// Multirotor simulator: physics, sensors and a MAVLink HIL link over UDP.
 #[derive(Debug, Parser)]
 #[command(name = "sitl", version, about, long_about = None, args_override_self = true)]
-pub struct Cli {
+pub struct SitlCli {
     /// Scenario file (TOML): airframe, initial state, sensors, wind, seed, duration, events,
     /// open-loop script. Without one: the airframe rests at home, typical sensors, no wind.
     #[arg(long, value_name = "FILE")]
@@ -142,12 +143,12 @@ pub struct Cli {
     pub status_interval: f64,
 }
 
-fn params_dir(cli: &Cli) -> PathBuf {
+fn params_dir(cli: &SitlCli) -> PathBuf {
     sitl_core::airframe::config::params_dir(cli.params_dir.as_deref())
 }
 
 /// The scenario after command-line overrides.
-fn load_scenario(cli: &Cli) -> Result<Scenario> {
+fn load_scenario(cli: &SitlCli) -> Result<Scenario> {
     let dir = params_dir(cli).join("airframes");
     let mut scenario = match &cli.scenario {
         Some(path) => Scenario::load(path, &dir)?,
@@ -196,7 +197,7 @@ fn load_scenario(cli: &Cli) -> Result<Scenario> {
 }
 
 /// Parsed `--speed`: `None` for as fast as possible (lockstep and open loop unless told).
-fn speed(cli: &Cli) -> Result<Option<f64>> {
+fn speed(cli: &SitlCli) -> Result<Option<f64>> {
     let given = match cli.speed.as_deref() {
         None if cli.mode == Mode::Realtime => return Ok(Some(1.0)),
         None | Some("max") => return Ok(None),
@@ -217,7 +218,7 @@ fn main() -> std::process::ExitCode {
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .with_writer(std::io::stderr)
         .init();
-    let cli = Cli::parse();
+    let cli = SitlCli::parse();
     match try_main(&cli) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
@@ -227,7 +228,7 @@ fn main() -> std::process::ExitCode {
     }
 }
 
-fn try_main(cli: &Cli) -> Result<()> {
+fn try_main(cli: &SitlCli) -> Result<()> {
     let scenario = load_scenario(cli)?;
     if !(cli.hil_rate.is_finite() && cli.hil_rate >= 10.0) {
         bail!("--hil-rate must be at least 10 Hz, got {}", cli.hil_rate);

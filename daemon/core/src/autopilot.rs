@@ -119,7 +119,7 @@ pub struct Autopilot {
     /// The auto flight has armed, or an operator asked to end: the run ends once disarmed.
     end_when_disarmed: bool,
     /// Why the auto flight may not arm, as last said (said again only when it changes).
-    auto_denial: Option<String>,
+    auto_denial: Option<crate::commander::Denial>,
     ended: bool,
     /// The last answer (repeated for a repeated sample), with the flight core's last output.
     last_answer: Option<AutopilotOutput>,

@@ -733,7 +733,7 @@ fn lose_motors(
     speed: f64,
     seed: u64,
 ) -> MotorLoss {
-    use sitl_core::sim::Action;
+    use sitl_core::sim::SimAction;
     let a = airframe(name);
     let mut sim = resting(&a, seed);
     let mut core = FlightCore::new(&a, FlightCoreConfig::from_params(params, &a)).unwrap();
@@ -767,7 +767,7 @@ fn lose_motors(
         let truth = sim.truth().body;
         if t >= cut_s && alt_at_cut.is_none() {
             for &i in cut {
-                sim.apply(Action::MotorFail { index: i });
+                sim.apply(SimAction::MotorFail { index: i });
             }
             alt_at_cut = Some(-truth.pos_ned_m.z);
         }
@@ -873,7 +873,7 @@ struct Twist {
 /// `name` hovers at 10 m; at 15 s a roll torque of `roll_accel` rad/s² × `I_xx` acts for `length_s`
 /// (the simulator's torque pulse: a body torque no rotor knows about).
 fn twist(name: &str, use_pid: bool, roll_accel: f64, length_s: f64, seed: u64) -> Twist {
-    use sitl_core::sim::Action;
+    use sitl_core::sim::SimAction;
     let a = airframe(name);
     let mut p = FlightParams::default();
     p.rate.controller = use_pid as u32;
@@ -892,7 +892,7 @@ fn twist(name: &str, use_pid: bool, roll_accel: f64, length_s: f64, seed: u64) -
         let t = sim.time_s();
         let truth = sim.truth().body;
         if t >= start_s && !pulsed {
-            sim.apply(Action::TorquePulse {
+            sim.apply(SimAction::TorquePulse {
                 torque_frd_n_m: Vector3::new(torque, 0.0, 0.0),
                 duration_s: length_s,
             });

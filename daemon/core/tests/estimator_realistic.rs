@@ -14,7 +14,7 @@ use flight_core::params::FlightParams;
 use nalgebra::{UnitQuaternion, Vector3};
 use sitl_core::BodyState;
 use sitl_core::sensors::{SensorConfig, SensorPreset};
-use sitl_core::sim::{Action, SimConfig, Simulator};
+use sitl_core::sim::{SimAction, SimConfig, Simulator};
 use std::f64::consts::TAU;
 use std::path::PathBuf;
 
@@ -127,7 +127,7 @@ fn fly(params: &FlightParams, seed: u64) -> Scores {
             magnet_on = !magnet_on;
             // A magnet 10 cm away: 0.3 gauss, half again the Earth's field.
             let field = Vector3::new(0.1, 0.25, 0.1) * f64::from(u8::from(magnet_on));
-            sim.apply(Action::MagDisturbance(field));
+            sim.apply(SimAction::MagDisturbance(field));
         }
         let sample = common::control_interval(&mut sim, &commands[..n]);
         let truth = sim.truth();

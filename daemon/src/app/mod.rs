@@ -158,7 +158,7 @@ pub fn fly(cfg: Settings) -> Result<()> {
         Some(kib) => println!("{report} max_rss_kib={kib}"),
         None => println!("{report}"),
     }
-    if exits.first() == Some(&Some(gcs::Action::Reboot)) {
+    if exits.first() == Some(&Some(gcs::HostAction::Reboot)) {
         reboot()?;
     }
     Ok(())
@@ -182,7 +182,7 @@ fn serve(
     commands: Vec<mpsc::Sender<LoopCommand>>,
     telemetry: Vec<watch::Receiver<Telemetry>>,
     ended: std::sync::Arc<tokio::sync::Notify>,
-) -> Result<Vec<Option<gcs::Action>>> {
+) -> Result<Vec<Option<gcs::HostAction>>> {
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()

@@ -8,7 +8,7 @@
 //! `CAL_MAG0_XODIAG`… and `CAL_MAG0_ID` (all together, each announced in `PARAM_VALUE`),
 //! flown at once and saved to the parameter store.
 
-use super::{Action, GroundStation, Outbox};
+use super::{GroundStation, HostAction, Outbox};
 use crate::control_loop::Telemetry;
 use flight_core::sensors::mag_calibrator::{MagCalFailure, MagCalResult, MagCalState};
 use mavlink::dialects::common::*;
@@ -98,8 +98,8 @@ impl GroundStation {
             .collect();
         match self.params.set_many(&values, out) {
             Ok(()) => {
-                out.actions.push(Action::ParamsChanged);
-                out.actions.push(Action::SaveParams);
+                out.actions.push(HostAction::ParamsChanged);
+                out.actions.push(HostAction::SaveParams);
                 out.say(MavSeverity::MAV_SEVERITY_INFO, "[cal] progress <100>");
                 out.say(
                     MavSeverity::MAV_SEVERITY_INFO,
@@ -272,7 +272,10 @@ mod tests {
             names.iter().all(|n| n.starts_with("CAL_MAG0_")),
             "{names:?}"
         );
-        assert_eq!(out.actions, [Action::ParamsChanged, Action::SaveParams]);
+        assert_eq!(
+            out.actions,
+            [HostAction::ParamsChanged, HostAction::SaveParams]
+        );
         let stored: Vec<&str> = g.parameters().store().names().collect();
         assert!(stored.contains(&"CAL_MAG0_XODIAG"), "{stored:?}");
         let report = out.messages.iter().find_map(|m| match m {

@@ -3,8 +3,8 @@
 //! passed to the vehicle.
 
 use super::{
-    AckTo, Action, Command, DEFAULT_STREAMS, FORCE_MAGIC, GroundStation, Outbox, Outgoing,
-    RATE_RANGE_HZ, Stream, mission, modes, offboard, telemetry,
+    AckTo, CommandMessage, DEFAULT_STREAMS, FORCE_MAGIC, GroundStation, HostAction, Outbox,
+    Outgoing, RATE_RANGE_HZ, Stream, mission, modes, offboard, telemetry,
 };
 use crate::control_loop::Telemetry;
 use flight_core::autopilot::command::AutopilotCommand;
@@ -48,10 +48,10 @@ impl GroundStation {
         }
         if let Some(change) = self.on_param_message(msg, out) {
             if change.values {
-                out.actions.push(Action::ParamsChanged);
+                out.actions.push(HostAction::ParamsChanged);
             }
             if change.store {
-                out.actions.push(Action::SaveParams);
+                out.actions.push(HostAction::SaveParams);
             }
             return;
         }
@@ -67,7 +67,7 @@ impl GroundStation {
                 let p = [
                     c.param1, c.param2, c.param3, c.param4, c.param5, c.param6, c.param7,
                 ];
-                let cmd = Command {
+                let cmd = CommandMessage {
                     command: c.command,
                     p,
                 };
@@ -87,7 +87,7 @@ impl GroundStation {
                     (c.y as f64 * 1e-7) as f32,
                     c.z,
                 ];
-                let cmd = Command {
+                let cmd = CommandMessage {
                     command: c.command,
                     p,
                 };
@@ -112,7 +112,7 @@ impl GroundStation {
                     0.0,
                     0.0,
                 ];
-                let cmd = Command {
+                let cmd = CommandMessage {
                     command: MavCmd::MAV_CMD_DO_SET_MODE,
                     p,
                 };
@@ -241,7 +241,7 @@ impl GroundStation {
 
     fn command_int(
         &mut self,
-        c: Command,
+        c: CommandMessage,
         global: Option<(i32, i32)>,
         frame: MavFrame,
         to: AckTo,
@@ -271,7 +271,7 @@ impl GroundStation {
     /// altitude in `frame` (NaN: keep).
     fn reposition(
         &mut self,
-        c: Command,
+        c: CommandMessage,
         global: Option<(i32, i32)>,
         frame: MavFrame,
         to: AckTo,
@@ -310,7 +310,7 @@ impl GroundStation {
 
     /// A command: answered here, or passed to the vehicle (answered through
     /// [`GroundStation::answered`]).
-    fn command(&mut self, c: Command, to: AckTo, t: &Telemetry, out: &mut Outbox) {
+    fn command(&mut self, c: CommandMessage, to: AckTo, t: &Telemetry, out: &mut Outbox) {
         let p = c.p;
         let deny = |this: &Self, out: &mut Outbox, why: &str| {
             out.send(this.ack(to, MavResult::MAV_RESULT_DENIED));
@@ -494,16 +494,16 @@ impl GroundStation {
                 // MAV_PFS_CMD: 0 read, 1 write, 2 clear (reset to defaults), 6 nothing.
                 match p[0] {
                     0.0 | 2.0 if armed => deny(self, out, "parameters: disarm first"),
-                    0.0 => out.actions.push(Action::ReloadParams(to)),
+                    0.0 => out.actions.push(HostAction::ReloadParams(to)),
                     1.0 => {
-                        out.actions.push(Action::SaveParams);
+                        out.actions.push(HostAction::SaveParams);
                         out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED));
                     }
                     2.0 => {
                         let base = self.base_params.clone();
                         self.params.reset(&base);
-                        out.actions.push(Action::ParamsChanged);
-                        out.actions.push(Action::SaveParams);
+                        out.actions.push(HostAction::ParamsChanged);
+                        out.actions.push(HostAction::SaveParams);
                         out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED));
                         out.say(
                             MavSeverity::MAV_SEVERITY_INFO,
@@ -518,8 +518,8 @@ impl GroundStation {
                 let armed = t.status.is_some_and(|s| s.armed);
                 let action = match p[0] {
                     0.0 => None,
-                    1.0 => Some(Action::Reboot),
-                    2.0 => Some(Action::Shutdown),
+                    1.0 => Some(HostAction::Reboot),
+                    2.0 => Some(HostAction::Shutdown),
                     x => {
                         return deny(self, out, &format!("reboot: param1 {x} not supported"));
                     }
@@ -527,7 +527,7 @@ impl GroundStation {
                 if armed && action.is_some() {
                     return deny(self, out, "reboot: disarm first");
                 }
-                if action == Some(Action::Reboot) && !self.reboot_allowed {
+                if action == Some(HostAction::Reboot) && !self.reboot_allowed {
                     return deny(
                         self,
                         out,
@@ -537,7 +537,7 @@ impl GroundStation {
                 out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED));
                 if let Some(a) = action {
                     out.actions.push(a);
-                    let what = if a == Action::Reboot {
+                    let what = if a == HostAction::Reboot {
                         "rebooting"
                     } else {
                         "shutting down"

@@ -23,7 +23,7 @@ use crate::control_loop::Telemetry;
 use flight_core::autopilot::command::AutopilotCommand;
 use flight_core::commander::{CommanderStatus, FlightMode, LandedState, OffboardTarget, Sticks};
 use flight_core::params::FlightParams;
-use flight_core::safety::failsafe::{Action as FailsafeAction, SafetyEvent};
+use flight_core::safety::failsafe::{FailsafeAction, SafetyEvent};
 use mavlink::MessageData;
 use mavlink::dialects::common::*;
 use params::Parameters;
@@ -85,7 +85,7 @@ pub struct AckTo {
 
 /// Work for the links' task that is not a message: I/O and the process.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Action {
+pub enum HostAction {
     /// The parameter values changed: hand [`GroundStation::parameters`] to the control loop.
     ParamsChanged,
     /// The parameter store changed: save it.
@@ -106,7 +106,7 @@ pub struct Outbox {
     /// Commands for the control loop; each answer comes back to [`GroundStation::answered`].
     pub vehicle: Vec<(AutopilotCommand, AckTo)>,
     /// Other work, in order.
-    pub actions: Vec<Action>,
+    pub actions: Vec<HostAction>,
     /// The latest stick positions (`MANUAL_CONTROL`), for the control loop; never answered.
     pub sticks: Option<Sticks>,
     /// The latest offboard set-point, for the control loop; never answered.
@@ -171,7 +171,7 @@ struct Stream {
 /// A command as both `COMMAND_LONG` and `COMMAND_INT` carry it: params 5–7 are floats here
 /// (`COMMAND_INT`'s x and y arrive as degrees, its z as it is).
 #[derive(Debug, Clone, Copy, PartialEq)]
-struct Command {
+struct CommandMessage {
     command: MavCmd,
     p: [f32; 7],
 }
@@ -298,7 +298,7 @@ impl GroundStation {
                     out.say(MavSeverity::MAV_SEVERITY_WARNING, w);
                 }
                 self.params.replace(l.params, l.store);
-                out.actions.push(Action::ParamsChanged);
+                out.actions.push(HostAction::ParamsChanged);
                 out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED));
             }
             Err(e) => {

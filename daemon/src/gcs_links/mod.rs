@@ -27,7 +27,7 @@ pub use endpoint::EndpointSpec;
 use crate::control_loop::{LoopCommand, Telemetry};
 use crate::gcs::params::Parameters;
 use crate::gcs::signing::{SecretKey, Signing};
-use crate::gcs::{AckTo, Action, COMPONENT_ID, GroundStation, Outbox, Outgoing};
+use crate::gcs::{AckTo, COMPONENT_ID, GroundStation, HostAction, Outbox, Outgoing};
 use crate::records::log_files::Tlog;
 use crate::records::param_store::{Loaded, ParamStore};
 use anyhow::Result;
@@ -178,7 +178,7 @@ async fn saver(mut stores: watch::Receiver<Option<ParamStore>>, notices: Notices
 /// arrives, streams telemetry, passes vehicle commands and parameters to the control loop and
 /// saves the parameter store. Returns the reboot or shutdown a ground station asked for, once
 /// the store is saved.
-pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<Action> {
+pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<HostAction> {
     let Vehicle {
         system_id,
         mav_type,
@@ -306,7 +306,7 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<Actio
                     Ok(Ok(r)) => r,
                     _ => Err("the control loop did not answer".into()),
                 };
-                let _ = answers.send((to, result)).await;
+                let _ = answers.send((to, result.map_err(|d| d.0))).await;
             });
         }
         if std::mem::take(&mut out.gcs_heartbeat) {
@@ -349,13 +349,13 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<Actio
         }
         for action in std::mem::take(&mut out.actions) {
             match action {
-                Action::ParamsChanged => {
+                HostAction::ParamsChanged => {
                     params.send_replace(gcs.parameters().values().clone());
                 }
-                Action::SaveParams => {
+                HostAction::SaveParams => {
                     save_tx.send_replace(Some(gcs.parameters().store().clone()));
                 }
-                Action::ReloadParams(to) => {
+                HostAction::ReloadParams(to) => {
                     let loaded = match gcs.parameters().store().path() {
                         Some(path) => ParamStore::load(path, gcs.base_parameters())
                             .map_err(|e| format!("{e:#}")),
@@ -369,7 +369,7 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<Actio
                     gcs.params_reloaded(to, loaded, &mut out);
                     params.send_replace(gcs.parameters().values().clone());
                 }
-                Action::Reboot | Action::Shutdown => {
+                HostAction::Reboot | HostAction::Shutdown => {
                     exit = Some(action);
                     // Disarmed (checked before): the loop may stop at once.
                     let _ = commands.try_send(LoopCommand::Stop);

@@ -18,7 +18,7 @@ use sitl_core::Airframe;
 use sitl_core::environment::WindConfig;
 use sitl_core::rng::Rng;
 use sitl_core::sensors::{SensorConfig, SensorHealth, SensorKind, SensorPreset};
-use sitl_core::sim::{Action, Event, SimConfig};
+use sitl_core::sim::{Event, SimAction, SimConfig};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU32, Ordering};
@@ -155,7 +155,7 @@ impl RunPlan {
                     format!("motor {} at {:.0} %", index + 1, 100.0 * effectiveness),
                     vec![at(
                         t,
-                        Action::MotorEffectiveness {
+                        SimAction::MotorEffectiveness {
                             index,
                             effectiveness,
                         },
@@ -166,7 +166,7 @@ impl RunPlan {
                 let index = (rng.uniform() * rotors as f64) as usize % rotors;
                 (
                     format!("motor {} off", index + 1),
-                    vec![at(t, Action::MotorFail { index })],
+                    vec![at(t, SimAction::MotorFail { index })],
                 )
             }
             FaultKind::Gps => {
@@ -174,8 +174,8 @@ impl RunPlan {
                 (
                     format!("fix lost {d:.1} s"),
                     vec![
-                        at(t, Action::GpsFixLost(true)),
-                        at(t + d, Action::GpsFixLost(false)),
+                        at(t, SimAction::GpsFixLost(true)),
+                        at(t + d, SimAction::GpsFixLost(false)),
                     ],
                 )
             }
@@ -187,14 +187,14 @@ impl RunPlan {
                 (
                     format!("{size:.2} G for {d:.1} s"),
                     vec![
-                        at(t, Action::MagDisturbance(field)),
-                        at(t + d, Action::MagDisturbance(Vector3::zeros())),
+                        at(t, SimAction::MagDisturbance(field)),
+                        at(t + d, SimAction::MagDisturbance(Vector3::zeros())),
                     ],
                 )
             }
             FaultKind::Baro => {
                 let d = between(&mut rng, 2.0, 10.0);
-                let health = |health| Action::Sensor {
+                let health = |health| SimAction::Sensor {
                     sensor: SensorKind::Baro,
                     health,
                 };
@@ -213,7 +213,7 @@ impl RunPlan {
                     format!("{peak:.1} m/s over {d:.1} s"),
                     vec![at(
                         t,
-                        Action::Gust {
+                        SimAction::Gust {
                             peak_ned_m_s: horizontal(&mut rng, peak),
                             duration_s: d,
                         },
@@ -224,7 +224,7 @@ impl RunPlan {
                 "stuck".into(),
                 vec![at(
                     t,
-                    Action::Sensor {
+                    SimAction::Sensor {
                         sensor: SensorKind::Imu,
                         health: SensorHealth::Stuck,
                     },

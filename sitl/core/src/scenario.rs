@@ -31,7 +31,7 @@ use crate::body::{BodyState, Integrator};
 use crate::environment::WindConfig;
 use crate::geo::Geodetic;
 use crate::sensors::{EarthField, SensorConfig, SensorHealth, SensorKind, SensorPreset};
-use crate::sim::{Action, Event, SimConfig};
+use crate::sim::{Event, SimAction, SimConfig};
 use ::airframe::config::{Checker, ConfigError, parse_toml, read_toml};
 use nalgebra::{UnitQuaternion, Vector3};
 use serde::Deserialize;
@@ -400,11 +400,11 @@ pub fn resolve_airframe(name: &str, base: &Path, dir: &Path) -> PathBuf {
 
 fn resolve_event(c: &mut Checker, i: usize, e: &EventFile, out: &mut Vec<Event>) {
     let key = format!("events[{i}]");
-    let mut push = |t_s: f64, action: Action| out.push(Event { t_s, action });
+    let mut push = |t_s: f64, action: SimAction| out.push(Event { t_s, action });
     let restore = |c: &mut Checker,
                    t_s: f64,
                    duration: Option<f64>,
-                   action: Action,
+                   action: SimAction,
                    out_restore: &mut Vec<Event>| {
         if let Some(d) = duration {
             c.positive(format!("{key}.duration_s"), d);
@@ -419,7 +419,7 @@ fn resolve_event(c: &mut Checker, i: usize, e: &EventFile, out: &mut Vec<Event>)
         EventFile::MotorFail { t_s, motor } => {
             push(
                 *t_s,
-                Action::MotorFail {
+                SimAction::MotorFail {
                     index: motor.saturating_sub(1),
                 },
             );
@@ -433,7 +433,7 @@ fn resolve_event(c: &mut Checker, i: usize, e: &EventFile, out: &mut Vec<Event>)
             c.within(format!("{key}.effectiveness"), *effectiveness, 0.0, 1.0);
             push(
                 *t_s,
-                Action::MotorEffectiveness {
+                SimAction::MotorEffectiveness {
                     index: motor.saturating_sub(1),
                     effectiveness: *effectiveness,
                 },
@@ -443,7 +443,7 @@ fn resolve_event(c: &mut Checker, i: usize, e: &EventFile, out: &mut Vec<Event>)
         EventFile::MotorRestore { t_s, motor } => {
             push(
                 *t_s,
-                Action::MotorRestore {
+                SimAction::MotorRestore {
                     index: motor.saturating_sub(1),
                 },
             );
@@ -466,7 +466,7 @@ fn resolve_event(c: &mut Checker, i: usize, e: &EventFile, out: &mut Vec<Event>)
             };
             push(
                 *t_s,
-                Action::Sensor {
+                SimAction::Sensor {
                     sensor: *sensor,
                     health,
                 },
@@ -475,7 +475,7 @@ fn resolve_event(c: &mut Checker, i: usize, e: &EventFile, out: &mut Vec<Event>)
                 c,
                 *t_s,
                 *duration_s,
-                Action::Sensor {
+                SimAction::Sensor {
                     sensor: *sensor,
                     health: SensorHealth::Ok,
                 },
@@ -484,8 +484,14 @@ fn resolve_event(c: &mut Checker, i: usize, e: &EventFile, out: &mut Vec<Event>)
             *t_s
         }
         EventFile::GpsFixLoss { t_s, duration_s } => {
-            push(*t_s, Action::GpsFixLost(true));
-            restore(c, *t_s, *duration_s, Action::GpsFixLost(false), &mut later);
+            push(*t_s, SimAction::GpsFixLost(true));
+            restore(
+                c,
+                *t_s,
+                *duration_s,
+                SimAction::GpsFixLost(false),
+                &mut later,
+            );
             *t_s
         }
         EventFile::MagDisturbance {
@@ -496,13 +502,13 @@ fn resolve_event(c: &mut Checker, i: usize, e: &EventFile, out: &mut Vec<Event>)
             c.finite(format!("{key}.field_ned_gauss"), field_ned_gauss);
             push(
                 *t_s,
-                Action::MagDisturbance(Vector3::from(*field_ned_gauss)),
+                SimAction::MagDisturbance(Vector3::from(*field_ned_gauss)),
             );
             restore(
                 c,
                 *t_s,
                 *duration_s,
-                Action::MagDisturbance(Vector3::zeros()),
+                SimAction::MagDisturbance(Vector3::zeros()),
                 &mut later,
             );
             *t_s
@@ -516,7 +522,7 @@ fn resolve_event(c: &mut Checker, i: usize, e: &EventFile, out: &mut Vec<Event>)
             c.positive(format!("{key}.duration_s"), *duration_s);
             push(
                 *t_s,
-                Action::ForcePulse {
+                SimAction::ForcePulse {
                     force_ned_n: Vector3::from(*force_ned_n),
                     duration_s: *duration_s,
                 },
@@ -532,7 +538,7 @@ fn resolve_event(c: &mut Checker, i: usize, e: &EventFile, out: &mut Vec<Event>)
             c.positive(format!("{key}.duration_s"), *duration_s);
             push(
                 *t_s,
-                Action::TorquePulse {
+                SimAction::TorquePulse {
                     torque_frd_n_m: Vector3::from(*torque_frd_n_m),
                     duration_s: *duration_s,
                 },
@@ -548,7 +554,7 @@ fn resolve_event(c: &mut Checker, i: usize, e: &EventFile, out: &mut Vec<Event>)
             c.positive(format!("{key}.duration_s"), *duration_s);
             push(
                 *t_s,
-                Action::Gust {
+                SimAction::Gust {
                     peak_ned_m_s: Vector3::from(*peak_ned_m_s),
                     duration_s: *duration_s,
                 },
@@ -569,7 +575,7 @@ fn resolve_event(c: &mut Checker, i: usize, e: &EventFile, out: &mut Vec<Event>)
             );
             push(
                 *t_s,
-                Action::Wind {
+                SimAction::Wind {
                     mean_ned_m_s: Vector3::from(*mean_ned_m_s),
                     turbulence_w20_m_s: *turbulence_w20_m_s,
                 },
@@ -580,7 +586,7 @@ fn resolve_event(c: &mut Checker, i: usize, e: &EventFile, out: &mut Vec<Event>)
             c.positive(format!("{key}.duration_s"), *duration_s);
             push(
                 *t_s,
-                Action::Tumble {
+                SimAction::Tumble {
                     duration_s: *duration_s,
                 },
             );

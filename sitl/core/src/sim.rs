@@ -14,7 +14,7 @@ use crate::rng::Rng;
 use crate::sensors::{EarthField, SensorConfig, SensorFrame, SensorSuite, Truth};
 use nalgebra::{DVector, UnitQuaternion, Vector3};
 
-pub use events::{Action, Event, SET_DOWN_S, TUMBLE_RAMP_S, tumble_attitude};
+pub use events::{Event, SET_DOWN_S, SimAction, TUMBLE_RAMP_S, tumble_attitude};
 use events::{Pulse, Tumble};
 
 /// How the simulation is set up.

@@ -168,7 +168,7 @@ impl Autopilot {
                 Ok(())
             }
             AutopilotCommand::InjectFailure(_) if !self.injection_enabled => {
-                Err(Refusal::Disabled.to_string())
+                Err(Refusal::Disabled.to_string().into())
             }
             AutopilotCommand::InjectFailure(i) => {
                 let said = self.injected.inject(i).map_err(|e| e.to_string())?;

@@ -23,7 +23,8 @@ impl Commander {
                     return Err(format!(
                         "arming refused: {} needs manual control (MANUAL_CONTROL)",
                         self.mode.name()
-                    ));
+                    )
+                    .into());
                 };
                 if s.throttle > 0.5 + self.flight.params.stick_deadzone && !force {
                     return Err("arming refused: throttle stick above centre".into());
@@ -34,7 +35,8 @@ impl Commander {
                     return Err(format!(
                         "arming refused: {} needs manual control (MANUAL_CONTROL)",
                         self.mode.name()
-                    ));
+                    )
+                    .into());
                 };
                 // The throttle is the thrust here: arming with it up would leap.
                 if s.throttle > LOW_THROTTLE && !force {
@@ -50,7 +52,8 @@ impl Commander {
                 return Err(format!(
                     "arming refused: not in a mode to start in ({})",
                     self.mode.name()
-                ));
+                )
+                .into());
             }
         }
         let Some(i) = self.last else {
@@ -63,7 +66,7 @@ impl Commander {
                 1 => String::new(),
                 n => format!(" (and {} more)", n - 1),
             };
-            return Err(format!("arming refused: {}{more}", first.text));
+            return Err(format!("arming refused: {}{more}", first.text).into());
         }
         let f = &mut self.flight;
         f.armed = true;

@@ -6,7 +6,7 @@ use super::hold::Hold;
 use super::line::Line;
 use super::task::Task;
 use super::{Commander, CommanderInput, FlightMode, LandedState};
-use crate::safety::failsafe::{Action, SafetyInput};
+use crate::safety::failsafe::{FailsafeAction, SafetyInput};
 use nalgebra::Vector3;
 
 impl Commander {
@@ -51,8 +51,8 @@ impl Commander {
             return;
         }
         match d.action {
-            Action::None | Action::Warn => {}
-            Action::Hold if self.flight.landed == LandedState::InAir => {
+            FailsafeAction::None | FailsafeAction::Warn => {}
+            FailsafeAction::Hold if self.flight.landed == LandedState::InAir => {
                 // Stop firmly: a braking profile at MPC_ACC_FS_BRK from the present speed
                 // (its velocity and deceleration fed forward), then hold where it ends.
                 let v = Vector3::new(i.vel_ned_m_s.x, i.vel_ned_m_s.y, 0.0);
@@ -64,13 +64,13 @@ impl Commander {
                 let hold = Hold::after(line, (stop, yaw));
                 self.enter_with(FlightMode::Loiter, Task::Hold(hold));
             }
-            Action::Hold => self.enter(FlightMode::Loiter),
-            Action::Return => self.enter(FlightMode::Rtl),
-            Action::Land => self.enter(FlightMode::Land),
-            Action::Descend => {
+            FailsafeAction::Hold => self.enter(FlightMode::Loiter),
+            FailsafeAction::Return => self.enter(FlightMode::Rtl),
+            FailsafeAction::Land => self.enter(FlightMode::Land),
+            FailsafeAction::Descend => {
                 self.sensors_stopped();
             }
-            Action::Disarm | Action::Terminate => self.disarmed(),
+            FailsafeAction::Disarm | FailsafeAction::Terminate => self.disarmed(),
         }
     }
 }

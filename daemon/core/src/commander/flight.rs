@@ -86,7 +86,7 @@ impl Flight {
     ) -> Result<(), Denial> {
         let speed_m_s = match change {
             SpeedChange::To(s) if s.is_finite() && s > 0.0 => Some(s),
-            SpeedChange::To(s) => return Err(format!("speed {s} m/s refused")),
+            SpeedChange::To(s) => return Err(format!("speed {s} m/s refused").into()),
             SpeedChange::Default => None,
             SpeedChange::Unchanged => return Ok(()),
         };

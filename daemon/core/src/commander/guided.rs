@@ -38,7 +38,7 @@ impl Commander {
         let run = &mut self.flight.mission;
         let n = run.items.len();
         if seq as usize >= n {
-            return Err(format!("mission item {seq} does not exist ({n} items)"));
+            return Err(format!("mission item {seq} does not exist ({n} items)").into());
         }
         run.restart();
         run.current = seq as usize;

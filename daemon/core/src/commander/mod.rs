@@ -25,7 +25,9 @@ pub use params::{COMMANDER_META, CommanderParams};
 use crate::control::Setpoint;
 use crate::control::position::PositionSetpoint;
 use crate::mission::MissionStatus;
-use crate::safety::failsafe::{Action, Condition, Safety, SafetyEvent, SafetyLog, SafetyParams};
+use crate::safety::failsafe::{
+    Condition, FailsafeAction, Safety, SafetyEvent, SafetyLog, SafetyParams,
+};
 use flight::{Flight, Tick, brake_point, hold_setpoint, spooled};
 use nalgebra::Vector3;
 use task::Task;
@@ -99,7 +101,30 @@ pub enum LandedState {
 }
 
 /// Why a command was refused, in words for the operator (`STATUSTEXT`).
-pub type Denial = String;
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct Denial(pub String);
+
+impl From<String> for Denial {
+    fn from(s: String) -> Self {
+        Self(s)
+    }
+}
+
+impl std::ops::Deref for Denial {
+    type Target = str;
+
+    /// The words, to show or search.
+    fn deref(&self) -> &str {
+        &self.0
+    }
+}
+
+impl From<&str> for Denial {
+    fn from(s: &str) -> Self {
+        Self(s.to_owned())
+    }
+}
 
 /// The commander's state as telemetry shows it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -115,7 +140,7 @@ pub struct CommanderStatus {
     /// A failsafe is flying the vehicle.
     pub failsafe: bool,
     /// The failsafe's action and the condition behind it, while one acts (a warning included).
-    pub failsafe_action: Option<(Action, Condition)>,
+    pub failsafe_action: Option<(FailsafeAction, Condition)>,
     /// The estimator can be flown on.
     pub ready: bool,
     /// Time in the current mode (s).
@@ -163,7 +188,7 @@ pub struct Commander {
     /// The failsafe state machine.
     safety: Safety,
     /// Its last decision's action and cause.
-    failsafe: (Action, Option<Condition>),
+    failsafe: (FailsafeAction, Option<Condition>),
     /// Every arming check passed at the last update (checked there once, not per status read).
     prearm_ok: bool,
     /// What it said since the caller last asked.
@@ -188,7 +213,7 @@ impl Commander {
             offboard: None,
             offboard_losses: 0,
             safety: Safety::new(SafetyParams::default()),
-            failsafe: (Action::None, None),
+            failsafe: (FailsafeAction::None, None),
             prearm_ok: false,
             safety_events: Vec::new(),
             safety_log: SafetyLog::default(),
@@ -248,9 +273,9 @@ impl Commander {
             mode: self.mode,
             landed: f.landed,
             home: f.home,
-            failsafe: self.mode == FlightMode::Descend || self.failsafe.0 > Action::Warn,
+            failsafe: self.mode == FlightMode::Descend || self.failsafe.0 > FailsafeAction::Warn,
             failsafe_action: match self.failsafe {
-                (a, Some(c)) if a > Action::None => Some((a, c)),
+                (a, Some(c)) if a > FailsafeAction::None => Some((a, c)),
                 _ => None,
             },
             ready: self.ready(),
@@ -360,10 +385,10 @@ impl Commander {
         if self.mode == FlightMode::Descend && self.flight.armed {
             return Err("mode change refused: failsafe descent in progress".into());
         }
-        if self.flight.armed && self.failsafe.0 > Action::Warn {
+        if self.flight.armed && self.failsafe.0 > FailsafeAction::Warn {
             // The operator takes over (refused while a failsafe allows none).
             self.safety.take_over()?;
-            self.failsafe = (Action::None, None);
+            self.failsafe = (FailsafeAction::None, None);
         }
         match mode {
             FlightMode::Takeoff | FlightMode::Loiter | FlightMode::Land => {}
@@ -380,7 +405,8 @@ impl Commander {
                     return Err(format!(
                         "{} refused: no manual control (MANUAL_CONTROL)",
                         mode.name()
-                    ));
+                    )
+                    .into());
                 }
             }
             FlightMode::Offboard => {
@@ -388,7 +414,8 @@ impl Commander {
                     return Err(format!(
                         "OFFBOARD refused: no set-point stream in the last {} s (COM_OF_LOSS_T)",
                         self.flight.params.offboard_loss_s
-                    ));
+                    )
+                    .into());
                 }
             }
             FlightMode::Mission => self.mission_entry()?,
@@ -410,9 +437,7 @@ impl Commander {
     pub fn takeoff(&mut self, alt_above_home_m: Option<f64>) -> Result<(), Denial> {
         let alt = alt_above_home_m.unwrap_or(self.flight.params.takeoff_alt_m);
         if !(alt.is_finite() && alt > 0.0) {
-            return Err(format!(
-                "take-off refused: altitude {alt} m is not above home"
-            ));
+            return Err(format!("take-off refused: altitude {alt} m is not above home").into());
         }
         if self.mode != FlightMode::Takeoff {
             self.set_mode(FlightMode::Takeoff)?;

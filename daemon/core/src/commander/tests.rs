@@ -757,7 +757,7 @@ fn with(t: f64, f: impl Fn(&mut Health)) -> CommanderInput {
 /// operator takes over with a mode change; each change is said once.
 #[test]
 fn link_loss_holds_then_returns_and_the_operator_can_take_over() {
-    use crate::safety::failsafe::{Action, Condition, SafetyEvent, SafetyParams};
+    use crate::safety::failsafe::{Condition, FailsafeAction, SafetyEvent, SafetyParams};
     let mut c = hovering(SafetyParams {
         gcs_loss_action: 2,
         ..SafetyParams::default()
@@ -770,11 +770,14 @@ fn link_loss_holds_then_returns_and_the_operator_can_take_over() {
     assert_eq!(c.mode(), FlightMode::Loiter, "Hold first");
     assert_eq!(
         c.status().failsafe_action,
-        Some((Action::Hold, Condition::GcsLinkLost))
+        Some((FailsafeAction::Hold, Condition::GcsLinkLost))
     );
     assert_eq!(
         c.take_safety_events(),
-        [SafetyEvent::Triggered(Condition::GcsLinkLost, Action::Hold)]
+        [SafetyEvent::Triggered(
+            Condition::GcsLinkLost,
+            FailsafeAction::Hold
+        )]
     );
     step(&mut c, &with(12.1, |h| h.gcs_link_age_s = Some(10.6)));
     assert_eq!(c.mode(), FlightMode::Rtl, "then Return");
@@ -830,7 +833,7 @@ fn battery_emergency_lands_and_crash_disarms() {
 /// `GF_MAX_HOR_DIST` / `GF_MAX_VER_DIST` from home: Hold (`GF_ACTION` 2) on the breach.
 #[test]
 fn the_distance_and_height_fences_hold_the_vehicle() {
-    use crate::safety::failsafe::{Action, Condition, SafetyParams};
+    use crate::safety::failsafe::{Condition, FailsafeAction, SafetyParams};
     let mut c = hovering(SafetyParams {
         fence_max_horizontal_m: 20.0,
         fence_max_vertical_m: 15.0,
@@ -859,7 +862,7 @@ fn the_distance_and_height_fences_hold_the_vehicle() {
         (c.mode(), c.status().failsafe_action),
         (
             FlightMode::Loiter,
-            Some((Action::Hold, Condition::GeofenceBreach))
+            Some((FailsafeAction::Hold, Condition::GeofenceBreach))
         )
     );
 }

@@ -1,4 +1,4 @@
-//! The failsafe state machine, as PX4's framework. Each [`Condition`] has a rule: its [`Action`]
+//! The failsafe state machine, as PX4's framework. Each [`Condition`] has a rule: its [`FailsafeAction`]
 //! (from a parameter), when it clears (when the condition goes away, or only at disarm), and
 //! whether the operator may take over with a mode change. Several at once: the most severe
 //! action wins. An action the vehicle cannot fly is degraded (Return without a home or a
@@ -11,7 +11,7 @@ use std::fmt;
 
 /// What a failsafe does, in increasing severity (PX4's order).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
-pub enum Action {
+pub enum FailsafeAction {
     /// Nothing.
     None,
     /// A warning to the operator, flight unchanged.
@@ -30,7 +30,7 @@ pub enum Action {
     Terminate,
 }
 
-impl Action {
+impl FailsafeAction {
     /// Its name in messages.
     pub fn name(self) -> &'static str {
         match self {
@@ -156,7 +156,7 @@ pub enum Clear {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Rule {
     /// What it does.
-    pub action: Action,
+    pub action: FailsafeAction,
     /// When it stops.
     pub clear: Clear,
     /// The operator may take over with a mode change (which silences it until it clears).
@@ -221,52 +221,60 @@ impl SafetyParams {
         use Condition as C;
         let (action, clear, takeover, delayed) = match c {
             C::GcsLinkLost => (
-                Action::from_nav_dll_act(self.gcs_loss_action),
+                FailsafeAction::from_nav_dll_act(self.gcs_loss_action),
                 Clear::WhenConditionClears,
                 true,
                 true,
             ),
-            C::BatteryLow => (Action::Warn, Clear::OnDisarm, true, false),
+            C::BatteryLow => (FailsafeAction::Warn, Clear::OnDisarm, true, false),
             C::BatteryCritical => {
                 let a = match self.low_battery_action {
-                    2 => Action::Land,
-                    3 | 4 => Action::Return,
-                    _ => Action::Warn,
+                    2 => FailsafeAction::Land,
+                    3 | 4 => FailsafeAction::Return,
+                    _ => FailsafeAction::Warn,
                 };
                 (a, Clear::OnDisarm, true, false)
             }
             C::BatteryEmergency => {
                 let a = match self.low_battery_action {
-                    2 | 3 => Action::Land,
-                    4 => Action::Terminate,
-                    _ => Action::Warn,
+                    2 | 3 => FailsafeAction::Land,
+                    4 => FailsafeAction::Terminate,
+                    _ => FailsafeAction::Warn,
                 };
                 (a, Clear::OnDisarm, false, false)
             }
             C::GeofenceBreach => (
-                Action::from_gf_action(self.geofence_action),
+                FailsafeAction::from_gf_action(self.geofence_action),
                 Clear::WhenConditionClears,
                 true,
                 false,
             ),
             C::AttitudeInvalid | C::AltitudeInvalid => {
-                (Action::Descend, Clear::OnDisarm, false, false)
+                (FailsafeAction::Descend, Clear::OnDisarm, false, false)
             }
             // Without a position the vehicle descends; a mode that needs none (the sticks
             // flying attitude or altitude) is the operator's way out.
-            C::PositionInvalid => (Action::Descend, Clear::WhenConditionClears, true, false),
+            C::PositionInvalid => (
+                FailsafeAction::Descend,
+                Clear::WhenConditionClears,
+                true,
+                false,
+            ),
             // What a lost sensor costs shows in the estimate's validity; the loss itself warns.
-            C::ImuLost | C::MagLost | C::BaroLost | C::GpsLost => {
-                (Action::Warn, Clear::WhenConditionClears, true, false)
-            }
-            C::Crash => (Action::Disarm, Clear::OnDisarm, false, false),
+            C::ImuLost | C::MagLost | C::BaroLost | C::GpsLost => (
+                FailsafeAction::Warn,
+                Clear::WhenConditionClears,
+                true,
+                false,
+            ),
+            C::Crash => (FailsafeAction::Disarm, Clear::OnDisarm, false, false),
             C::MotorFailure => {
                 let a = match self.motor_failure_action {
-                    1 => Action::Hold,
-                    2 => Action::Land,
-                    3 => Action::Return,
-                    4 => Action::Terminate,
-                    _ => Action::Warn,
+                    1 => FailsafeAction::Hold,
+                    2 => FailsafeAction::Land,
+                    3 => FailsafeAction::Return,
+                    4 => FailsafeAction::Terminate,
+                    _ => FailsafeAction::Warn,
                 };
                 (a, Clear::OnDisarm, true, false)
             }
@@ -344,17 +352,17 @@ pub struct SafetyInput {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SafetyEvent {
     /// The condition began, acting with this action (after degradation).
-    Triggered(Condition, Action),
+    Triggered(Condition, FailsafeAction),
     /// The condition is over.
     Cleared(Condition),
     /// A delayed action's hold is over: the action begins.
-    Escalated(Condition, Action),
+    Escalated(Condition, FailsafeAction),
 }
 
 impl fmt::Display for SafetyEvent {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            Self::Triggered(c, Action::Warn | Action::None) => write!(f, "{c}"),
+            Self::Triggered(c, FailsafeAction::Warn | FailsafeAction::None) => write!(f, "{c}"),
             Self::Triggered(c, a) => write!(f, "failsafe: {c}: {}", a.name()),
             Self::Cleared(Condition::GcsLinkLost) => write!(f, "ground-station link regained"),
             Self::Cleared(c) => write!(f, "failsafe over: {c}"),
@@ -396,8 +404,8 @@ impl SafetyLog {
 /// What the machine decided this step.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SafetyDecision {
-    /// What the vehicle must do now (`Action::None`: fly as the operator asked).
-    pub action: Action,
+    /// What the vehicle must do now (`FailsafeAction::None`: fly as the operator asked).
+    pub action: FailsafeAction,
     /// The condition behind it.
     pub cause: Option<Condition>,
     /// What changed, for the operator.
@@ -476,12 +484,12 @@ impl Safety {
     /// The operator asks for a mode change while failsafes act. Refused (with the reason) while
     /// a condition that allows no take-over acts; otherwise the acting conditions are overridden
     /// (silent until they clear and trigger anew).
-    pub fn take_over(&mut self) -> Result<(), String> {
+    pub fn take_over(&mut self) -> Result<(), crate::commander::Denial> {
         if let Some(c) = self.active().into_iter().find(|&c| {
             let rule = self.params.rule(c);
-            !rule.takeover && rule.action > Action::Warn
+            !rule.takeover && rule.action > FailsafeAction::Warn
         }) {
-            return Err(format!("mode change refused: failsafe in progress ({c})"));
+            return Err(format!("mode change refused: failsafe in progress ({c})").into());
         }
         for t in self.tracked.iter_mut().filter(|t| t.since_s.is_some()) {
             t.overridden = true;
@@ -528,17 +536,24 @@ impl Safety {
     }
 
     /// What the vehicle can fly instead of `a` with what it knows now.
-    fn degrade(a: Action, i: &SafetyInput) -> Action {
+    fn degrade(a: FailsafeAction, i: &SafetyInput) -> FailsafeAction {
         let mut a = a;
-        if a == Action::Return && !(i.home_set && i.position_valid && i.altitude_valid) {
-            a = Action::Land;
+        if a == FailsafeAction::Return && !(i.home_set && i.position_valid && i.altitude_valid) {
+            a = FailsafeAction::Land;
         }
-        if matches!(a, Action::Hold | Action::Land) && !(i.position_valid && i.altitude_valid) {
-            a = Action::Descend;
+        if matches!(a, FailsafeAction::Hold | FailsafeAction::Land)
+            && !(i.position_valid && i.altitude_valid)
+        {
+            a = FailsafeAction::Descend;
         }
-        if !i.in_air && matches!(a, Action::Return | Action::Land | Action::Descend) {
+        if !i.in_air
+            && matches!(
+                a,
+                FailsafeAction::Return | FailsafeAction::Land | FailsafeAction::Descend
+            )
+        {
             // On the ground already: stop the motors.
-            a = Action::Disarm;
+            a = FailsafeAction::Disarm;
         }
         a
     }
@@ -547,7 +562,7 @@ impl Safety {
     pub fn update(&mut self, i: &SafetyInput) -> SafetyDecision {
         let now = self.conditions_now(i);
         let mut events = Vec::new();
-        let (mut action, mut cause) = (Action::None, None);
+        let (mut action, mut cause) = (FailsafeAction::None, None);
         for (k, &c) in CONDITIONS.iter().enumerate() {
             let rule = self.params.rule(c);
             let t = &mut self.tracked[k];
@@ -568,12 +583,14 @@ impl Safety {
             }
             // Triggering: only armed, except the warnings (a low battery on the ground is news).
             if t.since_s.is_none() {
-                if rule.action == Action::None || (!i.armed && rule.action > Action::Warn) {
+                if rule.action == FailsafeAction::None
+                    || (!i.armed && rule.action > FailsafeAction::Warn)
+                {
                     continue;
                 }
                 t.since_s = Some(i.t_s);
                 let first = if rule.delayed && self.params.action_delay_s > 0.0 {
-                    Action::Hold.min(rule.action)
+                    FailsafeAction::Hold.min(rule.action)
                 } else {
                     rule.action
                 };
@@ -585,8 +602,8 @@ impl Safety {
             let since = t.since_s.unwrap_or(i.t_s);
             let mut a = rule.action;
             if rule.delayed && i.t_s - since < self.params.action_delay_s {
-                a = a.min(Action::Hold);
-            } else if rule.delayed && a > Action::Hold && !t.escalated {
+                a = a.min(FailsafeAction::Hold);
+            } else if rule.delayed && a > FailsafeAction::Hold && !t.escalated {
                 t.escalated = true;
                 if self.params.action_delay_s > 0.0 {
                     events.push(SafetyEvent::Escalated(c, Self::degrade(a, i)));
@@ -597,12 +614,12 @@ impl Safety {
                 cause = Some(c);
             }
         }
-        let action = if action > Action::Warn && i.armed {
+        let action = if action > FailsafeAction::Warn && i.armed {
             Self::degrade(action, i)
         } else {
-            action.min(Action::Warn)
+            action.min(FailsafeAction::Warn)
         };
-        if action == Action::Terminate {
+        if action == FailsafeAction::Terminate {
             self.terminated = true;
         }
         SafetyDecision {

@@ -4,8 +4,8 @@
 use super::failsafe::*;
 use super::preflight::*;
 use crate::sensors::mag_check::{MagField, MagStatus};
-use Action as A;
 use Condition as C;
+use FailsafeAction as A;
 use SafetyEvent as E;
 
 /// Armed, flying, every estimate valid, home set, the link fresh, a full battery.
@@ -32,11 +32,16 @@ fn flying() -> SafetyInput {
 struct Row {
     t_s: f64,
     change: fn(&mut SafetyInput),
-    action: Action,
+    action: FailsafeAction,
     events: Vec<SafetyEvent>,
 }
 
-fn row(t_s: f64, change: fn(&mut SafetyInput), action: Action, events: &[SafetyEvent]) -> Row {
+fn row(
+    t_s: f64,
+    change: fn(&mut SafetyInput),
+    action: FailsafeAction,
+    events: &[SafetyEvent],
+) -> Row {
     Row {
         t_s,
         change,

@@ -315,7 +315,7 @@ fn mission_and_guided_commands_reach_the_vehicle() {
 /// failsafe's start, change and end is announced once.
 #[test]
 fn gcs_heartbeats_are_forwarded_and_failsafes_announced() {
-    use flight_core::safety::failsafe::{Action, Condition, SafetyEvent};
+    use flight_core::safety::failsafe::{Condition, FailsafeAction, SafetyEvent};
     let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
     let mut t = telemetry(true, FlightMode::Loiter);
     let heartbeat = |mavtype| {
@@ -346,15 +346,18 @@ fn gcs_heartbeats_are_forwarded_and_failsafes_announced() {
     // crash that disarmed within the same step is said as surely as a battery running down.
     use SafetyEvent::{Cleared, Triggered};
     let steps: [&[SafetyEvent]; 5] = [
-        &[Triggered(Condition::BatteryLow, Action::Warn)],
-        &[Triggered(Condition::BatteryCritical, Action::Return)],
+        &[Triggered(Condition::BatteryLow, FailsafeAction::Warn)],
+        &[Triggered(
+            Condition::BatteryCritical,
+            FailsafeAction::Return,
+        )],
         &[],
         &[
-            Triggered(Condition::MagLost, Action::Warn),
+            Triggered(Condition::MagLost, FailsafeAction::Warn),
             Cleared(Condition::MagLost),
         ],
         &[
-            Triggered(Condition::Crash, Action::Disarm),
+            Triggered(Condition::Crash, FailsafeAction::Disarm),
             Cleared(Condition::Crash),
             Cleared(Condition::BatteryLow),
         ],
@@ -384,7 +387,7 @@ fn gcs_heartbeats_are_forwarded_and_failsafes_announced() {
     if let Some(st) = t.status.as_mut() {
         for _ in 0..10 {
             st.safety_log
-                .push(Triggered(Condition::MagLost, Action::Warn));
+                .push(Triggered(Condition::MagLost, FailsafeAction::Warn));
             st.safety_log.push(Cleared(Condition::MagLost));
         }
     }

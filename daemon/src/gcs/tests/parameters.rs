@@ -93,7 +93,10 @@ fn param_set_checks_type_and_value_and_always_answers_with_the_value_in_force() 
         0.1,
         "0.1, not 0.1f32's f64"
     );
-    assert_eq!(out.actions, [Action::ParamsChanged, Action::SaveParams]);
+    assert_eq!(
+        out.actions,
+        [HostAction::ParamsChanged, HostAction::SaveParams]
+    );
 
     let mut out = Outbox::default();
     g.on_message(
@@ -212,14 +215,17 @@ fn storage_reset_and_reboot_are_for_a_disarmed_vehicle() {
     assert_eq!(acks(&out)[0].result, MavResult::MAV_RESULT_ACCEPTED);
     assert_eq!(g.parameters().values(), &base, "back to the base values");
     assert_eq!(g.parameters().store().names().count(), 0);
-    assert_eq!(out.actions, [Action::ParamsChanged, Action::SaveParams]);
+    assert_eq!(
+        out.actions,
+        [HostAction::ParamsChanged, HostAction::SaveParams]
+    );
 
     let mut out = Outbox::default();
     g.on_message(&gcs_header(), &storage(0.0), &ground, &mut out);
     assert!(acks(&out).is_empty(), "acknowledged once the store is read");
-    assert!(matches!(out.actions[..], [Action::ReloadParams(_)]));
+    assert!(matches!(out.actions[..], [HostAction::ReloadParams(_)]));
 
-    for (p1, action) in [(1.0, Action::Reboot), (2.0, Action::Shutdown)] {
+    for (p1, action) in [(1.0, HostAction::Reboot), (2.0, HostAction::Shutdown)] {
         let mut out = Outbox::default();
         g.on_message(&gcs_header(), &reboot(p1), &ground, &mut out);
         assert_eq!(acks(&out)[0].result, MavResult::MAV_RESULT_ACCEPTED);
@@ -238,5 +244,5 @@ fn storage_reset_and_reboot_are_for_a_disarmed_vehicle() {
     assert!(out.actions.is_empty());
     let mut out = Outbox::default();
     g.on_message(&gcs_header(), &reboot(2.0), &ground, &mut out);
-    assert_eq!(out.actions, [Action::Shutdown]);
+    assert_eq!(out.actions, [HostAction::Shutdown]);
 }

@@ -33,7 +33,7 @@ fn a_run_is_drawn_from_its_own_stream_alone() {
         let t = p.fault_t_s.unwrap();
         assert!((3.5 + 2.0 + 1.0..=3.5 + 2.0 + 5.0).contains(&t), "{t}");
         assert!(!p.events.is_empty());
-        if let Action::MotorEffectiveness {
+        if let SimAction::MotorEffectiveness {
             index,
             effectiveness,
         } = p.events[0].action

@@ -68,17 +68,17 @@ fn a_full_scenario_resolves() {
         (s.initial.q_ned_from_frd.euler_angles().2 - std::f64::consts::FRAC_PI_2).abs() < 1e-12
     );
     // motor 6 is index 5; the GPS comes back after its duration.
-    assert_eq!(s.events[0].action, Action::MotorFail { index: 5 });
+    assert_eq!(s.events[0].action, SimAction::MotorFail { index: 5 });
     assert!(s.events.contains(&Event {
         t_s: 8.0,
-        action: Action::Sensor {
+        action: SimAction::Sensor {
             sensor: SensorKind::Gps,
             health: SensorHealth::Ok
         }
     }));
     assert!(s.events.contains(&Event {
         t_s: 12.0,
-        action: Action::Tumble { duration_s: 60.0 }
+        action: SimAction::Tumble { duration_s: 60.0 }
     }));
     // The script is sorted by time.
     assert_eq!(s.open_loop_at(0.5), Some(&OpenLoopCommand::Throttle(0.1)));

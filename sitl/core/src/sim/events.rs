@@ -8,7 +8,7 @@ use nalgebra::{UnitQuaternion, Vector3};
 
 /// Something that happens at a scheduled simulation time (scenario events, fault injection).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Action {
+pub enum SimAction {
     /// Motor `index` (0-based) stops turning.
     MotorFail {
         /// Rotor index.
@@ -80,7 +80,7 @@ pub const TUMBLE_RAMP_S: f64 = 2.0;
 /// How long setting the vehicle down level after a tumble takes (s).
 pub const SET_DOWN_S: f64 = 2.0;
 
-/// The hand's turns during an [`Action::Tumble`] of `duration_s`, `t` seconds in, from the
+/// The hand's turns during an [`SimAction::Tumble`] of `duration_s`, `t` seconds in, from the
 /// attitude it was picked up in: Euler angles growing at incommensurate rates (0.9, 0.37,
 /// 0.23 rad/s of roll, pitch and yaw), so that the body sweeps every orientation within about
 /// a minute, no faster than a person turns it; the rates rise from and fall to rest smoothly
@@ -115,11 +115,11 @@ pub struct Event {
     /// When (s of simulation time).
     pub t_s: f64,
     /// What.
-    pub action: Action,
+    pub action: SimAction,
 }
 
 #[derive(Debug, Clone, Copy)]
-/// A force or torque applied for a while (an [`Action::ForcePulse`] or [`Action::TorquePulse`]).
+/// A force or torque applied for a while (an [`SimAction::ForcePulse`] or [`SimAction::TorquePulse`]).
 pub(super) struct Pulse {
     pub(super) until_s: f64,
     pub(super) force_ned_n: Vector3<f64>,
@@ -130,9 +130,9 @@ impl Simulator {
     /// Schedules events (1-based motor numbers are already converted to indices).
     pub fn schedule(&mut self, events: &[Event]) -> Result<(), SimError> {
         for e in events {
-            if let Action::MotorFail { index }
-            | Action::MotorEffectiveness { index, .. }
-            | Action::MotorRestore { index } = e.action
+            if let SimAction::MotorFail { index }
+            | SimAction::MotorEffectiveness { index, .. }
+            | SimAction::MotorRestore { index } = e.action
                 && index >= self.rotors.len()
             {
                 return Err(SimError::Motor {
@@ -149,15 +149,15 @@ impl Simulator {
     }
 
     /// Applies an action now.
-    pub fn apply(&mut self, action: Action) {
+    pub fn apply(&mut self, action: SimAction) {
         let t = self.time_s();
         match action {
-            Action::MotorFail { index } => {
+            SimAction::MotorFail { index } => {
                 if let Some(f) = self.rotors.faults.get_mut(index) {
                     f.failed = true;
                 }
             }
-            Action::MotorEffectiveness {
+            SimAction::MotorEffectiveness {
                 index,
                 effectiveness,
             } => {
@@ -165,15 +165,15 @@ impl Simulator {
                     f.effectiveness = effectiveness.clamp(0.0, 1.0);
                 }
             }
-            Action::MotorRestore { index } => {
+            SimAction::MotorRestore { index } => {
                 if let Some(f) = self.rotors.faults.get_mut(index) {
                     *f = Default::default();
                 }
             }
-            Action::Sensor { sensor, health } => self.sensors.set_health(sensor, health),
-            Action::GpsFixLost(lost) => self.sensors.gps_fix_lost = lost,
-            Action::MagDisturbance(field) => self.sensors.mag_disturbance_ned = field,
-            Action::ForcePulse {
+            SimAction::Sensor { sensor, health } => self.sensors.set_health(sensor, health),
+            SimAction::GpsFixLost(lost) => self.sensors.gps_fix_lost = lost,
+            SimAction::MagDisturbance(field) => self.sensors.mag_disturbance_ned = field,
+            SimAction::ForcePulse {
                 force_ned_n,
                 duration_s,
             } => self.pulses.push(Pulse {
@@ -181,7 +181,7 @@ impl Simulator {
                 force_ned_n,
                 torque_frd_n_m: Vector3::zeros(),
             }),
-            Action::TorquePulse {
+            SimAction::TorquePulse {
                 torque_frd_n_m,
                 duration_s,
             } => self.pulses.push(Pulse {
@@ -189,7 +189,7 @@ impl Simulator {
                 force_ned_n: Vector3::zeros(),
                 torque_frd_n_m,
             }),
-            Action::Gust {
+            SimAction::Gust {
                 peak_ned_m_s,
                 duration_s,
             } => self.wind.add_gust(Gust {
@@ -197,14 +197,14 @@ impl Simulator {
                 duration_s,
                 peak_ned_m_s,
             }),
-            Action::Wind {
+            SimAction::Wind {
                 mean_ned_m_s,
                 turbulence_w20_m_s,
             } => {
                 self.wind.mean_ned_m_s = mean_ned_m_s;
                 self.wind.set_turbulence(turbulence_w20_m_s);
             }
-            Action::Tumble { duration_s } => {
+            SimAction::Tumble { duration_s } => {
                 self.tumble = Some(Tumble {
                     start_s: t,
                     duration_s: duration_s.max(0.0),

@@ -198,7 +198,7 @@ fn a_tumble_turns_the_vehicle_through_every_orientation_and_sets_it_down() {
     let mut sim = Simulator::new(&a, config(SensorPreset::Ideal), BodyState::default()).unwrap();
     sim.schedule(&[Event {
         t_s: 1.0,
-        action: Action::Tumble { duration_s: 60.0 },
+        action: SimAction::Tumble { duration_s: 60.0 },
     }])
     .unwrap();
     let mut seen = std::collections::HashSet::new();
@@ -434,13 +434,13 @@ fn scheduled_motor_failure_stops_the_rotor_and_makes_the_vehicle_fall() {
     let mut sim = airborne("quad_x", SensorPreset::Ideal);
     sim.schedule(&[Event {
         t_s: 0.5,
-        action: Action::MotorFail { index: 0 },
+        action: SimAction::MotorFail { index: 0 },
     }])
     .unwrap();
     assert!(
         sim.schedule(&[Event {
             t_s: 0.5,
-            action: Action::MotorFail { index: 4 }
+            action: SimAction::MotorFail { index: 4 }
         }])
         .is_err()
     );
@@ -458,7 +458,7 @@ fn scheduled_motor_failure_stops_the_rotor_and_makes_the_vehicle_fall() {
 #[test]
 fn torque_pulse_is_felt_and_ends() {
     let mut sim = airborne("quad_x", SensorPreset::Ideal);
-    sim.apply(Action::TorquePulse {
+    sim.apply(SimAction::TorquePulse {
         torque_frd_n_m: Vector3::new(0.029 * 40.0, 0.0, 0.0),
         duration_s: 0.1,
     });
@@ -492,15 +492,15 @@ fn sensor_faults_silence_freeze_and_lose_fix() {
     for _ in 0..300 {
         hover(&mut sim);
     }
-    sim.apply(Action::Sensor {
+    sim.apply(SimAction::Sensor {
         sensor: SensorKind::Mag,
         health: SensorHealth::Off,
     });
-    sim.apply(Action::Sensor {
+    sim.apply(SimAction::Sensor {
         sensor: SensorKind::Imu,
         health: SensorHealth::Stuck,
     });
-    sim.apply(Action::GpsFixLost(true));
+    sim.apply(SimAction::GpsFixLost(true));
     let fault_usec = sim.time_usec();
     let first = hover(&mut sim);
     let mut gps_seen = 0;
@@ -520,7 +520,7 @@ fn sensor_faults_silence_freeze_and_lose_fix() {
         }
     }
     assert!(gps_seen > 0, "the receiver keeps reporting, without a fix");
-    sim.apply(Action::Sensor {
+    sim.apply(SimAction::Sensor {
         sensor: SensorKind::Imu,
         health: SensorHealth::Ok,
     });
