@@ -301,32 +301,11 @@ fn verify(text: &str) -> std::result::Result<(), String> {
     }
 }
 
-/// CRC-32 as zlib and PNG compute it (reflected polynomial 0xEDB88320): `python3 -c "import
-/// zlib; print(hex(zlib.crc32(open(f, 'rb').read())))"` on the text before the checksum line
-/// gives the same number.
+/// CRC-32 as zlib and PNG compute it (`crc32fast`): `python3 -c "import zlib;
+/// print(hex(zlib.crc32(open(f, 'rb').read())))"` on the text before the checksum line gives the
+/// same number.
 fn crc32(bytes: &[u8]) -> u32 {
-    const TABLE: [u32; 256] = {
-        let mut t = [0u32; 256];
-        let mut i = 0;
-        while i < 256 {
-            let mut c = i as u32;
-            let mut k = 0;
-            while k < 8 {
-                c = if c & 1 != 0 {
-                    0xEDB8_8320 ^ (c >> 1)
-                } else {
-                    c >> 1
-                };
-                k += 1;
-            }
-            t[i] = c;
-            i += 1;
-        }
-        t
-    };
-    !bytes.iter().fold(!0u32, |c, &b| {
-        TABLE[((c ^ b as u32) & 0xFF) as usize] ^ (c >> 8)
-    })
+    crc32fast::hash(bytes)
 }
 
 /// Replaces `path` with `text` so that a crash at any moment leaves either the old file or the

@@ -13,6 +13,7 @@ use crate::records::FlightRecords;
 use anyhow::{Context, Result, bail};
 use flight_core::autopilot::{AutoFlight, Autopilot};
 use flight_core::params::FlightParams;
+use indicatif::{ProgressBar, ProgressStyle};
 use nalgebra::Vector3;
 use sitl_core::Airframe;
 use sitl_core::environment::WindConfig;
@@ -438,25 +439,33 @@ pub fn csv_row(r: &RunResult) -> String {
     }
 }
 
-/// The progress of a batch on standard error: a bar rewritten in place on a terminal, otherwise
-/// a line at every tenth of the runs.
+/// The progress of a batch on standard error: an `indicatif` bar on a terminal, otherwise (a
+/// CI log) a line at every tenth of the runs.
 struct Progress {
+    bar: Option<ProgressBar>,
     total: u32,
     done: u32,
     landed: u32,
     started: Instant,
-    tty: bool,
     shown_tenths: u32,
 }
 
 impl Progress {
     fn new(total: u32) -> Self {
+        let bar = std::io::stderr().is_terminal().then(|| {
+            let style = ProgressStyle::with_template(
+                "[{bar:30}] {pos}/{len} runs, {msg}, {per_sec}, {eta} left",
+            )
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("#-");
+            ProgressBar::new(u64::from(total)).with_style(style)
+        });
         Self {
+            bar,
             total,
             done: 0,
             landed: 0,
             started: Instant::now(),
-            tty: std::io::stderr().is_terminal(),
             shown_tenths: 0,
         }
     }
@@ -464,34 +473,25 @@ impl Progress {
     fn add(&mut self, landed: bool) {
         self.done += 1;
         self.landed += u32::from(landed);
-        let elapsed = self.started.elapsed().as_secs_f64();
-        let rate = f64::from(self.done) / elapsed.max(1e-9);
-        let eta = f64::from(self.total - self.done) / rate.max(1e-9);
-        let width = 30;
-        let filled = (width * self.done / self.total.max(1)) as usize;
-        let line = format!(
-            "[{}{}] {}/{} runs, {} landed, {:.1} runs/s, {:.0} s left",
-            "#".repeat(filled),
-            "-".repeat(width as usize - filled),
-            self.done,
-            self.total,
-            self.landed,
-            rate,
-            eta
-        );
-        let mut err = std::io::stderr();
-        if self.tty {
-            let _ = write!(err, "\r{line}\x1b[K");
+        if let Some(bar) = &self.bar {
+            bar.set_message(format!("{} landed", self.landed));
+            bar.inc(1);
             if self.done == self.total {
-                let _ = writeln!(err);
+                bar.finish();
             }
-        } else {
-            let tenths = 10 * self.done / self.total.max(1);
-            if tenths > self.shown_tenths {
-                self.shown_tenths = tenths;
-                let _ = writeln!(err, "{line}");
-            }
+            return;
         }
+        let tenths = 10 * self.done / self.total.max(1);
+        if tenths <= self.shown_tenths {
+            return;
+        }
+        self.shown_tenths = tenths;
+        let rate = f64::from(self.done) / self.started.elapsed().as_secs_f64().max(1e-9);
+        let eta = f64::from(self.total - self.done) / rate.max(1e-9);
+        eprintln!(
+            "{}/{} runs, {} landed, {rate:.1} runs/s, {eta:.0} s left",
+            self.done, self.total, self.landed
+        );
     }
 }
 
