@@ -20,7 +20,7 @@ use sitl_core::environment::WindConfig;
 use sitl_core::rng::Rng;
 use sitl_core::sensors::{SensorConfig, SensorHealth, SensorKind, SensorPreset};
 use sitl_core::sim::{Event, SimAction, SimConfig};
-use std::io::{IsTerminal, Write};
+use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::{Duration, Instant};
@@ -398,45 +398,48 @@ pub fn fly_run(
 /// The CSV's columns, one row per run.
 pub const CSV_HEADER: &str = "run,sim_seed,wind_m_s,wind_from_deg,turbulence_w20_m_s,fault,fault_t_s,fault_detail,outcome,failsafe,max_alt_m,hover_alt_rms_m,hover_drift_rms_m,attitude_rms_deg,max_tilt_deg,final_tilt_deg,max_distance_m,landing_distance_m,touchdown_m_s,impact_m_s,sensor_timeouts,sim_time_s,error";
 
-/// A run as a CSV row (no newline).
-pub fn csv_row(r: &RunResult) -> String {
+/// A run as the CSV's cells (the `csv` writer quotes what needs quoting).
+pub fn csv_row(r: &RunResult) -> Vec<String> {
     let p = &r.plan;
     let opt = |x: Option<f64>| x.map_or(String::new(), |x| format!("{x:.4}"));
-    let quoted = |s: &str| format!("\"{}\"", s.replace('"', "'"));
-    let head = format!(
-        "{},{},{:.3},{:.1},{:.3},{},{},{}",
-        p.run,
-        p.sim_seed,
-        p.wind_m_s,
-        p.wind_from_deg,
-        p.turbulence_m_s,
-        p.fault.name(),
+    let mut cells = vec![
+        p.run.to_string(),
+        p.sim_seed.to_string(),
+        format!("{:.3}", p.wind_m_s),
+        format!("{:.1}", p.wind_from_deg),
+        format!("{:.3}", p.turbulence_m_s),
+        p.fault.name().to_string(),
         p.fault_t_s.map_or(String::new(), |t| format!("{t:.3}")),
-        quoted(&p.fault_detail)
-    );
+        p.fault_detail.clone(),
+    ];
     match &r.flight {
         Ok(f) => {
             let s = f.score();
-            format!(
-                "{head},{},{},{:.4},{},{},{},{:.3},{:.3},{:.4},{:.4},{:.4},{:.4},{},{:.3},",
-                Outcome::of(&r.flight).name(),
-                s.failsafe,
-                s.max_height_m,
+            cells.extend([
+                Outcome::of(&r.flight).name().to_string(),
+                s.failsafe.to_string(),
+                format!("{:.4}", s.max_height_m),
                 opt(s.hover_alt_rms_m()),
                 opt(s.hover_drift_rms_m()),
                 opt(s.attitude_rms_deg()),
-                s.max_tilt_deg,
-                s.tilt_deg,
-                s.max_distance_m,
-                s.distance_m,
-                s.touchdown_m_s,
-                s.impact_m_s,
-                f.sensor_timeouts(),
-                f.sim_time_s()
-            )
+                format!("{:.3}", s.max_tilt_deg),
+                format!("{:.3}", s.tilt_deg),
+                format!("{:.4}", s.max_distance_m),
+                format!("{:.4}", s.distance_m),
+                format!("{:.4}", s.touchdown_m_s),
+                format!("{:.4}", s.impact_m_s),
+                f.sensor_timeouts().to_string(),
+                format!("{:.3}", f.sim_time_s()),
+                String::new(),
+            ]);
         }
-        Err(e) => format!("{head},error,,,,,,,,,,,,,,{}", quoted(&format!("{e:#}"))),
+        Err(e) => {
+            cells.push("error".into());
+            cells.extend(std::iter::repeat_n(String::new(), 13));
+            cells.push(format!("{e:#}"));
+        }
     }
+    cells
 }
 
 /// The progress of a batch on standard error: an `indicatif` bar on a terminal, otherwise (a
@@ -521,8 +524,8 @@ pub fn run(
     params.commander.takeoff_alt_m = cfg.takeoff_m;
     let file =
         std::fs::File::create(output).with_context(|| format!("creating {}", output.display()))?;
-    let mut csv = std::io::BufWriter::new(file);
-    writeln!(csv, "{CSV_HEADER}")?;
+    let mut csv = csv::Writer::from_writer(std::io::BufWriter::new(file));
+    csv.write_record(CSV_HEADER.split(','))?;
     let jobs = jobs.clamp(1, cfg.runs as usize);
     tracing::info!(
         runs = cfg.runs,
@@ -556,7 +559,7 @@ pub fn run(
         }
         drop(tx);
         for result in rx.iter() {
-            writeln!(csv, "{}", csv_row(&result))?;
+            csv.write_record(csv_row(&result))?;
             csv.flush()?;
             if let Err(e) = &result.flight {
                 tracing::error!(run = result.plan.run, "run failed: {e:#}");

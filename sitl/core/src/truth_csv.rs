@@ -1,4 +1,6 @@
-//! Ground-truth CSV: one row per sample, for plots and for scoring a flight.
+//! Ground-truth CSV: one row per sample, for plots and for scoring a flight. Every cell is a
+//! number at a fixed precision, so nothing ever needs quoting: rows are written with `write!` rather
+//! than through the `csv` crate (whose job, quoting and escaping, has nothing to do here).
 
 use crate::sim::TruthState;
 use std::io::{BufWriter, Write};
