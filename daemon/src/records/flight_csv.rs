@@ -1,10 +1,11 @@
 //! The flight-data CSV: one row per sensor frame with what the flight core estimated, what it was
 //! asked to do, what it commanded, the simulator's truth where one reports it, and how late the
-//! control loop woke. For plots (`tools/plot_flight.py`, any spreadsheet, pandas, gnuplot) and
-//! for finding where an error comes from. Every cell is a number at a fixed precision or a fixed
-//! word, so rows are written with `write!` rather than through the `csv` crate (whose job, quoting and
-//! escaping, has nothing to do here; the batch CSV, with free text, uses it). Rows are written by a thread of their own
-//! ([`crate::records::log_files`]): the control loop copies each row and never formats or waits on the disk.
+//! control loop woke. For plots (`tools/plot_flight.py`, any spreadsheet, pandas, gnuplot) and for
+//! finding where an error comes from. Every cell is a number at a fixed precision or a fixed word,
+//! so rows are written with `write!` rather than through the `csv` crate (whose job, quoting and
+//! escaping, has nothing to do here; the batch CSV, with free text, uses it). Rows are written by a
+//! thread of their own ([`crate::records::log_files`]): the control loop copies each row and never
+//! formats or waits on the disk.
 
 use crate::records::log_files::LogFile;
 use crate::records::score::FlightScore;
