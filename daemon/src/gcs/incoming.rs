@@ -4,7 +4,7 @@
 
 use super::{
     AckTo, CommandMessage, DEFAULT_STREAMS, FORCE_MAGIC, GroundStation, HostAction, Outbox,
-    Outgoing, RATE_RANGE_HZ, Stream, mission, modes, offboard, telemetry,
+    Outgoing, RATE_RANGE_HZ, Stream, mission, modes, offboard, streams,
 };
 use crate::control_loop::Telemetry;
 use flight_core::autopilot::command::AutopilotCommand;
@@ -564,7 +564,7 @@ impl GroundStation {
                 }
             }
             MavCmd::MAV_CMD_GET_HOME_POSITION => {
-                let home = telemetry::build(HOME_POSITION_DATA::ID, t, 0);
+                let home = streams::build(HOME_POSITION_DATA::ID, t, 0);
                 let result = if home.is_some() {
                     MavResult::MAV_RESULT_ACCEPTED
                 } else {

@@ -17,7 +17,7 @@ pub mod modes;
 pub mod offboard;
 pub mod params;
 pub mod signing;
-pub mod telemetry;
+pub mod streams;
 
 use crate::control_loop::Telemetry;
 use flight_core::autopilot::command::AutopilotCommand;
@@ -333,10 +333,10 @@ impl GroundStation {
         let shown = t.status.map(|s| (s.armed, s.mode, s.landed));
         if shown != self.shown {
             self.shown = shown;
-            out.send(telemetry::heartbeat(t, self.mav_type));
+            out.send(streams::heartbeat(t, self.mav_type));
             for id in [EXTENDED_SYS_STATE_DATA::ID, CURRENT_MODE_DATA::ID] {
                 out.messages
-                    .extend(telemetry::build(id, t, unix).map(Outgoing::Message));
+                    .extend(streams::build(id, t, unix).map(Outgoing::Message));
             }
             if let Some(s) = self.streams.iter_mut().find(|s| s.id == HEARTBEAT_DATA::ID) {
                 s.next_s = now_s + s.interval_s;
@@ -418,7 +418,7 @@ impl GroundStation {
             // HOME_POSITION on every change, as PX4.
             self.home_shown = home;
             out.messages
-                .extend(telemetry::build(HOME_POSITION_DATA::ID, t, unix).map(Outgoing::Message));
+                .extend(streams::build(HOME_POSITION_DATA::ID, t, unix).map(Outgoing::Message));
         }
         self.missions.poll(now_s, out);
         self.report_calibration(t, out);
@@ -450,9 +450,9 @@ impl GroundStation {
                 s.next_s + s.interval_s
             };
             let m = if s.id == HEARTBEAT_DATA::ID {
-                Some(telemetry::heartbeat(t, self.mav_type))
+                Some(streams::heartbeat(t, self.mav_type))
             } else {
-                telemetry::build(s.id, t, unix)
+                streams::build(s.id, t, unix)
             };
             out.messages.extend(m.map(Outgoing::Message));
         }
@@ -492,17 +492,17 @@ impl GroundStation {
     /// A message sent once on request.
     fn one_off(&self, id: u32, param: f32, t: &Telemetry, unix: u64) -> Option<MavMessage> {
         match id {
-            HEARTBEAT_DATA::ID => Some(telemetry::heartbeat(t, self.mav_type)),
+            HEARTBEAT_DATA::ID => Some(streams::heartbeat(t, self.mav_type)),
             AUTOPILOT_VERSION_DATA::ID => Some(self.autopilot_version()),
-            AVAILABLE_MODES_DATA::ID => telemetry::available_mode(param as usize),
-            _ => telemetry::build(id, t, unix),
+            AVAILABLE_MODES_DATA::ID => streams::available_mode(param as usize),
+            _ => streams::build(id, t, unix),
         }
     }
 
     /// Whether REQUEST_MESSAGE can give message `id`.
     fn can_send(id: u32) -> bool {
         DEFAULT_STREAMS.iter().any(|&(i, _)| i == id)
-            || telemetry::ON_REQUEST.contains(&id)
+            || streams::ON_REQUEST.contains(&id)
             || matches!(id, AUTOPILOT_VERSION_DATA::ID | AVAILABLE_MODES_DATA::ID)
     }
 

@@ -52,7 +52,7 @@ fn on_request_messages_can_be_asked_for_and_say_which_set_point_axes_are_flown()
     let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
     let mut t = telemetry(true, FlightMode::Posctl);
     let mut out = Outbox::default();
-    for id in telemetry::ON_REQUEST {
+    for id in streams::ON_REQUEST {
         let set = command_long(
             MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
             [id as f32, 100_000.0, 0., 0., 0., 0., 0.],
@@ -415,7 +415,7 @@ fn sys_status_health_bits_and_battery_follow_the_checks() {
         time_remaining_s: Some(95.2),
     };
     let health = |t: &Telemetry| {
-        let Some(MavMessage::SYS_STATUS(s)) = telemetry::build(SYS_STATUS_DATA::ID, t, 0) else {
+        let Some(MavMessage::SYS_STATUS(s)) = streams::build(SYS_STATUS_DATA::ID, t, 0) else {
             panic!()
         };
         s
@@ -447,8 +447,7 @@ fn sys_status_health_bits_and_battery_follow_the_checks() {
         s.onboard_control_sensors_present_extended.is_empty(),
         "no recovery system: {s:?}"
     );
-    let Some(MavMessage::BATTERY_STATUS(b)) = telemetry::build(BATTERY_STATUS_DATA::ID, &t, 0)
-    else {
+    let Some(MavMessage::BATTERY_STATUS(b)) = streams::build(BATTERY_STATUS_DATA::ID, &t, 0) else {
         panic!()
     };
     assert_eq!(
