@@ -11,6 +11,7 @@
 #![allow(deprecated)]
 
 mod calibration;
+mod commands;
 mod incoming;
 pub mod mission;
 pub mod modes;

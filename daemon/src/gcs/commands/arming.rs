@@ -1,0 +1,37 @@
+//! Arming and disarming (`COMPONENT_ARM_DISARM`, param2 21196 forces).
+
+use super::CommandMessage;
+use super::vehicle;
+use crate::control_loop::Telemetry;
+use crate::gcs::FORCE_MAGIC;
+use crate::gcs::{AckTo, GroundStation, Outbox};
+use flight_core::autopilot::command::AutopilotCommand;
+use mavlink::dialects::common::*;
+
+impl GroundStation {
+    /// A command of this file: arming and disarming (`COMPONENT_ARM_DISARM`, param2 21196 forces).
+    pub(super) fn arming(
+        &mut self,
+        c: CommandMessage,
+        to: AckTo,
+        _t: &Telemetry,
+        out: &mut Outbox,
+    ) {
+        let p = c.p;
+        match c.command {
+            MavCmd::MAV_CMD_COMPONENT_ARM_DISARM => {
+                let force = p[1] == FORCE_MAGIC;
+                match p[0] {
+                    1.0 => vehicle(out, to, AutopilotCommand::Arm { force }),
+                    0.0 => vehicle(out, to, AutopilotCommand::Disarm { force }),
+                    x => self.deny(
+                        to,
+                        out,
+                        &format!("arm/disarm: param1 must be 0 or 1, got {x}"),
+                    ),
+                }
+            }
+            _ => out.send(self.ack(to, MavResult::MAV_RESULT_UNSUPPORTED)),
+        }
+    }
+}

@@ -1,0 +1,33 @@
+//! `INJECT_FAILURE` (PX4's failure injection, behind `SYS_FAILURE_EN`).
+
+use super::CommandMessage;
+use super::vehicle;
+use crate::control_loop::Telemetry;
+use crate::gcs::{AckTo, GroundStation, Outbox};
+use flight_core::autopilot::command::AutopilotCommand;
+use mavlink::dialects::common::*;
+
+impl GroundStation {
+    /// A command of this file: `INJECT_FAILURE` (PX4's failure injection, behind `SYS_FAILURE_EN`).
+    pub(super) fn failure(
+        &mut self,
+        c: CommandMessage,
+        to: AckTo,
+        _t: &Telemetry,
+        out: &mut Outbox,
+    ) {
+        let p = c.p;
+        match c.command {
+            MavCmd::MAV_CMD_INJECT_FAILURE => {
+                match flight_core::safety::failure_injection::Injection::decode(p[0], p[1], p[2]) {
+                    Ok(i) => vehicle(out, to, AutopilotCommand::InjectFailure(i)),
+                    Err(why) => {
+                        out.send(self.ack(to, MavResult::MAV_RESULT_UNSUPPORTED));
+                        out.say(MavSeverity::MAV_SEVERITY_WARNING, &why.to_string());
+                    }
+                }
+            }
+            _ => out.send(self.ack(to, MavResult::MAV_RESULT_UNSUPPORTED)),
+        }
+    }
+}

@@ -1,0 +1,74 @@
+//! What is sent: `SET_MESSAGE_INTERVAL`, `GET_MESSAGE_INTERVAL`, `REQUEST_MESSAGE`, `REQUEST_AUTOPILOT_CAPABILITIES`.
+
+use super::CommandMessage;
+use crate::control_loop::Telemetry;
+use crate::gcs::DEFAULT_STREAMS;
+use crate::gcs::{AckTo, GroundStation, Outbox};
+use mavlink::dialects::common::*;
+
+impl GroundStation {
+    /// A command of this file: what is sent: `SET_MESSAGE_INTERVAL`, `GET_MESSAGE_INTERVAL`, `REQUEST_MESSAGE`, `REQUEST_AUTOPILOT_CAPABILITIES`.
+    pub(super) fn messages(
+        &mut self,
+        c: CommandMessage,
+        to: AckTo,
+        t: &Telemetry,
+        out: &mut Outbox,
+    ) {
+        let p = c.p;
+        match c.command {
+            MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL => {
+                let id = p[0] as u32;
+                if !(p[0].is_finite() && Self::can_send(id)) {
+                    return self.deny(
+                        to,
+                        out,
+                        &format!("message interval: cannot stream {}", p[0]),
+                    );
+                }
+                let us = p[1];
+                let hz = match us {
+                    -1.0 => None,
+                    0.0 => DEFAULT_STREAMS.iter().find(|s| s.0 == id).map(|s| s.1),
+                    x if x > 0.0 && x.is_finite() => Some(1e6 / x as f64),
+                    x => {
+                        return self.deny(to, out, &format!("message interval: bad interval {x}"));
+                    }
+                };
+                self.set_rate(id, hz);
+                out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED));
+            }
+            MavCmd::MAV_CMD_GET_MESSAGE_INTERVAL => {
+                let id = p[0] as u32;
+                let interval_us = match self.interval_s(id) {
+                    Some(s) => (s * 1e6) as i32,
+                    None if Self::can_send(id) => -1,
+                    None => 0,
+                };
+                out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED));
+                out.send(MavMessage::MESSAGE_INTERVAL(MESSAGE_INTERVAL_DATA {
+                    interval_us,
+                    message_id: id as u16,
+                }));
+            }
+            MavCmd::MAV_CMD_REQUEST_MESSAGE => {
+                let id = p[0] as u32;
+                if !(p[0].is_finite() && Self::can_send(id)) {
+                    return self.deny(to, out, &format!("request message: cannot send {}", p[0]));
+                }
+                if self.one_off(id, p[1], t, 0).is_none() {
+                    // Known, but no data for it yet (no position, no home).
+                    out.send(self.ack(to, MavResult::MAV_RESULT_TEMPORARILY_REJECTED));
+                    return;
+                }
+                out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED));
+                self.requested.push((id, p[1]));
+            }
+            MavCmd::MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES => {
+                out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED));
+                out.send(self.autopilot_version());
+            }
+            _ => out.send(self.ack(to, MavResult::MAV_RESULT_UNSUPPORTED)),
+        }
+    }
+}

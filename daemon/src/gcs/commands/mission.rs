@@ -1,0 +1,46 @@
+//! The mission: `MISSION_START`, `DO_SET_MISSION_CURRENT`, `DO_PAUSE_CONTINUE`.
+
+use super::CommandMessage;
+use super::vehicle;
+use crate::control_loop::Telemetry;
+use crate::gcs::{AckTo, GroundStation, Outbox};
+use flight_core::autopilot::command::AutopilotCommand;
+use flight_core::commander::FlightMode;
+use mavlink::dialects::common::*;
+
+impl GroundStation {
+    /// A command of this file: the mission: `MISSION_START`, `DO_SET_MISSION_CURRENT`, `DO_PAUSE_CONTINUE`.
+    pub(super) fn mission(
+        &mut self,
+        c: CommandMessage,
+        to: AckTo,
+        _t: &Telemetry,
+        out: &mut Outbox,
+    ) {
+        let p = c.p;
+        match c.command {
+            MavCmd::MAV_CMD_MISSION_START => {
+                // param1: the first item (0 and up); the last (param2) is not honoured.
+                let first = (p[0].is_finite() && p[0] >= 0.0).then_some(p[0] as u16);
+                vehicle(out, to, AutopilotCommand::StartMission(first));
+            }
+            MavCmd::MAV_CMD_DO_SET_MISSION_CURRENT => {
+                if !(p[0].is_finite() && p[0] >= 0.0) {
+                    // −1: no change.
+                    return out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED));
+                }
+                vehicle(out, to, AutopilotCommand::SetMissionCurrent(p[0] as u16));
+            }
+            MavCmd::MAV_CMD_DO_PAUSE_CONTINUE => match p[0] {
+                0.0 => vehicle(out, to, AutopilotCommand::SetMode(FlightMode::Loiter)),
+                1.0 => vehicle(out, to, AutopilotCommand::SetMode(FlightMode::Mission)),
+                x => self.deny(
+                    to,
+                    out,
+                    &format!("pause/continue: param1 {x} is not 0 or 1"),
+                ),
+            },
+            _ => out.send(self.ack(to, MavResult::MAV_RESULT_UNSUPPORTED)),
+        }
+    }
+}

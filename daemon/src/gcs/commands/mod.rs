@@ -1,0 +1,96 @@
+//! Commands (`COMMAND_LONG`, `COMMAND_INT`), one family of `MAV_CMD`s per file: each is
+//! answered here or passed to the vehicle (answered through [`GroundStation::answered`]).
+
+mod arming;
+mod failure;
+mod home;
+mod messages;
+mod mission;
+mod modes;
+mod navigation;
+mod preflight;
+
+use super::{AckTo, CommandMessage, GroundStation, Outbox};
+use crate::control_loop::Telemetry;
+use flight_core::autopilot::command::AutopilotCommand;
+use flight_core::math::geo::LatLonAlt;
+use mavlink::dialects::common::*;
+
+impl GroundStation {
+    /// A command, handed to the file of its family.
+    pub(super) fn command(
+        &mut self,
+        c: CommandMessage,
+        to: AckTo,
+        t: &Telemetry,
+        out: &mut Outbox,
+    ) {
+        match c.command {
+            MavCmd::MAV_CMD_COMPONENT_ARM_DISARM => self.arming(c, to, t, out),
+            MavCmd::MAV_CMD_NAV_TAKEOFF
+            | MavCmd::MAV_CMD_NAV_LAND
+            | MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH
+            | MavCmd::MAV_CMD_NAV_LOITER_UNLIM
+            | MavCmd::MAV_CMD_DO_REPOSITION
+            | MavCmd::MAV_CMD_DO_CHANGE_SPEED
+            | MavCmd::MAV_CMD_CONDITION_YAW => self.navigation(c, to, t, out),
+            MavCmd::MAV_CMD_MISSION_START
+            | MavCmd::MAV_CMD_DO_SET_MISSION_CURRENT
+            | MavCmd::MAV_CMD_DO_PAUSE_CONTINUE => self.mission(c, to, t, out),
+            MavCmd::MAV_CMD_DO_SET_MODE | MavCmd::MAV_CMD_DO_SET_STANDARD_MODE => {
+                self.modes(c, to, t, out)
+            }
+            MavCmd::MAV_CMD_DO_SET_HOME | MavCmd::MAV_CMD_GET_HOME_POSITION => {
+                self.home(c, to, t, out)
+            }
+            MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL
+            | MavCmd::MAV_CMD_GET_MESSAGE_INTERVAL
+            | MavCmd::MAV_CMD_REQUEST_MESSAGE
+            | MavCmd::MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES => self.messages(c, to, t, out),
+            MavCmd::MAV_CMD_PREFLIGHT_STORAGE
+            | MavCmd::MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN
+            | MavCmd::MAV_CMD_PREFLIGHT_CALIBRATION => self.preflight(c, to, t, out),
+            MavCmd::MAV_CMD_INJECT_FAILURE => self.failure(c, to, t, out),
+            _ => out.send(self.ack(to, MavResult::MAV_RESULT_UNSUPPORTED)),
+        }
+    }
+
+    /// A `COMMAND_INT`: its x and y as the 1e7 integers of a position where the command has
+    /// one (`DO_REPOSITION`, `DO_SET_HOME`), the rest as a `COMMAND_LONG`.
+    pub(super) fn command_int(
+        &mut self,
+        c: CommandMessage,
+        global: Option<(i32, i32)>,
+        frame: MavFrame,
+        to: AckTo,
+        t: &Telemetry,
+        out: &mut Outbox,
+    ) {
+        if c.command == MavCmd::MAV_CMD_DO_REPOSITION {
+            return self.reposition(c, global, frame, to, out);
+        }
+        if c.command == MavCmd::MAV_CMD_DO_SET_HOME && c.p[0] != 1.0 {
+            let Some((x, y)) = global else {
+                return out.send(self.ack(to, MavResult::MAV_RESULT_DENIED));
+            };
+            let p = LatLonAlt {
+                lat_deg: x as f64 * 1e-7,
+                lon_deg: y as f64 * 1e-7,
+                alt_m: c.p[6] as f64,
+            };
+            return out.vehicle.push((AutopilotCommand::SetHomeGlobal(p), to));
+        }
+        self.command(c, to, t, out);
+    }
+
+    /// Refuses the command with `why` said to the operator.
+    fn deny(&self, to: AckTo, out: &mut Outbox, why: &str) {
+        out.send(self.ack(to, MavResult::MAV_RESULT_DENIED));
+        out.say(MavSeverity::MAV_SEVERITY_WARNING, why);
+    }
+}
+
+/// Passes `command` to the vehicle; its answer is acknowledged to `to`.
+fn vehicle(out: &mut Outbox, to: AckTo, command: AutopilotCommand) {
+    out.vehicle.push((command, to));
+}

@@ -1,0 +1,37 @@
+//! Mode changes: `DO_SET_MODE` (PX4's custom modes) and `DO_SET_STANDARD_MODE`.
+
+use super::CommandMessage;
+use super::vehicle;
+use crate::control_loop::Telemetry;
+use crate::gcs::modes;
+use crate::gcs::{AckTo, GroundStation, Outbox};
+use flight_core::autopilot::command::AutopilotCommand;
+use mavlink::dialects::common::*;
+
+impl GroundStation {
+    /// A command of this file: mode changes: `DO_SET_MODE` (PX4's custom modes) and `DO_SET_STANDARD_MODE`.
+    pub(super) fn modes(&mut self, c: CommandMessage, to: AckTo, _t: &Telemetry, out: &mut Outbox) {
+        let p = c.p;
+        match c.command {
+            MavCmd::MAV_CMD_DO_SET_MODE => {
+                let base = p[0] as u32;
+                if base & MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED.bits() as u32 == 0 {
+                    return self.deny(to, out, "set mode: only PX4 custom modes are supported");
+                }
+                match modes::from_px4(p[1] as u8, p[2] as u8) {
+                    Some(m) => vehicle(out, to, AutopilotCommand::SetMode(m)),
+                    None => self.deny(
+                        to,
+                        out,
+                        &format!("set mode: no mode {}/{}", p[1] as u8, p[2] as u8),
+                    ),
+                }
+            }
+            MavCmd::MAV_CMD_DO_SET_STANDARD_MODE => match modes::from_standard(p[0] as u32) {
+                Some(m) => vehicle(out, to, AutopilotCommand::SetMode(m)),
+                None => self.deny(to, out, &format!("no standard mode {}", p[0])),
+            },
+            _ => out.send(self.ack(to, MavResult::MAV_RESULT_UNSUPPORTED)),
+        }
+    }
+}

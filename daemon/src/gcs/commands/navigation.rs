@@ -1,0 +1,114 @@
+//! Where and how to fly: take-off, land, return, hold, `DO_REPOSITION` (from `COMMAND_LONG` or `COMMAND_INT`), `DO_CHANGE_SPEED`, `CONDITION_YAW`.
+
+use super::CommandMessage;
+use super::vehicle;
+use crate::control_loop::Telemetry;
+use crate::gcs::mission;
+use crate::gcs::{AckTo, GroundStation, Outbox};
+use flight_core::autopilot::command::AutopilotCommand;
+use flight_core::commander::FlightMode;
+use mavlink::dialects::common::*;
+
+impl GroundStation {
+    /// A command of this file: where and how to fly: take-off, land, return, hold, `DO_REPOSITION` (from `COMMAND_LONG` or `COMMAND_INT`), `DO_CHANGE_SPEED`, `CONDITION_YAW`.
+    pub(super) fn navigation(
+        &mut self,
+        c: CommandMessage,
+        to: AckTo,
+        _t: &Telemetry,
+        out: &mut Outbox,
+    ) {
+        let p = c.p;
+        match c.command {
+            MavCmd::MAV_CMD_NAV_TAKEOFF => {
+                // param7: altitude AMSL (PX4); NaN: the take-off altitude parameter.
+                if p[6].is_finite() {
+                    vehicle(out, to, AutopilotCommand::TakeoffAmsl(p[6] as f64));
+                } else {
+                    vehicle(out, to, AutopilotCommand::Takeoff(None));
+                }
+            }
+            MavCmd::MAV_CMD_NAV_LAND => {
+                vehicle(out, to, AutopilotCommand::SetMode(FlightMode::Land))
+            }
+            MavCmd::MAV_CMD_DO_CHANGE_SPEED => match mission::speed_change(p[1]) {
+                Ok(change) => vehicle(out, to, AutopilotCommand::ChangeSpeed(change)),
+                Err(_) => self.deny(to, out, &format!("change speed: {} m/s refused", p[1])),
+            },
+            MavCmd::MAV_CMD_CONDITION_YAW => {
+                if !p[0].is_finite() {
+                    return self.deny(to, out, "yaw command: angle not finite");
+                }
+                let rate = (p[1].is_finite() && p[1] > 0.0).then_some(p[1] as f64);
+                vehicle(
+                    out,
+                    to,
+                    AutopilotCommand::ConditionYaw {
+                        angle_deg: p[0] as f64,
+                        rate_deg_s: rate,
+                        direction: p[2].signum() as i8 * (p[2] != 0.0) as i8,
+                        relative: p[3] != 0.0,
+                    },
+                );
+            }
+            MavCmd::MAV_CMD_DO_REPOSITION => {
+                // COMMAND_LONG: latitude and longitude in degrees, altitude AMSL.
+                let global = (p[4].is_finite() && p[5].is_finite()).then_some((
+                    (p[4] as f64 * 1e7).round() as i32,
+                    (p[5] as f64 * 1e7).round() as i32,
+                ));
+                self.reposition(c, global, MavFrame::MAV_FRAME_GLOBAL, to, out);
+            }
+            MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH => {
+                vehicle(out, to, AutopilotCommand::SetMode(FlightMode::Rtl));
+            }
+            MavCmd::MAV_CMD_NAV_LOITER_UNLIM => {
+                vehicle(out, to, AutopilotCommand::SetMode(FlightMode::Loiter));
+            }
+            _ => out.send(self.ack(to, MavResult::MAV_RESULT_UNSUPPORTED)),
+        }
+    }
+
+    /// `DO_REPOSITION`: param1 speed (−1 default), param2 bit 0 "switch to Hold", param4
+    /// yaw (NaN keeps; in radians, as PX4 reads it and MAVSDK's `goto_location` sends it,
+    /// although the MAVLink spec says degrees), x/y latitude and longitude (absent or `INT32_MAX`: keep), z the
+    /// altitude in `frame` (NaN: keep).
+    pub(super) fn reposition(
+        &mut self,
+        c: CommandMessage,
+        global: Option<(i32, i32)>,
+        frame: MavFrame,
+        to: AckTo,
+        out: &mut Outbox,
+    ) {
+        let p = c.p;
+        let relative = match frame {
+            MavFrame::MAV_FRAME_GLOBAL | MavFrame::MAV_FRAME_GLOBAL_INT => false,
+            MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT
+            | MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT_INT => true,
+            f => {
+                out.send(self.ack(to, MavResult::MAV_RESULT_DENIED));
+                let why = format!("reposition: frame {f:?} not supported");
+                return out.say(MavSeverity::MAV_SEVERITY_WARNING, &why);
+            }
+        };
+        let z = p[6] as f64;
+        let at = flight_core::mission::MissionPoint {
+            lat_lon_deg: global
+                .filter(|&(x, y)| x != i32::MAX && y != i32::MAX)
+                .map(|(x, y)| (x as f64 * 1e-7, y as f64 * 1e-7)),
+            alt: z.is_finite().then_some(if relative {
+                flight_core::mission::MissionAltitude::AboveHome(z)
+            } else {
+                flight_core::mission::MissionAltitude::Amsl(z)
+            }),
+        };
+        let cmd = AutopilotCommand::Reposition {
+            at,
+            speed_m_s: (p[0].is_finite() && p[0] > 0.0).then_some(p[0] as f64),
+            yaw_rad: p[3].is_finite().then_some(p[3] as f64),
+            change_mode: (p[1] as u32) & 1 == 1,
+        };
+        out.vehicle.push((cmd, to));
+    }
+}
