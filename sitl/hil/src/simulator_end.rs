@@ -1,5 +1,6 @@
 //! The simulator's end of the HIL exchange, shared by the `sitl` process and the autopilot's
-//! embedded simulator so that one seed gives the same bytes, and the same flight, on either.
+//! embedded simulator so that one seed gives the same messages (as bytes for a link, folded
+//! straight into a frame in-process), and the same flight, on either.
 
 use crate::{
     Accumulator, ActuatorCommand, Encoder, SensorUpdate, encode_exchange, exchange_messages,

@@ -170,8 +170,8 @@ pub(super) struct Touchdown {
 
 impl Touchdown {
     /// Watches whether the vehicle is `stopped` at `t_s`; after a second of it, the vehicle is
-    /// on the ground and the commander disarms after this update. Returns whether it touched
-    /// down.
+    /// on the ground and the commander disarms once the task's update returns (within the same
+    /// [`super::Commander::update`]). Returns whether it touched down.
     pub(super) fn check(&mut self, f: &mut Flight, stopped: bool, t_s: f64) -> bool {
         match (stopped, self.still_since_s) {
             (true, None) => self.still_since_s = Some(t_s),

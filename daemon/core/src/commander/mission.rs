@@ -61,8 +61,9 @@ impl MissionFlight {
         self.hold
     }
 
-    /// The touchdown at the end of a Land or RTL item: that item is done.
-    pub(super) fn touched_down(&mut self, run: &mut MissionRun) {
+    /// The motors stopped (a touchdown, or a disarm) during a Land or RTL item: that item is
+    /// done.
+    pub(super) fn motors_stopped(&mut self, run: &mut MissionRun) {
         if matches!(self.stage, Stage::Land | Stage::Rtl) {
             self.reached(run);
         }
@@ -305,7 +306,9 @@ impl FlightTask for MissionFlight {
         }
         f.mission.state = MissionState::Complete;
         if f.landed == LandedState::OnGround {
-            return Setpoint::Position(spooled(t.home, i.yaw_rad));
+            // Home as it stands now (a `DO_SET_HOME` item may have moved it in this update).
+            let home = f.home.map_or(i.pos_ned_m, |h| h.0);
+            return Setpoint::Position(spooled(home, i.yaw_rad));
         }
         let yaw = f.slew_yaw(None, i, t.dt);
         Setpoint::Position(loiter(&mut self.hold, f, i, yaw))

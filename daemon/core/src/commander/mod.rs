@@ -363,7 +363,7 @@ impl Commander {
         if self.flight.armed {
             self.changed = true;
             if let Task::Mission(m) = &mut self.task {
-                m.touched_down(&mut self.flight.mission);
+                m.motors_stopped(&mut self.flight.mission);
             }
         }
         self.flight.armed = false;

@@ -25,7 +25,8 @@ pub(super) trait FlightTask {
     /// One update: the set-point to fly. A touchdown is said in `f.touched_down`.
     fn update(&mut self, f: &mut Flight, t: &Tick) -> Setpoint;
 
-    /// The task's work is done: the commander hands over to Hold where it stands.
+    /// The task's work is done: a take-off at its altitude (the commander hands over to Hold
+    /// where it ended), a landing on the ground (the commander has disarmed on its touchdown).
     fn is_finished(&self) -> bool {
         false
     }

@@ -866,3 +866,46 @@ fn the_distance_and_height_fences_hold_the_vehicle() {
         )
     );
 }
+
+/// A touchdown in position mode disarms within the update that detects it (the motors stop
+/// with that update's answer), and a new flight in the mode starts from the heading it has
+/// then, not from the last flight's.
+#[test]
+fn position_mode_touchdown_disarms_at_once_and_a_new_flight_starts_afresh() {
+    let mut c = Commander::new(CommanderParams::default());
+    let z = Vector3::zeros();
+    step(&mut c, &at(0.0, z, z, 1.0));
+    c.manual_control(sticks(0.0, 0.0, 0.0, 0.0));
+    c.set_mode(FlightMode::Posctl).unwrap();
+    c.arm(false).unwrap();
+    c.manual_control(sticks(0.0, 0.0, 1.0, 0.0));
+    let (sp, _) = step(&mut c, &at(0.1, z, z, 1.0));
+    assert_eq!(sp.yaw_rad, 1.0, "the heading at take-off is held");
+    let up = Vector3::new(0.0, 0.0, -2.0);
+    step(&mut c, &at(0.2, up, Vector3::new(0.0, 0.0, -3.0), 1.0));
+    assert_eq!(c.landed(), LandedState::InAir);
+
+    // Throttle low (sent every half second, as a joystick streams), half a metre up and no
+    // longer sinking: down after a second.
+    let low = Vector3::new(0.0, 0.0, -0.5);
+    for t in [0.5, 1.0, 1.4] {
+        c.manual_control(sticks(0.0, 0.0, 0.0, 0.0));
+        let (_, armed) = step(&mut c, &at(t, low, z, 1.0));
+        assert!(armed && c.armed(), "{t}");
+    }
+    c.manual_control(sticks(0.0, 0.0, 0.0, 0.0));
+    let (_, armed) = step(&mut c, &at(1.5, low, z, 1.0));
+    assert!(
+        !armed && !c.armed(),
+        "disarmed in the update that saw the touchdown"
+    );
+    assert_eq!(c.landed(), LandedState::OnGround);
+
+    // Turned by hand on the ground, armed again: the climb holds today's heading.
+    step(&mut c, &at(3.0, z, z, 0.0));
+    c.manual_control(sticks(0.0, 0.0, 0.0, 0.0));
+    c.arm(false).unwrap();
+    c.manual_control(sticks(0.0, 0.0, 1.0, 0.0));
+    let (sp, _) = step(&mut c, &at(3.1, z, z, 0.0));
+    assert_eq!(sp.yaw_rad, 0.0, "not the last flight's 1 rad");
+}

@@ -9,7 +9,7 @@ use flight_core::autopilot::command::AutopilotCommand;
 use mavlink::dialects::common::*;
 
 impl GroundStation {
-    /// A command of this file: arming and disarming (`COMPONENT_ARM_DISARM`, param2 21196 forces).
+    /// One of this file's commands: answered, refused, or passed to the vehicle.
     pub(super) fn arming(
         &mut self,
         c: CommandMessage,

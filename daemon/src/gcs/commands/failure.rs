@@ -8,7 +8,7 @@ use flight_core::autopilot::command::AutopilotCommand;
 use mavlink::dialects::common::*;
 
 impl GroundStation {
-    /// A command of this file: `INJECT_FAILURE` (PX4's failure injection, behind `SYS_FAILURE_EN`).
+    /// One of this file's commands: answered, refused, or passed to the vehicle.
     pub(super) fn failure(
         &mut self,
         c: CommandMessage,

@@ -12,7 +12,7 @@ use mavlink::MessageData;
 use mavlink::dialects::common::*;
 
 impl GroundStation {
-    /// A command of this file: home: `DO_SET_HOME` (from `COMMAND_LONG` or `COMMAND_INT`) and `GET_HOME_POSITION`.
+    /// One of this file's commands: answered, refused, or passed to the vehicle.
     pub(super) fn home(&mut self, c: CommandMessage, to: AckTo, t: &Telemetry, out: &mut Outbox) {
         let p = c.p;
         match c.command {

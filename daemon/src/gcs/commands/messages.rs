@@ -1,4 +1,5 @@
-//! What is sent: `SET_MESSAGE_INTERVAL`, `GET_MESSAGE_INTERVAL`, `REQUEST_MESSAGE`, `REQUEST_AUTOPILOT_CAPABILITIES`.
+//! What is sent: `SET_MESSAGE_INTERVAL`, `GET_MESSAGE_INTERVAL`, `REQUEST_MESSAGE`,
+//! `REQUEST_AUTOPILOT_CAPABILITIES`.
 
 use super::CommandMessage;
 use crate::control_loop::Telemetry;
@@ -7,7 +8,7 @@ use crate::gcs::{AckTo, GroundStation, Outbox};
 use mavlink::dialects::common::*;
 
 impl GroundStation {
-    /// A command of this file: what is sent: `SET_MESSAGE_INTERVAL`, `GET_MESSAGE_INTERVAL`, `REQUEST_MESSAGE`, `REQUEST_AUTOPILOT_CAPABILITIES`.
+    /// One of this file's commands: answered, refused, or passed to the vehicle.
     pub(super) fn messages(
         &mut self,
         c: CommandMessage,

@@ -9,7 +9,7 @@ use flight_core::commander::FlightMode;
 use mavlink::dialects::common::*;
 
 impl GroundStation {
-    /// A command of this file: the mission: `MISSION_START`, `DO_SET_MISSION_CURRENT`, `DO_PAUSE_CONTINUE`.
+    /// One of this file's commands: answered, refused, or passed to the vehicle.
     pub(super) fn mission(
         &mut self,
         c: CommandMessage,

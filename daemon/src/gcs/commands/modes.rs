@@ -9,7 +9,7 @@ use flight_core::autopilot::command::AutopilotCommand;
 use mavlink::dialects::common::*;
 
 impl GroundStation {
-    /// A command of this file: mode changes: `DO_SET_MODE` (PX4's custom modes) and `DO_SET_STANDARD_MODE`.
+    /// One of this file's commands: answered, refused, or passed to the vehicle.
     pub(super) fn modes(&mut self, c: CommandMessage, to: AckTo, _t: &Telemetry, out: &mut Outbox) {
         let p = c.p;
         match c.command {

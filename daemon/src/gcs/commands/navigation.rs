@@ -1,4 +1,5 @@
-//! Where and how to fly: take-off, land, return, hold, `DO_REPOSITION` (from `COMMAND_LONG` or `COMMAND_INT`), `DO_CHANGE_SPEED`, `CONDITION_YAW`.
+//! Where and how to fly: take-off, land, return, hold, `DO_REPOSITION` (from `COMMAND_LONG` or
+//! `COMMAND_INT`), `DO_CHANGE_SPEED`, `CONDITION_YAW`.
 
 use super::CommandMessage;
 use super::vehicle;
@@ -10,7 +11,7 @@ use flight_core::commander::FlightMode;
 use mavlink::dialects::common::*;
 
 impl GroundStation {
-    /// A command of this file: where and how to fly: take-off, land, return, hold, `DO_REPOSITION` (from `COMMAND_LONG` or `COMMAND_INT`), `DO_CHANGE_SPEED`, `CONDITION_YAW`.
+    /// One of this file's commands: answered, refused, or passed to the vehicle.
     pub(super) fn navigation(
         &mut self,
         c: CommandMessage,

@@ -1,4 +1,5 @@
-//! On the ground: `PREFLIGHT_STORAGE` (parameters), `PREFLIGHT_REBOOT_SHUTDOWN`, `PREFLIGHT_CALIBRATION`.
+//! On the ground: `PREFLIGHT_STORAGE` (parameters), `PREFLIGHT_REBOOT_SHUTDOWN`,
+//! `PREFLIGHT_CALIBRATION`.
 
 use super::CommandMessage;
 use super::vehicle;
@@ -9,7 +10,7 @@ use flight_core::autopilot::command::AutopilotCommand;
 use mavlink::dialects::common::*;
 
 impl GroundStation {
-    /// A command of this file: on the ground: `PREFLIGHT_STORAGE` (parameters), `PREFLIGHT_REBOOT_SHUTDOWN`, `PREFLIGHT_CALIBRATION`.
+    /// One of this file's commands: answered, refused, or passed to the vehicle.
     pub(super) fn preflight(
         &mut self,
         c: CommandMessage,
