@@ -1,22 +1,16 @@
 //! Arming and disarming (`COMPONENT_ARM_DISARM`, param2 21196 forces).
 
-use super::CommandMessage;
+use super::Call;
 use super::vehicle;
-use crate::control_loop::Telemetry;
 use crate::gcs::FORCE_MAGIC;
-use crate::gcs::{AckTo, GroundStation, Outbox};
+use crate::gcs::{GroundStation, Outbox};
 use flight_core::autopilot::command::AutopilotCommand;
 use mavlink::dialects::common::*;
 
 impl GroundStation {
     /// One of this file's commands: answered, refused, or passed to the vehicle.
-    pub(super) fn arming(
-        &mut self,
-        c: CommandMessage,
-        to: AckTo,
-        _t: &Telemetry,
-        out: &mut Outbox,
-    ) {
+    pub(super) fn arming(&mut self, call: Call, out: &mut Outbox) {
+        let Call { c, to, .. } = call;
         let p = c.p;
         match c.command {
             MavCmd::MAV_CMD_COMPONENT_ARM_DISARM => {

@@ -1,21 +1,15 @@
 //! `INJECT_FAILURE` (PX4's failure injection, behind `SYS_FAILURE_EN`).
 
-use super::CommandMessage;
+use super::Call;
 use super::vehicle;
-use crate::control_loop::Telemetry;
-use crate::gcs::{AckTo, GroundStation, Outbox};
+use crate::gcs::{GroundStation, Outbox};
 use flight_core::autopilot::command::AutopilotCommand;
 use mavlink::dialects::common::*;
 
 impl GroundStation {
     /// One of this file's commands: answered, refused, or passed to the vehicle.
-    pub(super) fn failure(
-        &mut self,
-        c: CommandMessage,
-        to: AckTo,
-        _t: &Telemetry,
-        out: &mut Outbox,
-    ) {
+    pub(super) fn failure(&mut self, call: Call, out: &mut Outbox) {
+        let Call { c, to, .. } = call;
         let p = c.p;
         match c.command {
             MavCmd::MAV_CMD_INJECT_FAILURE => {

@@ -1,11 +1,10 @@
 //! Home: `DO_SET_HOME` (from `COMMAND_LONG` or `COMMAND_INT`) and `GET_HOME_POSITION`.
 
-use super::CommandMessage;
+use super::Call;
 use super::vehicle;
-use crate::control_loop::Telemetry;
 use crate::gcs::Outgoing;
 use crate::gcs::streams;
-use crate::gcs::{AckTo, GroundStation, Outbox};
+use crate::gcs::{GroundStation, Outbox};
 use flight_core::autopilot::command::AutopilotCommand;
 use flight_core::math::geo::LatLonAlt;
 use mavlink::MessageData;
@@ -13,7 +12,8 @@ use mavlink::dialects::common::*;
 
 impl GroundStation {
     /// One of this file's commands: answered, refused, or passed to the vehicle.
-    pub(super) fn home(&mut self, c: CommandMessage, to: AckTo, t: &Telemetry, out: &mut Outbox) {
+    pub(super) fn home(&mut self, call: Call, out: &mut Outbox) {
+        let Call { c, to, t } = call;
         let p = c.p;
         match c.command {
             MavCmd::MAV_CMD_DO_SET_HOME => {

@@ -1,21 +1,15 @@
 //! What is sent: `SET_MESSAGE_INTERVAL`, `GET_MESSAGE_INTERVAL`, `REQUEST_MESSAGE`,
 //! `REQUEST_AUTOPILOT_CAPABILITIES`.
 
-use super::CommandMessage;
-use crate::control_loop::Telemetry;
+use super::Call;
 use crate::gcs::DEFAULT_STREAMS;
-use crate::gcs::{AckTo, GroundStation, Outbox};
+use crate::gcs::{GroundStation, Outbox};
 use mavlink::dialects::common::*;
 
 impl GroundStation {
     /// One of this file's commands: answered, refused, or passed to the vehicle.
-    pub(super) fn messages(
-        &mut self,
-        c: CommandMessage,
-        to: AckTo,
-        t: &Telemetry,
-        out: &mut Outbox,
-    ) {
+    pub(super) fn messages(&mut self, call: Call, out: &mut Outbox) {
+        let Call { c, to, t } = call;
         let p = c.p;
         match c.command {
             MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL => {

@@ -1,22 +1,16 @@
 //! The mission: `MISSION_START`, `DO_SET_MISSION_CURRENT`, `DO_PAUSE_CONTINUE`.
 
-use super::CommandMessage;
+use super::Call;
 use super::vehicle;
-use crate::control_loop::Telemetry;
-use crate::gcs::{AckTo, GroundStation, Outbox};
+use crate::gcs::{GroundStation, Outbox};
 use flight_core::autopilot::command::AutopilotCommand;
 use flight_core::commander::FlightMode;
 use mavlink::dialects::common::*;
 
 impl GroundStation {
     /// One of this file's commands: answered, refused, or passed to the vehicle.
-    pub(super) fn mission(
-        &mut self,
-        c: CommandMessage,
-        to: AckTo,
-        _t: &Telemetry,
-        out: &mut Outbox,
-    ) {
+    pub(super) fn mission(&mut self, call: Call, out: &mut Outbox) {
+        let Call { c, to, .. } = call;
         let p = c.p;
         match c.command {
             MavCmd::MAV_CMD_MISSION_START => {

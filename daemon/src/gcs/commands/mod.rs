@@ -16,6 +16,13 @@ use flight_core::autopilot::command::AutopilotCommand;
 use flight_core::math::geo::LatLonAlt;
 use mavlink::dialects::common::*;
 
+/// A command to handle: what it asks, whom to answer, the latest telemetry.
+struct Call<'a> {
+    c: CommandMessage,
+    to: AckTo,
+    t: &'a Telemetry,
+}
+
 impl GroundStation {
     /// A command, handed to the file of its family.
     pub(super) fn command(
@@ -26,31 +33,33 @@ impl GroundStation {
         out: &mut Outbox,
     ) {
         match c.command {
-            MavCmd::MAV_CMD_COMPONENT_ARM_DISARM => self.arming(c, to, t, out),
+            MavCmd::MAV_CMD_COMPONENT_ARM_DISARM => self.arming(Call { c, to, t }, out),
             MavCmd::MAV_CMD_NAV_TAKEOFF
             | MavCmd::MAV_CMD_NAV_LAND
             | MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH
             | MavCmd::MAV_CMD_NAV_LOITER_UNLIM
             | MavCmd::MAV_CMD_DO_REPOSITION
             | MavCmd::MAV_CMD_DO_CHANGE_SPEED
-            | MavCmd::MAV_CMD_CONDITION_YAW => self.navigation(c, to, t, out),
+            | MavCmd::MAV_CMD_CONDITION_YAW => self.navigation(Call { c, to, t }, out),
             MavCmd::MAV_CMD_MISSION_START
             | MavCmd::MAV_CMD_DO_SET_MISSION_CURRENT
-            | MavCmd::MAV_CMD_DO_PAUSE_CONTINUE => self.mission(c, to, t, out),
+            | MavCmd::MAV_CMD_DO_PAUSE_CONTINUE => self.mission(Call { c, to, t }, out),
             MavCmd::MAV_CMD_DO_SET_MODE | MavCmd::MAV_CMD_DO_SET_STANDARD_MODE => {
-                self.modes(c, to, t, out)
+                self.modes(Call { c, to, t }, out)
             }
             MavCmd::MAV_CMD_DO_SET_HOME | MavCmd::MAV_CMD_GET_HOME_POSITION => {
-                self.home(c, to, t, out)
+                self.home(Call { c, to, t }, out)
             }
             MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL
             | MavCmd::MAV_CMD_GET_MESSAGE_INTERVAL
             | MavCmd::MAV_CMD_REQUEST_MESSAGE
-            | MavCmd::MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES => self.messages(c, to, t, out),
+            | MavCmd::MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES => {
+                self.messages(Call { c, to, t }, out)
+            }
             MavCmd::MAV_CMD_PREFLIGHT_STORAGE
             | MavCmd::MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN
-            | MavCmd::MAV_CMD_PREFLIGHT_CALIBRATION => self.preflight(c, to, t, out),
-            MavCmd::MAV_CMD_INJECT_FAILURE => self.failure(c, to, t, out),
+            | MavCmd::MAV_CMD_PREFLIGHT_CALIBRATION => self.preflight(Call { c, to, t }, out),
+            MavCmd::MAV_CMD_INJECT_FAILURE => self.failure(Call { c, to, t }, out),
             _ => out.send(self.ack(to, MavResult::MAV_RESULT_UNSUPPORTED)),
         }
     }

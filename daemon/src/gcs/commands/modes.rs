@@ -1,16 +1,16 @@
 //! Mode changes: `DO_SET_MODE` (PX4's custom modes) and `DO_SET_STANDARD_MODE`.
 
-use super::CommandMessage;
+use super::Call;
 use super::vehicle;
-use crate::control_loop::Telemetry;
 use crate::gcs::modes;
-use crate::gcs::{AckTo, GroundStation, Outbox};
+use crate::gcs::{GroundStation, Outbox};
 use flight_core::autopilot::command::AutopilotCommand;
 use mavlink::dialects::common::*;
 
 impl GroundStation {
     /// One of this file's commands: answered, refused, or passed to the vehicle.
-    pub(super) fn modes(&mut self, c: CommandMessage, to: AckTo, _t: &Telemetry, out: &mut Outbox) {
+    pub(super) fn modes(&mut self, call: Call, out: &mut Outbox) {
+        let Call { c, to, .. } = call;
         let p = c.p;
         match c.command {
             MavCmd::MAV_CMD_DO_SET_MODE => {

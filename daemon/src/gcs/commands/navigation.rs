@@ -1,9 +1,8 @@
 //! Where and how to fly: take-off, land, return, hold, `DO_REPOSITION` (from `COMMAND_LONG` or
 //! `COMMAND_INT`), `DO_CHANGE_SPEED`, `CONDITION_YAW`.
 
-use super::CommandMessage;
 use super::vehicle;
-use crate::control_loop::Telemetry;
+use super::{Call, CommandMessage};
 use crate::gcs::mission;
 use crate::gcs::{AckTo, GroundStation, Outbox};
 use flight_core::autopilot::command::AutopilotCommand;
@@ -12,13 +11,8 @@ use mavlink::dialects::common::*;
 
 impl GroundStation {
     /// One of this file's commands: answered, refused, or passed to the vehicle.
-    pub(super) fn navigation(
-        &mut self,
-        c: CommandMessage,
-        to: AckTo,
-        _t: &Telemetry,
-        out: &mut Outbox,
-    ) {
+    pub(super) fn navigation(&mut self, call: Call, out: &mut Outbox) {
+        let Call { c, to, .. } = call;
         let p = c.p;
         match c.command {
             MavCmd::MAV_CMD_NAV_TAKEOFF => {

@@ -1,23 +1,17 @@
 //! On the ground: `PREFLIGHT_STORAGE` (parameters), `PREFLIGHT_REBOOT_SHUTDOWN`,
 //! `PREFLIGHT_CALIBRATION`.
 
-use super::CommandMessage;
+use super::Call;
 use super::vehicle;
-use crate::control_loop::Telemetry;
 use crate::gcs::HostAction;
-use crate::gcs::{AckTo, GroundStation, Outbox};
+use crate::gcs::{GroundStation, Outbox};
 use flight_core::autopilot::command::AutopilotCommand;
 use mavlink::dialects::common::*;
 
 impl GroundStation {
     /// One of this file's commands: answered, refused, or passed to the vehicle.
-    pub(super) fn preflight(
-        &mut self,
-        c: CommandMessage,
-        to: AckTo,
-        t: &Telemetry,
-        out: &mut Outbox,
-    ) {
+    pub(super) fn preflight(&mut self, call: Call, out: &mut Outbox) {
+        let Call { c, to, t } = call;
         let p = c.p;
         match c.command {
             MavCmd::MAV_CMD_PREFLIGHT_STORAGE => {
