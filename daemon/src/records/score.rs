@@ -161,23 +161,13 @@ mod tests {
 
     #[test]
     fn figures_are_measured_from_the_takeoff_spot() {
-        let status = |mode, landed| CommanderStatus {
-            armed: true,
-            mode,
-            landed,
-            home: None,
-            failsafe: false,
-            failsafe_action: None,
-            motor_failed: None,
-            failsafe_conditions: 0,
-            safety_log: Default::default(),
-            prearm_ok: true,
-            ready: true,
-            in_mode_s: 0.0,
-            manual_losses: 0,
-            offboard_losses: 0,
-            mission: Default::default(),
-            manual_control: None,
+        // The ground-station tests' armed status, in the mode and landed state asked.
+        let status = |mode, landed| {
+            let armed = crate::gcs::tests::telemetry(true, mode).status;
+            CommanderStatus {
+                landed,
+                ..armed.expect("the test telemetry has a status")
+            }
         };
         let hold = status(FlightMode::Loiter, LandedState::InAir);
         let mut s = FlightScore::new(5.0);
