@@ -10,12 +10,12 @@
 //! The frame decoder's own fuzz targets are in `hil`'s `wire.rs`.
 
 #![allow(clippy::unwrap_used)]
-use crate::gcs::{GroundStation, Outbox};
 use crate::links::frames::{FrameAssembler, answer};
 use flight_core::autopilot::command::AutopilotCommand;
 use flight_core::autopilot::{Autopilot, StepInputs};
 use flight_core::commander::FlightMode;
 use flight_core::params::FlightParams;
+use gcs::{GroundStation, Outbox};
 use mavlink::dialects::common::{MavMessage, MavType};
 use mavlink::{MavHeader, MavlinkVersion, Message};
 use proptest::prelude::*;
@@ -71,8 +71,8 @@ fn quad() -> airframe::Airframe {
 }
 
 /// What the control loop shows: armed or not, in Hold.
-fn telemetry(armed: bool) -> crate::control_loop::Telemetry {
-    crate::gcs::tests::telemetry(armed, FlightMode::Loiter)
+fn telemetry(armed: bool) -> gcs::telemetry::Telemetry {
+    gcs::testing::telemetry(armed, FlightMode::Loiter)
 }
 
 /// The cases of a run: `FUZZ_CASES`, else `default`.
@@ -128,7 +128,7 @@ fn carry_out(gcs: &GroundStation, out: &mut Outbox, vehicle: &mut FuzzedVehicle)
         let _ = vehicle.command(AutopilotCommand::SetFence(z));
     }
     for a in out.actions.drain(..) {
-        if matches!(a, crate::gcs::HostAction::ParamsChanged) {
+        if matches!(a, gcs::HostAction::ParamsChanged) {
             vehicle.autopilot.set_params(gcs.parameters().values());
         }
     }
@@ -150,7 +150,7 @@ proptest! {
         let params = FlightParams::default();
         let mut vehicle = FuzzedVehicle::new(&airframe, &params);
         let mut gcs = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR)
-            .with_parameters(crate::gcs::params::Parameters::default(), params.clone());
+            .with_parameters(gcs::params::Parameters::default(), params.clone());
         let mut out = Outbox::default();
         let header = MavHeader { system_id: sender.0.into(), component_id: sender.1, sequence: 0 };
         let t = telemetry(armed);
@@ -198,7 +198,7 @@ proptest! {
         let (mut vehicle, mut end) = flying(seed);
         prop_assert!(vehicle.autopilot.status().armed, "the warm-up armed it");
         let mut gcs = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR)
-            .with_parameters(crate::gcs::params::Parameters::default(), FlightParams::default());
+            .with_parameters(gcs::params::Parameters::default(), FlightParams::default());
         let mut out = Outbox::default();
         let header = MavHeader { system_id: 255, component_id: 190, sequence: 0 };
         let t = telemetry(true);

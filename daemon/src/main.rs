@@ -9,7 +9,6 @@ mod cli;
 mod control_loop;
 #[cfg(test)]
 mod fuzz;
-mod gcs;
 mod gcs_links;
 mod links;
 mod records;

@@ -1,7 +1,8 @@
 //! What the operator sees and does at the terminal while a flight runs: the live status line,
 //! and Ctrl-C or SIGTERM to land or stop.
 
-use crate::control_loop::{LoopCommand, Telemetry};
+use crate::control_loop::LoopCommand;
+use gcs::telemetry::Telemetry;
 use std::io::{IsTerminal, Write};
 use std::time::{Duration, Instant};
 use tokio::sync::{mpsc, watch};

@@ -5,8 +5,7 @@
 mod console;
 mod prepare;
 
-use crate::control_loop::{self, FlightReport, LoopCommand, Onboard, Pacing, Telemetry};
-use crate::gcs;
+use crate::control_loop::{self, FlightReport, LoopCommand, Onboard, Pacing};
 use crate::gcs_links;
 use crate::links::sim::{self, EmbeddedSim};
 use crate::links::{SensorLink, SerialLink, Source, UdpLink, json_link};
@@ -14,6 +13,7 @@ use crate::records::FlightRecords;
 use crate::settings::Settings;
 use anyhow::{Context, Result, bail};
 use console::{interrupts, status_line};
+use gcs::telemetry::Telemetry;
 use prepare::{Prepared, prepare, sensor_preset};
 use sitl_core::Airframe;
 use sitl_core::geo::Geodetic;

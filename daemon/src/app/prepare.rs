@@ -2,16 +2,16 @@
 //! side.
 
 use crate::control_loop::Ports;
-use crate::gcs;
 use crate::gcs_links;
 use crate::links::Source;
 use crate::records::flight_csv::FlightCsv;
-use crate::records::param_store::ParamStore;
+use crate::records::param_file;
 use crate::records::{self, FlightRecords};
 use crate::settings::Settings;
 use anyhow::{Context, Result};
 use flight_core::autopilot::{AutoFlight, Autopilot};
 use flight_core::params::FlightParams;
+use gcs::param_store::ParamStore;
 use sitl_core::Airframe;
 use sitl_core::sensors::SensorPreset;
 use std::path::PathBuf;
@@ -48,7 +48,7 @@ pub(super) fn prepare(
     let mut notices = Vec::new();
     let (mut params, store) = match cfg.param_store(instance) {
         Some(path) => {
-            let loaded = ParamStore::load(&path, &base)?;
+            let loaded = param_file::load(&path, &base)?;
             for w in &loaded.warnings {
                 tracing::warn!("{w}");
             }

@@ -4,6 +4,7 @@
 //! a tick whose work runs past one or more deadlines skips them and counts each as an overrun,
 //! as PX4's work queues and ArduPilot's scheduler do.
 
+use gcs::telemetry::LoopSummary;
 use std::time::{Duration, Instant};
 
 /// Largest lateness the histogram resolves (µs); later ticks land in its last bin and in `max`.
@@ -112,23 +113,6 @@ pub struct LoopStats {
     max_late: Duration,
     max_work: Duration,
     overruns: u64,
-}
-
-/// A summary of [`LoopStats`] over an interval.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct LoopSummary {
-    /// Ticks in the interval.
-    pub ticks: u64,
-    /// Median lateness of the wake-up after the deadline (µs).
-    pub jitter_p50_us: u32,
-    /// 99th percentile of the lateness (µs).
-    pub jitter_p99_us: u32,
-    /// Largest lateness (µs).
-    pub jitter_max_us: u64,
-    /// Longest tick's work (µs).
-    pub work_max_us: u64,
-    /// Deadlines missed because a tick's work (or its lateness) ran past them.
-    pub overruns: u64,
 }
 
 impl Default for LoopStats {

@@ -16,14 +16,12 @@ use crate::links::frames::{self, Received};
 use crate::records::FlightRecords;
 use crate::records::score::FlightScore;
 use anyhow::{Context, Result, bail};
-use deadline::{Deadlines, LoopStats, LoopSummary, sleep_until};
+use deadline::{Deadlines, LoopStats, sleep_until};
 use flight_core::autopilot::command::AutopilotCommand;
 use flight_core::autopilot::{Autopilot, StepInputs};
-use flight_core::commander::{CommanderStatus, Denial};
-use flight_core::control::Setpoint;
-use flight_core::core::{SensorSample, StepOutput};
-use flight_core::estimator::translation::GpsMeasurement;
+use flight_core::commander::Denial;
 use flight_core::params::FlightParams;
+use gcs::telemetry::{LoopSummary, Telemetry};
 use hil::ActuatorCommand;
 use std::time::{Duration, Instant};
 use tokio::sync::{mpsc, oneshot, watch};
@@ -65,44 +63,6 @@ pub enum LoopCommand {
         AutopilotCommand,
         Option<oneshot::Sender<Result<(), Denial>>>,
     ),
-}
-
-/// What the control loop publishes after every step: the latest value, for the status line
-/// and (later) the ground-station telemetry.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct Telemetry {
-    /// Time of the last sensor frame (s).
-    pub t_s: f64,
-    /// The commander's state.
-    pub status: Option<CommanderStatus>,
-    /// The last step's output.
-    pub output: Option<StepOutput>,
-    /// The last GPS solution.
-    pub gps: Option<GpsMeasurement>,
-    /// The last sensor sample stepped on.
-    pub sample: Option<SensorSample>,
-    /// The position set-point flown (armed only).
-    pub setpoint: Option<Setpoint>,
-    /// The simulator's ground truth (SITL only).
-    pub truth: Option<hil::TruthReport>,
-    /// The largest collective thrust (N).
-    pub max_thrust_n: f64,
-    /// Battery voltage (V).
-    pub battery_v: f64,
-    /// The battery estimate (voltage, current, charge left).
-    pub battery: flight_core::sensors::battery::BatteryState,
-    /// Sensor frames stepped.
-    pub frames: u64,
-    /// The deadline loop's timing over the last interval (none in lockstep).
-    pub loop_stats: Option<LoopSummary>,
-    /// The loop has ended.
-    pub finished: bool,
-    /// The sensor frames have stopped (the watchdog has fired; the vehicle is reacting).
-    pub sensors_silent: bool,
-    /// Times the sensor source started again from an earlier time (the vehicle with it).
-    pub source_restarts: u32,
-    /// The magnetometer calibration under way, or the last one.
-    pub mag_cal: Option<flight_core::sensors::mag_calibrator::MagCalStatus>,
 }
 
 /// The control loop's side of its channels.

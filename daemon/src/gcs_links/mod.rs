@@ -12,7 +12,7 @@
 //! these systems are heard; others are refused).
 //!
 //! A frame that does not parse is counted and dropped; it never closes a link. With a signing
-//! key ([`crate::gcs::signing`]) frames that are unsigned, wrongly signed or replayed are refused
+//! key ([`gcs::signing`]) frames that are unsigned, wrongly signed or replayed are refused
 //! before they are parsed, and the vehicle's frames go out signed. A UDP peer is answered only
 //! once it has sent a frame that was accepted. Sending never waits on a slow peer: a link that
 //! falls behind loses frames, not the vehicle's time.
@@ -24,15 +24,18 @@ mod transport;
 
 pub use endpoint::EndpointSpec;
 
-use crate::control_loop::{LoopCommand, Telemetry};
-use crate::gcs::params::Parameters;
-use crate::gcs::signing::{SecretKey, Signing};
-use crate::gcs::{AckTo, COMPONENT_ID, GroundStation, HostAction, Outbox, Outgoing};
+use crate::control_loop::LoopCommand;
 use crate::records::log_files::Tlog;
-use crate::records::param_store::{Loaded, ParamStore};
+use crate::records::param_file;
 use anyhow::Result;
 use flight_core::autopilot::command::AutopilotCommand;
+use flight_core::commander::Denial;
 use flight_core::params::FlightParams;
+use gcs::param_store::{Loaded, ParamStore, Unreadable};
+use gcs::params::Parameters;
+use gcs::signing::{SecretKey, Signing};
+use gcs::telemetry::Telemetry;
+use gcs::{AckTo, COMPONENT_ID, GroundStation, HostAction, Outbox, Outgoing};
 use hil::Encoder;
 use mavlink::dialects::common::{MavMessage, MavSeverity, MavType};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -115,7 +118,7 @@ fn setup_signing(
     let on = key.0 != [0; 32];
     let saved = match key_file {
         Some(path) if on => {
-            crate::records::param_store::write_private(path, &format!("{}\n", key.to_hex()))
+            crate::records::param_file::write_private(path, &format!("{}\n", key.to_hex()))
         }
         Some(path) => match std::fs::remove_file(path) {
             Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
@@ -158,7 +161,7 @@ async fn saver(mut stores: watch::Receiver<Option<ParamStore>>, notices: Notices
         let Some(store) = stores.borrow_and_update().clone() else {
             continue;
         };
-        let result = tokio::task::spawn_blocking(move || store.save()).await;
+        let result = tokio::task::spawn_blocking(move || param_file::save(&store)).await;
         let failure = match result {
             Ok(Ok(())) => continue,
             Ok(Err(e)) => format!("{e:#}"),
@@ -205,7 +208,7 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<HostA
     let not_allowed = Arc::new(AtomicU64::new(0));
     let (frames, _) = broadcast::channel::<Arc<[u8]>>(1024);
     let (inbound_tx, mut inbound) = mpsc::channel::<Inbound>(256);
-    let (answers_tx, mut answers) = mpsc::channel::<(AckTo, Result<(), String>)>(64);
+    let (answers_tx, mut answers) = mpsc::channel::<(AckTo, Result<(), Denial>)>(64);
     let (notices_tx, mut notices) = mpsc::channel::<(MavSeverity, String)>(8);
     let (save_tx, save_rx) = watch::channel(None::<ParamStore>);
     let saving = tokio::spawn(saver(save_rx, notices_tx.clone()));
@@ -221,7 +224,12 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<HostA
     }
     let mut gcs = GroundStation::new(system_id, mav_type)
         .with_parameters(parameters, base_params)
-        .with_reboot(reboot_allowed);
+        .with_reboot(reboot_allowed)
+        .with_unix_start(
+            std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0, |d| d.as_micros() as u64),
+        );
     let mut encoder = Encoder::with_ids(system_id, COMPONENT_ID);
     let mut out = Outbox::default();
     let mut tick = tokio::time::interval(POLL);
@@ -306,7 +314,7 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<HostA
                     Ok(Ok(r)) => r,
                     _ => Err("the control loop did not answer".into()),
                 };
-                let _ = answers.send((to, result.map_err(|d| d.0))).await;
+                let _ = answers.send((to, result)).await;
             });
         }
         if std::mem::take(&mut out.gcs_heartbeat) {
@@ -357,8 +365,8 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<HostA
                 }
                 HostAction::ReloadParams(to) => {
                     let loaded = match gcs.parameters().store().path() {
-                        Some(path) => ParamStore::load(path, gcs.base_parameters())
-                            .map_err(|e| format!("{e:#}")),
+                        Some(path) => param_file::load(path, gcs.base_parameters())
+                            .map_err(|e| Unreadable(format!("{e:#}"))),
                         None => Ok(Loaded {
                             store: gcs.parameters().store().clone(),
                             params: gcs.parameters().values().clone(),

@@ -4,8 +4,8 @@
 //! vehicle sends reaches every transport.
 
 use super::endpoint::{Endpoint, EndpointSpec, LinkOptions};
-use crate::gcs::signing::Signing;
 use anyhow::{Context, Result};
+use gcs::signing::Signing;
 use hil::{Decoded, RawMessage, StreamDecoder};
 use mavlink::MavHeader;
 use mavlink::dialects::common::{MavMessage, MavSeverity};

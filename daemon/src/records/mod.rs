@@ -3,7 +3,7 @@
 
 pub mod flight_csv;
 pub mod log_files;
-pub mod param_store;
+pub mod param_file;
 pub mod score;
 
 use anyhow::{Context, Result};

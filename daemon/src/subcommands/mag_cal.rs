@@ -159,7 +159,7 @@ pub fn run(input: &Path, params: Option<&Path>, device_id: Option<u32>) -> Resul
     if let Err(e) = FlightParams::from_toml_str(&updated, &path.display().to_string()) {
         bail!("the calibrated parameters do not load: {e}");
     }
-    crate::records::param_store::write_atomically(path, &updated)?;
+    crate::records::param_file::write_atomically(path, &updated)?;
     println!("written to {}", path.display());
     Ok(())
 }

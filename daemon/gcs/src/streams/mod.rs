@@ -2,8 +2,8 @@
 //! its message from the control loop's latest [`Telemetry`], a pure function of it and the
 //! clock; [`build`] picks the one asked for.
 
-use crate::control_loop::Telemetry;
-use crate::gcs::modes;
+use crate::modes;
+use crate::telemetry::Telemetry;
 use flight_core::commander::FlightMode;
 use flight_core::core::StepOutput;
 use flight_core::math::geo::LocalFrame;
@@ -38,7 +38,7 @@ mod prelude {
     pub(super) use super::{
         StreamInput, acting, centiamps, e7, i16_sat, isa_pressure_hpa, percent, sensors_present,
     };
-    pub(super) use crate::gcs::modes;
+    pub(super) use crate::modes;
     pub(super) use flight_core::commander::{FlightMode, LandedState};
     pub(super) use flight_core::math::geo::LatLonAlt;
     pub(super) use flight_core::safety::failsafe::Condition;

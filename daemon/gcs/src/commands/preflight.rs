@@ -3,8 +3,8 @@
 
 use super::Call;
 use super::vehicle;
-use crate::gcs::HostAction;
-use crate::gcs::{GroundStation, Outbox};
+use crate::HostAction;
+use crate::{GroundStation, Outbox};
 use flight_core::autopilot::command::AutopilotCommand;
 use mavlink::dialects::common::*;
 

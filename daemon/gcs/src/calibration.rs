@@ -9,7 +9,7 @@
 //! flown at once and saved to the parameter store.
 
 use super::{GroundStation, HostAction, Outbox};
-use crate::control_loop::Telemetry;
+use crate::telemetry::Telemetry;
 use flight_core::sensors::mag_calibrator::{MagCalFailure, MagCalResult, MagCalState};
 use mavlink::dialects::common::*;
 

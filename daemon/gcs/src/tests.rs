@@ -3,8 +3,7 @@
 //! shares.
 #![allow(clippy::unwrap_used)]
 use super::*;
-use crate::control_loop::Telemetry;
-use flight_core::commander::CommanderStatus;
+pub(crate) use crate::testing::telemetry;
 use flight_core::commander::Sticks;
 use mavlink::{MavHeader, Message};
 use params::Parameters;
@@ -17,32 +16,6 @@ pub(crate) fn gcs_header() -> MavHeader {
         system_id: 255,
         component_id: 190,
         sequence: 0,
-    }
-}
-
-pub(crate) fn telemetry(armed: bool, mode: FlightMode) -> Telemetry {
-    Telemetry {
-        t_s: 12.0,
-        status: Some(CommanderStatus {
-            armed,
-            mode,
-            landed: LandedState::OnGround,
-            home: None,
-            failsafe: false,
-            failsafe_action: None,
-            motor_failed: None,
-            failsafe_conditions: 0,
-            safety_log: Default::default(),
-            prearm_ok: true,
-            ready: true,
-            in_mode_s: 0.0,
-            manual_losses: 0,
-            offboard_losses: 0,
-            mission: Default::default(),
-            manual_control: None,
-        }),
-        battery_v: 16.0,
-        ..Telemetry::default()
     }
 }
 

@@ -2,9 +2,9 @@
 
 use super::Call;
 use super::vehicle;
-use crate::gcs::Outgoing;
-use crate::gcs::streams;
-use crate::gcs::{GroundStation, Outbox};
+use crate::Outgoing;
+use crate::streams;
+use crate::{GroundStation, Outbox};
 use flight_core::autopilot::command::AutopilotCommand;
 use flight_core::math::geo::LatLonAlt;
 use mavlink::MessageData;

@@ -2,7 +2,7 @@
 
 use super::Call;
 use super::vehicle;
-use crate::gcs::{GroundStation, Outbox};
+use crate::{GroundStation, Outbox};
 use flight_core::autopilot::command::AutopilotCommand;
 use flight_core::commander::FlightMode;
 use mavlink::dialects::common::*;

@@ -3,7 +3,7 @@
 //! into the commander's [`OffboardTarget`] in the local NED frame. Pure: the estimate they may be
 //! relative to comes with the call.
 
-use crate::control_loop::Telemetry;
+use crate::telemetry::Telemetry;
 use flight_core::commander::OffboardTarget;
 use flight_core::control::position::PositionSetpoint;
 use flight_core::control::{AttitudeTarget, Setpoint};

@@ -44,19 +44,25 @@ impl fmt::Debug for SecretKey {
     }
 }
 
+/// A signing key's text that is not 64 hexadecimal digits.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[error("a signing key is 64 hexadecimal digits (32 bytes), not {chars} characters")]
+pub struct KeyNotHex {
+    /// The characters given (white space around them not counted).
+    pub chars: usize,
+}
+
 impl SecretKey {
     /// The key written as 64 hexadecimal digits (surrounding white space ignored).
-    pub fn from_hex(text: &str) -> Result<Self, String> {
+    pub fn from_hex(text: &str) -> Result<Self, KeyNotHex> {
         let t = text.trim();
         if t.len() != 64 || !t.bytes().all(|b| b.is_ascii_hexdigit()) {
-            return Err(format!(
-                "a signing key is 64 hexadecimal digits (32 bytes), not {} characters",
-                t.len()
-            ));
+            return Err(KeyNotHex { chars: t.len() });
         }
         let mut key = [0u8; 32];
         for (i, k) in key.iter_mut().enumerate() {
-            *k = u8::from_str_radix(&t[2 * i..2 * i + 2], 16).map_err(|e| e.to_string())?;
+            *k = u8::from_str_radix(&t[2 * i..2 * i + 2], 16)
+                .map_err(|_| KeyNotHex { chars: t.len() })?;
         }
         Ok(Self(key))
     }

@@ -11,7 +11,7 @@ mod navigation;
 mod preflight;
 
 use super::{AckTo, CommandMessage, GroundStation, Outbox};
-use crate::control_loop::Telemetry;
+use crate::telemetry::Telemetry;
 use flight_core::autopilot::command::AutopilotCommand;
 use flight_core::math::geo::LatLonAlt;
 use mavlink::dialects::common::*;

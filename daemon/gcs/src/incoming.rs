@@ -6,7 +6,7 @@ use super::{
     AckTo, CommandMessage, DEFAULT_STREAMS, GroundStation, HostAction, Outbox, Outgoing,
     RATE_RANGE_HZ, Stream, mission, offboard,
 };
-use crate::control_loop::Telemetry;
+use crate::telemetry::Telemetry;
 use flight_core::autopilot::command::AutopilotCommand;
 use flight_core::commander::Sticks;
 use mavlink::MavHeader;

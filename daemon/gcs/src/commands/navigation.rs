@@ -3,8 +3,8 @@
 
 use super::vehicle;
 use super::{Call, CommandMessage};
-use crate::gcs::mission;
-use crate::gcs::{AckTo, GroundStation, Outbox};
+use crate::mission;
+use crate::{AckTo, GroundStation, Outbox};
 use flight_core::autopilot::command::AutopilotCommand;
 use flight_core::commander::FlightMode;
 use mavlink::dialects::common::*;

@@ -2,8 +2,8 @@
 
 use super::Call;
 use super::vehicle;
-use crate::gcs::FORCE_MAGIC;
-use crate::gcs::{GroundStation, Outbox};
+use crate::FORCE_MAGIC;
+use crate::{GroundStation, Outbox};
 use flight_core::autopilot::command::AutopilotCommand;
 use mavlink::dialects::common::*;
 

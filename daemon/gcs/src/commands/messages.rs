@@ -2,8 +2,8 @@
 //! `REQUEST_AUTOPILOT_CAPABILITIES`.
 
 use super::Call;
-use crate::gcs::DEFAULT_STREAMS;
-use crate::gcs::{GroundStation, Outbox};
+use crate::DEFAULT_STREAMS;
+use crate::{GroundStation, Outbox};
 use mavlink::dialects::common::*;
 
 impl GroundStation {

@@ -10,8 +10,8 @@
 //! hanging. Accepted values go to the flight core and the [`ParamStore`].
 
 use super::{GroundStation, Outbox};
-use crate::records::param_store::ParamStore;
-use flight_core::params::{FlightParams, ParamKind, ParamMeta};
+use crate::param_store::ParamStore;
+use flight_core::params::{FlightParams, ParamKind, ParamMeta, ParamRejection};
 use mavlink::dialects::common::*;
 
 /// The parameters, as the ground stations see and change them.
@@ -158,8 +158,12 @@ impl Parameters {
 
     /// Sets several parameters together (all or none, see [`FlightParams::set_many`]), records
     /// them in the store and announces each in `PARAM_VALUE`.
-    pub fn set_many(&mut self, values: &[(&str, f64)], out: &mut Outbox) -> Result<(), String> {
-        self.values.set_many(values).map_err(|e| e.to_string())?;
+    pub fn set_many(
+        &mut self,
+        values: &[(&str, f64)],
+        out: &mut Outbox,
+    ) -> Result<(), ParamRejection> {
+        self.values.set_many(values)?;
         for &(name, value) in values {
             self.store.record(name, value);
             if let Some((i, group, m)) = FlightParams::find(name) {

@@ -1,6 +1,6 @@
 //! The ground-station side: what the vehicle says and answers on MAVLink, as a pure state
-//! machine ([`GroundStation`]) of the messages received, the latest telemetry and the clock,
-//! and the links that carry it ([`crate::gcs_links`]).
+//! machine ([`GroundStation`]) of the messages received, the latest telemetry and the clock.
+//! The sockets that carry it are the daemon's.
 //!
 //! The vehicle speaks as component 1 of its system id, in MAVLink 2, as a `MAV_AUTOPILOT_PX4`
 //! vehicle (flight modes in PX4's `custom_mode` encoding, see [`modes`]). Commands that change
@@ -16,18 +16,24 @@ mod incoming;
 pub mod mission;
 pub mod modes;
 pub mod offboard;
+pub mod param_store;
 pub mod params;
 pub mod signing;
 pub mod streams;
+pub mod telemetry;
+#[cfg(any(test, feature = "testing"))]
+pub mod testing;
 
-use crate::control_loop::Telemetry;
 use flight_core::autopilot::command::AutopilotCommand;
-use flight_core::commander::{CommanderStatus, FlightMode, LandedState, OffboardTarget, Sticks};
+use flight_core::commander::{
+    CommanderStatus, Denial, FlightMode, LandedState, OffboardTarget, Sticks,
+};
 use flight_core::params::FlightParams;
 use flight_core::safety::failsafe::{FailsafeAction, SafetyEvent};
 use mavlink::MessageData;
 use mavlink::dialects::common::*;
 use params::Parameters;
+use telemetry::Telemetry;
 
 /// Our component id (`MAV_COMP_ID_AUTOPILOT1`).
 pub const COMPONENT_ID: u8 = 1;
@@ -190,7 +196,7 @@ pub struct GroundStation {
     home_shown: Option<[f64; 3]>,
     /// Messages that could not be parsed or were not for us.
     pub dropped: u64,
-    /// When the clock started, for SYSTEM_TIME.
+    /// The Unix time when the clock's zero was (µs), for SYSTEM_TIME.
     unix_start_usec: u64,
     /// The parameter table.
     params: Parameters,
@@ -225,9 +231,6 @@ pub struct GroundStation {
 impl GroundStation {
     /// The protocol for system `system_id`, a vehicle of `mav_type`.
     pub fn new(system_id: u8, mav_type: MavType) -> Self {
-        let unix_start_usec = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0, |d| d.as_micros() as u64);
         Self {
             system_id,
             mav_type,
@@ -243,7 +246,7 @@ impl GroundStation {
             shown: None,
             home_shown: None,
             dropped: 0,
-            unix_start_usec,
+            unix_start_usec: 0,
             params: Parameters::default(),
             base_params: FlightParams::default(),
             manual_losses_shown: 0,
@@ -260,6 +263,13 @@ impl GroundStation {
             mag_cal_shown: Default::default(),
             reboot_allowed: true,
         }
+    }
+
+    /// With the Unix time (µs) at which the clock given to [`Self::poll`] was zero, for
+    /// `SYSTEM_TIME` (0 until told: the protocol reads no clock).
+    pub fn with_unix_start(mut self, unix_usec: u64) -> Self {
+        self.unix_start_usec = unix_usec;
+        self
     }
 
     /// Whether `MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN` may reboot: not for one of several vehicles
@@ -290,7 +300,7 @@ impl GroundStation {
     pub fn params_reloaded(
         &mut self,
         to: AckTo,
-        loaded: Result<crate::records::param_store::Loaded, String>,
+        loaded: Result<param_store::Loaded, param_store::Unreadable>,
         out: &mut Outbox,
     ) {
         match loaded {
@@ -304,7 +314,7 @@ impl GroundStation {
             }
             Err(e) => {
                 out.send(self.ack(to, MavResult::MAV_RESULT_FAILED));
-                out.say(MavSeverity::MAV_SEVERITY_ERROR, &e);
+                out.say(MavSeverity::MAV_SEVERITY_ERROR, &e.to_string());
             }
         }
     }
@@ -541,7 +551,7 @@ impl GroundStation {
 
     /// The control loop's answer to a command sent through [`Outbox::vehicle`]: the ack, and
     /// the reason in a `STATUSTEXT` when denied.
-    pub fn answered(&mut self, to: AckTo, result: Result<(), String>, out: &mut Outbox) {
+    pub fn answered(&mut self, to: AckTo, result: Result<(), Denial>, out: &mut Outbox) {
         if to.quiet {
             if let Err(reason) = result {
                 out.say(MavSeverity::MAV_SEVERITY_WARNING, &reason);
