@@ -6,10 +6,10 @@
 // Test code: a failed unwrap is a failed test.
 #![allow(clippy::unwrap_used)]
 
+use flight_core::math::geo::LatLonAlt;
 use flight_core::params::FlightParams;
 use nalgebra::{UnitQuaternion, Vector3};
 use sitl_core::environment::isa;
-use sitl_core::geo::Geodetic;
 use sitl_core::sensors::{EarthField, SensorConfig, SensorPreset, SensorSuite, Truth, fields};
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -28,8 +28,13 @@ fn a_calibration_from_a_log_recovers_the_simulated_distortion() {
     let cfg = SensorConfig::preset(SensorPreset::Noisy);
     let field = EarthField::default();
     let strength = field.ned().norm();
-    let mut sensors =
-        SensorSuite::new(cfg.clone(), field, Geodetic::default(), Vector3::zeros(), 5);
+    let mut sensors = SensorSuite::new(
+        cfg.clone(),
+        field,
+        LatLonAlt::default(),
+        Vector3::zeros(),
+        5,
+    );
     let speeds = [0.0; 4];
     let max = [950.0; 4];
     let dt = 0.004;

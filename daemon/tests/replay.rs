@@ -3,9 +3,9 @@
 // Test code: a failed unwrap is a failed test.
 #![allow(clippy::unwrap_used)]
 
+use flight_core::math::geo::LatLonAlt;
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use sitl_core::environment::isa;
-use sitl_core::geo::Geodetic;
 use sitl_core::sensors::{EarthField, SensorConfig, SensorPreset, SensorSuite, Truth, fields};
 use std::fmt::Write as _;
 use std::process::Command;
@@ -35,7 +35,7 @@ fn make_log(
     let mut sensors = SensorSuite::new(
         cfg.clone(),
         EarthField::default(),
-        Geodetic::default(),
+        LatLonAlt::default(),
         Vector3::zeros(),
         11,
     );

@@ -17,9 +17,9 @@
 //! when that closes, so it never outlives `sitl`, even a `sitl` killed by SIGKILL.
 
 use anyhow::{Context, Result};
+use navmath::geo::LatLonAlt;
 use sitl_core::Airframe;
 use sitl_core::body::BodyState;
-use sitl_core::geo::Geodetic;
 use sitl_core::jsbsim::{
     BridgeInputs, MODEL_NAME, REPLY_LEN, STATE_PROPERTIES, aircraft_xml, decode_reply,
     frames_per_step, init_xml, input_properties,
@@ -49,7 +49,7 @@ pub struct Launch<'a> {
     /// The vehicle.
     pub airframe: &'a Airframe,
     /// The local NED origin: the rest position of the centre of mass.
-    pub home: Geodetic,
+    pub home: LatLonAlt,
     /// The start, in that frame.
     pub initial: BodyState,
     /// The physics rate (Hz): one request per step, each run as
@@ -65,7 +65,7 @@ pub struct Launch<'a> {
 /// ground of [`sitl_core::sim::Simulator::step_with`].
 pub struct Bridge {
     socket: UdpSocket,
-    origin: Geodetic,
+    origin: LatLonAlt,
     mass_kg: f64,
     rotors: usize,
     sequence: u64,
@@ -79,7 +79,7 @@ impl Bridge {
     /// frame of `origin`.
     pub fn connect(
         peer: SocketAddr,
-        origin: Geodetic,
+        origin: LatLonAlt,
         airframe: &Airframe,
         step_timeout: Duration,
     ) -> Result<Self> {

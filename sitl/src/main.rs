@@ -171,7 +171,7 @@ fn load_scenario(cli: &SitlCli) -> Result<Scenario> {
     if let Some(s) = cli.seed {
         scenario.sim.seed = s;
     }
-    scenario.sim.home = scenario.sim.home.for_instance(cli.instance);
+    scenario.sim.home = sitl_core::geo::home_for_instance(&scenario.sim.home, cli.instance);
     if let Some(p) = &cli.sensors {
         let preset = SensorPreset::from_name(p).with_context(|| {
             format!("--sensors must be ideal, typical, noisy or realistic, got {p:?}")

@@ -1,6 +1,7 @@
-//! The pure crates stay pure: the flight core, the simulator's physics and the airframe schema
-//! depend on no MAVLink, no async runtime and no clock. Time comes with their inputs, bytes are
-//! the links' business; a dependency or a clock read creeping in fails here. The ground-station
+//! The pure crates stay pure: the flight core, the simulator's physics, the airframe schema and
+//! the shared mathematics depend on no MAVLink, no async runtime and no clock. Time comes with
+//! their inputs, bytes are the links' business; a dependency or a clock read creeping in fails
+//! here. The ground-station
 //! protocol speaks MAVLink but is sans-I/O the same way: no runtime, clock, socket or file.
 
 // Test code: a failed unwrap is a failed test.
@@ -19,10 +20,11 @@ struct Rule {
 }
 
 /// The workspace's pure crates, and the sans-I/O ground-station protocol.
-const RULES: [Rule; 4] = [
+const RULES: [Rule; 5] = [
     PURE.at("."),
     PURE.at("../../sitl/core"),
     PURE.at("../../airframe"),
+    PURE.at("../../navmath"),
     Rule {
         dir: "../gcs",
         dependencies: &["tokio", "serialport"],

@@ -13,10 +13,10 @@ use crate::records::FlightRecords;
 use crate::settings::Settings;
 use anyhow::{Context, Result, bail};
 use console::{interrupts, status_line};
+use flight_core::math::geo::LatLonAlt;
 use gcs::telemetry::Telemetry;
 use prepare::{Prepared, prepare, sensor_preset};
 use sitl_core::Airframe;
-use sitl_core::geo::Geodetic;
 use sitl_core::sensors::{SensorConfig, SensorPreset};
 use sitl_core::sim::SimConfig;
 use std::time::Duration;
@@ -78,7 +78,7 @@ pub fn fly(cfg: Settings) -> Result<()> {
                     let world = SimConfig {
                         seed: cfg.seed,
                         sensors: SensorConfig::preset(sensors),
-                        home: Geodetic::default().for_instance(cfg.instance),
+                        home: sitl_core::geo::home_for_instance(&LatLonAlt::default(), cfg.instance),
                         ..SimConfig::default()
                     };
                     let mut link = EmbeddedSim::with_world(
@@ -122,7 +122,7 @@ pub fn fly(cfg: Settings) -> Result<()> {
                         channels,
                         sensors,
                         cfg.seed,
-                        Geodetic::default().for_instance(cfg.instance),
+                        sitl_core::geo::home_for_instance(&LatLonAlt::default(), cfg.instance),
                     )
                     .with_context(|| format!("opening a UDP socket for {addr}"))?;
                     tracing::info!(physics = %addr, airframe = %airframe.name, "sending servo packets to a JSON physics");
@@ -236,7 +236,7 @@ fn fly_together(cfg: Settings, source: Source) -> Result<()> {
         let world = SimConfig {
             seed: cfg.seed.wrapping_add(k.into()),
             sensors: SensorConfig::preset(sensors),
-            home: Geodetic::default().for_instance(cfg.instance + k),
+            home: sitl_core::geo::home_for_instance(&LatLonAlt::default(), cfg.instance + k),
             ..SimConfig::default()
         };
         sims.push(EmbeddedSim::with_world(&airframe, world, &[], None, None)?);

@@ -15,12 +15,12 @@
 
 use super::SensorLink;
 use super::frames::{Received, close};
+use flight_core::math::geo::LatLonAlt;
 use hil::json::{PhysicsState, ServoPacket, pwm_from_command};
 use hil::{ActuatorCommand, STATE_INTERVAL_USEC, SensorUpdate};
 use nalgebra::Vector3;
 use sitl_core::body::BodyState;
 use sitl_core::environment::isa;
-use sitl_core::geo::Geodetic;
 use sitl_core::sensors::{EarthField, SensorConfig, SensorPreset, SensorSuite, Truth};
 use sitl_core::sim::TruthState;
 use std::io;
@@ -47,7 +47,7 @@ pub struct JsonLink {
     packet: Vec<u8>,
     sent_at: Option<Instant>,
     sensors: SensorSuite,
-    home: Geodetic,
+    home: LatLonAlt,
     last_timestamp_s: Option<f64>,
     next_truth_usec: u64,
     buf: Vec<u8>,
@@ -65,7 +65,7 @@ impl JsonLink {
         channels: Vec<usize>,
         preset: SensorPreset,
         seed: u64,
-        home: Geodetic,
+        home: LatLonAlt,
     ) -> io::Result<Self> {
         let bind: SocketAddr = if physics.is_ipv4() {
             ([0, 0, 0, 0], 0).into()
@@ -295,7 +295,7 @@ mod tests {
             vec![2, 0, 3, 1],
             SensorPreset::Ideal,
             1,
-            Geodetic::default(),
+            LatLonAlt::default(),
         )
         .unwrap();
         let mut into = Received::default();

@@ -35,8 +35,8 @@
 
 use crate::airframe::Airframe;
 use crate::environment::AirState;
-use crate::geo::Geodetic;
 use nalgebra::{UnitQuaternion, Vector3};
+use navmath::geo::LatLonAlt;
 use std::fmt::Write as _;
 
 /// Metres per foot.
@@ -137,7 +137,7 @@ pub fn rest_height_m(a: &Airframe) -> f64 {
 
 /// JSBSim's initialisation file for a vehicle of `a` starting in `initial` (local NED of
 /// `home`, which is the rest position of the centre of mass: see [`rest_height_m`]).
-pub fn init_xml(a: &Airframe, home: &Geodetic, initial: &crate::body::BodyState) -> String {
+pub fn init_xml(a: &Airframe, home: &LatLonAlt, initial: &crate::body::BodyState) -> String {
     let rest = rest_height_m(a);
     let start = home.offset_by_ned(&initial.pos_ned_m);
     let (phi, theta, psi) = initial.q_ned_from_frd.euler_angles();
@@ -438,8 +438,8 @@ impl BridgeInputs {
 pub struct JsbsimState {
     /// JSBSim's simulation time (s).
     pub time_s: f64,
-    /// Geodetic position of the centre of mass (altitude above mean sea level).
-    pub position: Geodetic,
+    /// LatLonAlt position of the centre of mass (altitude above mean sea level).
+    pub position: LatLonAlt,
     /// Velocity, NED (m/s).
     pub vel_ned_m_s: Vector3<f64>,
     /// Attitude, FRD to NED.
@@ -463,7 +463,7 @@ impl JsbsimState {
 
     /// The simulator's view: position in the local NED frame of `origin` (the rest position of
     /// the centre of mass, see [`rest_height_m`]).
-    pub fn body_step(&self, origin: &Geodetic) -> crate::sim::ExternalBodyStep {
+    pub fn body_step(&self, origin: &LatLonAlt) -> crate::sim::ExternalBodyStep {
         crate::sim::ExternalBodyStep {
             body: crate::body::BodyState {
                 pos_ned_m: origin.ned_to(&self.position),
@@ -547,7 +547,7 @@ pub fn decode_reply(datagram: &[u8], mass_kg: f64) -> Result<(u64, JsbsimState),
     let ft = |x: f64| x * M_PER_FT;
     let state = JsbsimState {
         time_s,
-        position: Geodetic {
+        position: LatLonAlt {
             lat_deg: lat,
             lon_deg: lon,
             alt_m: ft(h_sl_ft),

@@ -15,7 +15,7 @@ pub mod environment;
 pub mod geo;
 pub mod jsbsim;
 pub mod powertrain;
-pub mod quat;
+pub use navmath::quat;
 pub mod rng;
 pub mod scenario;
 pub mod sensors;

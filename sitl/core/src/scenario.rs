@@ -29,11 +29,11 @@
 use crate::airframe::Airframe;
 use crate::body::{BodyState, Integrator};
 use crate::environment::WindConfig;
-use crate::geo::Geodetic;
 use crate::sensors::{EarthField, SensorConfig, SensorHealth, SensorKind, SensorPreset};
 use crate::sim::{Event, SimAction, SimConfig};
 use ::airframe::config::{Checker, ConfigError, parse_toml, read_toml};
 use nalgebra::{UnitQuaternion, Vector3};
+use navmath::geo::LatLonAlt;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
@@ -146,7 +146,7 @@ struct ScenarioFile {
     #[serde(default)]
     sensors: SensorPreset,
     #[serde(default)]
-    home: Option<Geodetic>,
+    home: Option<LatLonAlt>,
     #[serde(default)]
     earth_field: Option<EarthField>,
     #[serde(default)]

@@ -5,8 +5,9 @@
 
 use crate::environment::{AirState, isa_altitude_m};
 use crate::rng::Rng;
-use crate::{GRAVITY_M_S2, airframe::MAX_ROTORS, geo::Geodetic};
+use crate::{GRAVITY_M_S2, airframe::MAX_ROTORS};
 use nalgebra::{UnitQuaternion, Vector3};
+use navmath::geo::{LatLonAlt, LocalFrame};
 use serde::Deserialize;
 use std::collections::VecDeque;
 
@@ -106,7 +107,7 @@ pub struct GpsFix {
     /// 0–1: no fix, 3: 3D fix.
     pub fix_type: u8,
     /// Position.
-    pub position: Geodetic,
+    pub position: LatLonAlt,
     /// Velocity in NED (m/s).
     pub vel_ned_m_s: Vector3<f64>,
     /// Horizontal position accuracy 1σ (m).
@@ -172,7 +173,8 @@ impl Periodic {
 pub struct SensorSuite {
     cfg: SensorConfig,
     field_ned: Vector3<f64>,
-    home: Geodetic,
+    /// The local frame at home: where the GPS reads the position.
+    home: LocalFrame,
     imu_position_frd_m: Vector3<f64>,
     accel_rng: Rng,
     gyro_rng: Rng,
@@ -246,7 +248,7 @@ impl SensorSuite {
     pub fn new(
         cfg: SensorConfig,
         field: EarthField,
-        home: Geodetic,
+        home: LatLonAlt,
         imu_position_frd_m: Vector3<f64>,
         seed: u64,
     ) -> Self {
@@ -272,7 +274,7 @@ impl SensorSuite {
         );
         Self {
             field_ned: field.ned(),
-            home,
+            home: LocalFrame::new(home),
             imu_position_frd_m,
             accel_rng,
             gyro_rng,
@@ -438,7 +440,7 @@ impl SensorSuite {
                 GpsFix {
                     time_usec: t.time_usec,
                     fix_type: 1,
-                    position: self.home,
+                    position: self.home.origin(),
                     vel_ned_m_s: Vector3::zeros(),
                     h_acc_m: 999.0,
                     v_acc_m: 999.0,
@@ -448,7 +450,7 @@ impl SensorSuite {
                 GpsFix {
                     time_usec: t.time_usec,
                     fix_type: 3,
-                    position: self.home.offset_by_ned(&(t.pos_ned_m + self.gps_error_ned)),
+                    position: self.home.to_geodetic(&(t.pos_ned_m + self.gps_error_ned)),
                     vel_ned_m_s: t.vel_ned_m_s + vel_noise,
                     h_acc_m: c.gps_h_sigma.max(0.05),
                     v_acc_m: c.gps_v_sigma.max(0.05),

@@ -8,11 +8,11 @@ use crate::GRAVITY_M_S2;
 use crate::airframe::{Airframe, MAX_ROTORS};
 use crate::body::{Accel, BodyState, Integrator, MassProperties};
 use crate::environment::{AirState, Wind, WindConfig, isa};
-use crate::geo::Geodetic;
 use crate::powertrain::{Battery, RotorWrench, Rotors};
 use crate::rng::Rng;
 use crate::sensors::{EarthField, SensorConfig, SensorFrame, SensorSuite, Truth};
 use nalgebra::{DVector, UnitQuaternion, Vector3};
+use navmath::geo::{LatLonAlt, LocalFrame};
 
 pub use events::{Event, SET_DOWN_S, SimAction, TUMBLE_RAMP_S, tumble_attitude};
 use events::{Pulse, Tumble};
@@ -30,8 +30,8 @@ pub struct SimConfig {
     pub sensors: SensorConfig,
     /// Earth magnetic field at the site.
     pub earth_field: EarthField,
-    /// Geodetic position of the local NED origin (on the ground).
-    pub home: Geodetic,
+    /// LatLonAlt position of the local NED origin (on the ground).
+    pub home: LatLonAlt,
     /// Wind and turbulence.
     pub wind: WindConfig,
     /// The battery's charge at the start (0–1).
@@ -46,7 +46,7 @@ impl Default for SimConfig {
             seed: 1,
             sensors: SensorConfig::preset(crate::sensors::SensorPreset::Typical),
             earth_field: EarthField::default(),
-            home: Geodetic::default(),
+            home: LatLonAlt::default(),
             wind: WindConfig::default(),
             battery_charge: 1.0,
         }
@@ -77,8 +77,8 @@ pub struct TruthState {
     pub body: BodyState,
     /// Mean linear acceleration over the last step, NED (m/s²).
     pub accel_ned_m_s2: Vector3<f64>,
-    /// Geodetic position.
-    pub position: Geodetic,
+    /// LatLonAlt position.
+    pub position: LatLonAlt,
     /// Air velocity at the vehicle, NED (m/s).
     pub wind_ned_m_s: Vector3<f64>,
     /// Whether the vehicle rests on the ground.
@@ -147,6 +147,8 @@ pub struct Simulator {
     accel_ned: Vector3<f64>,
     ang_accel_frd: Vector3<f64>,
     air: AirState,
+    /// The local frame at home: the truth's geodetic position.
+    home: LocalFrame,
     wind_ned: Vector3<f64>,
     pulses: Vec<Pulse>,
     tumble: Option<Tumble>,
@@ -223,6 +225,7 @@ impl Simulator {
             accel_ned: Vector3::zeros(),
             ang_accel_frd: Vector3::zeros(),
             air: isa(cfg.home.alt_m - initial.pos_ned_m.z),
+            home: LocalFrame::new(cfg.home),
             wind_ned: Vector3::from(cfg.wind.mean_ned_m_s),
             pulses: Vec::new(),
             tumble: None,
@@ -309,7 +312,7 @@ impl Simulator {
             time_usec: self.time_usec,
             body: self.body,
             accel_ned_m_s2: self.accel_ned,
-            position: self.cfg.home.offset_by_ned(&self.body.pos_ned_m),
+            position: self.home.to_geodetic(&self.body.pos_ned_m),
             wind_ned_m_s: self.wind_ned,
             landed: self.landed,
             battery_voltage_v: self.battery.voltage(),

@@ -14,7 +14,7 @@ fn quad() -> Airframe {
     Airframe::load(&dir.join("quad_x.toml")).unwrap()
 }
 
-const HOME: Geodetic = Geodetic {
+const HOME: LatLonAlt = LatLonAlt {
     lat_deg: 47.0,
     lon_deg: 8.0,
     alt_m: 400.0,

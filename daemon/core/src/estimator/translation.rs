@@ -347,15 +347,15 @@ crate::params::param_group! {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math::geo::LatLonAlt;
     use sitl_core::environment::isa;
-    use sitl_core::geo::Geodetic;
     use sitl_core::sensors::{EarthField, SensorConfig, SensorPreset, SensorSuite, Truth, fields};
 
     /// A 20 m circle at 5 m/s with a 3 m altitude swing, level flight, typical sensors.
     #[test]
     fn tracks_a_circle_with_typical_sensors_and_flags_gps_loss() {
         let dt = 0.004;
-        let home = Geodetic::default();
+        let home = LatLonAlt::default();
         let mut sensors = SensorSuite::new(
             SensorConfig::preset(SensorPreset::Typical),
             EarthField::default(),
@@ -444,7 +444,7 @@ mod tests {
             if (20.0..80.0).contains(&t) {
                 // The origin is where the first fix was: compare displacements from it.
                 let origin = e.origin.expect("origin set");
-                let origin_ned = sitl_core::geo::Geodetic {
+                let origin_ned = LatLonAlt {
                     lat_deg: origin.lat_deg,
                     lon_deg: origin.lon_deg,
                     alt_m: origin.alt_m,

@@ -1,4 +1,4 @@
-//! The mathematics every stage shares: quaternions and geodetic coordinates.
+//! The mathematics every stage shares, from the `navmath` crate the simulator uses too:
+//! quaternions and geodetic coordinates.
 
-pub mod geo;
-pub mod quat;
+pub use navmath::{geo, quat};

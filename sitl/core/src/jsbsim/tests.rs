@@ -7,7 +7,7 @@ fn shipped(name: &str) -> Airframe {
     Airframe::load(&dir.join(format!("{name}.toml"))).unwrap()
 }
 
-const ORIGIN: Geodetic = Geodetic {
+const ORIGIN: LatLonAlt = LatLonAlt {
     lat_deg: 47.0,
     lon_deg: 8.0,
     alt_m: 500.0,
@@ -166,9 +166,15 @@ fn replies_convert_to_si_ned_frd() {
     assert!((s.air.pressure_pa - 101_325.0).abs() < 1.0);
     assert!((s.air.temperature_k - 288.15).abs() < 1e-3);
     assert!((s.air.density_kg_m3 - 1.225).abs() < 1e-3);
-    // The origin's local frame: 10 m up, a millidegree north.
+    // The origin's local frame: 10 m up, a millidegree north (and 152 m east); the tangent
+    // plane lies d²/2R (3 mm) above the curved Earth there.
     let step = s.body_step(&ORIGIN);
-    assert!((step.body.pos_ned_m.z + 10.0).abs() < 1e-3);
+    let d = step.body.pos_ned_m.xy().norm();
+    let curvature_m = d * d / (2.0 * 6.371e6);
+    assert!(
+        (step.body.pos_ned_m.z + 10.0 - curvature_m).abs() < 1e-4,
+        "{step:?}"
+    );
     assert!((step.body.pos_ned_m.x - 111.2).abs() < 0.5, "{step:?}");
     assert!(step.on_ground);
     // Broken replies are refused with the reason.
@@ -192,7 +198,7 @@ fn replies_convert_to_si_ned_frd() {
 #[test]
 fn the_start_file_places_the_vehicle_in_the_scenarios_state() {
     let a = shipped("quad_x");
-    let home = Geodetic {
+    let home = LatLonAlt {
         lat_deg: 47.0,
         lon_deg: 8.0,
         alt_m: 500.0,

@@ -3,8 +3,8 @@
 //! temperature change), with typical noise otherwise.
 
 use super::*;
+use crate::math::geo::LatLonAlt;
 use crate::params::AttitudeParams;
-use sitl_core::geo::Geodetic;
 use sitl_core::sensors::{EarthField, SensorConfig, SensorPreset, SensorSuite, fields};
 
 const G: f64 = crate::GRAVITY_M_S2;
@@ -48,7 +48,7 @@ fn fly(params: &AttitudeParams, duration_s: f64) -> BiasRun {
     let mut sensors = SensorSuite::new(
         cfg,
         EarthField::default(),
-        Geodetic::default(),
+        LatLonAlt::default(),
         Vector3::zeros(),
         7,
     );

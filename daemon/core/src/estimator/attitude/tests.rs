@@ -1,8 +1,8 @@
 use super::*;
+use crate::math::geo::LatLonAlt;
 use crate::params::AttitudeParams;
 use nalgebra::Quaternion;
 use sitl_core::environment::isa;
-use sitl_core::geo::Geodetic;
 use sitl_core::sensors::{
     EarthField, SensorConfig, SensorFrame, SensorPreset, SensorSuite, Truth, fields,
 };
@@ -113,7 +113,7 @@ fn fly_mag_off(
     let mut sensors = SensorSuite::new(
         cfg,
         EarthField::default(),
-        Geodetic::default(),
+        LatLonAlt::default(),
         Vector3::zeros(),
         seed,
     );
@@ -540,7 +540,7 @@ fn the_first_rest_takes_the_bias_and_restarts_tilt_and_heading() {
         let mut sensors = SensorSuite::new(
             cfg.clone(),
             EarthField::default(),
-            Geodetic::default(),
+            LatLonAlt::default(),
             Vector3::zeros(),
             seed,
         );
