@@ -1,11 +1,13 @@
-//! How the HIL bytes travel between the simulator and the autopilot: UDP datagrams or a serial
-//! byte stream, and the simulator's side of the link over either.
+//! The simulator's side of the HIL link, over UDP datagrams or a serial byte stream: the
+//! sockets and the serial line are `hil::transport`'s, the same the autopilot uses on its end.
 
 use crate::run::Summary;
 use anyhow::{Context, Result};
-use hil::{ActuatorCommand, Decoded, StreamDecoder};
+use hil::transport::{Datagrams, LineRead, SerialLine};
+use hil::{ActuatorCommand, Decoded};
 use mavlink::dialects::common::MavMessage;
-use std::net::{SocketAddr, UdpSocket};
+use std::net::SocketAddr;
+use std::path::Path;
 use std::time::{Duration, Instant};
 
 /// How the HIL bytes travel: UDP datagrams, or a serial byte stream.
@@ -19,28 +21,19 @@ pub trait Transport {
 
 /// UDP to the autopilot's port.
 pub struct UdpTransport {
-    socket: UdpSocket,
+    socket: Datagrams,
     target: SocketAddr,
-    rx: Vec<u8>,
-    /// The socket's read mode as last set (zero: non-blocking), so that a lockstep exchange
-    /// does not pay two extra system calls per receive.
-    read_timeout: Option<Duration>,
 }
 
 impl UdpTransport {
     /// Binds `bind`, talking to `target`.
     pub fn new(bind: SocketAddr, target: SocketAddr) -> Result<Self> {
-        let socket = UdpSocket::bind(bind).with_context(|| format!("binding {bind}"))?;
+        let socket = Datagrams::bind(bind).with_context(|| format!("binding {bind}"))?;
         // Connected: the kernel keeps the route, and only the autopilot's datagrams come in.
         socket
             .connect(target)
             .with_context(|| format!("setting {target} as the autopilot's address"))?;
-        Ok(Self {
-            socket,
-            target,
-            rx: vec![0; 65_536],
-            read_timeout: None,
-        })
+        Ok(Self { socket, target })
     }
 
     /// Where the datagrams come from.
@@ -49,20 +42,10 @@ impl UdpTransport {
     }
 }
 
-fn quiet(e: &std::io::Error) -> bool {
-    matches!(
-        e.kind(),
-        std::io::ErrorKind::WouldBlock
-            | std::io::ErrorKind::TimedOut
-            | std::io::ErrorKind::Interrupted
-            | std::io::ErrorKind::ConnectionRefused
-    )
-}
-
 impl Transport for UdpTransport {
     fn send(&mut self, bytes: &[u8]) -> Result<()> {
-        match self.socket.send(bytes) {
-            Ok(_) => Ok(()),
+        match self.socket.send(bytes, None) {
+            Ok(()) => Ok(()),
             // Nobody listening yet (ICMP port unreachable): keep going, the autopilot may start later.
             Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => Ok(()),
             Err(e) => Err(e).with_context(|| format!("sending to {}", self.target)),
@@ -70,101 +53,62 @@ impl Transport for UdpTransport {
     }
 
     fn receive(&mut self, timeout: Duration, into: &mut Decoded) -> Result<bool> {
-        // A wait a little shorter than asked is fine (callers loop to their deadline): keep the
-        // set timeout while it is within [timeout / 2, timeout].
-        let keep = match self.read_timeout {
-            Some(t) if timeout.is_zero() => t.is_zero(),
-            Some(t) => !t.is_zero() && t <= timeout && t * 2 >= timeout,
-            None => false,
-        };
-        if !keep {
-            if timeout.is_zero() {
-                self.socket.set_nonblocking(true)?;
-            } else {
-                self.socket.set_nonblocking(false)?;
-                self.socket.set_read_timeout(Some(timeout))?;
-            }
-            self.read_timeout = Some(timeout);
-        }
-        match self.socket.recv(&mut self.rx) {
-            Ok(len) => {
-                hil::decode_into(&self.rx[..len], into);
+        match self
+            .socket
+            .recv(timeout)
+            .context("receiving HIL_ACTUATOR_CONTROLS")?
+        {
+            Some((datagram, _)) => {
+                hil::decode_into(datagram, into);
                 Ok(true)
             }
-            Err(e) if quiet(&e) => Ok(false),
-            Err(e) => Err(e).context("receiving HIL_ACTUATOR_CONTROLS"),
+            None => Ok(false),
         }
     }
 }
 
 /// A serial line (or one end of a pseudo-terminal pair): the simulator plays the flight board.
 pub struct SerialTransport {
-    port: serialport::TTYPort,
-    name: String,
-    decoder: StreamDecoder,
-    rx: Vec<u8>,
-    /// The other end of a pair this process opened, kept open so the line stays up until the
-    /// autopilot opens it by name.
-    _peer: Option<serialport::TTYPort>,
+    line: SerialLine,
 }
 
 impl SerialTransport {
     /// Opens `path` at `baud`, or, for `pty`, a new pseudo-terminal pair whose far end
     /// ([`SerialTransport::name`]) is for the autopilot.
     pub fn open(path: &str, baud: u32) -> Result<Self> {
-        let (port, name, peer) = if path == "pty" {
-            let (ours, theirs) =
-                serialport::TTYPort::pair().context("opening a pseudo-terminal pair")?;
-            let name =
-                serialport::SerialPort::name(&theirs).context("the pseudo-terminal has no name")?;
-            (ours, name, Some(theirs))
+        let line = if path == "pty" {
+            SerialLine::pseudo_terminal().context("opening a pseudo-terminal pair")?
         } else {
-            let port = serialport::new(path, baud)
-                .timeout(Duration::from_millis(10))
-                .open_native()
-                .with_context(|| format!("opening serial port {path}"))?;
-            (port, path.to_owned(), None)
+            SerialLine::open(Path::new(path), baud)
+                .with_context(|| format!("opening serial port {path}"))?
         };
-        Ok(Self {
-            port,
-            name,
-            decoder: StreamDecoder::default(),
-            rx: vec![0; 4096],
-            _peer: peer,
-        })
+        Ok(Self { line })
     }
 
     /// The device the autopilot opens.
     pub fn name(&self) -> &str {
-        &self.name
+        self.line.name()
     }
 }
 
 impl Transport for SerialTransport {
     fn send(&mut self, bytes: &[u8]) -> Result<()> {
-        use std::io::Write;
-        self.port
+        self.line
             .write_all(bytes)
-            .with_context(|| format!("writing to {}", self.name))
+            .with_context(|| format!("writing to {}", self.line.name()))
     }
 
     fn receive(&mut self, timeout: Duration, into: &mut Decoded) -> Result<bool> {
-        use serialport::SerialPort;
-        use std::io::Read;
-        self.port.set_timeout(timeout)?;
         let before = into.messages.len();
-        match self.port.read(&mut self.rx) {
-            Ok(n) => {
-                self.decoder.push(&self.rx[..n], into);
-                Ok(into.messages.len() > before)
-            }
-            Err(e) if quiet(&e) => Ok(false),
+        match self.line.read_into(timeout, into) {
+            Ok(LineRead::Bytes(_)) => Ok(into.messages.len() > before),
+            Ok(LineRead::Nothing | LineRead::Closed) => Ok(false),
             // No autopilot has the far end open yet (a pty's master reads EIO until then).
             Err(e) if e.raw_os_error() == Some(5) => {
                 std::thread::sleep(timeout.min(Duration::from_millis(50)));
                 Ok(false)
             }
-            Err(e) => Err(e).with_context(|| format!("reading {}", self.name)),
+            Err(e) => Err(e).with_context(|| format!("reading {}", self.line.name())),
         }
     }
 }

@@ -2,7 +2,8 @@
 //! link hands the flight loop typed frames ([`frames::LinkFrame`]) and takes typed commands
 //! ([`ActuatorCommand`]); the bytes stay at its edge: HIL messages over UDP or a serial line,
 //! ArduPilot's JSON, or none at all for the embedded simulator. The flight loop does not know
-//! which one it talks to.
+//! which one it talks to. The sockets and the serial line are `hil::transport`'s, the same the
+//! simulator process uses on its end.
 
 pub mod frames;
 pub mod json_link;
@@ -10,10 +11,11 @@ pub mod sim;
 
 use anyhow::{Context, Result, bail};
 use frames::{FrameAssembler, Received};
-use hil::{ActuatorCommand, Encoder, StreamDecoder};
+use hil::transport::{Datagrams, LineRead, SerialLine};
+use hil::{ActuatorCommand, Encoder};
 use std::io;
-use std::net::{SocketAddr, UdpSocket};
-use std::path::{Path, PathBuf};
+use std::net::SocketAddr;
+use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 /// A source of sensor frames that takes actuator commands back.
@@ -235,24 +237,11 @@ impl Source {
     }
 }
 
-/// A read that ended without data and without a fault: timed out, would block, or interrupted
-/// by a signal (Ctrl-C).
-fn nothing_yet(e: &io::Error) -> bool {
-    matches!(
-        e.kind(),
-        io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut | io::ErrorKind::Interrupted
-    )
-}
-
 /// A simulator process on UDP: binds the autopilot's port, answers whoever sent the last frame.
 pub struct UdpLink {
-    socket: UdpSocket,
+    socket: Datagrams,
     peer: Option<SocketAddr>,
-    rx: Vec<u8>,
     lockstep: bool,
-    /// The read timeout as last set (`Some(ZERO)`: non-blocking): set again only when it
-    /// changes (a system call per frame otherwise).
-    read_timeout: Option<Duration>,
     /// Answers dropped because the socket's buffer was full (non-blocking).
     dropped: u64,
     frames: FrameAssembler,
@@ -263,15 +252,13 @@ pub struct UdpLink {
 impl UdpLink {
     /// Binds `addr`; `lockstep`: the simulator waits for each answer, sent as `system_id`.
     pub fn bind(addr: SocketAddr, lockstep: bool, system_id: u8) -> Result<Self> {
-        let socket = UdpSocket::bind(addr).with_context(|| {
+        let socket = Datagrams::bind(addr).with_context(|| {
             format!("binding the simulator port {addr} (is another autopilot using it? try -i N)")
         })?;
         Ok(Self {
             socket,
             peer: None,
-            rx: vec![0; 65_536],
             lockstep,
-            read_timeout: None,
             dropped: 0,
             frames: FrameAssembler::default(),
             encoder: Encoder::with_ids(system_id, 1),
@@ -287,29 +274,17 @@ impl UdpLink {
 
 impl SensorLink for UdpLink {
     fn receive(&mut self, timeout: Duration, into: &mut Received) -> io::Result<bool> {
-        if self.read_timeout != Some(timeout) {
-            // A zero timeout reads without waiting (the deadline-paced loop).
-            self.socket.set_nonblocking(timeout.is_zero())?;
-            if !timeout.is_zero() {
-                self.socket.set_read_timeout(Some(timeout))?;
-            }
-            self.read_timeout = Some(timeout);
+        // A zero timeout reads without waiting (the deadline-paced loop).
+        let Some((datagram, from)) = self.socket.recv(timeout)? else {
+            return Ok(false);
+        };
+        if self.peer != Some(from) {
+            tracing::info!(simulator = %from, "sensor frames arriving");
+            self.peer = Some(from);
         }
-        match self.socket.recv_from(&mut self.rx) {
-            Ok((len, from)) => {
-                if self.peer != Some(from) {
-                    tracing::info!(simulator = %from, "sensor frames arriving");
-                    self.peer = Some(from);
-                }
-                let datagram = &self.rx[..len];
-                self.frames
-                    .absorb_bytes(into, |d| hil::decode_into(datagram, d));
-                Ok(true)
-            }
-            // Connection refused: an ICMP answer to an earlier send; the simulator may come back.
-            Err(e) if nothing_yet(&e) || e.kind() == io::ErrorKind::ConnectionRefused => Ok(false),
-            Err(e) => Err(e),
-        }
+        self.frames
+            .absorb_bytes(into, |d| hil::decode_into(datagram, d));
+        Ok(true)
     }
 
     fn send(&mut self, command: &ActuatorCommand) -> io::Result<()> {
@@ -317,7 +292,7 @@ impl SensorLink for UdpLink {
             return Ok(());
         };
         encode(&mut self.encoder, &mut self.tx, command);
-        match self.socket.send_to(&self.tx, peer) {
+        match self.socket.send(&self.tx, Some(peer)) {
             // The simulator went away; it may come back.
             Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => Ok(()),
             // Non-blocking and the buffer is full: this answer is lost, the next one goes.
@@ -331,7 +306,7 @@ impl SensorLink for UdpLink {
                 }
                 Ok(())
             }
-            r => r.map(|_| ()),
+            r => r,
         }
     }
 
@@ -353,12 +328,10 @@ impl SensorLink for UdpLink {
 pub struct SerialLink {
     path: PathBuf,
     baud: u32,
-    port: Option<serialport::TTYPort>,
-    decoder: StreamDecoder,
+    port: Option<SerialLine>,
     frames: FrameAssembler,
     encoder: Encoder,
     tx: Vec<u8>,
-    rx: Vec<u8>,
     retry_at: Instant,
     backoff: Duration,
     lockstep: bool,
@@ -371,17 +344,15 @@ impl SerialLink {
     /// the daemon), one that vanishes later is retried. `lockstep`: the other end is a
     /// simulator that waits for each answer. Answers go out as `system_id`.
     pub fn open(path: PathBuf, baud: u32, lockstep: bool, system_id: u8) -> Result<Self> {
-        let port = Self::open_port(&path, baud)
+        let port = SerialLine::open(&path, baud)
             .with_context(|| format!("opening serial port {}", path.display()))?;
         Ok(Self {
             path,
             baud,
             port: Some(port),
-            decoder: StreamDecoder::default(),
             frames: FrameAssembler::default(),
             encoder: Encoder::with_ids(system_id, 1),
             tx: Vec::with_capacity(128),
-            rx: vec![0; 4096],
             retry_at: Instant::now(),
             backoff: Duration::from_millis(100),
             lockstep,
@@ -389,16 +360,9 @@ impl SerialLink {
         })
     }
 
-    fn open_port(path: &Path, baud: u32) -> serialport::Result<serialport::TTYPort> {
-        serialport::new(path.to_string_lossy(), baud)
-            .timeout(Duration::from_millis(10))
-            .open_native()
-    }
-
     fn lost(&mut self, e: &dyn std::fmt::Display) {
         tracing::error!(port = %self.path.display(), "serial link lost: {e}; reopening");
-        self.port = None;
-        self.decoder = StreamDecoder::default();
+        self.port = None; // its decoder, holding part of a frame, with it
         self.backoff = Duration::from_millis(100);
         self.retry_at = Instant::now() + self.backoff;
     }
@@ -406,14 +370,13 @@ impl SerialLink {
 
 impl SensorLink for SerialLink {
     fn receive(&mut self, timeout: Duration, into: &mut Received) -> io::Result<bool> {
-        use std::io::Read;
         let Some(port) = self.port.as_mut() else {
             let now = Instant::now();
             if now < self.retry_at {
                 std::thread::sleep(timeout.min(self.retry_at - now));
                 return Ok(false);
             }
-            match Self::open_port(&self.path, self.baud) {
+            match SerialLine::open(&self.path, self.baud) {
                 Ok(p) => {
                     tracing::info!(port = %self.path.display(), "serial link back");
                     self.port = Some(p);
@@ -426,18 +389,17 @@ impl SensorLink for SerialLink {
             }
             return Ok(false);
         };
-        serialport::SerialPort::set_timeout(port, timeout)?;
-        match port.read(&mut self.rx) {
-            // End of file: the other side closed (a pty whose simulator exited).
-            Ok(0) => {
+        let mut read = Ok(LineRead::Nothing);
+        let any = self
+            .frames
+            .absorb_bytes(into, |d| read = port.read_into(timeout, d));
+        match read {
+            Ok(LineRead::Bytes(_) | LineRead::Nothing) => Ok(any),
+            // The other side closed (a pty whose simulator exited).
+            Ok(LineRead::Closed) => {
                 self.lost(&"end of stream");
                 Ok(false)
             }
-            Ok(n) => {
-                let (decoder, bytes) = (&mut self.decoder, &self.rx[..n]);
-                Ok(self.frames.absorb_bytes(into, |d| decoder.push(bytes, d)))
-            }
-            Err(e) if nothing_yet(&e) => Ok(false),
             Err(e) => {
                 self.lost(&e);
                 Ok(false)
@@ -446,7 +408,6 @@ impl SensorLink for SerialLink {
     }
 
     fn send(&mut self, command: &ActuatorCommand) -> io::Result<()> {
-        use std::io::Write;
         let Some(port) = self.port.as_mut() else {
             return Ok(());
         };
@@ -455,7 +416,7 @@ impl SensorLink for SerialLink {
             Ok(()) => {}
             // The deadline-paced loop writes without waiting: a full output buffer loses this
             // answer (the board's parser skips a partial frame), not the port.
-            Err(e) if nothing_yet(&e) => {
+            Err(e) if hil::transport::nothing_yet(&e) => {
                 self.dropped += 1;
                 if self.dropped.is_power_of_two() {
                     tracing::warn!(port = %self.path.display(), dropped = self.dropped, "serial output full: answers dropped");

@@ -7,6 +7,7 @@
 
 pub mod json;
 mod simulator_end;
+pub mod transport;
 pub use simulator_end::{STATE_INTERVAL_USEC, SimulatorEnd};
 mod wire;
 pub use wire::{
