@@ -7,9 +7,12 @@ searching for a name finds one thing). Test files are exempt: `tests.rs`, anythi
 import pathlib
 import re
 import sys
+import tomllib
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
-CRATES = ["airframe", "daemon", "sitl"]
+# Every workspace member (a member inside another, as daemon/core, is walked with it).
+MEMBERS = tomllib.loads((ROOT / "Cargo.toml").read_text())["workspace"]["members"]
+CRATES = [m for m in MEMBERS if not any(m.startswith(o + "/") for o in MEMBERS)]
 MAX_LINES = 700
 TYPE = re.compile(r"^\s*(?:pub(?:\([a-z]+\))?\s+)?(?:struct|enum|trait)\s+([A-Z][A-Za-z0-9]*)", re.M)
 

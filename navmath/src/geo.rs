@@ -49,7 +49,7 @@ fn to_ecef(p: &LatLonAlt) -> Vector3<f64> {
 
 #[inline]
 fn from_ecef(x: &Vector3<f64>) -> LatLonAlt {
-    // Bowring's (1976) closed form, one pass: within 0.1 µm of the ellipsoid's latitude below
+    // Bowring's (1976) closed form, one pass: within 1 µm of the ellipsoid's latitude below
     // 3 km and 4 µm at 20 km, with no iteration (the simulator converts every frame).
     let p = x.x.hypot(x.y);
     let (st, ct) = (x.z * A).atan2(p * B).sin_cos();

@@ -17,7 +17,7 @@
 //! when that closes, so it never outlives `sitl`, even a `sitl` killed by SIGKILL.
 
 use anyhow::{Context, Result};
-use navmath::geo::LatLonAlt;
+use navmath::geo::{LatLonAlt, LocalFrame};
 use sitl_core::Airframe;
 use sitl_core::body::BodyState;
 use sitl_core::jsbsim::{
@@ -65,7 +65,7 @@ pub struct Launch<'a> {
 /// ground of [`sitl_core::sim::Simulator::step_with`].
 pub struct Bridge {
     socket: UdpSocket,
-    origin: LatLonAlt,
+    origin: LocalFrame,
     mass_kg: f64,
     rotors: usize,
     sequence: u64,
@@ -91,7 +91,7 @@ impl Bridge {
         socket.set_read_timeout(Some(Duration::from_millis(50)))?;
         Ok(Self {
             socket,
-            origin,
+            origin: LocalFrame::new(origin),
             mass_kg: airframe.mass_kg,
             rotors: airframe.rotors.len(),
             sequence: 0,

@@ -136,6 +136,7 @@ impl ParamStore {
              # Parameters changed from a ground station, applied over flight.toml at start,\n\
              # written by autopilot {}. To edit by hand: stop the daemon, delete the first line\n\
              # and the checksum line at the end (or the edit is taken for damage).\n",
+            // The workspace's version, which every crate of it shares.
             env!("CARGO_PKG_VERSION")
         );
         let mut table = toml::Table::new();

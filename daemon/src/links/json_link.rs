@@ -15,7 +15,7 @@
 
 use super::SensorLink;
 use super::frames::{Received, close};
-use flight_core::math::geo::LatLonAlt;
+use flight_core::math::geo::{LatLonAlt, LocalFrame};
 use hil::json::{PhysicsState, ServoPacket, pwm_from_command};
 use hil::{ActuatorCommand, STATE_INTERVAL_USEC, SensorUpdate};
 use nalgebra::Vector3;
@@ -47,7 +47,8 @@ pub struct JsonLink {
     packet: Vec<u8>,
     sent_at: Option<Instant>,
     sensors: SensorSuite,
-    home: LatLonAlt,
+    /// The local frame at home: the truth's geodetic position.
+    home: LocalFrame,
     last_timestamp_s: Option<f64>,
     next_truth_usec: u64,
     buf: Vec<u8>,
@@ -88,7 +89,7 @@ impl JsonLink {
             packet: Vec::with_capacity(72),
             sent_at: None,
             sensors,
-            home,
+            home: LocalFrame::new(home),
             last_timestamp_s: None,
             next_truth_usec: 0,
             buf: vec![0; 65_536],
@@ -139,7 +140,7 @@ impl JsonLink {
             q_ned_from_frd: s.q_ned_from_frd,
             rate_frd_rad_s: s.gyro_frd_rad_s,
             ang_accel_frd_rad_s2: Vector3::zeros(),
-            air: isa(self.home.alt_m - s.pos_ned_m.z),
+            air: isa(self.home.origin().alt_m - s.pos_ned_m.z),
             rotor_speed_rad_s: &[],
             rotor_max_speed_rad_s: &[],
         };
@@ -161,7 +162,7 @@ impl JsonLink {
                     rate_frd_rad_s: s.gyro_frd_rad_s,
                 },
                 accel_ned_m_s2: accel_ned,
-                position: self.home.offset_by_ned(&s.pos_ned_m),
+                position: self.home.to_geodetic(&s.pos_ned_m),
                 wind_ned_m_s: Vector3::zeros(),
                 landed: false,
                 battery_voltage_v: voltage,

@@ -2,7 +2,7 @@
 //! link hands the flight loop typed frames ([`frames::LinkFrame`]) and takes typed commands
 //! ([`ActuatorCommand`]); the bytes stay at its edge: HIL messages over UDP or a serial line,
 //! ArduPilot's JSON, or none at all for the embedded simulator. The flight loop does not know
-//! which one it talks to. The sockets and the serial line are `hil::transport`'s, the same the
+//! which one it talks to. The HIL sockets and serial line are `hil::transport`'s, the same the
 //! simulator process uses on its end.
 
 pub mod frames;

@@ -7,17 +7,16 @@
 //! include what the estimator cannot know (barometer drift, correlated GPS error).
 
 use flight_core::commander::{CommanderStatus, FlightMode, LandedState};
+use flight_core::math::geo::{LatLonAlt, LocalFrame};
 use hil::TruthReport;
 use nalgebra::{UnitQuaternion, Vector3};
-
-/// Mean Earth radius (m): good to parts per million over a flight's few metres.
-const EARTH_RADIUS_M: f64 = 6_371_000.0;
 
 /// Running figures of one flight.
 #[derive(Debug, Clone, Default)]
 pub struct FlightScore {
     takeoff_m: f64,
-    origin: Option<TruthReport>,
+    /// The local frame at the take-off spot.
+    origin: Option<LocalFrame>,
     hover: Rms,
     hover_h: Rms,
     attitude: Rms,
@@ -69,13 +68,7 @@ impl FlightScore {
 
     /// True position NED (m) of `t` relative to the take-off spot (none before arming).
     pub fn local(&self, t: &TruthReport) -> Option<Vector3<f64>> {
-        let o = self.origin?;
-        let k = EARTH_RADIUS_M * std::f64::consts::PI / 180.0;
-        Some(Vector3::new(
-            (t.lat_deg - o.lat_deg) * k,
-            (t.lon_deg - o.lon_deg) * k * o.lat_deg.to_radians().cos(),
-            o.alt_m - t.alt_m,
-        ))
+        Some(self.origin?.to_ned(&position(t)))
     }
 
     /// Adds one frame's truth with the attitude estimate and the commander's state: the hover
@@ -88,7 +81,7 @@ impl FlightScore {
         armed: bool,
     ) {
         if armed && self.origin.is_none() {
-            self.origin = Some(*truth);
+            self.origin = Some(LocalFrame::new(position(truth)));
         }
         let Some(p) = self.local(truth) else {
             return;
@@ -140,19 +133,34 @@ impl FlightScore {
     }
 }
 
+/// Where the truth says the vehicle is.
+fn position(t: &TruthReport) -> LatLonAlt {
+    LatLonAlt {
+        lat_deg: t.lat_deg,
+        lon_deg: t.lon_deg,
+        alt_m: t.alt_m,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    /// The truth at `north_m`, `east_m`, `up_m` from a point 10 m south of the take-off spot,
+    /// in the take-off spot's local frame (the one the score measures in).
     fn truth(north_m: f64, east_m: f64, up_m: f64) -> TruthReport {
-        let k = EARTH_RADIUS_M * std::f64::consts::PI / 180.0;
-        let lat0: f64 = 47.0;
+        let takeoff = LatLonAlt {
+            lat_deg: 47.0,
+            lon_deg: 8.0,
+            alt_m: 400.0,
+        };
+        let p = takeoff.offset_by_ned(&Vector3::new(north_m - 10.0, east_m, -up_m));
         TruthReport {
             time_usec: 0,
             q: UnitQuaternion::identity(),
-            lat_deg: lat0 + north_m / k,
-            lon_deg: 8.0 + east_m / (k * lat0.to_radians().cos()),
-            alt_m: 400.0 + up_m,
+            lat_deg: p.lat_deg,
+            lon_deg: p.lon_deg,
+            alt_m: p.alt_m,
             vel_ned_m_s: Vector3::zeros(),
             rate_frd_rad_s: Vector3::zeros(),
             specific_force_frd_m_s2: Vector3::zeros(),

@@ -36,7 +36,7 @@
 use crate::airframe::Airframe;
 use crate::environment::AirState;
 use nalgebra::{UnitQuaternion, Vector3};
-use navmath::geo::LatLonAlt;
+use navmath::geo::{LatLonAlt, LocalFrame};
 use std::fmt::Write as _;
 
 /// Metres per foot.
@@ -438,7 +438,7 @@ impl BridgeInputs {
 pub struct JsbsimState {
     /// JSBSim's simulation time (s).
     pub time_s: f64,
-    /// LatLonAlt position of the centre of mass (altitude above mean sea level).
+    /// Geodetic (WGS-84) position of the centre of mass (altitude above mean sea level).
     pub position: LatLonAlt,
     /// Velocity, NED (m/s).
     pub vel_ned_m_s: Vector3<f64>,
@@ -461,12 +461,12 @@ impl JsbsimState {
     /// The ground pushes harder than this (N) on a vehicle that rests on it.
     pub const GROUND_CONTACT_N: f64 = 1e-3;
 
-    /// The simulator's view: position in the local NED frame of `origin` (the rest position of
+    /// The simulator's view: position in the local NED frame `origin` (at the rest position of
     /// the centre of mass, see [`rest_height_m`]).
-    pub fn body_step(&self, origin: &LatLonAlt) -> crate::sim::ExternalBodyStep {
+    pub fn body_step(&self, origin: &LocalFrame) -> crate::sim::ExternalBodyStep {
         crate::sim::ExternalBodyStep {
             body: crate::body::BodyState {
-                pos_ned_m: origin.ned_to(&self.position),
+                pos_ned_m: origin.to_ned(&self.position),
                 vel_ned_m_s: self.vel_ned_m_s,
                 q_ned_from_frd: self.q_ned_from_frd,
                 rate_frd_rad_s: self.rate_frd_rad_s,

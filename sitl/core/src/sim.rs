@@ -30,7 +30,7 @@ pub struct SimConfig {
     pub sensors: SensorConfig,
     /// Earth magnetic field at the site.
     pub earth_field: EarthField,
-    /// LatLonAlt position of the local NED origin (on the ground).
+    /// Geodetic (WGS-84) position of the local NED origin (on the ground).
     pub home: LatLonAlt,
     /// Wind and turbulence.
     pub wind: WindConfig,
@@ -77,7 +77,7 @@ pub struct TruthState {
     pub body: BodyState,
     /// Mean linear acceleration over the last step, NED (m/s²).
     pub accel_ned_m_s2: Vector3<f64>,
-    /// LatLonAlt position.
+    /// Geodetic (WGS-84) position.
     pub position: LatLonAlt,
     /// Air velocity at the vehicle, NED (m/s).
     pub wind_ned_m_s: Vector3<f64>,

@@ -3,10 +3,12 @@
 //!
 //! Encoding turns a [`SensorFrame`] and the truth into `HIL_SENSOR`, `HIL_GPS`, `ESC_STATUS` and
 //! `HIL_STATE_QUATERNION`; decoding splits a datagram into frames, counting every malformed one.
-//! [`json`] is the other protocol a physics may speak: ArduPilot's JSON interface.
+//! [`json`] is the other protocol a physics may speak: ArduPilot's JSON interface. With the
+//! feature `transport`, `transport` carries the bytes over UDP or a serial line for both ends.
 
 pub mod json;
 mod simulator_end;
+#[cfg(feature = "transport")]
 pub mod transport;
 pub use simulator_end::{STATE_INTERVAL_USEC, SimulatorEnd};
 mod wire;

@@ -166,9 +166,9 @@ fn replies_convert_to_si_ned_frd() {
     assert!((s.air.pressure_pa - 101_325.0).abs() < 1.0);
     assert!((s.air.temperature_k - 288.15).abs() < 1e-3);
     assert!((s.air.density_kg_m3 - 1.225).abs() < 1e-3);
-    // The origin's local frame: 10 m up, a millidegree north (and 152 m east); the tangent
+    // The origin's local frame: 10 m up, a millidegree north (and 152 m west); the tangent
     // plane lies d²/2R (3 mm) above the curved Earth there.
-    let step = s.body_step(&ORIGIN);
+    let step = s.body_step(&navmath::geo::LocalFrame::new(ORIGIN));
     let d = step.body.pos_ned_m.xy().norm();
     let curvature_m = d * d / (2.0 * 6.371e6);
     assert!(
