@@ -12,6 +12,12 @@ use serde::Deserialize;
 use std::ops::RangeInclusive;
 use std::path::{Path, PathBuf};
 
+/// The embedded simulator's sensor preset named `name` (`--sensors`).
+pub fn sensor_preset(name: &str) -> Result<sitl_core::sensors::SensorPreset> {
+    sitl_core::sensors::SensorPreset::from_name(name).ok_or_else(|| {
+        anyhow::anyhow!("--sensors must be ideal, typical, noisy or realistic, got {name:?}")
+    })
+}
 /// `speed`: a real-time factor, or "max".
 #[derive(Debug, Clone, Deserialize, PartialEq)]
 #[serde(untagged)]

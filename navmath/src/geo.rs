@@ -140,9 +140,13 @@ impl LocalFrame {
         self.rotation * (to_ecef(p) - self.origin_ecef)
     }
 
-    /// Geodetic position of a NED point.
+    /// Geodetic position of a NED point; the origin itself to the last bit (a trip through
+    /// ECEF would move it by 1e-12°).
     #[inline]
     pub fn to_geodetic(&self, ned: &Vector3<f64>) -> LatLonAlt {
+        if *ned == Vector3::zeros() {
+            return self.origin;
+        }
         from_ecef(&(self.origin_ecef + self.rotation.transpose() * ned))
     }
 }

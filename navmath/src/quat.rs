@@ -57,7 +57,7 @@ pub fn exp_pure(v: &Vector3<f64>) -> UnitQuaternion<f64> {
 /// The unit quaternion of a rotation vector: `exp((0, φ/2))`.
 #[inline]
 pub fn from_rotation_vector(phi: &Vector3<f64>) -> UnitQuaternion<f64> {
-    UnitQuaternion::new_unchecked(exp(&Quaternion::from_parts(0.0, phi * 0.5)))
+    exp_pure(&(phi * 0.5))
 }
 
 /// Principal square root of a unit quaternion: half the rotation about the same axis
@@ -73,9 +73,7 @@ pub fn sqrt(q: &UnitQuaternion<f64>) -> UnitQuaternion<f64> {
 /// Castillo (96)).
 #[inline]
 pub fn propagate(q: &UnitQuaternion<f64>, rate_frd: &Vector3<f64>, dt: f64) -> UnitQuaternion<f64> {
-    UnitQuaternion::new_normalize(
-        q.quaternion() * exp(&Quaternion::from_parts(0.0, rate_frd * (0.5 * dt))),
-    )
+    UnitQuaternion::new_normalize(q.quaternion() * exp(&pure(&(rate_frd * (0.5 * dt)))))
 }
 
 /// `q̇ = ½ q ⊗ (0, ω)`: Davailus (4) with the Q matrix of (3).
@@ -119,12 +117,6 @@ pub fn to_vec4(q: &Quaternion<f64>) -> Vector4<f64> {
 #[inline]
 pub fn from_vec4(v: &Vector4<f64>) -> Quaternion<f64> {
     Quaternion::new(v[0], v[1], v[2], v[3])
-}
-
-/// The rotation angle between two attitudes (rad), in `[0, π]`.
-#[inline]
-pub fn angle_between(a: &UnitQuaternion<f64>, b: &UnitQuaternion<f64>) -> f64 {
-    a.rotation_to(b).angle()
 }
 
 /// The product `q ⊗ (0, ω)` as a matrix acting on ω (Castillo (51)):

@@ -549,6 +549,12 @@ impl GroundStation {
         })
     }
 
+    /// Refuses the command with `why` said to the operator.
+    fn deny(&self, to: AckTo, out: &mut Outbox, why: &str) {
+        out.send(self.ack(to, MavResult::MAV_RESULT_DENIED));
+        out.say(MavSeverity::MAV_SEVERITY_WARNING, why);
+    }
+
     /// The control loop's answer to a command sent through [`Outbox::vehicle`]: the ack, and
     /// the reason in a `STATUSTEXT` when denied.
     pub fn answered(&mut self, to: AckTo, result: Result<(), Denial>, out: &mut Outbox) {
@@ -560,10 +566,7 @@ impl GroundStation {
         }
         match result {
             Ok(()) => out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED)),
-            Err(reason) => {
-                out.send(self.ack(to, MavResult::MAV_RESULT_DENIED));
-                out.say(MavSeverity::MAV_SEVERITY_WARNING, &reason);
-            }
+            Err(reason) => self.deny(to, out, &reason),
         }
     }
 

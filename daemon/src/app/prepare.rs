@@ -141,12 +141,7 @@ pub(super) fn prepare(
 
 /// The embedded simulator's sensor preset.
 pub(super) fn sensor_preset(cfg: &Settings) -> Result<SensorPreset> {
-    SensorPreset::from_name(&cfg.sensors).with_context(|| {
-        format!(
-            "--sensors must be ideal, typical, noisy or realistic, got {:?}",
-            cfg.sensors
-        )
-    })
+    crate::settings::sensor_preset(&cfg.sensors)
 }
 
 /// The run's flight-data CSV and telemetry log: those named, else `LOG_DIR/<start time>.csv` and

@@ -225,11 +225,7 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<HostA
     let mut gcs = GroundStation::new(system_id, mav_type)
         .with_parameters(parameters, base_params)
         .with_reboot(reboot_allowed)
-        .with_unix_start(
-            std::time::SystemTime::now()
-                .duration_since(std::time::UNIX_EPOCH)
-                .map_or(0, |d| d.as_micros() as u64),
-        );
+        .with_unix_start(unix_usec());
     let mut encoder = Encoder::with_ids(system_id, COMPONENT_ID);
     let mut out = Outbox::default();
     let mut tick = tokio::time::interval(POLL);

@@ -6,6 +6,7 @@
 use super::endpoint::{Endpoint, EndpointSpec, LinkOptions};
 use anyhow::{Context, Result};
 use gcs::signing::Signing;
+use hil::transport::{LineRead, SerialLine};
 use hil::{Decoded, RawMessage, StreamDecoder};
 use mavlink::MavHeader;
 use mavlink::dialects::common::{MavMessage, MavSeverity};
@@ -44,6 +45,12 @@ impl Guard {
     fn push(&self, splitter: &mut StreamDecoder, bytes: &[u8], out: &mut Decoded) {
         let mut signing = self.signing.lock().unwrap_or_else(|e| e.into_inner());
         splitter.push_checked(bytes, out, &mut |f| self.check(&mut signing, f));
+    }
+
+    /// One frame judged on its own (the signing state locked for it alone).
+    fn check_one(&self, frame: &[u8]) -> bool {
+        let mut signing = self.signing.lock().unwrap_or_else(|e| e.into_inner());
+        self.check(&mut signing, frame)
     }
 
     fn check(&self, signing: &mut Signing, frame: &[u8]) -> bool {
@@ -226,7 +233,6 @@ fn serial(
     mut frames: broadcast::Receiver<Arc<[u8]>>,
     notices: Notices,
 ) {
-    use std::io::{Read, Write};
     // STATUSTEXT holds 50 bytes: the device's name, not its whole path.
     let name = path.file_name().map_or_else(
         || path.display().to_string(),
@@ -236,7 +242,6 @@ fn serial(
     let mut said_down = false;
     let mut lost_once = false;
     let mut output_full = 0u64;
-    let mut buf = vec![0u8; 4096];
     loop {
         // Frames queued while the port is closed are dropped, not sent late.
         loop {
@@ -246,10 +251,7 @@ fn serial(
                 Err(broadcast::error::TryRecvError::Closed) => return,
             }
         }
-        let mut port = match serialport::new(path.to_string_lossy(), baud)
-            .timeout(SERIAL_POLL)
-            .open_native()
-        {
+        let mut port = match SerialLine::open(&path, baud) {
             Ok(p) => p,
             Err(e) => {
                 if !said_down {
@@ -269,19 +271,16 @@ fn serial(
             ));
         }
         backoff = Duration::from_millis(100);
-        let mut splitter = StreamDecoder::default();
         let mut decoded = new_decoded();
         let failure = loop {
-            match port.read(&mut buf) {
+            match port.read_into_checked(SERIAL_POLL, &mut decoded, &mut |f| guard.check_one(f)) {
                 // A poll said readable and nothing came: the line hung up (a pty's other end
                 // closed), which would read nothing for ever.
-                Ok(0) => break std::io::Error::from(std::io::ErrorKind::UnexpectedEof),
-                Ok(n) => {
-                    guard.push(&mut splitter, &buf[..n], &mut decoded);
-                    deliver(&mut decoded, &inbound, guard.options.trusted);
+                Ok(LineRead::Closed) => {
+                    break std::io::Error::from(std::io::ErrorKind::UnexpectedEof);
                 }
-                Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
-                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Ok(LineRead::Bytes(_)) => deliver(&mut decoded, &inbound, guard.options.trusted),
+                Ok(LineRead::Nothing) => {}
                 Err(e) => break e,
             }
             let mut write_error = None;

@@ -146,7 +146,7 @@ impl JsonLink {
         };
         // The IMU models see the physics' specific force and rate (the acceleration is made
         // from the specific force, so they give it back) and add their noise and bias.
-        let frame = self.sensors.sample(&truth).clone();
+        let frame = self.sensors.sample(&truth);
         if let Some(fix) = &frame.gps {
             self.update.absorb(&hil::hil_gps(time_usec, fix));
         }
@@ -162,7 +162,7 @@ impl JsonLink {
                     rate_frd_rad_s: s.gyro_frd_rad_s,
                 },
                 accel_ned_m_s2: accel_ned,
-                position: self.home.to_geodetic(&s.pos_ned_m),
+                home: self.home,
                 wind_ned_m_s: Vector3::zeros(),
                 landed: false,
                 battery_voltage_v: voltage,
@@ -172,7 +172,7 @@ impl JsonLink {
             self.update.absorb(&hil::hil_state_quaternion(&t));
         }
         // The sensor frame last: it is what makes the vehicle step.
-        self.update.absorb(&hil::hil_sensor(&frame));
+        self.update.absorb(&hil::hil_sensor(frame));
         into.frames.extend(close(&mut self.update));
     }
 }

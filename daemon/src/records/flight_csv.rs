@@ -8,11 +8,9 @@
 //! formats or waits on the disk.
 
 use crate::records::log_files::LogFile;
-use crate::records::score::FlightScore;
 use airframe::MAX_ROTORS;
 use flight_core::autopilot::AutopilotOutput;
 use flight_core::commander::{CommanderStatus, LandedState};
-use hil::TruthReport;
 use nalgebra::{UnitQuaternion, Vector3};
 use std::io::Write;
 use std::path::Path;
@@ -150,8 +148,8 @@ impl FlightCsv {
         })
     }
 
-    /// Records one frame's row. True positions are relative to the take-off spot (empty before
-    /// arming or without truth); `loop_late` is how late the control loop woke for this frame
+    /// Records one frame's row. `true_pose` is the true position from the take-off spot and
+    /// attitude (none before arming or without truth); `loop_late` is how late the control loop woke for this frame
     /// (empty when paced by the simulator, lockstep); then the sensor sample the flight core
     /// stepped on, raw (gyro rad/s, specific force m/s², magnetometer gauss, FRD; the
     /// magnetometer only when fresh), the columns `autopilot replay` and `calibrate-mag` read.
@@ -160,8 +158,7 @@ impl FlightCsv {
         &mut self,
         status: &CommanderStatus,
         step: &AutopilotOutput,
-        truth: Option<&TruthReport>,
-        score: &FlightScore,
+        true_pose: Option<(Vector3<f64>, UnitQuaternion<f64>)>,
         loop_late: Option<Duration>,
     ) -> std::io::Result<()> {
         let (t_s, out, sample) = (step.t_usec as f64 * 1e-6, &step.estimate, &step.sample);
@@ -182,7 +179,7 @@ impl FlightCsv {
             q_d: sp.map(|a| a.q_d),
             thrust_n: sp.map(|a| a.thrust_n),
             rate_ref: out.rate_reference,
-            truth: truth.and_then(|t| score.local(t).map(|p| (p, t.q))),
+            truth: true_pose,
             loop_late,
             gyro: sample.gyro,
             accel: sample.accel,

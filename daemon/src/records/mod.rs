@@ -77,19 +77,19 @@ impl FlightRecords {
             StepKind::Blind => {
                 // The world is still watched: the blind descent's landing is scored too.
                 if let Some(truth) = truth {
-                    self.score.add(&truth, None, status, status.armed);
+                    let _ = self.score.add(&truth, None, status, status.armed);
                     self.last_truth = Some(truth);
                 }
             }
             StepKind::Flown => {
-                if let Some(truth) = &truth {
-                    self.last_truth = Some(*truth);
+                let true_pose = truth.and_then(|truth| {
+                    self.last_truth = Some(truth);
                     let estimate = step.estimate.attitude.map(|a| a.q);
-                    self.score.add(truth, estimate, status, step.armed);
-                }
+                    let p = self.score.add(&truth, estimate, status, step.armed)?;
+                    Some((p, truth.q))
+                });
                 if let Some(csv) = self.csv.as_mut()
-                    && let Err(e) =
-                        csv.record(status, step, truth.as_ref(), &self.score, self.loop_late)
+                    && let Err(e) = csv.record(status, step, true_pose, self.loop_late)
                 {
                     // A full disk must not stop the flight: stop logging, report at the end.
                     tracing::error!("flight-data CSV: {e}; logging stopped");

@@ -67,25 +67,24 @@ impl FlightScore {
     }
 
     /// True position NED (m) of `t` relative to the take-off spot (none before arming).
-    pub fn local(&self, t: &TruthReport) -> Option<Vector3<f64>> {
+    fn local(&self, t: &TruthReport) -> Option<Vector3<f64>> {
         Some(self.origin?.to_ned(&position(t)))
     }
 
     /// Adds one frame's truth with the attitude estimate and the commander's state: the hover
-    /// figures come from holds in the air, the touchdown speed from landings.
+    /// figures come from holds in the air, the touchdown speed from landings. Returns the true
+    /// position NED (m) from the take-off spot (none before arming).
     pub fn add(
         &mut self,
         truth: &TruthReport,
         estimate: Option<UnitQuaternion<f64>>,
         status: &CommanderStatus,
         armed: bool,
-    ) {
+    ) -> Option<Vector3<f64>> {
         if armed && self.origin.is_none() {
             self.origin = Some(LocalFrame::new(position(truth)));
         }
-        let Some(p) = self.local(truth) else {
-            return;
-        };
+        let p = self.local(truth)?;
         let height = -p.z;
         self.height_m = height;
         self.max_height_m = self.max_height_m.max(height);
@@ -110,6 +109,7 @@ impl FlightScore {
         if status.landed == LandedState::Landing && height < 0.3 {
             self.touchdown_m_s = self.touchdown_m_s.max(truth.vel_ned_m_s.z);
         }
+        Some(p)
     }
 
     /// The last true height is within 0.2 m of the take-off spot's.

@@ -9,7 +9,6 @@ pub mod replay;
 use crate::cli::BatchArgs;
 use crate::settings::{self, HOVER_RANGE_S, TAKEOFF_RANGE_M, in_range};
 use anyhow::{Context, Result};
-use sitl_core::sensors::SensorPreset;
 
 /// `autopilot batch`: its flags checked, then the batch flown.
 pub fn run_batch(args: &BatchArgs) -> Result<()> {
@@ -31,9 +30,7 @@ pub fn run_batch(args: &BatchArgs) -> Result<()> {
             .map(|f| batch::FaultKind::from_name(f.trim()))
             .collect::<Result<_>>()
             .context("--faults")?,
-        sensors: SensorPreset::from_name(sensors).with_context(|| {
-            format!("--sensors must be ideal, typical, noisy or realistic, got {sensors:?}")
-        })?,
+        sensors: settings::sensor_preset(sensors)?,
     };
     batch::run(
         &cfg,

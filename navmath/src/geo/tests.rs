@@ -43,6 +43,13 @@ fn points_round_trip_to_the_micrometre_near_and_far() {
         Vector3::new(20_000.0, -15_000.0, -2_000.0),
     ] {
         let back = frame.to_ned(&frame.to_geodetic(&ned));
+        if ned == Vector3::zeros() {
+            assert_eq!(
+                frame.to_geodetic(&ned),
+                home(),
+                "the origin, to the last bit"
+            );
+        }
         assert!((back - ned).norm() < 1e-6, "{ned:?} -> {back:?}");
         assert_eq!(home().offset_by_ned(&ned), frame.to_geodetic(&ned));
         assert_eq!(home().ned_to(&frame.to_geodetic(&ned)), back);

@@ -222,10 +222,8 @@ fn exp_map<F: Fn(&BodyState) -> Accel>(s: &BodyState, dt: f64, f: &F) -> BodySta
     BodyState {
         pos_ned_m: s.pos_ned_m + half.vel_ned_m_s * dt,
         vel_ned_m_s: s.vel_ned_m_s + a_half.lin_ned_m_s2 * dt,
-        // Davailus (21) with the mid-step rate; renormalising only removes rounding.
-        q_ned_from_frd: UnitQuaternion::new_normalize(
-            *quat::propagate(&s.q_ned_from_frd, &half.rate_frd_rad_s, dt).quaternion(),
-        ),
+        // Davailus (21) with the mid-step rate (propagate renormalises away the rounding).
+        q_ned_from_frd: quat::propagate(&s.q_ned_from_frd, &half.rate_frd_rad_s, dt),
         rate_frd_rad_s: s.rate_frd_rad_s + a_half.ang_frd_rad_s2 * dt,
     }
 }

@@ -10,12 +10,8 @@ use navmath::geo::LatLonAlt;
 pub const INSTANCE_SPACING_M: f64 = 3.0;
 
 /// The home of instance `instance` of several vehicles around `site`: [`INSTANCE_SPACING_M`]
-/// times `instance` east of it. Instance 0 stands on the site itself, to the last bit (a trip
-/// through the Earth-centred frame would move it by 1e-12°).
+/// times `instance` east of it (instance 0 on the site itself).
 pub fn home_for_instance(site: &LatLonAlt, instance: u16) -> LatLonAlt {
-    if instance == 0 {
-        return *site;
-    }
     site.offset_by_ned(&Vector3::new(
         0.0,
         INSTANCE_SPACING_M * f64::from(instance),

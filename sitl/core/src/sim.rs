@@ -77,8 +77,8 @@ pub struct TruthState {
     pub body: BodyState,
     /// Mean linear acceleration over the last step, NED (m/s²).
     pub accel_ned_m_s2: Vector3<f64>,
-    /// Geodetic (WGS-84) position.
-    pub position: LatLonAlt,
+    /// The local frame at home, where [`TruthState::position`] is measured.
+    pub home: LocalFrame,
     /// Air velocity at the vehicle, NED (m/s).
     pub wind_ned_m_s: Vector3<f64>,
     /// Whether the vehicle rests on the ground.
@@ -89,6 +89,14 @@ pub struct TruthState {
     pub battery_current_a: f64,
     /// Battery state of charge (0–1).
     pub battery_remaining: f64,
+}
+
+impl TruthState {
+    /// Geodetic (WGS-84) position, computed when asked: only `HIL_STATE_QUATERNION` (at
+    /// 50 Hz) reads it, of the truths made every frame.
+    pub fn position(&self) -> LatLonAlt {
+        self.home.to_geodetic(&self.body.pos_ned_m)
+    }
 }
 
 /// The loads of one step, taken at its start, for an external flight-dynamics model that has
@@ -312,7 +320,7 @@ impl Simulator {
             time_usec: self.time_usec,
             body: self.body,
             accel_ned_m_s2: self.accel_ned,
-            position: self.home.to_geodetic(&self.body.pos_ned_m),
+            home: self.home,
             wind_ned_m_s: self.wind_ned,
             landed: self.landed,
             battery_voltage_v: self.battery.voltage(),

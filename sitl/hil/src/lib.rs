@@ -125,15 +125,16 @@ pub fn hil_state_quaternion(t: &TruthState) -> MavMessage {
     let f = t.body.q_ned_from_frd.inverse()
         * (t.accel_ned_m_s2 - nalgebra::Vector3::new(0.0, 0.0, sitl_core::GRAVITY_M_S2));
     let mg = |x: f64| clamp_i16(x / sitl_core::GRAVITY_M_S2 * 1000.0);
+    let position = t.position();
     MavMessage::HIL_STATE_QUATERNION(HIL_STATE_QUATERNION_DATA {
         time_usec: t.time_usec,
         attitude_quaternion: [q.w as f32, q.i as f32, q.j as f32, q.k as f32],
         rollspeed: w.x as f32,
         pitchspeed: w.y as f32,
         yawspeed: w.z as f32,
-        lat: (t.position.lat_deg * 1e7).round() as i32,
-        lon: (t.position.lon_deg * 1e7).round() as i32,
-        alt: (t.position.alt_m * 1000.0).round() as i32,
+        lat: (position.lat_deg * 1e7).round() as i32,
+        lon: (position.lon_deg * 1e7).round() as i32,
+        alt: (position.alt_m * 1000.0).round() as i32,
         vx: clamp_i16(v.x * 100.0),
         vy: clamp_i16(v.y * 100.0),
         vz: clamp_i16(v.z * 100.0),

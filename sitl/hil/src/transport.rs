@@ -146,11 +146,22 @@ impl SerialLine {
 
     /// Waits up to `timeout` for bytes and appends the messages they complete to `into`.
     pub fn read_into(&mut self, timeout: Duration, into: &mut Decoded) -> io::Result<LineRead> {
+        self.read_into_checked(timeout, into, &mut |_| true)
+    }
+
+    /// [`SerialLine::read_into`], keeping only the frames `check` passes (after the read: the
+    /// check is not held while the line waits), as [`StreamDecoder::push_checked`].
+    pub fn read_into_checked(
+        &mut self,
+        timeout: Duration,
+        into: &mut Decoded,
+        check: &mut dyn FnMut(&[u8]) -> bool,
+    ) -> io::Result<LineRead> {
         serialport::SerialPort::set_timeout(&mut self.port, timeout)?;
         match self.port.read(&mut self.rx) {
             Ok(0) => Ok(LineRead::Closed),
             Ok(n) => {
-                self.decoder.push(&self.rx[..n], into);
+                self.decoder.push_checked(&self.rx[..n], into, check);
                 Ok(LineRead::Bytes(n))
             }
             Err(e) if nothing_yet(&e) => Ok(LineRead::Nothing),

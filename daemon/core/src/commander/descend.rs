@@ -15,7 +15,6 @@ pub(super) struct Descend {
     /// When it began (s).
     since_s: f64,
     touchdown: Touchdown,
-    touched_down: bool,
 }
 
 impl FlightTask for Descend {
@@ -28,7 +27,7 @@ impl FlightTask for Descend {
         f.landed = LandedState::Landing;
         // Touchdown when the vertical speed has stayed near zero for a second.
         let stopped = i.t_s - self.since_s > 1.0 && i.vel_ned_m_s.z.abs() < 0.15;
-        self.touched_down |= self.touchdown.check(f, stopped, i.t_s);
+        self.touchdown.check(f, stopped, i.t_s);
         // Level (horizontal velocity uncontrolled) without a horizontal estimate.
         let h = if i.horizontal_valid { 0.0 } else { f64::NAN };
         Setpoint::Position(PositionSetpoint {
@@ -37,9 +36,5 @@ impl FlightTask for Descend {
             accel_ned_m_s2: Vector3::zeros(),
             yaw_rad: t.yaw,
         })
-    }
-
-    fn is_finished(&self) -> bool {
-        self.touched_down
     }
 }

@@ -18,7 +18,6 @@ pub(super) struct Landing {
     /// The descending set-point's down (m).
     down: Option<f64>,
     touchdown: Touchdown,
-    touched_down: bool,
 }
 
 impl Landing {
@@ -54,18 +53,13 @@ impl Landing {
         *down = (*down + speed * dt).min(i.pos_ned_m.z + 1.0);
         let down = *down;
         let stopped = i.vel_ned_m_s.z.abs() < 0.15 && down - i.pos_ned_m.z > 0.5;
-        self.touched_down |= self.touchdown.check(f, stopped, i.t_s);
+        self.touchdown.check(f, stopped, i.t_s);
         PositionSetpoint {
             pos_ned_m: Vector3::new(x, y, down),
             vel_ned_m_s: Vector3::new(0.0, 0.0, speed),
             accel_ned_m_s2: Vector3::zeros(),
             yaw_rad: yaw,
         }
-    }
-
-    /// The vehicle is down.
-    pub(super) fn touched_down(&self) -> bool {
-        self.touched_down
     }
 }
 
@@ -78,9 +72,5 @@ pub(super) struct Land {
 impl FlightTask for Land {
     fn update(&mut self, f: &mut Flight, t: &Tick) -> Setpoint {
         Setpoint::Position(self.landing.step(f, t.i, t.dt, t.yaw))
-    }
-
-    fn is_finished(&self) -> bool {
-        self.landing.touched_down()
     }
 }

@@ -523,11 +523,11 @@ impl Commander {
             self.disarmed();
         } else if self.task.flight_task().is_finished() {
             // A take-off done: Hold where it ended.
-            let held = self.task.held();
-            self.enter(FlightMode::Loiter);
-            if let Some(at) = held {
-                self.task.hold_at(at);
-            }
+            let hold = self.task.held().map_or_else(
+                || Task::of(FlightMode::Loiter),
+                |at| Task::Hold(hold::Hold::at(at)),
+            );
+            self.enter_with(FlightMode::Loiter, hold);
         }
         (sp, self.flight.armed)
     }

@@ -77,11 +77,6 @@ impl Rtl {
             }
         }
     }
-
-    /// Landed at the end.
-    fn touched_down(&self) -> bool {
-        self.landing.touched_down()
-    }
 }
 
 impl FlightTask for Rtl {
@@ -90,9 +85,5 @@ impl FlightTask for Rtl {
             return Setpoint::Position(spooled(t.home, t.yaw));
         }
         Setpoint::Position(self.fly(f, t.i, t.dt, t.yaw, t.home))
-    }
-
-    fn is_finished(&self) -> bool {
-        self.touched_down()
     }
 }

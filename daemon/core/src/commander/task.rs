@@ -25,8 +25,9 @@ pub(super) trait FlightTask {
     /// One update: the set-point to fly. A touchdown is said in `f.touched_down`.
     fn update(&mut self, f: &mut Flight, t: &Tick) -> Setpoint;
 
-    /// The task's work is done: a take-off at its altitude (the commander hands over to Hold
-    /// where it ended), a landing on the ground (the commander has disarmed on its touchdown).
+    /// The task's work is done and the commander hands over: a take-off at its altitude goes
+    /// on in Hold where it ended. (A landing needs none: its touchdown disarms, through
+    /// `Flight::touched_down`.)
     fn is_finished(&self) -> bool {
         false
     }

@@ -421,16 +421,11 @@ mod tests {
                     sum_gps += (home.ned_to(&g.position) - then).xy().norm_squared();
                     n_gps += 1;
                 }
-                let pos = LatLonAlt {
-                    lat_deg: g.position.lat_deg,
-                    lon_deg: g.position.lon_deg,
-                    alt_m: g.position.alt_m,
-                };
                 est.fuse_gps(
                     t_usec,
                     &GpsMeasurement {
                         fix_type: g.fix_type,
-                        position: pos,
+                        position: g.position,
                         vel_ned_m_s: g.vel_ned_m_s,
                         h_acc_m: g.h_acc_m,
                         satellites: g.satellites,
@@ -444,12 +439,7 @@ mod tests {
             if (20.0..80.0).contains(&t) {
                 // The origin is where the first fix was: compare displacements from it.
                 let origin = e.origin.expect("origin set");
-                let origin_ned = LatLonAlt {
-                    lat_deg: origin.lat_deg,
-                    lon_deg: origin.lon_deg,
-                    alt_m: origin.alt_m,
-                };
-                let offset = home.ned_to(&origin_ned);
+                let offset = home.ned_to(&origin);
                 let err = e.pos_ned_m + Vector3::new(offset.x, offset.y, 0.0) - p;
                 sum_p += err.xy().norm_squared();
                 sum_z += (e.pos_ned_m.z - (p.z - truth_at(0.0).0.z)).powi(2);

@@ -4,7 +4,6 @@
 
 use flight_core::core::SensorSample;
 use flight_core::estimator::translation::GpsMeasurement;
-use flight_core::math::geo::LatLonAlt;
 use nalgebra::Vector3;
 use sitl_core::sensors::fields;
 use sitl_core::sim::Simulator;
@@ -33,11 +32,7 @@ pub fn control_interval(sim: &mut Simulator, commands: &[f64]) -> SensorSample {
         if let Some(g) = f.gps {
             gps = Some(GpsMeasurement {
                 fix_type: g.fix_type,
-                position: LatLonAlt {
-                    lat_deg: g.position.lat_deg,
-                    lon_deg: g.position.lon_deg,
-                    alt_m: g.position.alt_m,
-                },
+                position: g.position,
                 vel_ned_m_s: g.vel_ned_m_s,
                 h_acc_m: g.h_acc_m,
                 satellites: g.satellites,

@@ -87,15 +87,9 @@ impl GroundStation {
                 lon_deg: y as f64 * 1e-7,
                 alt_m: c.p[6] as f64,
             };
-            return out.vehicle.push((AutopilotCommand::SetHomeGlobal(p), to));
+            return vehicle(out, to, AutopilotCommand::SetHomeGlobal(p));
         }
         self.command(c, to, t, out);
-    }
-
-    /// Refuses the command with `why` said to the operator.
-    fn deny(&self, to: AckTo, out: &mut Outbox, why: &str) {
-        out.send(self.ack(to, MavResult::MAV_RESULT_DENIED));
-        out.say(MavSeverity::MAV_SEVERITY_WARNING, why);
     }
 }
 

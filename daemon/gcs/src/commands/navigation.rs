@@ -81,11 +81,7 @@ impl GroundStation {
             MavFrame::MAV_FRAME_GLOBAL | MavFrame::MAV_FRAME_GLOBAL_INT => false,
             MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT
             | MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT_INT => true,
-            f => {
-                out.send(self.ack(to, MavResult::MAV_RESULT_DENIED));
-                let why = format!("reposition: frame {f:?} not supported");
-                return out.say(MavSeverity::MAV_SEVERITY_WARNING, &why);
-            }
+            f => return self.deny(to, out, &format!("reposition: frame {f:?} not supported")),
         };
         let z = p[6] as f64;
         let at = flight_core::mission::MissionPoint {
@@ -104,6 +100,6 @@ impl GroundStation {
             yaw_rad: p[3].is_finite().then_some(p[3] as f64),
             change_mode: (p[1] as u32) & 1 == 1,
         };
-        out.vehicle.push((cmd, to));
+        vehicle(out, to, cmd);
     }
 }
