@@ -73,6 +73,7 @@ def signed_gcs(daemon, key=KEY):
 def test_a_signed_session_flies_and_unsigned_wrong_and_replayed_frames_are_refused(tmp_path):
     key_file = tmp_path / "signing.key"
     key_file.write_text(KEY.hex() + "\n")
+    key_file.chmod(0o600)
     daemon = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0",
                     ap_args=["--signing-key-file", str(key_file)])
     try:

@@ -9,11 +9,23 @@ use super::{
 use crate::telemetry::Telemetry;
 use flight_core::autopilot::command::AutopilotCommand;
 use flight_core::commander::Sticks;
+use flight_core::safety::targets::TargetLimits;
 use mavlink::MavHeader;
 use mavlink::MessageData;
 use mavlink::dialects::common::*;
 
 impl GroundStation {
+    /// What an uploaded mission item is checked against now: the parameters' limits, and home
+    /// once the vehicle has one and a global position.
+    fn mission_bounds(&self, t: &Telemetry) -> mission::MissionBounds {
+        let origin = t.output.as_ref().and_then(|o| o.translation.origin);
+        let home = t.status.as_ref().and_then(|s| s.home).map(|h| h.0);
+        mission::MissionBounds {
+            limits: TargetLimits::new(&self.params.values().safety),
+            home: origin.zip(home),
+        }
+    }
+
     /// Handles one message from `from`, with the latest telemetry at hand.
     pub fn on_message(
         &mut self,
@@ -38,6 +50,7 @@ impl GroundStation {
                     out.vehicle
                         .push((AutopilotCommand::SetMissionCurrent(m.seq), to));
                 } else {
+                    self.missions.bounds = Some(self.mission_bounds(t));
                     self.missions.on_message(from, msg, out);
                 }
             } else {

@@ -7,15 +7,20 @@
 //! mission item is also decoded into what the commander flies ([`MissionItem`]) as it
 //! arrives, and one the vehicle cannot fly ends the upload with the reason
 //! (`MAV_MISSION_UNSUPPORTED`, `…_UNSUPPORTED_FRAME`, `…_INVALID_PARAMn`), keeping the plan
-//! there was. The vehicle asks for each item with `MISSION_REQUEST_INT` (never the old
+//! there was. So does one the vehicle must not fly: a place off the Earth, a height below the
+//! ground or above the ceiling, a place too far from home ([`MissionBounds`]). The vehicle asks for each item with `MISSION_REQUEST_INT` (never the old
 //! `MISSION_REQUEST`), again after [`RETRY_S`] without an answer, and gives up after
 //! [`RETRIES`] tries.
 
+mod items;
+
 use super::Outbox;
-use flight_core::mission::{MissionAltitude, MissionItem, MissionPoint, SpeedChange};
-use flight_core::safety::geofence::GeoZone;
+use flight_core::mission::MissionItem;
 use mavlink::MavHeader;
 use mavlink::dialects::common::*;
+
+use items::item_float;
+pub use items::{MissionBounds, decode, decode_fence, item_int, speed_change};
 
 /// Time without the item asked for before asking again (s, wall clock).
 pub const RETRY_S: f64 = 0.5;
@@ -56,6 +61,8 @@ pub struct Missions {
     now_s: f64,
     /// Uploads given up for want of items.
     pub timeouts: u64,
+    /// What items are checked against (none: only what [`decode`] checks).
+    pub bounds: Option<MissionBounds>,
 }
 
 /// A new mission for the commander, from an upload or a clear.
@@ -111,236 +118,6 @@ fn request(to: (u8, u8), kind: MavMissionType, seq: u16) -> MavMessage {
         target_component: to.1,
         mission_type: kind,
     })
-}
-
-/// Whether x and y of an item in `frame` are latitude and longitude (scaled by 1e7 in
-/// `MISSION_ITEM_INT`), rather than plain numbers.
-fn is_global(frame: MavFrame) -> bool {
-    use MavFrame::*;
-    matches!(
-        frame,
-        MAV_FRAME_GLOBAL
-            | MAV_FRAME_GLOBAL_RELATIVE_ALT
-            | MAV_FRAME_GLOBAL_INT
-            | MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
-            | MAV_FRAME_GLOBAL_TERRAIN_ALT
-            | MAV_FRAME_GLOBAL_TERRAIN_ALT_INT
-    )
-}
-
-/// A `MISSION_ITEM` (float coordinates) as the `MISSION_ITEM_INT` it stands for.
-pub fn item_int(m: &MISSION_ITEM_DATA) -> MISSION_ITEM_INT_DATA {
-    let global = is_global(m.frame);
-    let scaled = |v: f32| {
-        if global {
-            (v as f64 * 1e7).round() as i32
-        } else {
-            v as i32
-        }
-    };
-    MISSION_ITEM_INT_DATA {
-        param1: m.param1,
-        param2: m.param2,
-        param3: m.param3,
-        param4: m.param4,
-        x: scaled(m.x),
-        y: scaled(m.y),
-        z: m.z,
-        seq: m.seq,
-        command: m.command,
-        target_system: m.target_system,
-        target_component: m.target_component,
-        frame: m.frame,
-        current: m.current,
-        autocontinue: m.autocontinue,
-        mission_type: m.mission_type,
-    }
-}
-
-/// Decodes a mission item into what the commander flies, or says why it cannot be flown.
-pub fn decode(m: &MISSION_ITEM_INT_DATA) -> Result<MissionItem, MavMissionResult> {
-    use MavMissionResult::*;
-    let relative = match m.frame {
-        MavFrame::MAV_FRAME_GLOBAL | MavFrame::MAV_FRAME_GLOBAL_INT => Some(false),
-        MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT | MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT_INT => {
-            Some(true)
-        }
-        MavFrame::MAV_FRAME_MISSION => None,
-        _ => return Err(MAV_MISSION_UNSUPPORTED_FRAME),
-    };
-    // A position in a global frame; (0, 0) is "here", as a NaN altitude.
-    let point = || -> Result<MissionPoint, MavMissionResult> {
-        let Some(relative) = relative else {
-            return Err(MAV_MISSION_UNSUPPORTED_FRAME);
-        };
-        let (lat, lon) = (m.x as f64 * 1e-7, m.y as f64 * 1e-7);
-        if !(-90.0..=90.0).contains(&lat) {
-            return Err(MAV_MISSION_INVALID_PARAM5_X);
-        }
-        if !(-180.0..=180.0).contains(&lon) {
-            return Err(MAV_MISSION_INVALID_PARAM6_Y);
-        }
-        let z = m.z as f64;
-        if z.is_infinite() {
-            return Err(MAV_MISSION_INVALID_PARAM7);
-        }
-        Ok(MissionPoint {
-            lat_lon_deg: (m.x != 0 || m.y != 0).then_some((lat, lon)),
-            alt: z.is_finite().then_some(if relative {
-                MissionAltitude::AboveHome(z)
-            } else {
-                MissionAltitude::Amsl(z)
-            }),
-        })
-    };
-    let yaw = |deg: f32| -> Result<Option<f64>, MavMissionResult> {
-        match deg {
-            d if d.is_nan() => Ok(None),
-            d if d.is_finite() => Ok(Some((d as f64).to_radians())),
-            _ => Err(MAV_MISSION_INVALID_PARAM4),
-        }
-    };
-    let seconds = |s: f32, err| {
-        if s.is_finite() && s >= 0.0 {
-            Ok(s as f64)
-        } else {
-            Err(err)
-        }
-    };
-    Ok(match m.command {
-        MavCmd::MAV_CMD_NAV_WAYPOINT => MissionItem::Waypoint {
-            at: point()?,
-            // NaN: no hold.
-            hold_s: if m.param1.is_nan() {
-                0.0
-            } else {
-                seconds(m.param1, MAV_MISSION_INVALID_PARAM1)?
-            },
-            acceptance_m: match m.param2 {
-                r if r.is_finite() && r > 0.0 => Some(r as f64),
-                r if r.is_nan() || r == 0.0 => None,
-                _ => return Err(MAV_MISSION_INVALID_PARAM2),
-            },
-            yaw_rad: yaw(m.param4)?,
-        },
-        MavCmd::MAV_CMD_NAV_TAKEOFF => {
-            let at = point()?;
-            if at.alt.is_none() {
-                return Err(MAV_MISSION_INVALID_PARAM7);
-            }
-            MissionItem::Takeoff {
-                at,
-                yaw_rad: yaw(m.param4)?,
-            }
-        }
-        MavCmd::MAV_CMD_NAV_LAND => MissionItem::Land {
-            at: point()?,
-            yaw_rad: yaw(m.param4)?,
-        },
-        MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH => MissionItem::ReturnToLaunch,
-        MavCmd::MAV_CMD_NAV_LOITER_TIME => MissionItem::LoiterTime {
-            at: point()?,
-            time_s: seconds(m.param1, MAV_MISSION_INVALID_PARAM1)?,
-        },
-        MavCmd::MAV_CMD_NAV_LOITER_UNLIM => MissionItem::LoiterUnlimited { at: point()? },
-        // param1 −1 (a time of day in params 2–4) is not flown.
-        MavCmd::MAV_CMD_NAV_DELAY => MissionItem::Delay {
-            delay_s: seconds(m.param1, MAV_MISSION_INVALID_PARAM1)?,
-        },
-        MavCmd::MAV_CMD_DO_CHANGE_SPEED => MissionItem::ChangeSpeed(speed_change(m.param2)?),
-        MavCmd::MAV_CMD_DO_JUMP => {
-            let to = m.param1;
-            if !(to.is_finite() && to >= 0.0 && to.fract() == 0.0 && to < MAX_ITEMS as f32) {
-                return Err(MAV_MISSION_INVALID_PARAM1);
-            }
-            let repeat = match m.param2 {
-                -1.0 => None,
-                r if r.is_finite() && r >= 0.0 && r.fract() == 0.0 => Some(r as u32),
-                _ => return Err(MAV_MISSION_INVALID_PARAM2),
-            };
-            MissionItem::Jump {
-                to: to as u16,
-                repeat,
-            }
-        }
-        MavCmd::MAV_CMD_DO_SET_HOME => MissionItem::SetHome {
-            at: if m.param1 == 1.0 {
-                None
-            } else {
-                let at = point()?;
-                if at.lat_lon_deg.is_none() || at.alt.is_none() {
-                    return Err(MAV_MISSION_INVALID_PARAM5_X);
-                }
-                Some(at)
-            },
-        },
-        _ => return Err(MAV_MISSION_UNSUPPORTED),
-    })
-}
-
-/// `DO_CHANGE_SPEED`'s param2: a speed (m/s), −1 no change, −2 the default.
-pub fn speed_change(p: f32) -> Result<SpeedChange, MavMissionResult> {
-    match p {
-        -1.0 => Ok(SpeedChange::Unchanged),
-        -2.0 => Ok(SpeedChange::Default),
-        s if s.is_finite() && s > 0.0 => Ok(SpeedChange::To(s as f64)),
-        _ => Err(MavMissionResult::MAV_MISSION_INVALID_PARAM2),
-    }
-}
-
-/// A fence plan as zones: consecutive polygon vertices of one kind, as many as each one's
-/// param1 says, make one polygon; a circle is one item (param1 its radius); a return point is
-/// kept in the plan but not a zone. Coordinates in a global frame only.
-pub fn decode_fence(items: &[MISSION_ITEM_INT_DATA]) -> Result<Vec<GeoZone>, MavMissionResult> {
-    use MavCmd::*;
-    let mut zones = Vec::new();
-    let mut k = 0;
-    while k < items.len() {
-        let m = &items[k];
-        let latlon = |m: &MISSION_ITEM_INT_DATA| {
-            let (lat, lon) = (m.x as f64 * 1e-7, m.y as f64 * 1e-7);
-            if is_global(m.frame) && lat.abs() <= 90.0 && lon.abs() <= 180.0 {
-                Ok((lat, lon))
-            } else {
-                Err(MavMissionResult::MAV_MISSION_UNSUPPORTED_FRAME)
-            }
-        };
-        match m.command {
-            MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION
-            | MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION => {
-                let n = m.param1;
-                if !(n.is_finite() && n >= 3.0 && n.fract() == 0.0) || k + n as usize > items.len()
-                {
-                    return Err(MavMissionResult::MAV_MISSION_INVALID_PARAM1);
-                }
-                let vertices = &items[k..k + n as usize];
-                if vertices
-                    .iter()
-                    .any(|v| v.command != m.command || v.param1 != n)
-                {
-                    return Err(MavMissionResult::MAV_MISSION_INVALID_PARAM1);
-                }
-                zones.push(GeoZone::Polygon {
-                    inclusion: m.command == MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,
-                    vertices_deg: vertices.iter().map(latlon).collect::<Result<_, _>>()?,
-                });
-                k += n as usize;
-            }
-            MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION | MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION => {
-                if !(m.param1.is_finite() && m.param1 > 0.0) {
-                    return Err(MavMissionResult::MAV_MISSION_INVALID_PARAM1);
-                }
-                zones.push(GeoZone::Circle {
-                    inclusion: m.command == MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION,
-                    center_deg: latlon(m)?,
-                    radius_m: m.param1 as f64,
-                });
-                k += 1;
-            }
-            _ => k += 1,
-        }
-    }
-    Ok(zones)
 }
 
 /// Whether a fence or rally item is one of its kind (a fence is checked as a whole when the
@@ -540,14 +317,24 @@ impl Missions {
         } else {
             Err(MavMissionResult::MAV_MISSION_UNSUPPORTED)
         };
+        let bounds = self.bounds;
+        let checked = checked
+            .map_err(|why| (format!("{why:?}"), why))
+            .and_then(|d| match (d, bounds) {
+                (Some(item), Some(b)) => b
+                    .check(&item)
+                    .map(|()| Some(item))
+                    .map_err(|(e, why)| (e.to_string(), why)),
+                (d, _) => Ok(d),
+            });
         let decoded = match checked {
             Ok(d) => d,
-            Err(why) => {
-                tracing::warn!(seq = m.seq, command = ?m.command, frame = ?m.frame, ?why, "mission upload refused");
+            Err((reason, why)) => {
+                tracing::warn!(seq = m.seq, command = ?m.command, frame = ?m.frame, ?why, reason, "mission upload refused");
                 out.send(ack(peer, u.kind, why, 0));
                 out.say(
                     MavSeverity::MAV_SEVERITY_WARNING,
-                    &format!("mission item {} refused: {why:?}", m.seq),
+                    &format!("mission item {} refused: {reason}", m.seq),
                 );
                 self.upload = None;
                 return;
@@ -647,35 +434,6 @@ pub fn target(msg: &MavMessage) -> Option<(u8, u8)> {
         MavMessage::MISSION_SET_CURRENT(m) => (m.target_system, m.target_component),
         _ => return None,
     })
-}
-
-/// A stored item as the old `MISSION_ITEM` (float coordinates), for `peer`.
-fn item_float(m: &MISSION_ITEM_INT_DATA, peer: (u8, u8)) -> MISSION_ITEM_DATA {
-    let global = is_global(m.frame);
-    let unscaled = |v: i32| {
-        if global {
-            (v as f64 * 1e-7) as f32
-        } else {
-            v as f32
-        }
-    };
-    MISSION_ITEM_DATA {
-        param1: m.param1,
-        param2: m.param2,
-        param3: m.param3,
-        param4: m.param4,
-        x: unscaled(m.x),
-        y: unscaled(m.y),
-        z: m.z,
-        seq: m.seq,
-        command: m.command,
-        target_system: peer.0,
-        target_component: peer.1,
-        frame: m.frame,
-        current: m.current,
-        autocontinue: m.autocontinue,
-        mission_type: m.mission_type,
-    }
 }
 
 #[cfg(test)]

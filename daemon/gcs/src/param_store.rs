@@ -174,7 +174,8 @@ fn with_checksum(mut text: String) -> String {
 }
 
 /// A store's text if its checksum line agrees with the text before it. A text that does not
-/// begin with [`CHECKSUMMED`] (written by hand or by an older version) needs none.
+/// begin with [`CHECKSUMMED`] (written by hand or by an older version) needs none; an empty
+/// one is damage (a missing file, not an empty one, is an empty store).
 pub fn checked_text(bytes: Vec<u8>) -> Result<String, Damage> {
     let text = String::from_utf8(bytes).map_err(|_| Damage::NotUtf8)?;
     verify(&text)?;
@@ -183,6 +184,10 @@ pub fn checked_text(bytes: Vec<u8>) -> Result<String, Damage> {
 
 /// [`checked_text`]'s check.
 fn verify(text: &str) -> Result<(), Damage> {
+    // A saved store always holds its first line: an empty file was cut short.
+    if text.trim().is_empty() {
+        return Err(Damage::Empty(text.len()));
+    }
     let body_end = text.trim_end_matches('\n').rfind('\n').map_or(0, |i| i + 1);
     let last = text[body_end..].trim_end();
     let Some(sum) = last.strip_prefix(CHECKSUM_PREFIX) else {
@@ -230,6 +235,9 @@ pub struct Unreadable(pub String);
 /// What is wrong with a saved store's text ([`checked_text`]).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum Damage {
+    /// Nothing but blanks (a file truncated to nothing): every saved value would be lost.
+    #[error("damaged: empty ({0} bytes)")]
+    Empty(usize),
     /// The bytes are not UTF-8.
     #[error("damaged: not UTF-8 text")]
     NotUtf8,

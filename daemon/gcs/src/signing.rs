@@ -13,7 +13,14 @@
 //! (radios cannot sign; a ground station can, and its heartbeat keeps the link-loss failsafe
 //! away, so it must). A link marked trusted (a USB cable) is exempt, as PX4's `MAV_SIGN_CFG` 1.
 //! Without a key every frame is accepted and signatures are ignored.
+//!
+//! A timestamp more than a minute ahead of the vehicle's clock is refused too, and the clock and
+//! each stream's last timestamp outlive a restart ([`SigningMemory`], kept by the daemon), so a
+//! frame captured before a restart cannot be replayed after it, as the spec asks.
 
+mod memory;
+
+pub use memory::{MemoryUnreadable, SigningMemory};
 use sha2::{Digest, Sha256};
 use std::collections::HashMap;
 use std::fmt;
@@ -26,8 +33,12 @@ pub const SIGNATURE_LEN: usize = 13;
 const IFLAG_SIGNED: u8 = 0x01;
 /// The Unix time of the signing epoch, 2015-01-01 00:00:00 UTC (s).
 const EPOCH_2015_UNIX_S: u64 = 1_420_070_400;
-/// How far a new stream's first timestamp may lag the vehicle's clock: one minute (10 µs units).
+/// How far a new stream's first timestamp may lag the vehicle's clock, and how far any
+/// timestamp may lead it: one minute (10 µs units).
 const NEW_STREAM_WINDOW: u64 = 60 * 100_000;
+/// A signing clock before 2025-01-01 is not believed (a board without a real-time clock,
+/// before network time): the first signed frame sets it, as the spec suggests (10 µs units).
+const BELIEVABLE_CLOCK: u64 = (1_735_689_600 - EPOCH_2015_UNIX_S) * 100_000;
 /// Streams remembered; a new one beyond this replaces the one heard from least recently.
 const MAX_STREAMS: usize = 256;
 const HEARTBEAT_ID: u32 = 0;
@@ -87,6 +98,9 @@ pub enum Verdict {
     /// Refused: the timestamp is not newer than its stream's last, or a new stream's is more than
     /// a minute old (a replay).
     RefusedReplay,
+    /// Refused: the timestamp is more than a minute ahead of the vehicle's clock (it would
+    /// move the clock, and every stream's window, into the future).
+    RefusedFuture,
 }
 
 impl Verdict {
@@ -105,6 +119,8 @@ pub struct Refusals {
     pub bad_signature: u64,
     /// Replayed or too old.
     pub replayed: u64,
+    /// Timestamped too far ahead.
+    pub future: u64,
 }
 
 /// The signing state of the vehicle: its key, its clock and the streams it has accepted.
@@ -151,9 +167,33 @@ impl Signing {
     }
 
     /// The vehicle's signing clock (10 µs since 2015).
-    #[cfg(test)]
     pub fn timestamp(&self) -> u64 {
         self.timestamp
+    }
+
+    /// Signed frames accepted so far: the memory changes when this does.
+    pub fn accepted(&self) -> u64 {
+        self.accepted
+    }
+
+    /// What must outlive a restart: the clock and each stream's last timestamp.
+    pub fn memory(&self) -> SigningMemory {
+        let mut streams: Vec<_> = self.streams.iter().map(|(k, v)| (*k, v.0)).collect();
+        streams.sort_unstable();
+        SigningMemory {
+            timestamp: self.timestamp,
+            streams,
+        }
+    }
+
+    /// Takes up what an earlier run remembered: its clock (if later) and its streams, whose
+    /// next frames must be newer than their last.
+    pub fn remember(&mut self, m: &SigningMemory) {
+        self.timestamp = self.timestamp.max(m.timestamp);
+        for &(stream, last) in m.streams.iter().take(MAX_STREAMS) {
+            let known = self.streams.entry(stream).or_insert((last, 0));
+            known.0 = known.0.max(last);
+        }
     }
 
     /// Decides about one well-formed frame (its checksum checked) received on a link that is
@@ -164,6 +204,7 @@ impl Signing {
             Verdict::RefusedUnsigned => self.refused.unsigned += 1,
             Verdict::RefusedBadSignature => self.refused.bad_signature += 1,
             Verdict::RefusedReplay => self.refused.replayed += 1,
+            Verdict::RefusedFuture => self.refused.future += 1,
             Verdict::Signed | Verdict::Unsigned => {}
         }
         verdict
@@ -196,6 +237,9 @@ impl Signing {
         ts[..6].copy_from_slice(&block[1..7]);
         let timestamp = u64::from_le_bytes(ts);
         let stream = (frame[5], frame[6], link_id);
+        if self.timestamp >= BELIEVABLE_CLOCK && timestamp > self.timestamp + NEW_STREAM_WINDOW {
+            return Verdict::RefusedFuture;
+        }
         let fresh = match self.streams.get(&stream) {
             Some(&(last, _)) => timestamp > last,
             None => timestamp + NEW_STREAM_WINDOW >= self.timestamp,

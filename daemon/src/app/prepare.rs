@@ -5,8 +5,8 @@ use crate::control_loop::Ports;
 use crate::gcs_links;
 use crate::links::Source;
 use crate::records::flight_csv::FlightCsv;
-use crate::records::param_file;
 use crate::records::{self, FlightRecords};
+use crate::records::{param_file, signing_file};
 use crate::settings::Settings;
 use anyhow::{Context, Result};
 use flight_core::autopilot::{AutoFlight, Autopilot};
@@ -103,15 +103,19 @@ pub(super) fn prepare(
         .collect::<Result<Vec<_>>>()
         .context("--mavlink")?;
     let signing_key = match &cfg.signing_key_file {
-        Some(path) => match std::fs::read_to_string(path) {
-            Ok(text) => Some(
-                gcs::signing::SecretKey::from_hex(&text)
-                    .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?,
-            ),
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
-            Err(e) => return Err(e).with_context(|| format!("reading {}", path.display())),
-        },
+        Some(path) => signing_file::load_key(path)?,
         None => None,
+    };
+    let signing_memory = match &cfg.signing_key_file {
+        Some(path) => {
+            let (memory, warning) = signing_file::load_memory(&signing_file::memory_path(path));
+            if let Some(w) = warning {
+                tracing::warn!("{w}");
+                notices.push("signing timestamps lost: see the log".to_owned());
+            }
+            memory
+        }
+        None => Default::default(),
     };
     let (mut ports, commands, telemetry) = Ports::new(16);
     let (params_tx, params_rx) = watch::channel(params.clone());
@@ -133,6 +137,7 @@ pub(super) fn prepare(
             notices,
             signing_key,
             signing_key_file: cfg.signing_key_file.clone(),
+            signing_memory,
             tlog,
             reboot_allowed: cfg.count == 1,
         },

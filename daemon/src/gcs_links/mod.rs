@@ -26,14 +26,14 @@ pub use endpoint::EndpointSpec;
 
 use crate::control_loop::LoopCommand;
 use crate::records::log_files::Tlog;
-use crate::records::param_file;
+use crate::records::{param_file, signing_file};
 use anyhow::Result;
 use flight_core::autopilot::command::AutopilotCommand;
 use flight_core::commander::Denial;
 use flight_core::params::FlightParams;
 use gcs::param_store::{Loaded, ParamStore, Unreadable};
 use gcs::params::Parameters;
-use gcs::signing::{SecretKey, Signing};
+use gcs::signing::{SecretKey, Signing, SigningMemory};
 use gcs::telemetry::Telemetry;
 use gcs::{AckTo, COMPONENT_ID, GroundStation, HostAction, Outbox, Outgoing};
 use hil::Encoder;
@@ -79,8 +79,11 @@ pub struct Vehicle {
     /// The MAVLink signing key (none: signing off), and the file a key set by `SETUP_SIGNING`
     /// is kept in.
     pub signing_key: Option<SecretKey>,
-    /// Where a key set by `SETUP_SIGNING` is saved (none: kept in memory only).
+    /// Where a key set by `SETUP_SIGNING` is saved (none: kept in memory only); signing's
+    /// memory is kept beside it.
     pub signing_key_file: Option<std::path::PathBuf>,
+    /// What signing remembered from the run before (its clock, each stream's last timestamp).
+    pub signing_memory: SigningMemory,
     /// The MAVLink telemetry log, if one is kept.
     pub tlog: Option<Tlog>,
     /// Whether a reboot is allowed: it restarts the process, so not for one of several
@@ -154,6 +157,53 @@ fn setup_signing(
     }
 }
 
+/// Keeps signing's memory in its file: at most once a second while signed frames arrive, and
+/// at the end (a reboot or shutdown), so a frame captured before a restart is a replay after it.
+struct SigningMemoryKeeper {
+    path: Option<std::path::PathBuf>,
+    saved: Option<SigningMemory>,
+    next: Instant,
+}
+
+impl SigningMemoryKeeper {
+    fn new(key_file: Option<&std::path::Path>) -> Self {
+        Self {
+            path: key_file.map(signing_file::memory_path),
+            saved: None,
+            next: Instant::now(),
+        }
+    }
+
+    /// Saves the memory if it changed and a second has passed (or `now`); a failure is logged.
+    async fn save_if_due(&mut self, signing: &Mutex<Signing>, now: bool) {
+        let Some(path) = self.path.clone() else {
+            return;
+        };
+        if !now && Instant::now() < self.next {
+            return;
+        }
+        let m = {
+            let s = signing.lock().unwrap_or_else(|e| e.into_inner());
+            if !s.active() {
+                return;
+            }
+            s.memory()
+        };
+        if self.saved.as_ref() == Some(&m) {
+            return;
+        }
+        self.next = Instant::now() + Duration::from_secs(1);
+        let kept = m.clone();
+        let saved =
+            tokio::task::spawn_blocking(move || signing_file::save_memory(&path, &kept)).await;
+        match saved {
+            Ok(Ok(())) => self.saved = Some(m),
+            Ok(Err(e)) => tracing::error!("signing timestamps not saved: {e:#}"),
+            Err(e) => tracing::error!("signing timestamps not saved: {e}"),
+        }
+    }
+}
+
 /// Saves every store it is handed, the latest first (a burst of sets is one write), and says
 /// so when a save fails.
 async fn saver(mut stores: watch::Receiver<Option<ParamStore>>, notices: Notices) {
@@ -193,6 +243,7 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<HostA
         notices: mut startup_notices,
         signing_key,
         signing_key_file,
+        signing_memory,
         mut tlog,
         reboot_allowed,
     } = vehicle;
@@ -204,7 +255,10 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<HostA
             "off"
         }
     );
-    let signing = Arc::new(Mutex::new(Signing::new(signing_key)));
+    let mut memory = SigningMemoryKeeper::new(signing_key_file.as_deref());
+    let mut restored = Signing::new(signing_key);
+    restored.remember(&signing_memory);
+    let signing = Arc::new(Mutex::new(restored));
     let not_allowed = Arc::new(AtomicU64::new(0));
     let (frames, _) = broadcast::channel::<Arc<[u8]>>(1024);
     let (inbound_tx, mut inbound) = mpsc::channel::<Inbound>(256);
@@ -275,6 +329,7 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<HostA
                     tracing::error!(file = %log.path().display(), "telemetry log: {e}; logging stopped");
                     tlog = None;
                 }
+                memory.save_if_due(&signing, false).await;
                 if Instant::now() >= refusals_next {
                     refusals_next = Instant::now() + REFUSALS_REPORT;
                     let now = (
@@ -288,6 +343,7 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<HostA
                             unsigned = r.unsigned,
                             bad_signature = r.bad_signature,
                             replayed = r.replayed,
+                            future = r.future,
                             not_on_allow_list = n,
                             "frames refused so far"
                         );
@@ -403,6 +459,7 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<HostA
             let _ = frames.send(bytes.into());
         }
     }
+    memory.save_if_due(&signing, true).await;
     let refused = signing.lock().unwrap_or_else(|e| e.into_inner()).refused;
     tracing::info!(
         malformed,
@@ -410,6 +467,7 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<HostA
         refused_unsigned = refused.unsigned,
         refused_bad_signature = refused.bad_signature,
         refused_replayed = refused.replayed,
+        refused_future = refused.future,
         refused_not_on_allow_list = not_allowed.load(Ordering::Relaxed),
         "ground-station links closed"
     );

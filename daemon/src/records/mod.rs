@@ -1,10 +1,12 @@
 //! What a run leaves behind, observed from outside the autopilot's step: the flight-data CSV,
-//! the score against a simulator's truth, the telemetry log's files and the parameter store.
+//! the score against a simulator's truth, the telemetry log's files, the parameter store and
+//! the signing key's file with what signing remembers across restarts.
 
 pub mod flight_csv;
 pub mod log_files;
 pub mod param_file;
 pub mod score;
+pub mod signing_file;
 
 use anyhow::{Context, Result};
 use flight_core::autopilot::{AutopilotOutput, StepKind};

@@ -225,7 +225,9 @@ mod tests {
     #[test]
     fn a_damaged_store_is_replaced_by_its_previous_good_copy_and_the_user_told() {
         let base = FlightParams::default();
-        let damages: [(&str, Damage); 6] = [
+        let damages: [(&str, Damage); 8] = [
+            ("truncated to nothing", |_| String::new()),
+            ("blanks only", |_| "\n  \n".to_owned()),
             ("a digit changed", |t| t.replacen("6.0", "9.0", 1)),
             ("cut short at a line", |t| {
                 t.lines().take(5).map(|l| format!("{l}\n")).collect()

@@ -7,6 +7,7 @@ use crate::math::geo::{LatLonAlt, LocalFrame};
 use crate::mission::{MissionItem, MissionPoint, SpeedChange};
 use crate::safety::failure_injection::{Injection, Refusal};
 use crate::safety::geofence::{FenceMonitor, GeoZone, Geofence};
+use crate::safety::targets::{check_point, global_to_ned};
 use crate::sensors::mag_calibrator::{MagCalState, MagCalStatus, MagCalibrator};
 use nalgebra::Vector3;
 
@@ -161,7 +162,8 @@ impl Autopilot {
                 let Some(origin) = origin else {
                     return Err("home refused: no global position yet".into());
                 };
-                c_.set_home(Some(LocalFrame::new(origin).to_ned(&p)))
+                let home = global_to_ned(&p, &origin).map_err(|e| format!("home refused: {e}"))?;
+                c_.set_home(Some(home))
             }
             AutopilotCommand::Sticks(s) => {
                 c_.manual_control(s);
@@ -217,6 +219,7 @@ impl Autopilot {
                 let (Some(out), Some(origin)) = (last, origin) else {
                     return Err("reposition refused: no global position yet".into());
                 };
+                check_point(&at).map_err(|e| format!("reposition refused: {e}"))?;
                 let home = c_.home().unwrap_or(out.translation.pos_ned_m);
                 // The parts left open stay NaN: the commander keeps them.
                 let target = at.to_ned(&origin, &home, &Vector3::repeat(f64::NAN));

@@ -7,6 +7,7 @@ use super::hold::Hold;
 use super::task::Task;
 use super::{Commander, Denial, FlightMode, LandedState};
 use crate::mission::{MissionItem, MissionState, MissionStatus, SpeedChange};
+use crate::safety::targets::check_mission;
 use nalgebra::Vector3;
 
 impl Commander {
@@ -66,9 +67,13 @@ impl Commander {
         if self.flight.mission.items.is_empty() {
             return Err("MISSION refused: no mission uploaded".into());
         }
-        if self.last.and_then(|i| i.origin).is_none() {
+        let Some((origin, here)) = self.last.and_then(|i| Some((i.origin?, i.pos_ned_m))) else {
             return Err("MISSION refused: no global position yet".into());
-        }
+        };
+        let home = self.flight.home.map_or(here, |h| h.0);
+        let items = &self.flight.mission.items;
+        check_mission(items, &self.target_limits(), &origin, &home)
+            .map_err(|(k, e)| format!("MISSION refused: item {k}: {e}"))?;
         if self.flight.mission.state == MissionState::Complete {
             self.flight.mission.restart();
         }
@@ -125,6 +130,10 @@ impl Commander {
                 to[k] = target[k];
             }
         }
+        let home = self.flight.home.map_or(i.pos_ned_m, |h| h.0);
+        self.target_limits()
+            .check_target(&to, &home)
+            .map_err(|e| format!("reposition refused: {e}"))?;
         if let Some(s) = speed_m_s.filter(|s| s.is_finite() && *s > 0.0) {
             self.flight.speed_override = Some(s.min(20.0));
         }

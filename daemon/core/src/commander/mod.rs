@@ -28,6 +28,7 @@ use crate::mission::MissionStatus;
 use crate::safety::failsafe::{
     Condition, FailsafeAction, Safety, SafetyEvent, SafetyLog, SafetyParams,
 };
+use crate::safety::targets::TargetLimits;
 use flight::{Flight, Tick, brake_point, hold_setpoint, spooled};
 use nalgebra::Vector3;
 use task::Task;
@@ -436,9 +437,9 @@ impl Commander {
     /// Takeoff; a disarmed vehicle climbs once armed.
     pub fn takeoff(&mut self, alt_above_home_m: Option<f64>) -> Result<(), Denial> {
         let alt = alt_above_home_m.unwrap_or(self.flight.params.takeoff_alt_m);
-        if !(alt.is_finite() && alt > 0.0) {
-            return Err(format!("take-off refused: altitude {alt} m is not above home").into());
-        }
+        self.target_limits()
+            .check_height(alt)
+            .map_err(|e| format!("take-off refused: {e}"))?;
         if self.mode != FlightMode::Takeoff {
             self.set_mode(FlightMode::Takeoff)?;
         }
@@ -447,11 +448,21 @@ impl Commander {
         Ok(())
     }
 
-    /// Sets home to `pos_ned_m` (or to the current position if `None`).
+    /// The limits on where a command or mission item may send the vehicle.
+    pub fn target_limits(&self) -> TargetLimits {
+        TargetLimits::new(self.safety.params())
+    }
+
+    /// Sets home to `pos_ned_m` (or to the current position if `None`): near the vehicle.
     pub fn set_home(&mut self, pos_ned_m: Option<Vector3<f64>>) -> Result<(), Denial> {
         let Some(i) = self.last else {
             return Err("home refused: no position estimate yet".into());
         };
+        if let Some(p) = pos_ned_m {
+            self.target_limits()
+                .check_home(&p, &i.pos_ned_m)
+                .map_err(|e| format!("home refused: {e}"))?;
+        }
         self.flight.set_home(pos_ned_m, &i)
     }
 

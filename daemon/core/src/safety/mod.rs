@@ -5,7 +5,8 @@
 //! - [`failure_injection`]: `MAV_CMD_INJECT_FAILURE` carried out on the autopilot's side;
 //! - [`blind_descent`]: the open-loop descent when the sensor frames stop in the air;
 //! - [`geofence`]: uploaded fence zones, breach prediction;
-//! - [`motor_failure`]: motor-failure detection.
+//! - [`motor_failure`]: motor-failure detection;
+//! - [`targets`]: where a command or mission item may send the vehicle.
 
 pub mod blind_descent;
 pub mod failsafe;
@@ -13,6 +14,7 @@ pub mod failure_injection;
 pub mod geofence;
 pub mod motor_failure;
 pub mod preflight;
+pub mod targets;
 
 #[cfg(test)]
 mod tests;

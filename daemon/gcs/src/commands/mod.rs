@@ -65,7 +65,8 @@ impl GroundStation {
     }
 
     /// A `COMMAND_INT`: its x and y as the 1e7 integers of a position where the command has
-    /// one (`DO_REPOSITION`, `DO_SET_HOME`), the rest as a `COMMAND_LONG`.
+    /// one (`DO_REPOSITION`, `DO_SET_HOME`), the rest as a `COMMAND_LONG`. The places are
+    /// checked where they are flown ([`flight_core::safety::targets`]).
     pub(super) fn command_int(
         &mut self,
         c: CommandMessage,
@@ -76,7 +77,11 @@ impl GroundStation {
         out: &mut Outbox,
     ) {
         if c.command == MavCmd::MAV_CMD_DO_REPOSITION {
-            return self.reposition(c, global, frame, to, out);
+            // INT32_MAX: keep the current latitude and longitude.
+            let degrees = global
+                .filter(|&(x, y)| x != i32::MAX && y != i32::MAX)
+                .map(|(x, y)| (x as f64 * 1e-7, y as f64 * 1e-7));
+            return self.reposition(c, degrees, frame, to, out);
         }
         if c.command == MavCmd::MAV_CMD_DO_SET_HOME && c.p[0] != 1.0 {
             let Some((x, y)) = global else {

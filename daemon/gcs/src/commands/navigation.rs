@@ -31,8 +31,19 @@ impl GroundStation {
                 Err(_) => self.deny(to, out, &format!("change speed: {} m/s refused", p[1])),
             },
             MavCmd::MAV_CMD_CONDITION_YAW => {
-                if !p[0].is_finite() {
-                    return self.deny(to, out, "yaw command: angle not finite");
+                if p[0].is_nan() || p[0].abs() > 360.0 {
+                    return self.deny(
+                        to,
+                        out,
+                        &format!("yaw command: angle {}° outside ±360°", p[0]),
+                    );
+                }
+                if !(p[1].is_nan() || p[1] <= 360.0) {
+                    return self.deny(
+                        to,
+                        out,
+                        &format!("yaw command: rate {}°/s above 360°/s", p[1]),
+                    );
                 }
                 let rate = (p[1].is_finite() && p[1] > 0.0).then_some(p[1] as f64);
                 vehicle(
@@ -47,11 +58,9 @@ impl GroundStation {
                 );
             }
             MavCmd::MAV_CMD_DO_REPOSITION => {
-                // COMMAND_LONG: latitude and longitude in degrees, altitude AMSL.
-                let global = (p[4].is_finite() && p[5].is_finite()).then_some((
-                    (p[4] as f64 * 1e7).round() as i32,
-                    (p[5] as f64 * 1e7).round() as i32,
-                ));
+                // COMMAND_LONG: latitude and longitude in degrees (NaN: keep), altitude AMSL.
+                let global =
+                    (!p[4].is_nan() || !p[5].is_nan()).then_some((p[4] as f64, p[5] as f64));
                 self.reposition(c, global, MavFrame::MAV_FRAME_GLOBAL, to, out);
             }
             MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH => {
@@ -66,29 +75,35 @@ impl GroundStation {
 
     /// `DO_REPOSITION`: param1 speed (−1 default), param2 bit 0 "switch to Hold", param4
     /// yaw (NaN keeps; in radians, as PX4 reads it and MAVSDK's `goto_location` sends it,
-    /// although the MAVLink spec says degrees), x/y latitude and longitude (absent or `INT32_MAX`: keep), z the
-    /// altitude in `frame` (NaN: keep).
+    /// although the MAVLink spec says degrees), latitude and longitude (deg; absent: keep), z
+    /// the altitude in `frame` (NaN: keep).
     pub(super) fn reposition(
         &mut self,
         c: CommandMessage,
-        global: Option<(i32, i32)>,
+        global: Option<(f64, f64)>,
         frame: MavFrame,
         to: AckTo,
         out: &mut Outbox,
     ) {
         let p = c.p;
+        if !(p[3].is_nan() || p[3].abs() <= std::f32::consts::TAU) {
+            return self.deny(
+                to,
+                out,
+                &format!("reposition: yaw {} rad outside ±2π", p[3]),
+            );
+        }
         let relative = match frame {
             MavFrame::MAV_FRAME_GLOBAL | MavFrame::MAV_FRAME_GLOBAL_INT => false,
             MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT
             | MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT_INT => true,
             f => return self.deny(to, out, &format!("reposition: frame {f:?} not supported")),
         };
+        // NaN keeps the altitude; an infinite one is refused where it is checked.
         let z = p[6] as f64;
         let at = flight_core::mission::MissionPoint {
-            lat_lon_deg: global
-                .filter(|&(x, y)| x != i32::MAX && y != i32::MAX)
-                .map(|(x, y)| (x as f64 * 1e-7, y as f64 * 1e-7)),
-            alt: z.is_finite().then_some(if relative {
+            lat_lon_deg: global,
+            alt: (!z.is_nan()).then_some(if relative {
                 flight_core::mission::MissionAltitude::AboveHome(z)
             } else {
                 flight_core::mission::MissionAltitude::Amsl(z)

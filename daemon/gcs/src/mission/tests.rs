@@ -1,5 +1,10 @@
 #![allow(clippy::unwrap_used)]
 use super::*;
+use flight_core::math::geo::LatLonAlt;
+use flight_core::mission::{MissionAltitude, SpeedChange};
+use flight_core::safety::geofence::GeoZone;
+use flight_core::safety::targets::TargetLimits;
+use nalgebra::Vector3;
 
 const GCS: (u8, u8) = (255, 190);
 
@@ -755,4 +760,100 @@ fn fence_plans_become_zones_or_are_refused() {
     let out = send(&mut m, GCS, count(0, kind));
     assert_eq!(acked(&out).0, MavMissionResult::MAV_MISSION_ACCEPTED);
     assert_eq!(out.fence, Some(Vec::new()));
+}
+
+/// Places off the Earth, heights below the ground or above the ceiling and places far from
+/// home end the upload with the field at fault, and the reason said; what needs home waits
+/// for it.
+#[test]
+fn items_the_vehicle_must_not_fly_are_refused_with_the_field_at_fault() {
+    use MavCmd::*;
+    use MavFrame::*;
+    use MavMissionResult::*;
+    let limits = TargetLimits::new(&flight_core::safety::failsafe::SafetyParams::default());
+    let origin = LatLonAlt {
+        lat_deg: 47.397742,
+        lon_deg: 8.545594,
+        alt_m: 488.0,
+    };
+    let wp = |xyz, frame| item(1, MAV_CMD_NAV_WAYPOINT, frame, [0.0; 4], xyz);
+    let cases = [
+        (
+            wp(
+                (473_977_420, 85_455_940, 1e30),
+                MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+            ),
+            MAV_MISSION_INVALID_PARAM7,
+            false,
+        ),
+        (
+            wp(
+                (473_977_420, 85_455_940, -50.0),
+                MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+            ),
+            MAV_MISSION_INVALID_PARAM7,
+            false,
+        ),
+        (
+            wp(
+                (473_977_420, 85_455_940, f32::INFINITY),
+                MAV_FRAME_GLOBAL_INT,
+            ),
+            MAV_MISSION_INVALID_PARAM7,
+            false,
+        ),
+        (
+            wp((473_977_420, 85_455_940, -1e6), MAV_FRAME_GLOBAL_INT),
+            MAV_MISSION_INVALID_PARAM7,
+            true,
+        ),
+        (
+            wp((473_977_420, 85_455_940, 1e30), MAV_FRAME_GLOBAL_INT),
+            MAV_MISSION_INVALID_PARAM7,
+            true,
+        ),
+        (
+            wp(
+                (-800_000_000, 400_000_000, 10.0),
+                MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+            ),
+            MAV_MISSION_INVALID_PARAM5_X,
+            true,
+        ),
+    ];
+    for (bad, result, needs_home) in cases {
+        for home in [false, true] {
+            let mut m = Missions {
+                bounds: Some(MissionBounds {
+                    limits,
+                    home: home.then_some((origin, Vector3::zeros())),
+                }),
+                ..Missions::default()
+            };
+            let ok = item(
+                0,
+                MAV_CMD_NAV_WAYPOINT,
+                MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+                [0.0; 4],
+                (473_977_420, 85_455_940, 10.0),
+            );
+            let out = upload(
+                &mut m,
+                MavMissionType::MAV_MISSION_TYPE_MISSION,
+                &[ok, bad.clone()],
+            );
+            if needs_home && !home {
+                assert_eq!(
+                    acked(&out).0,
+                    MAV_MISSION_ACCEPTED,
+                    "{bad:?}: checked when home is known"
+                );
+                continue;
+            }
+            assert_eq!(acked(&out).0, result, "{bad:?}, home known: {home}");
+            let said = crate::tests::statustexts(&out);
+            assert!(said[0].starts_with("mission item 1 refused: "), "{said:?}");
+            assert!(m.items(MavMissionType::MAV_MISSION_TYPE_MISSION).is_empty());
+        }
+    }
 }

@@ -116,7 +116,7 @@ fn a_new_stream_more_than_a_minute_old_is_a_replay() {
     );
     // The vehicle's clock follows the newest accepted timestamp.
     let mut ahead = Signing::new(Some(SecretKey(KEY)));
-    ahead.tick(NOW_USEC + 3_600_000_000);
+    ahead.tick(NOW_USEC + 30_000_000);
     let f = signed(&mut ahead, &heartbeat(MavType::MAV_TYPE_GCS));
     assert_eq!(vehicle.check(&f, false), Verdict::Signed);
     assert_eq!(vehicle.timestamp(), ahead.timestamp() - 1);
@@ -213,4 +213,74 @@ proptest::proptest! {
             proptest::prop_assert!(unsigned_allowed(&b));
         }
     }
+}
+
+#[test]
+fn a_timestamp_far_ahead_is_refused_and_does_not_move_the_clock() {
+    let mut vehicle = signing(KEY);
+    let clock = vehicle.timestamp();
+    let mut ahead = signing(KEY);
+    // Ten years ahead, then two minutes ahead: both refused; one minute ahead is fine.
+    ahead.tick(NOW_USEC + 10 * 365 * 86_400 * 1_000_000);
+    assert_eq!(
+        vehicle.check(&signed(&mut ahead, &arm()), false),
+        Verdict::RefusedFuture
+    );
+    let mut ahead = signing(KEY);
+    ahead.tick(NOW_USEC + 120_000_000);
+    assert_eq!(
+        vehicle.check(&signed(&mut ahead, &arm()), false),
+        Verdict::RefusedFuture
+    );
+    assert_eq!(vehicle.timestamp(), clock, "the clock stays");
+    assert_eq!(vehicle.refused.future, 2);
+    let mut ahead = signing(KEY);
+    ahead.tick(NOW_USEC + 50_000_000);
+    assert_eq!(
+        vehicle.check(&signed(&mut ahead, &arm()), false),
+        Verdict::Signed
+    );
+}
+
+#[test]
+fn a_frame_captured_before_a_restart_is_refused_after_it() {
+    let mut gcs = signing(KEY);
+    let mut vehicle = signing(KEY);
+    let captured = signed(&mut gcs, &arm());
+    assert_eq!(vehicle.check(&captured, false), Verdict::Signed);
+    let memory = vehicle.memory();
+    assert_eq!(memory.streams.len(), 1);
+    // A new process a second later: without the memory the capture is a new stream within
+    // its minute; with it, a replay.
+    let mut forgetful = signing(KEY);
+    forgetful.tick(NOW_USEC + 1_000_000);
+    assert_eq!(forgetful.check(&captured, false), Verdict::Signed);
+    let mut restarted = signing(KEY);
+    restarted.tick(NOW_USEC + 1_000_000);
+    restarted.remember(&SigningMemory::parse(&memory.to_text()).unwrap());
+    assert_eq!(restarted.check(&captured, false), Verdict::RefusedReplay);
+    assert_eq!(
+        restarted.check(&signed(&mut gcs, &arm()), false),
+        Verdict::Signed
+    );
+}
+
+#[test]
+fn a_vehicle_without_a_believable_clock_takes_the_ground_stations() {
+    // A board that booted in 1970 (no real-time clock, no network time yet).
+    let mut vehicle = Signing::new(Some(SecretKey(KEY)));
+    vehicle.tick(0);
+    let mut gcs = signing(KEY);
+    assert_eq!(
+        vehicle.check(&signed(&mut gcs, &arm()), false),
+        Verdict::Signed
+    );
+    assert_eq!(vehicle.timestamp(), gcs.timestamp() - 1);
+    // From then on the clock is believable: far ahead is refused.
+    let mut ahead = signing(KEY);
+    ahead.tick(NOW_USEC + 3_600_000_000);
+    assert_eq!(
+        vehicle.check(&signed(&mut ahead, &arm()), false),
+        Verdict::RefusedFuture
+    );
 }
