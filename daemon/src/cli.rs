@@ -35,7 +35,7 @@ pub struct FlightArgs {
     /// messages as an external simulator). Short for `--source sim`.
     #[arg(long, conflicts_with = "source")]
     pub sim: bool,
-    /// Sensor source: `sim` (embedded simulator), `udp://0.0.0.0:4560` (a simulator process such
+    /// Sensor source: `sim` (embedded simulator), `udp://127.0.0.1:4560` (a simulator process such
     /// as `sitl`; the port is offset by --instance), `json://127.0.0.1:9002` (a physics speaking
     /// ArduPilot's JSON interface, such as `sitl --json`; the port is offset by 10 × --instance;
     /// `?channels=3,1,4,2` puts rotor k on that servo channel; --sensors and --seed make the
@@ -124,7 +124,7 @@ pub struct FlightArgs {
     /// server. Every port is offset by --instance, but a udpout target marked `shared` (one
     /// ground station hearing every vehicle, as PX4 does it) [default:
     /// udpout://127.0.0.1:14550?bind=18570&shared (QGroundControl, pymavlink, MAVProxy),
-    /// udpout://127.0.0.1:14540?bind=14580 (MAVSDK), tcpin://0.0.0.0:5760].
+    /// udpout://127.0.0.1:14540?bind=14580 (MAVSDK), tcpin://127.0.0.1:5760].
     #[arg(long, value_name = "URL")]
     pub mavlink: Vec<String>,
     /// Where the parameters a ground station changes are kept (applied over the flight

@@ -1,7 +1,7 @@
 //! `autopilot`: the autopilot daemon.
 //!
 //! `autopilot --sim` flies the default vehicle in the embedded simulator: take-off, hover, land,
-//! with a live status line; `--source udp://0.0.0.0:4560` flies a simulator process (`sitl`) the
+//! with a live status line; `--source udp://127.0.0.1:4560` flies a simulator process (`sitl`) the
 //! same way. `autopilot replay` runs the attitude estimator over logged sensor data.
 
 mod app;

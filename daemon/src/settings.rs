@@ -262,7 +262,7 @@ impl Settings {
         }
         if self.source.is_none() {
             bail!(
-                "no sensor source: give --sim to fly the embedded simulator, or --source udp://0.0.0.0:4560 for a simulator process (or source = ... in a --config file)"
+                "no sensor source: give --sim to fly the embedded simulator, or --source udp://127.0.0.1:4560 for a simulator process (or source = ... in a --config file)"
             );
         }
         let number = |x: f64, flag: &str, range, unit| {

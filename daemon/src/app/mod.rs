@@ -197,12 +197,15 @@ fn serve(
         // The ground-station side ends with the loop, after its last save.
         let mut exits = Vec::with_capacity(links.len());
         for l in links {
-            exits.push(l.await.ok().flatten());
+            exits.push(match l.await {
+                Ok(exit) => exit,
+                Err(e) => Err(anyhow::anyhow!("the ground-station links failed: {e}")),
+            });
         }
         exits
     });
     drop(runtime);
-    Ok(exits)
+    exits.into_iter().collect()
 }
 
 /// `--count N`: N vehicles in the embedded simulator, flown together on one control-loop thread

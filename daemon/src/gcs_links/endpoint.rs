@@ -86,19 +86,40 @@ impl Endpoint {
             match kv.split_once('=') {
                 None if kv == "shared" => shared = true,
                 Some(("bind", p)) => {
-                    let port: u16 = p
-                        .parse()
-                        .with_context(|| format!("{url:?}: bind={p} is not a port"))?;
-                    bind = Some(addr(&format!("0.0.0.0:{port}"))?);
+                    // ADDR:PORT as given; a bare PORT on the side of the target (below).
+                    bind = Some(match p.parse::<u16>() {
+                        Ok(port) => BindTo::Port(port),
+                        Err(_) => BindTo::Addr(addr(p).with_context(|| {
+                            format!("{url:?}: bind={p} is neither a port nor ADDR:PORT")
+                        })?),
+                    });
                 }
-                _ => bail!("{url:?}: unknown option {kv:?} (udpout takes bind=PORT and shared)"),
+                _ => bail!(
+                    "{url:?}: unknown option {kv:?} (udpout takes bind=PORT or bind=ADDR:PORT, and shared)"
+                ),
             }
         }
         Ok(match scheme {
-            "udpout" => Endpoint::UdpOut {
-                target: offset(host, if shared { 0 } else { instance })?,
-                bind: bind.unwrap_or_else(|| SocketAddr::from(([0, 0, 0, 0], 0))),
-            },
+            "udpout" => {
+                let target = offset(host, if shared { 0 } else { instance })?;
+                // Pushing to this machine, the port is this machine's alone; pushing to
+                // another host, it must be reachable from there.
+                let local = |port| {
+                    let ip: std::net::IpAddr = match (target.ip().is_loopback(), target.is_ipv4()) {
+                        (true, true) => std::net::Ipv4Addr::LOCALHOST.into(),
+                        (true, false) => std::net::Ipv6Addr::LOCALHOST.into(),
+                        (false, true) => std::net::Ipv4Addr::UNSPECIFIED.into(),
+                        (false, false) => std::net::Ipv6Addr::UNSPECIFIED.into(),
+                    };
+                    SocketAddr::new(ip, port)
+                };
+                let bind = match bind {
+                    Some(BindTo::Addr(a)) => a,
+                    Some(BindTo::Port(0)) | None => local(0),
+                    Some(BindTo::Port(p)) => offset(&local(p).to_string(), instance)?,
+                };
+                Endpoint::UdpOut { target, bind }
+            }
             "udpin" | "tcpin" if shared => bail!("{url:?}: shared is for udpout"),
             "udpin" if bind.is_none() => Endpoint::UdpIn { bind: addr(host)? },
             "tcpin" if bind.is_none() => Endpoint::TcpIn { bind: addr(host)? },
@@ -108,6 +129,13 @@ impl Endpoint {
     }
 }
 
+/// A `udpout` endpoint's `bind=`: a port (on loopback when the target is this machine, on
+/// every interface when it is another host) or an address.
+enum BindTo {
+    Port(u16),
+    Addr(SocketAddr),
+}
+
 /// What every endpoint takes besides its address.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct LinkOptions {
@@ -115,6 +143,8 @@ pub struct LinkOptions {
     pub trusted: bool,
     /// Only these systems are heard (empty: all).
     pub allowed_systems: Vec<u8>,
+    /// A port that cannot be opened is a warning, not a start-up error.
+    pub optional: bool,
 }
 
 /// An endpoint and its options, as written on the command line.
@@ -127,8 +157,8 @@ pub struct EndpointSpec {
 }
 
 impl EndpointSpec {
-    /// Parses `URL[?options]`: the options every endpoint takes (`trusted`, `sysids=A,B`), the
-    /// rest as [`Endpoint::parse`].
+    /// Parses `URL[?options]`: the options every endpoint takes (`trusted`, `sysids=A,B`,
+    /// `optional`), the rest as [`Endpoint::parse`].
     pub fn parse(url: &str, instance: u16) -> Result<Self> {
         let (base, query) = url.split_once('?').unwrap_or((url, ""));
         let mut options = LinkOptions::default();
@@ -136,6 +166,7 @@ impl EndpointSpec {
         for kv in query.split('&').filter(|s| !s.is_empty()) {
             match kv.split_once('=') {
                 None if kv == "trusted" => options.trusted = true,
+                None if kv == "optional" => options.optional = true,
                 Some(("sysids", list)) => {
                     for id in list.split(',') {
                         let id: u8 = id.parse().ok().filter(|&i| i > 0).with_context(|| {

@@ -49,7 +49,7 @@ use transport::{Guard, Inbound, Notices, open};
 pub const DEFAULT_ENDPOINTS: [&str; 3] = [
     "udpout://127.0.0.1:14550?bind=18570&shared",
     "udpout://127.0.0.1:14540?bind=14580",
-    "tcpin://0.0.0.0:5760",
+    "tcpin://127.0.0.1:5760",
 ];
 
 /// How often the streams are looked at.
@@ -230,8 +230,9 @@ async fn saver(mut stores: watch::Receiver<Option<ParamStore>>, notices: Notices
 /// Runs the ground-station side until the control loop ends: opens `endpoints`, answers what
 /// arrives, streams telemetry, passes vehicle commands and parameters to the control loop and
 /// saves the parameter store. Returns the reboot or shutdown a ground station asked for, once
-/// the store is saved.
-pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<HostAction> {
+/// the store is saved; an endpoint that cannot be opened (and is not `optional`) stops the
+/// control loop and is the error.
+pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Result<Option<HostAction>> {
     let Vehicle {
         system_id,
         mav_type,
@@ -272,8 +273,19 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<HostA
             signing: signing.clone(),
             not_allowed: not_allowed.clone(),
         };
-        if let Err(e) = open(e, guard, &inbound_tx, &frames, &notices_tx).await {
-            tracing::warn!("ground-station endpoint not opened: {e:#}");
+        let optional = e.options.optional;
+        match open(e, guard, &inbound_tx, &frames, &notices_tx).await {
+            Ok(()) => {}
+            Err(e) if optional => {
+                tracing::warn!("optional ground-station endpoint not opened: {e:#}")
+            }
+            Err(e) => {
+                // Flying on without a link the user asked for would be worse: stop.
+                let _ = commands.try_send(LoopCommand::Stop);
+                return Err(e.context(
+                    "a ground-station endpoint could not be opened (another program or vehicle holds the port? give it `-i N`, or mark the endpoint `?optional`)",
+                ));
+            }
         }
     }
     let mut gcs = GroundStation::new(system_id, mav_type)
@@ -481,7 +493,7 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Option<HostA
     }
     drop(save_tx);
     let _ = saving.await;
-    exit
+    Ok(exit)
 }
 
 /// Records in the telemetry log what a link heard, each message framed again as its sender

@@ -11,7 +11,7 @@ fn endpoints_parse_with_the_instance_offset() {
         e,
         Endpoint::UdpOut {
             target: "127.0.0.1:14552".parse().unwrap(),
-            bind: "0.0.0.0:18572".parse().unwrap(),
+            bind: "127.0.0.1:18572".parse().unwrap(),
         }
     );
     // QGroundControl's port, shared by every vehicle (PX4's multi-vehicle ports).
@@ -20,7 +20,31 @@ fn endpoints_parse_with_the_instance_offset() {
         e,
         Endpoint::UdpOut {
             target: "127.0.0.1:14550".parse().unwrap(),
-            bind: "0.0.0.0:18572".parse().unwrap(),
+            bind: "127.0.0.1:18572".parse().unwrap(),
+        }
+    );
+    // Pushing to another host: reachable from it; an address named is taken as it is.
+    let e = Endpoint::parse("udpout://192.168.1.20:14550?bind=18570", 0).unwrap();
+    assert_eq!(
+        e,
+        Endpoint::UdpOut {
+            target: "192.168.1.20:14550".parse().unwrap(),
+            bind: "0.0.0.0:18570".parse().unwrap(),
+        }
+    );
+    let e = Endpoint::parse("udpout://192.168.1.20:14550?bind=192.168.1.5:18570", 1).unwrap();
+    assert_eq!(
+        e,
+        Endpoint::UdpOut {
+            target: "192.168.1.20:14551".parse().unwrap(),
+            bind: "192.168.1.5:18571".parse().unwrap(),
+        }
+    );
+    assert_eq!(
+        Endpoint::parse("udpout://127.0.0.1:14550", 0).unwrap(),
+        Endpoint::UdpOut {
+            target: "127.0.0.1:14550".parse().unwrap(),
+            bind: "127.0.0.1:0".parse().unwrap(),
         }
     );
     let e = Endpoint::parse("tcpin://0.0.0.0:5760", 1).unwrap();
@@ -77,7 +101,7 @@ fn endpoint_options_trusted_and_allow_lists_parse_on_every_kind() {
         e.endpoint,
         Endpoint::UdpOut {
             target: "127.0.0.1:14550".parse().unwrap(),
-            bind: "0.0.0.0:18570".parse().unwrap(),
+            bind: "127.0.0.1:18570".parse().unwrap(),
         },
         "the endpoint's own options are kept"
     );

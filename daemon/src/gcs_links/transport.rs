@@ -5,7 +5,7 @@
 
 use super::endpoint::{Endpoint, EndpointSpec, LinkOptions};
 use anyhow::{Context, Result};
-use gcs::signing::Signing;
+use gcs::signing::{Signing, Verdict};
 use hil::transport::{LineRead, SerialLine};
 use hil::{Decoded, RawMessage, StreamDecoder};
 use mavlink::MavHeader;
@@ -35,25 +35,47 @@ pub(super) struct Guard {
 }
 
 impl Guard {
-    /// Splits a datagram into `out`, checking each frame.
-    fn decode(&self, datagram: &[u8], out: &mut Decoded) {
+    /// Splits a datagram into `out`, checking each frame; whether one of them earns its
+    /// sender the vehicle's answers ([`Self::check`]).
+    fn decode(&self, datagram: &[u8], out: &mut Decoded) -> bool {
         let mut signing = self.signing.lock().unwrap_or_else(|e| e.into_inner());
-        hil::decode_checked(datagram, out, &mut |f| self.check(&mut signing, f));
+        let mut earned = false;
+        hil::decode_checked(datagram, out, &mut |f| {
+            self.check(&mut signing, f, &mut earned)
+        });
+        earned
     }
 
-    /// Adds a stream's bytes to `splitter`, checking each frame.
-    fn push(&self, splitter: &mut StreamDecoder, bytes: &[u8], out: &mut Decoded) {
+    /// Adds a stream's bytes to `splitter`, checking each frame; whether one of them earns
+    /// its sender the vehicle's answers.
+    fn push(&self, splitter: &mut StreamDecoder, bytes: &[u8], out: &mut Decoded) -> bool {
         let mut signing = self.signing.lock().unwrap_or_else(|e| e.into_inner());
-        splitter.push_checked(bytes, out, &mut |f| self.check(&mut signing, f));
+        let mut earned = false;
+        splitter.push_checked(bytes, out, &mut |f| {
+            self.check(&mut signing, f, &mut earned)
+        });
+        earned
+    }
+
+    /// Signing is on.
+    fn signing_active(&self) -> bool {
+        self.signing
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .active()
     }
 
     /// One frame judged on its own (the signing state locked for it alone).
     fn check_one(&self, frame: &[u8]) -> bool {
         let mut signing = self.signing.lock().unwrap_or_else(|e| e.into_inner());
-        self.check(&mut signing, frame)
+        self.check(&mut signing, frame, &mut false)
     }
 
-    fn check(&self, signing: &mut Signing, frame: &[u8]) -> bool {
+    /// Whether `frame` may act; `earned` is set when it also earns its sender the vehicle's
+    /// answers: any accepted frame without signing or on a trusted link, else only a signed
+    /// one (an unsigned radio's or vehicle's heartbeat, which the spec lets through, does not:
+    /// otherwise anyone could take the answer slots and hear the telemetry).
+    fn check(&self, signing: &mut Signing, frame: &[u8], earned: &mut bool) -> bool {
         let system = if frame[0] == 0xFE { frame[3] } else { frame[5] };
         if !self.options.allowed_systems.is_empty()
             && !self.options.allowed_systems.contains(&system)
@@ -61,7 +83,10 @@ impl Guard {
             self.not_allowed.fetch_add(1, Ordering::Relaxed);
             return false;
         }
-        signing.check(frame, self.options.trusted).accepted()
+        let verdict = signing.check(frame, self.options.trusted);
+        *earned |= verdict == Verdict::Signed
+            || (verdict.accepted() && (self.options.trusted || !signing.active()));
+        verdict.accepted()
     }
 }
 
@@ -105,6 +130,47 @@ fn deliver(d: &mut Decoded, inbound: &mpsc::Sender<Inbound>, trusted: bool) {
     }
 }
 
+/// The UDP peers a link answers: those that earned it ([`Guard::check`]) within
+/// [`PEER_TIMEOUT`], at most [`MAX_PEERS`]; a new one takes the place of the one heard from
+/// least recently.
+#[derive(Debug, Default)]
+struct Peers(Vec<(SocketAddr, Instant)>);
+
+impl Peers {
+    /// `from` earned the vehicle's answers at `now`.
+    fn heard(&mut self, from: SocketAddr, now: Instant) {
+        self.expire(now);
+        if let Some(p) = self.0.iter_mut().find(|p| p.0 == from) {
+            p.1 = now;
+            return;
+        }
+        if self.0.len() >= MAX_PEERS
+            && let Some(k) = (0..self.0.len()).min_by_key(|&k| self.0[k].1)
+        {
+            tracing::info!(peer = %self.0[k].0, "ground station dropped for a new one (too many)");
+            self.0.swap_remove(k);
+        }
+        tracing::info!(peer = %from, "ground station connected");
+        self.0.push((from, now));
+    }
+
+    /// Forgets the peers silent for [`PEER_TIMEOUT`] (checked on every frame sent, so a
+    /// peer that stops talking stops being sent to, whatever else arrives).
+    fn expire(&mut self, now: Instant) {
+        self.0.retain(|p| {
+            let live = now.duration_since(p.1) < PEER_TIMEOUT;
+            if !live {
+                tracing::info!(peer = %p.0, "ground station silent: no longer answered");
+            }
+            live
+        });
+    }
+
+    fn addresses(&self) -> impl Iterator<Item = &SocketAddr> {
+        self.0.iter().map(|p| &p.0)
+    }
+}
+
 async fn udp(
     socket: UdpSocket,
     target: Option<SocketAddr>,
@@ -112,24 +178,17 @@ async fn udp(
     inbound: mpsc::Sender<Inbound>,
     mut frames: broadcast::Receiver<Arc<[u8]>>,
 ) {
-    let mut peers: Vec<(SocketAddr, Instant)> = Vec::new();
+    let mut peers = Peers::default();
     let mut buf = vec![0u8; 65536];
     let mut decoded = new_decoded();
     loop {
         tokio::select! {
             r = socket.recv_from(&mut buf) => match r {
                 Ok((n, from)) => {
-                    guard.decode(&buf[..n], &mut decoded);
-                    // Only a peer that said something acceptable is answered.
-                    let heard = !decoded.messages.is_empty() || !decoded.unparsed.is_empty();
+                    let earned = guard.decode(&buf[..n], &mut decoded);
                     deliver(&mut decoded, &inbound, guard.options.trusted);
-                    let now = Instant::now();
-                    peers.retain(|p| now - p.1 < PEER_TIMEOUT);
-                    if let Some(p) = peers.iter_mut().find(|p| p.0 == from) {
-                        p.1 = now;
-                    } else if heard && peers.len() < MAX_PEERS && Some(from) != target {
-                        tracing::info!(peer = %from, "ground station connected");
-                        peers.push((from, now));
+                    if earned && Some(from) != target {
+                        peers.heard(from, Instant::now());
                     }
                 }
                 // An ICMP "port unreachable" from an earlier push (nobody listening yet).
@@ -137,7 +196,8 @@ async fn udp(
             },
             f = frames.recv() => match f {
                 Ok(frame) => {
-                    for to in target.iter().chain(peers.iter().map(|p| &p.0)) {
+                    peers.expire(Instant::now());
+                    for to in target.iter().chain(peers.addresses()) {
                         // A full socket buffer or nobody listening loses this frame only.
                         let _ = socket.try_send_to(&frame, *to);
                     }
@@ -151,12 +211,25 @@ async fn udp(
     }
 }
 
+/// TCP clients served at once at most.
+const MAX_TCP_CLIENTS: usize = 8;
+
+/// What the server knows of a client: whether it earned the vehicle's answers, and when it
+/// last did (ms since the server started).
+#[derive(Debug, Default)]
+struct ClientState {
+    earned: std::sync::atomic::AtomicBool,
+    last_earned_ms: AtomicU64,
+}
+
 async fn tcp_client(
     stream: TcpStream,
     peer: SocketAddr,
     guard: Guard,
     inbound: mpsc::Sender<Inbound>,
     mut frames: broadcast::Receiver<Arc<[u8]>>,
+    state: Arc<ClientState>,
+    started: Instant,
 ) {
     let _ = stream.set_nodelay(true);
     let (mut rd, mut wr) = stream.into_split();
@@ -168,12 +241,20 @@ async fn tcp_client(
             r = rd.read(&mut buf) => match r {
                 Ok(0) | Err(_) => break,
                 Ok(n) => {
-                    guard.push(&mut splitter, &buf[..n], &mut decoded);
+                    if guard.push(&mut splitter, &buf[..n], &mut decoded) {
+                        state.earned.store(true, Ordering::Relaxed);
+                        let ms = started.elapsed().as_millis() as u64;
+                        state.last_earned_ms.store(ms, Ordering::Relaxed);
+                    }
                     deliver(&mut decoded, &inbound, guard.options.trusted);
                 }
             },
             f = frames.recv() => match f {
                 Ok(frame) => {
+                    // With signing on, nothing for a client that has not signed.
+                    if !state.earned.load(Ordering::Relaxed) && guard.signing_active() {
+                        continue;
+                    }
                     if wr.write_all(&frame).await.is_err() {
                         break;
                     }
@@ -188,23 +269,62 @@ async fn tcp_client(
     tracing::info!(%peer, "ground station disconnected (TCP)");
 }
 
+/// A client the server keeps: its task (aborted to evict it) and what it knows of it.
+struct TcpClient {
+    peer: SocketAddr,
+    task: tokio::task::JoinHandle<()>,
+    state: Arc<ClientState>,
+}
+
+/// With [`MAX_TCP_CLIENTS`] connected, which one a new client replaces: one that never earned
+/// the vehicle's answers first, else one silent for [`PEER_TIMEOUT`]; none (the new client is
+/// turned away) if every one is live.
+fn evictable(clients: &[TcpClient], now_ms: u64) -> Option<usize> {
+    let silent =
+        |c: &TcpClient| now_ms.saturating_sub(c.state.last_earned_ms.load(Ordering::Relaxed));
+    (0..clients.len())
+        .find(|&k| !clients[k].state.earned.load(Ordering::Relaxed))
+        .or_else(|| {
+            (0..clients.len())
+                .filter(|&k| silent(&clients[k]) >= PEER_TIMEOUT.as_millis() as u64)
+                .max_by_key(|&k| silent(&clients[k]))
+        })
+}
+
 async fn tcp_server(
     listener: TcpListener,
     guard: Guard,
     inbound: mpsc::Sender<Inbound>,
     frames: Frames,
 ) {
+    let started = Instant::now();
+    let mut clients: Vec<TcpClient> = Vec::new();
     loop {
         match listener.accept().await {
             Ok((stream, peer)) => {
+                clients.retain(|c| !c.task.is_finished());
+                if clients.len() >= MAX_TCP_CLIENTS {
+                    let now_ms = started.elapsed().as_millis() as u64;
+                    let Some(k) = evictable(&clients, now_ms) else {
+                        tracing::warn!(%peer, "ground station turned away (TCP): {MAX_TCP_CLIENTS} clients connected and live");
+                        continue;
+                    };
+                    let old = clients.swap_remove(k);
+                    tracing::warn!(peer = %old.peer, new = %peer, "ground station dropped for a new one (TCP, too many)");
+                    old.task.abort();
+                }
                 tracing::info!(%peer, "ground station connected (TCP)");
-                tokio::spawn(tcp_client(
+                let state = Arc::new(ClientState::default());
+                let task = tokio::spawn(tcp_client(
                     stream,
                     peer,
                     guard.clone(),
                     inbound.clone(),
                     frames.subscribe(),
+                    state.clone(),
+                    started,
                 ));
+                clients.push(TcpClient { peer, task, state });
             }
             Err(e) => {
                 tracing::warn!("ground-station TCP accept: {e}");
@@ -376,4 +496,74 @@ pub(super) async fn open(
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn addr(port: u16) -> SocketAddr {
+        SocketAddr::from(([127, 0, 0, 1], port))
+    }
+
+    #[test]
+    fn udp_peers_expire_on_silence_and_a_new_one_replaces_the_least_recent() {
+        let t0 = Instant::now();
+        let mut peers = Peers::default();
+        for k in 0..MAX_PEERS as u16 {
+            peers.heard(addr(k), t0 + Duration::from_millis(k.into()));
+        }
+        peers.heard(addr(0), t0 + Duration::from_millis(100));
+        peers.heard(addr(999), t0 + Duration::from_millis(101));
+        let now: Vec<u16> = peers.addresses().map(|a| a.port()).collect();
+        assert_eq!(now.len(), MAX_PEERS);
+        assert!(
+            now.contains(&999) && now.contains(&0) && !now.contains(&1),
+            "{now:?}"
+        );
+        // Silence alone ends a peer: checked when frames go out, whatever arrives.
+        peers.expire(t0 + PEER_TIMEOUT + Duration::from_millis(100));
+        let now: Vec<u16> = peers.addresses().map(|a| a.port()).collect();
+        assert_eq!(now, [999], "only the one heard last is within the timeout");
+    }
+
+    #[test]
+    fn a_tcp_client_that_never_earned_answers_goes_first_then_a_silent_one() {
+        let client = |earned: bool, last_ms: u64| {
+            let state = Arc::new(ClientState::default());
+            state.earned.store(earned, Ordering::Relaxed);
+            state.last_earned_ms.store(last_ms, Ordering::Relaxed);
+            state
+        };
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .build()
+            .unwrap();
+        let _guard = rt.enter();
+        let clients = |states: Vec<Arc<ClientState>>| -> Vec<TcpClient> {
+            states
+                .into_iter()
+                .enumerate()
+                .map(|(k, state)| TcpClient {
+                    peer: addr(k as u16),
+                    task: rt.spawn(async {}),
+                    state,
+                })
+                .collect()
+        };
+        let now = 60_000;
+        let c = clients(vec![client(true, now), client(false, 0), client(true, 0)]);
+        assert_eq!(evictable(&c, now), Some(1), "never earned");
+        let c = clients(vec![
+            client(true, now),
+            client(true, 1_000),
+            client(true, 30_000),
+        ]);
+        assert_eq!(evictable(&c, now), Some(1), "the longest silent");
+        let c = clients(vec![client(true, now), client(true, now - 1_000)]);
+        assert_eq!(
+            evictable(&c, now),
+            None,
+            "all live: the new one is turned away"
+        );
+    }
 }

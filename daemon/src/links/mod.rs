@@ -237,10 +237,21 @@ impl Source {
     }
 }
 
-/// A simulator process on UDP: binds the autopilot's port, answers whoever sent the last frame.
+/// How long the simulator a UDP link is bound to must be silent before frames from another
+/// address are taken (a simulator restarted on another port).
+const REBIND_AFTER: Duration = Duration::from_secs(2);
+
+/// A simulator process on UDP: binds the autopilot's port and the first simulator heard. Frames
+/// from any other address are counted and dropped (no other host takes over the vehicle's
+/// senses), until that simulator has been silent for [`REBIND_AFTER`]; a simulator restarted
+/// on the same address is the same peer.
 pub struct UdpLink {
     socket: Datagrams,
     peer: Option<SocketAddr>,
+    /// When the bound simulator was last heard.
+    peer_heard: Option<std::time::Instant>,
+    /// Frames dropped for coming from elsewhere.
+    foreign: u64,
     lockstep: bool,
     /// Answers dropped because the socket's buffer was full (non-blocking).
     dropped: u64,
@@ -258,6 +269,8 @@ impl UdpLink {
         Ok(Self {
             socket,
             peer: None,
+            peer_heard: None,
+            foreign: 0,
             lockstep,
             dropped: 0,
             frames: FrameAssembler::default(),
@@ -278,10 +291,23 @@ impl SensorLink for UdpLink {
         let Some((datagram, from)) = self.socket.recv(timeout)? else {
             return Ok(false);
         };
+        let now = std::time::Instant::now();
         if self.peer != Some(from) {
+            let bound_live = self
+                .peer_heard
+                .is_some_and(|t| now.duration_since(t) < REBIND_AFTER);
+            if bound_live {
+                self.foreign += 1;
+                if self.foreign.is_power_of_two() {
+                    tracing::warn!(from = %from, simulator = ?self.peer, dropped = self.foreign, "sensor frames from another address dropped");
+                }
+                into.malformed += 1;
+                return Ok(true);
+            }
             tracing::info!(simulator = %from, "sensor frames arriving");
             self.peer = Some(from);
         }
+        self.peer_heard = Some(now);
         self.frames
             .absorb_bytes(into, |d| hil::decode_into(datagram, d));
         Ok(true)
