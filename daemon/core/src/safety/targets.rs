@@ -38,16 +38,16 @@ pub enum TargetError {
     #[error("longitude {0}° outside ±180°")]
     Longitude(f64),
     /// The altitude is infinite.
-    #[error("altitude {0} m not finite")]
+    #[error("altitude {} m not finite", Metres(*.0))]
     Altitude(f64),
     /// Closer to the ground than [`GROUND_CLEARANCE_M`].
-    #[error("{height_m:.1} m above home, below the {GROUND_CLEARANCE_M} m ground clearance")]
+    #[error("{} m above home, below the {GROUND_CLEARANCE_M} m ground clearance", Metres(*height_m))]
     BelowGround {
         /// Height above home (m).
         height_m: f64,
     },
     /// Above the ceiling.
-    #[error("{height_m:.0} m above home, above the {ceiling_m:.0} m ceiling ({by})")]
+    #[error("{} m above home, above the {ceiling_m:.0} m ceiling ({by})", Metres(*height_m))]
     AboveCeiling {
         /// Height above home (m).
         height_m: f64,
@@ -57,7 +57,7 @@ pub enum TargetError {
         by: &'static str,
     },
     /// Too far horizontally.
-    #[error("{distance_m:.0} m from {from}, farther than {limit_m:.0} m ({by})")]
+    #[error("{} m from {from}, farther than {limit_m:.0} m ({by})", Metres(*distance_m))]
     TooFar {
         /// Horizontal distance (m).
         distance_m: f64,
@@ -68,6 +68,19 @@ pub enum TargetError {
         /// What sets it.
         by: &'static str,
     },
+}
+
+/// A length as the operator reads it: to the decimetre, or in powers of ten when huge.
+struct Metres(f64);
+
+impl std::fmt::Display for Metres {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.0.abs() < 1e6 {
+            write!(f, "{:.1}", self.0)
+        } else {
+            write!(f, "{:.1e}", self.0)
+        }
+    }
 }
 
 impl TargetError {
