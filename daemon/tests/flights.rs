@@ -48,10 +48,15 @@ fn spawn(exe: &Path, args: &[&str]) -> Child {
 }
 
 /// The autopilot with `args`, keeping no logs but those the arguments name (these flights run
-/// as fast as lockstep goes, and the default logs would slow them threefold).
+/// as fast as lockstep goes, and the default logs would slow them threefold), and no
+/// ground-station links unless they name one (flights run side by side would take each
+/// other's ports).
 fn spawn_autopilot(args: &[&str]) -> Child {
     let mut args = args.to_vec();
     args.extend(["--log-dir", "none"]);
+    if !args.contains(&"--mavlink") {
+        args.extend(["--mavlink", "none"]);
+    }
     spawn(&autopilot_exe(), &args)
 }
 

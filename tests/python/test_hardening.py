@@ -297,3 +297,34 @@ def test_a_second_sender_on_the_simulator_port_does_not_take_over_the_vehicle(tm
     finally:
         rogue.close()
         daemon.close()
+
+
+def test_stopping_heartbeats_on_one_link_leaves_the_others_alone(tmp_path):
+    port = free_udp_port()
+    daemon = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0",
+                    ap_args=["--mavlink", f"udpin://127.0.0.1:{port}"])
+    other = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=254)
+    try:
+        gcs = daemon.gcs
+        assert gcs.wait_heartbeat(timeout=30)
+        other.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS,
+                                 mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+        assert other.wait_heartbeat(timeout=10)
+        interval = mavutil.mavlink.MAV_CMD_SET_MESSAGE_INTERVAL
+        other.mav.command_long_send(1, 1, interval, 0, 0, -1, 0, 0, 0, 0, 0)
+        assert ack(other, interval) == 0
+        # The link that asked hears no more heartbeats (but for one on a change of state);
+        # the other goes on at 1 Hz.
+        while other.recv_match(blocking=False) is not None:
+            pass
+        beats = {"gcs": 0, "other": 0}
+        end = time.monotonic() + 4
+        while time.monotonic() < end:
+            for name, conn in [("gcs", gcs), ("other", other)]:
+                m = conn.recv_match(type="HEARTBEAT", blocking=False)
+                beats[name] += m is not None and m.get_srcComponent() == 1
+            time.sleep(0.01)
+        assert beats["gcs"] >= 3 and beats["other"] == 0, beats
+    finally:
+        other.close()
+        daemon.close()

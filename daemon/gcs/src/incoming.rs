@@ -3,8 +3,8 @@
 //! passed to the vehicle.
 
 use super::{
-    AckTo, CommandMessage, DEFAULT_STREAMS, GroundStation, HostAction, Outbox, Outgoing,
-    RATE_RANGE_HZ, Stream, mission, offboard,
+    AckTo, CommandMessage, DEFAULT_STREAMS, GroundStation, HostAction, LinkId, Outbox, Outgoing,
+    mission, offboard,
 };
 use crate::telemetry::Telemetry;
 use flight_core::autopilot::command::AutopilotCommand;
@@ -26,7 +26,24 @@ impl GroundStation {
         }
     }
 
-    /// Handles one message from `from`, with the latest telemetry at hand.
+    /// Handles one message from `from` that arrived on `link`, with the latest telemetry at
+    /// hand: what it asks of the streams is asked of that link's.
+    pub fn on_link_message(
+        &mut self,
+        link: LinkId,
+        from: &MavHeader,
+        msg: &MavMessage,
+        t: &Telemetry,
+        out: &mut Outbox,
+    ) {
+        self.rates.add(link);
+        self.link = link;
+        self.on_message(from, msg, t, out);
+        self.link = 0;
+    }
+
+    /// Handles one message from `from` (on link 0, or the link [`Self::on_link_message`]
+    /// names), with the latest telemetry at hand.
     pub fn on_message(
         &mut self,
         from: &MavHeader,
@@ -238,17 +255,9 @@ impl GroundStation {
         }
     }
 
-    /// Sets message `id` to `hz` (`None`: off).
+    /// Sets message `id` to `hz` (`None`: off) on the link of the message being handled.
     pub(super) fn set_rate(&mut self, id: u32, hz: Option<f64>) {
-        self.streams.retain(|s| s.id != id);
-        if let Some(hz) = hz {
-            let hz = hz.clamp(RATE_RANGE_HZ.0, RATE_RANGE_HZ.1);
-            self.streams.push(Stream {
-                id,
-                interval_s: 1.0 / hz,
-                next_s: 0.0,
-            });
-        }
+        self.rates.set(self.link, id, hz);
     }
 }
 

@@ -13,6 +13,7 @@
 mod calibration;
 mod commands;
 mod incoming;
+mod link_rates;
 pub mod mission;
 pub mod modes;
 pub mod offboard;
@@ -30,6 +31,8 @@ use flight_core::commander::{
 };
 use flight_core::params::FlightParams;
 use flight_core::safety::failsafe::{FailsafeAction, SafetyEvent};
+pub use link_rates::LinkId;
+use link_rates::LinkRates;
 use mavlink::MessageData;
 use mavlink::dialects::common::*;
 use params::Parameters;
@@ -108,8 +111,10 @@ pub enum HostAction {
 /// What handling a message produced.
 #[derive(Debug, Default)]
 pub struct Outbox {
-    /// Messages to send.
+    /// Messages to send, on every link.
     pub messages: Vec<Outgoing>,
+    /// Streamed messages to send on one link each (rates are per link).
+    pub streamed: Vec<(LinkId, Outgoing)>,
     /// Commands for the control loop; each answer comes back to [`GroundStation::answered`].
     pub vehicle: Vec<(AutopilotCommand, AckTo)>,
     /// Other work, in order.
@@ -167,14 +172,6 @@ impl Outbox {
 /// The bytes a `STATUSTEXT` carries.
 const STATUSTEXT_BYTES: usize = 50;
 
-/// One stream: its interval and when it is next due (s of the ground station's clock).
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Stream {
-    id: u32,
-    interval_s: f64,
-    next_s: f64,
-}
-
 /// A command as both `COMMAND_LONG` and `COMMAND_INT` carry it: params 5–7 are floats here
 /// (`COMMAND_INT`'s x and y arrive as degrees, its z as it is).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -188,7 +185,10 @@ struct CommandMessage {
 pub struct GroundStation {
     system_id: u8,
     mav_type: MavType,
-    streams: Vec<Stream>,
+    /// Each link's streams.
+    rates: LinkRates,
+    /// The link of the message being handled.
+    link: LinkId,
     /// One-off messages asked for (REQUEST_MESSAGE), sent on the next poll.
     requested: Vec<(u32, f32)>,
     /// What the last heartbeat showed: a change sends one at once.
@@ -234,14 +234,8 @@ impl GroundStation {
         Self {
             system_id,
             mav_type,
-            streams: DEFAULT_STREAMS
-                .iter()
-                .map(|&(id, hz)| Stream {
-                    id,
-                    interval_s: 1.0 / hz,
-                    next_s: 0.0,
-                })
-                .collect(),
+            rates: LinkRates::default(),
+            link: 0,
             requested: Vec::new(),
             shown: None,
             home_shown: None,
@@ -329,12 +323,16 @@ impl GroundStation {
         }
     }
 
-    /// The current interval of message `id` (s), if it is streamed.
+    /// The current interval of message `id` (s) on the link of the message being handled (link
+    /// 0 between messages), if it is streamed there.
     pub fn interval_s(&self, id: u32) -> Option<f64> {
-        self.streams
-            .iter()
-            .find(|s| s.id == id)
-            .map(|s| s.interval_s)
+        self.rates.interval_s(self.link, id)
+    }
+
+    /// A link (endpoint) the vehicle streams on, with the default streams from now on; link 0
+    /// always is one.
+    pub fn add_link(&mut self, link: LinkId) {
+        self.rates.add(link);
     }
 
     /// Sends what is due at `now_s`: streams, requested messages, and a heartbeat at once when
@@ -349,9 +347,7 @@ impl GroundStation {
                 out.messages
                     .extend(streams::build(id, t, unix).map(Outgoing::Message));
             }
-            if let Some(s) = self.streams.iter_mut().find(|s| s.id == HEARTBEAT_DATA::ID) {
-                s.next_s = now_s + s.interval_s;
-            }
+            self.rates.sent_everywhere(HEARTBEAT_DATA::ID, now_s);
         }
         let losses = t.status.map_or(0, |s| s.manual_losses);
         if losses > self.manual_losses_shown {
@@ -450,22 +446,13 @@ impl GroundStation {
                 out.send(self.mission_current(&status));
             }
         }
-        for s in &mut self.streams {
-            if now_s < s.next_s {
-                continue;
-            }
-            // Keep the phase; after a long gap start afresh rather than burst.
-            s.next_s = if now_s - s.next_s > s.interval_s {
-                now_s + s.interval_s
-            } else {
-                s.next_s + s.interval_s
-            };
-            let m = if s.id == HEARTBEAT_DATA::ID {
+        for (link, id) in self.rates.due(now_s) {
+            let m = if id == HEARTBEAT_DATA::ID {
                 Some(streams::heartbeat(t, self.mav_type))
             } else {
-                streams::build(s.id, t, unix)
+                streams::build(id, t, unix)
             };
-            out.messages.extend(m.map(Outgoing::Message));
+            out.streamed.extend(m.map(|m| (link, Outgoing::Message(m))));
         }
         for (id, param) in std::mem::take(&mut self.requested) {
             out.messages

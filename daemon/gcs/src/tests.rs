@@ -214,46 +214,48 @@ fn heartbeats_show_px4_modes_and_follow_a_change_at_once() {
 }
 
 #[test]
-fn streams_run_at_their_rates_and_can_be_changed_or_stopped() {
+fn streams_run_at_their_rates_and_can_be_changed_or_stopped_on_one_link_only() {
     let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
+    g.add_link(3);
     let t = telemetry(false, FlightMode::Loiter);
     let mut clock = 100.0;
+    // Ten seconds of polls at 100 Hz: how often `id` went out on links 0 and 3.
     let mut count = |g: &mut GroundStation, id: u32| {
-        let mut n = 0;
+        let mut n = [0, 0];
         for _ in 0..1000 {
             let mut out = Outbox::default();
             clock += 0.01;
             g.poll(clock, &t, &mut out);
-            n += out
-                .messages
-                .iter()
-                .filter(|m| matches!(m, Outgoing::Message(m) if m.message_id() == id))
-                .count();
+            for (link, m) in &out.streamed {
+                if matches!(m, Outgoing::Message(m) if m.message_id() == id) {
+                    n[usize::from(*link == 3)] += 1;
+                }
+            }
         }
         n
     };
-    // Ten seconds of polls at 100 Hz.
-    assert_eq!(count(&mut g, SYS_STATUS_DATA::ID), 10);
-    assert!((9..=11).contains(&count(&mut g, HEARTBEAT_DATA::ID)));
+    assert_eq!(count(&mut g, SYS_STATUS_DATA::ID), [10, 10]);
+    let [h0, h3] = count(&mut g, HEARTBEAT_DATA::ID);
+    assert!((9..=11).contains(&h0) && (9..=11).contains(&h3));
     let mut p = [0.0f32; 7];
     p[0] = SYS_STATUS_DATA::ID as f32;
     p[1] = 200_000.0; // 5 Hz
     let mut out = Outbox::default();
-    g.on_message(
-        &gcs_header(),
-        &command_long(MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL, p, (1, 1)),
-        &t,
-        &mut out,
+    let set = |p| command_long(MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL, p, (1, 1));
+    g.on_link_message(3, &gcs_header(), &set(p), &t, &mut out);
+    assert_eq!(
+        count(&mut g, SYS_STATUS_DATA::ID),
+        [10, 50],
+        "link 3's only"
     );
-    assert_eq!(count(&mut g, SYS_STATUS_DATA::ID), 50);
     p[1] = -1.0;
-    g.on_message(
-        &gcs_header(),
-        &command_long(MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL, p, (1, 1)),
-        &t,
-        &mut out,
-    );
-    assert_eq!(count(&mut g, SYS_STATUS_DATA::ID), 0);
+    g.on_message(&gcs_header(), &set(p), &t, &mut out);
+    assert_eq!(count(&mut g, SYS_STATUS_DATA::ID), [0, 50], "link 0's only");
+    // A client that stops heartbeats stops them on its own link.
+    p[0] = HEARTBEAT_DATA::ID as f32;
+    g.on_link_message(3, &gcs_header(), &set(p), &t, &mut out);
+    let [h0, h3] = count(&mut g, HEARTBEAT_DATA::ID);
+    assert!((9..=11).contains(&h0) && h3 == 0, "{h0} {h3}");
 }
 
 #[test]

@@ -35,14 +35,15 @@ use gcs::param_store::{Loaded, ParamStore, Unreadable};
 use gcs::params::Parameters;
 use gcs::signing::{SecretKey, Signing, SigningMemory};
 use gcs::telemetry::Telemetry;
-use gcs::{AckTo, COMPONENT_ID, GroundStation, HostAction, Outbox, Outgoing};
+use gcs::{AckTo, COMPONENT_ID, GroundStation, HostAction, LinkId, Outbox, Outgoing};
+
 use hil::Encoder;
 use mavlink::dialects::common::{MavMessage, MavSeverity, MavType};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
-use transport::{Guard, Inbound, Notices, open};
+use transport::{Frame, Guard, Inbound, Notices, open};
 
 /// PX4 SITL's links: QGroundControl and MAVSDK ports pushed to, each from its own bound port,
 /// and a TCP server.
@@ -261,17 +262,24 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Result<Optio
     restored.remember(&signing_memory);
     let signing = Arc::new(Mutex::new(restored));
     let not_allowed = Arc::new(AtomicU64::new(0));
-    let (frames, _) = broadcast::channel::<Arc<[u8]>>(1024);
+    let (frames, _) = broadcast::channel::<Frame>(1024);
     let (inbound_tx, mut inbound) = mpsc::channel::<Inbound>(256);
     let (answers_tx, mut answers) = mpsc::channel::<(AckTo, Result<(), Denial>)>(64);
     let (notices_tx, mut notices) = mpsc::channel::<(MavSeverity, String)>(8);
     let (save_tx, save_rx) = watch::channel(None::<ParamStore>);
     let saving = tokio::spawn(saver(save_rx, notices_tx.clone()));
-    for e in &endpoints {
+    let mut gcs = GroundStation::new(system_id, mav_type)
+        .with_parameters(parameters, base_params)
+        .with_reboot(reboot_allowed)
+        .with_unix_start(unix_usec());
+    for (link, e) in endpoints.iter().enumerate() {
+        let link = LinkId::try_from(link).unwrap_or(LinkId::MAX);
+        gcs.add_link(link);
         let guard = Guard {
             options: e.options.clone(),
             signing: signing.clone(),
             not_allowed: not_allowed.clone(),
+            link,
         };
         let optional = e.options.optional;
         match open(e, guard, &inbound_tx, &frames, &notices_tx).await {
@@ -288,10 +296,6 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Result<Optio
             }
         }
     }
-    let mut gcs = GroundStation::new(system_id, mav_type)
-        .with_parameters(parameters, base_params)
-        .with_reboot(reboot_allowed)
-        .with_unix_start(unix_usec());
     let mut encoder = Encoder::with_ids(system_id, COMPONENT_ID);
     let mut out = Outbox::default();
     let mut tick = tokio::time::interval(POLL);
@@ -317,7 +321,7 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Result<Optio
                                 setup_signing(&signing, signing_key_file.as_deref(), d, i.trusted);
                             out.say(severity, &text);
                         }
-                        _ => gcs.on_message(h, m, &t, &mut out),
+                        _ => gcs.on_link_message(i.link, h, m, &t, &mut out),
                     }
                 }
                 for raw in &i.unparsed {
@@ -448,13 +452,15 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Result<Optio
                 }
             }
         }
-        if !out.messages.is_empty() {
+        if !out.messages.is_empty() || !out.streamed.is_empty() {
             signing
                 .lock()
                 .unwrap_or_else(|e| e.into_inner())
                 .tick(unix_usec());
         }
-        for m in out.messages.drain(..) {
+        let everywhere = out.messages.drain(..).map(|m| (None, m));
+        let one_link = out.streamed.drain(..).map(|(l, m)| (Some(l), m));
+        for (link, m) in everywhere.chain(one_link) {
             let mut bytes = Vec::with_capacity(64);
             match &m {
                 Outgoing::Message(m) => encoder.push(&mut bytes, m),
@@ -468,7 +474,7 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Result<Optio
                 log.record(unix_usec(), &bytes);
             }
             // No endpoint listening is not an error.
-            let _ = frames.send(bytes.into());
+            let _ = frames.send((link, bytes.into()));
         }
     }
     memory.save_if_due(&signing, true).await;

@@ -5,6 +5,7 @@
 
 use super::endpoint::{Endpoint, EndpointSpec, LinkOptions};
 use anyhow::{Context, Result};
+use gcs::LinkId;
 use gcs::signing::{Signing, Verdict};
 use hil::transport::{LineRead, SerialLine};
 use hil::{Decoded, RawMessage, StreamDecoder};
@@ -32,6 +33,19 @@ pub(super) struct Guard {
     pub(super) signing: Arc<Mutex<Signing>>,
     /// Frames from systems not on an allow-list (all endpoints).
     pub(super) not_allowed: Arc<AtomicU64>,
+    /// The endpoint's link: what it hears is asked of this link's streams, and only this
+    /// link's streamed frames go out on it.
+    pub(super) link: LinkId,
+}
+
+impl Guard {
+    /// The frame if it goes out on this link.
+    fn ours<'a>(&self, frame: &'a Frame) -> Option<&'a [u8]> {
+        frame
+            .0
+            .is_none_or(|l| l == self.link)
+            .then_some(&frame.1[..])
+    }
 }
 
 impl Guard {
@@ -101,10 +115,15 @@ pub(super) struct Inbound {
     pub(super) malformed: u32,
     /// From a trusted endpoint.
     pub(super) trusted: bool,
+    /// The endpoint's link.
+    pub(super) link: LinkId,
 }
 
+/// A frame going out, and the one link it is for (none: every link).
+pub(super) type Frame = (Option<LinkId>, Arc<[u8]>);
+
 /// The frames going out, shared by every endpoint.
-pub(super) type Frames = broadcast::Sender<Arc<[u8]>>;
+pub(super) type Frames = broadcast::Sender<Frame>;
 
 fn new_decoded() -> Decoded {
     Decoded {
@@ -114,7 +133,7 @@ fn new_decoded() -> Decoded {
 }
 
 /// Hands what `d` holds to the ground station (dropped if it is behind: never waits).
-fn deliver(d: &mut Decoded, inbound: &mpsc::Sender<Inbound>, trusted: bool) {
+fn deliver(d: &mut Decoded, inbound: &mpsc::Sender<Inbound>, guard: &Guard) {
     d.refused = 0; // counted by the guard
     if d.messages.is_empty() && d.unparsed.is_empty() && d.malformed == 0 {
         return;
@@ -123,7 +142,8 @@ fn deliver(d: &mut Decoded, inbound: &mpsc::Sender<Inbound>, trusted: bool) {
         messages: std::mem::take(&mut d.messages),
         unparsed: std::mem::take(&mut d.unparsed),
         malformed: std::mem::take(&mut d.malformed),
-        trusted,
+        trusted: guard.options.trusted,
+        link: guard.link,
     };
     if inbound.try_send(i).is_err() {
         tracing::debug!("ground-station input behind: frames dropped");
@@ -176,7 +196,7 @@ async fn udp(
     target: Option<SocketAddr>,
     guard: Guard,
     inbound: mpsc::Sender<Inbound>,
-    mut frames: broadcast::Receiver<Arc<[u8]>>,
+    mut frames: broadcast::Receiver<Frame>,
 ) {
     let mut peers = Peers::default();
     let mut buf = vec![0u8; 65536];
@@ -186,7 +206,7 @@ async fn udp(
             r = socket.recv_from(&mut buf) => match r {
                 Ok((n, from)) => {
                     let earned = guard.decode(&buf[..n], &mut decoded);
-                    deliver(&mut decoded, &inbound, guard.options.trusted);
+                    deliver(&mut decoded, &inbound, &guard);
                     if earned && Some(from) != target {
                         peers.heard(from, Instant::now());
                     }
@@ -196,10 +216,13 @@ async fn udp(
             },
             f = frames.recv() => match f {
                 Ok(frame) => {
+                    let Some(frame) = guard.ours(&frame) else {
+                        continue;
+                    };
                     peers.expire(Instant::now());
                     for to in target.iter().chain(peers.addresses()) {
                         // A full socket buffer or nobody listening loses this frame only.
-                        let _ = socket.try_send_to(&frame, *to);
+                        let _ = socket.try_send_to(frame, *to);
                     }
                 }
                 Err(broadcast::error::RecvError::Lagged(n)) => {
@@ -227,7 +250,7 @@ async fn tcp_client(
     peer: SocketAddr,
     guard: Guard,
     inbound: mpsc::Sender<Inbound>,
-    mut frames: broadcast::Receiver<Arc<[u8]>>,
+    mut frames: broadcast::Receiver<Frame>,
     state: Arc<ClientState>,
     started: Instant,
 ) {
@@ -246,7 +269,7 @@ async fn tcp_client(
                         let ms = started.elapsed().as_millis() as u64;
                         state.last_earned_ms.store(ms, Ordering::Relaxed);
                     }
-                    deliver(&mut decoded, &inbound, guard.options.trusted);
+                    deliver(&mut decoded, &inbound, &guard);
                 }
             },
             f = frames.recv() => match f {
@@ -255,7 +278,10 @@ async fn tcp_client(
                     if !state.earned.load(Ordering::Relaxed) && guard.signing_active() {
                         continue;
                     }
-                    if wr.write_all(&frame).await.is_err() {
+                    let Some(frame) = guard.ours(&frame) else {
+                        continue;
+                    };
+                    if wr.write_all(frame).await.is_err() {
                         break;
                     }
                 }
@@ -350,7 +376,7 @@ fn serial(
     baud: u32,
     guard: Guard,
     inbound: mpsc::Sender<Inbound>,
-    mut frames: broadcast::Receiver<Arc<[u8]>>,
+    mut frames: broadcast::Receiver<Frame>,
     notices: Notices,
 ) {
     // STATUSTEXT holds 50 bytes: the device's name, not its whole path.
@@ -399,14 +425,15 @@ fn serial(
                 Ok(LineRead::Closed) => {
                     break std::io::Error::from(std::io::ErrorKind::UnexpectedEof);
                 }
-                Ok(LineRead::Bytes(_)) => deliver(&mut decoded, &inbound, guard.options.trusted),
+                Ok(LineRead::Bytes(_)) => deliver(&mut decoded, &inbound, &guard),
                 Ok(LineRead::Nothing) => {}
                 Err(e) => break e,
             }
             let mut write_error = None;
             loop {
                 match frames.try_recv() {
-                    Ok(frame) => match port.write_all(&frame) {
+                    Ok(frame) if guard.ours(&frame).is_none() => {}
+                    Ok(frame) => match port.write_all(&frame.1) {
                         Ok(()) => {}
                         // Output full (a radio holding CTS, a reader that stalls): this frame
                         // is lost (the far parser skips a cut one), not the port.
