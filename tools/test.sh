@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# Runs every test of the project on a fresh machine: formatting, lints, the Rust tests, then the
+# Runs every test of the project on a fresh machine: formatting, lints, the Rust tests, the
 # Python end-to-end tests (pymavlink, MAVSDK-Python, MAVProxy) from a pinned virtual environment
-# this script creates.
+# this script creates, then a short coverage-guided fuzzing run of every target.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -31,3 +31,6 @@ if ! cat tests/requirements.txt tests/requirements-nodeps.txt | cmp -s - "$stamp
     cat tests/requirements.txt tests/requirements-nodeps.txt > "$stamp"
 fi
 "$venv/bin/python" -m pytest -q tests/python
+
+echo "== fuzz (coverage-guided, a short run of each target)"
+tools/fuzz.sh 30

@@ -1,0 +1,90 @@
+//! What the fuzz targets share: the vehicle behind the ground-station protocol (an autopilot at
+//! rest, the default quad), and the invariants every input must leave standing.
+
+use airframe::Airframe;
+use flight_core::autopilot::Autopilot;
+use flight_core::autopilot::command::AutopilotCommand;
+use flight_core::commander::FlightMode;
+use flight_core::params::FlightParams;
+use gcs::telemetry::Telemetry;
+use gcs::{GroundStation, HostAction, Outbox};
+use mavlink::dialects::common::MavType;
+
+/// The default quad, compiled in (no file is read while fuzzing), parsed once.
+pub fn quad() -> &'static Airframe {
+    static QUAD: std::sync::OnceLock<Airframe> = std::sync::OnceLock::new();
+    QUAD.get_or_init(|| {
+        let text = include_str!("../../params/airframes/quad_x.toml");
+        Airframe::from_toml_str(text, "quad_x.toml").expect("the shipped airframe parses")
+    })
+}
+
+/// The protocol, the vehicle it passes commands to, and the telemetry it reads.
+pub struct Vehicle {
+    /// The ground-station protocol.
+    pub gcs: GroundStation,
+    /// The autopilot.
+    pub autopilot: Autopilot,
+    /// What the control loop shows: at rest, home set.
+    pub telemetry: Telemetry,
+}
+
+impl Vehicle {
+    /// A vehicle at rest, `armed` or not, in Hold.
+    pub fn new(armed: bool) -> Self {
+        let params = FlightParams::default();
+        let mut telemetry = gcs::testing::telemetry(armed, FlightMode::Loiter);
+        if let Some(s) = telemetry.status.as_mut() {
+            s.home = Some((nalgebra::Vector3::zeros(), 0.0));
+        }
+        Self {
+            gcs: GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR)
+                .with_parameters(gcs::params::Parameters::default(), params.clone()),
+            autopilot: Autopilot::new(quad(), &params, None).expect("the default quad flies"),
+            telemetry,
+        }
+    }
+
+    /// Carries out what the protocol passed on, as the links and the control loop do.
+    pub fn carry_out(&mut self, out: &mut Outbox) {
+        for (c, to) in std::mem::take(&mut out.vehicle) {
+            let r = self.autopilot.command(c);
+            self.gcs.answered(to, r, out);
+        }
+        if let Some(s) = out.sticks.take() {
+            let _ = self.autopilot.command(AutopilotCommand::Sticks(s));
+        }
+        if let Some(t) = out.offboard.take() {
+            let _ = self.autopilot.command(AutopilotCommand::Offboard(t));
+        }
+        if let Some(m) = out.mission.take() {
+            let _ = self.autopilot.command(AutopilotCommand::SetMission(m));
+        }
+        if let Some(z) = out.fence.take() {
+            let _ = self.autopilot.command(AutopilotCommand::SetFence(z));
+        }
+        for a in out.actions.drain(..) {
+            if a == HostAction::ParamsChanged {
+                self.autopilot.set_params(self.gcs.parameters().values());
+            }
+        }
+        out.messages.clear();
+        out.streamed.clear();
+    }
+
+    /// Every parameter finite, in its range, consistent: whatever was sent.
+    pub fn assert_params_valid(&self) {
+        let values = self.gcs.parameters().values();
+        for (group, meta) in FlightParams::metadata() {
+            let v = values
+                .get(group, meta.key)
+                .expect("every parameter has a value");
+            assert!(
+                v.is_finite() && meta.min <= v && v <= meta.max,
+                "{} = {v}",
+                meta.name
+            );
+        }
+        assert!(values.validate().is_empty(), "{:?}", values.validate());
+    }
+}
