@@ -230,9 +230,11 @@ pub fn decode_fence(items: &[MISSION_ITEM_INT_DATA]) -> Result<Vec<GeoZone>, Mav
         match m.command {
             MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION
             | MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION => {
+                // The vertex count, whole, at least 3 and no more than the items left (compared
+                // before it becomes an index: 1e30 must not wrap).
                 let n = m.param1;
-                if !(n.is_finite() && n >= 3.0 && n.fract() == 0.0) || k + n as usize > items.len()
-                {
+                let left = (items.len() - k) as f32;
+                if !(n.is_finite() && n >= 3.0 && n.fract() == 0.0 && n <= left) {
                     return Err(MavMissionResult::MAV_MISSION_INVALID_PARAM1);
                 }
                 let vertices = &items[k..k + n as usize];

@@ -728,6 +728,28 @@ fn fence_plans_become_zones_or_are_refused() {
                 .collect(),
             MavMissionResult::MAV_MISSION_INVALID_PARAM1,
         ),
+        // A circle, then a polygon whose vertex count is 1e30: found by cargo fuzz (past the
+        // first zone the count overflowed as an index, and the polygon's slice panicked).
+        (
+            std::iter::once(fence_item(
+                0,
+                MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION,
+                50.0,
+                MAV_FRAME_GLOBAL_INT,
+                473_970_000,
+            ))
+            .chain((1..4).map(|k| {
+                fence_item(
+                    k,
+                    MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION,
+                    1e30,
+                    MAV_FRAME_GLOBAL_INT,
+                    473_970_000,
+                )
+            }))
+            .collect(),
+            MavMissionResult::MAV_MISSION_INVALID_PARAM1,
+        ),
         // A circle of no radius.
         (
             vec![fence_item(
