@@ -192,8 +192,7 @@ fn verify(text: &str) -> Result<(), Damage> {
     let last = text[body_end..].trim_end();
     let Some(sum) = last.strip_prefix(CHECKSUM_PREFIX) else {
         // Ours (its first line, or a file cut short inside it), or a checksum line not last.
-        let ours =
-            text.starts_with(CHECKSUMMED) || (!text.is_empty() && CHECKSUMMED.starts_with(text));
+        let ours = text.starts_with(CHECKSUMMED) || CHECKSUMMED.starts_with(text);
         return if ours || text.contains(CHECKSUM_PREFIX) {
             Err(Damage::ChecksumNotLast)
         } else {

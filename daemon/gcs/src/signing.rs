@@ -14,7 +14,8 @@
 //! away, so it must). A link marked trusted (a USB cable) is exempt, as PX4's `MAV_SIGN_CFG` 1.
 //! Without a key every frame is accepted and signatures are ignored.
 //!
-//! A timestamp more than a minute ahead of the vehicle's clock is refused too, and the clock and
+//! A timestamp more than a minute ahead of the vehicle's clock is refused too (once the wall
+//! clock is believable), and the clock and
 //! each stream's last timestamp outlive a restart ([`SigningMemory`], kept by the daemon), so a
 //! frame captured before a restart cannot be replayed after it, as the spec asks.
 
@@ -36,8 +37,9 @@ const EPOCH_2015_UNIX_S: u64 = 1_420_070_400;
 /// How far a new stream's first timestamp may lag the vehicle's clock, and how far any
 /// timestamp may lead it: one minute (10 µs units).
 const NEW_STREAM_WINDOW: u64 = 60 * 100_000;
-/// A signing clock before 2025-01-01 is not believed (a board without a real-time clock,
-/// before network time): the first signed frame sets it, as the spec suggests (10 µs units).
+/// A wall clock before 2025-01-01 is not believed (a board without a real-time clock, before
+/// network time): until one after it is seen, no timestamp is too far ahead, and the signed
+/// frames set the vehicle's clock, as the spec suggests (10 µs units).
 const BELIEVABLE_CLOCK: u64 = (1_735_689_600 - EPOCH_2015_UNIX_S) * 100_000;
 /// Streams remembered; a new one beyond this replaces the one heard from least recently.
 const MAX_STREAMS: usize = 256;
@@ -134,6 +136,9 @@ pub struct Signing {
     accepted: u64,
     /// The link id the vehicle signs with.
     link_id: u8,
+    /// The wall clock has been seen after 2025: timestamps far ahead of the vehicle's clock
+    /// are refused from then on.
+    wall_clock_believed: bool,
     /// Frames refused so far.
     pub refused: Refusals,
 }
@@ -163,6 +168,7 @@ impl Signing {
     /// The signing clock follows the wall clock (`unix_usec`), never going back.
     pub fn tick(&mut self, unix_usec: u64) {
         let now = (unix_usec / 10).saturating_sub(EPOCH_2015_UNIX_S * 100_000);
+        self.wall_clock_believed |= now >= BELIEVABLE_CLOCK;
         self.timestamp = self.timestamp.max(now);
     }
 
@@ -171,8 +177,9 @@ impl Signing {
         self.timestamp
     }
 
-    /// Signed frames accepted so far: the memory changes when this does.
-    pub fn accepted(&self) -> u64 {
+    /// Signed frames accepted so far: the streams' timestamps (the memory worth keeping)
+    /// change when this does.
+    pub fn accepted_count(&self) -> u64 {
         self.accepted
     }
 
@@ -237,7 +244,7 @@ impl Signing {
         ts[..6].copy_from_slice(&block[1..7]);
         let timestamp = u64::from_le_bytes(ts);
         let stream = (frame[5], frame[6], link_id);
-        if self.timestamp >= BELIEVABLE_CLOCK && timestamp > self.timestamp + NEW_STREAM_WINDOW {
+        if self.wall_clock_believed && timestamp > self.timestamp + NEW_STREAM_WINDOW {
             return Verdict::RefusedFuture;
         }
         let fresh = match self.streams.get(&stream) {

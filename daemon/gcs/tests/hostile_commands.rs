@@ -17,7 +17,9 @@ use flight_core::autopilot::{Autopilot, AutopilotOutput, StepInputs};
 use flight_core::commander::LandedState;
 use flight_core::math::geo::{LatLonAlt, LocalFrame};
 use flight_core::params::FlightParams;
-use flight_core::safety::targets::{GROUND_CLEARANCE_M, PLAUSIBLE_RANGE_M, TargetLimits};
+use flight_core::safety::targets::{
+    GROUND_CLEARANCE_M, HOME_SHIFT_MAX_M, PLAUSIBLE_RANGE_M, TargetLimits,
+};
 use gcs::telemetry::Telemetry;
 use gcs::{GroundStation, Outbox, Outgoing};
 use mavlink::MavHeader;
@@ -93,6 +95,8 @@ struct Vehicle {
     commands: [f64; MAX_ROTORS],
     last: Option<AutopilotOutput>,
     limits: TargetLimits,
+    /// Home once ready to arm (NED).
+    first_home: nalgebra::Vector3<f64>,
 }
 
 impl Vehicle {
@@ -116,12 +120,14 @@ impl Vehicle {
             commands: [0.0; MAX_ROTORS],
             last: None,
             limits: TargetLimits::new(&p.safety),
+            first_home: nalgebra::Vector3::zeros(),
         };
         v.fly_until(60.0, |v| {
             v.autopilot.status().ready
                 && v.last
                     .is_some_and(|o| o.estimate.translation.origin.is_some())
         });
+        v.first_home = v.home().1;
         if hover {
             // Armed once the gyro bias has settled.
             while let Err(e) = v.autopilot.command(AutopilotCommand::Arm { force: false }) {
@@ -228,8 +234,9 @@ impl Vehicle {
                 "{case}: home {home:?} far from {here:?}"
             );
             assert!(
-                (home.z - here.z).abs() <= self.limits.ceiling.0,
-                "{case}: home {home:?} far above or below {here:?}"
+                (home.z - self.first_home.z).abs() <= HOME_SHIFT_MAX_M,
+                "{case}: home {home:?} far above or below the first {:?}",
+                self.first_home
             );
         }
         let (_, home, _) = self.home();
@@ -238,15 +245,17 @@ impl Vehicle {
             .setpoint()
             .and_then(|s| s.position().copied())
         {
-            for v in [p.pos_ned_m, p.vel_ned_m_s, p.accel_ned_m_s2] {
-                assert!(
-                    v.iter().all(|x| !x.is_infinite()),
-                    "{case}: set-point {p:?}"
-                );
+            for v in [p.vel_ned_m_s, p.accel_ned_m_s2] {
+                assert!(v.iter().all(|x| x.is_finite()), "{case}: set-point {p:?}");
             }
+            // A position part may be left open (NaN), never infinite.
+            assert!(
+                p.pos_ned_m.iter().all(|x| !x.is_infinite()),
+                "{case}: set-point {p:?}"
+            );
             let height = home.z - p.pos_ned_m.z;
             assert!(
-                height.is_nan() || height <= self.limits.ceiling.0 + 1.0,
+                height.is_nan() || (-2.0..=self.limits.ceiling.0 + 1.0).contains(&height),
                 "{case}: set-point {height} m above home"
             );
         }
@@ -270,8 +279,8 @@ fn long(command: MavCmd, p: [f32; 7]) -> MavMessage {
     })
 }
 
-/// A `COMMAND_INT` to the vehicle, in the global frame (altitude AMSL).
-fn int(command: MavCmd, p: [f32; 7], x: i32, y: i32) -> MavMessage {
+/// A `COMMAND_INT` to the vehicle in `frame`.
+fn int(command: MavCmd, p: [f32; 7], x: i32, y: i32, frame: MavFrame) -> MavMessage {
     MavMessage::COMMAND_INT(COMMAND_INT_DATA {
         param1: p[0],
         param2: p[1],
@@ -283,7 +292,7 @@ fn int(command: MavCmd, p: [f32; 7], x: i32, y: i32) -> MavMessage {
         command,
         target_system: 1,
         target_component: 1,
-        frame: MavFrame::MAV_FRAME_GLOBAL_INT,
+        frame,
         current: 0,
         autocontinue: 0,
     })
@@ -308,7 +317,6 @@ fn sane(command: MavCmd, h: &LatLonAlt) -> [f32; 7] {
 /// the slot carries no place or bounded number (the sanity checks alone judge it).
 fn may_accept(command: MavCmd, slot: usize, value: f32, v: &Vehicle) -> Option<bool> {
     let (_, _, h) = v.home();
-    let here_amsl = v.last.unwrap().estimate.translation.origin.unwrap().alt_m - v.here().z;
     let height = |amsl: f32| amsl as f64 - h.alt_m;
     let ceiling = v.limits.ceiling.0;
     let near = |deg: f32, of: f64| (deg as f64 - of).abs() < 0.4;
@@ -323,8 +331,8 @@ fn may_accept(command: MavCmd, slot: usize, value: f32, v: &Vehicle) -> Option<b
         }
         (MavCmd::MAV_CMD_DO_SET_HOME, 4) => near(value, h.lat_deg),
         (MavCmd::MAV_CMD_DO_SET_HOME, 5) => near(value, h.lon_deg),
-        (MavCmd::MAV_CMD_DO_SET_HOME, 6) => (value as f64 - here_amsl).abs() <= ceiling,
-        (MavCmd::MAV_CMD_NAV_TAKEOFF, 6) => !value.is_finite() || height(value) <= ceiling,
+        (MavCmd::MAV_CMD_DO_SET_HOME, 6) => height(value).abs() <= HOME_SHIFT_MAX_M,
+        (MavCmd::MAV_CMD_NAV_TAKEOFF, 6) => value.is_nan() || height(value) <= ceiling,
         (MavCmd::MAV_CMD_DO_CHANGE_SPEED, 1) => {
             value.is_finite() && (value > 0.0 || value == -1.0 || value == -2.0)
         }
@@ -392,7 +400,7 @@ fn table(hover: bool) {
             for bad in HOSTILE_XY {
                 for (x, y) in [(bad, y), (x, bad)] {
                     let case = format!("{command:?} COMMAND_INT x {x} y {y}");
-                    let result = v.send(&int(command, base, x, y));
+                    let result = v.send(&int(command, base, x, y, MavFrame::MAV_FRAME_GLOBAL));
                     cases += 1;
                     // INT32_MAX in a reposition keeps the current place.
                     let keep = command == MavCmd::MAV_CMD_DO_REPOSITION && bad == i32::MAX;
@@ -406,6 +414,32 @@ fn table(hover: bool) {
                     v.fly(0.2);
                     v.assert_sane(&case);
                 }
+            }
+        }
+        if command == MavCmd::MAV_CMD_DO_REPOSITION {
+            // The altitude above home, as COMMAND_INT in the relative frame.
+            let (x, y) = (
+                (h.lat_deg * 1e7).round() as i32,
+                (h.lon_deg * 1e7).round() as i32,
+            );
+            for z in HOSTILE {
+                let mut p = base;
+                p[6] = z;
+                let case = format!("{command:?} COMMAND_INT relative z {z}");
+                let msg = int(command, p, x, y, MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT);
+                let result = v.send(&msg);
+                cases += 1;
+                let height = z as f64;
+                let ok = z.is_nan() || (GROUND_CLEARANCE_M..=v.limits.ceiling.0).contains(&height);
+                if !ok {
+                    assert!(
+                        result.is_some_and(|r| r != MavResult::MAV_RESULT_ACCEPTED),
+                        "{case}: {result:?}"
+                    );
+                    refused += 1;
+                }
+                v.fly(0.2);
+                v.assert_sane(&case);
             }
         }
         // Whatever was accepted, the vehicle flies on (or rests) upright.

@@ -130,9 +130,10 @@ impl Commander {
                 to[k] = target[k];
             }
         }
+        // Only the parts the command sets: a kept one may be outside a limit lowered since.
         let home = self.flight.home.map_or(i.pos_ned_m, |h| h.0);
         self.target_limits()
-            .check_target(&to, &home)
+            .check_target(&target, &home)
             .map_err(|e| format!("reposition refused: {e}"))?;
         if let Some(s) = speed_m_s.filter(|s| s.is_finite() && *s > 0.0) {
             self.flight.speed_override = Some(s.min(20.0));

@@ -459,8 +459,9 @@ impl Commander {
             return Err("home refused: no position estimate yet".into());
         };
         if let Some(p) = pos_ned_m {
+            let current = self.flight.home.map_or(i.pos_ned_m, |h| h.0);
             self.target_limits()
-                .check_home(&p, &i.pos_ned_m)
+                .check_home(&p, &i.pos_ned_m, &current)
                 .map_err(|e| format!("home refused: {e}"))?;
         }
         self.flight.set_home(pos_ned_m, &i)

@@ -190,8 +190,8 @@ crate::params::param_group! {
         fence_max_horizontal_m: f64 = 0.0, "GF_MAX_HOR_DIST", "m", [0.0, 10000.0], "Largest horizontal distance from home (0: no limit)";
         /// Largest height above home (m; 0: no limit).
         fence_max_vertical_m: f64 = 0.0, "GF_MAX_VER_DIST", "m", [0.0, 10000.0], "Largest height above home (0: no limit)";
-        /// Highest target above home (m; negative: only the geofence and the hard ceiling).
-        max_altitude_m: f64 = 500.0, "LNDMC_ALT_MAX", "m", [-1.0, 10000.0], "Highest altitude above home a command or mission may send the vehicle to (negative: no limit but GF_MAX_VER_DIST and 10 km)";
+        /// Highest target above home (m; 0 or negative: only the geofence and the hard ceiling).
+        max_altitude_m: f64 = 500.0, "LNDMC_ALT_MAX", "m", [-1.0, 10000.0], "Highest altitude above home a command or mission may send the vehicle to (0 or negative: only GF_MAX_VER_DIST and 10 km; manual modes are not limited)";
         /// Roll beyond which the vehicle has failed (deg; 0: off).
         fail_roll_deg: f64 = 60.0, "FD_FAIL_R", "deg", [0.0, 180.0], "Roll beyond which the vehicle has crashed or is flipping: disarm (0: off)";
         /// Pitch beyond which the vehicle has failed (deg; 0: off).

@@ -7,8 +7,9 @@
 //! - A target's height above home is at least [`GROUND_CLEARANCE_M`] (no set-point held in
 //!   the ground) and at most the ceiling: `LNDMC_ALT_MAX` (PX4's multicopter altitude limit),
 //!   `GF_MAX_VER_DIST`, and in any case [`HARD_CEILING_M`].
-//! - A new home is within [`PLAUSIBLE_RANGE_M`] of the vehicle, and within the ceiling of its
-//!   altitude.
+//! - A new home is within the range of the vehicle, and within [`HOME_SHIFT_MAX_M`] of the
+//!   current home's height; a mission's `DO_SET_HOME` items move the home its later items are
+//!   checked against.
 
 use crate::math::geo::{LatLonAlt, LocalFrame};
 use crate::mission::{MissionAltitude, MissionItem, MissionPoint};
@@ -28,6 +29,11 @@ pub const HARD_CEILING_M: f64 = 10_000.0;
 /// press the vehicle into the ground, armed and tilting.
 pub const GROUND_CLEARANCE_M: f64 = 1.0;
 
+/// Farthest a new home may be above or below the current one (m): the ground is not flat,
+/// but heights are measured from home, so a home set far below would put every target
+/// underground, and far above would lift every target past the ceiling.
+pub const HOME_SHIFT_MAX_M: f64 = 100.0;
+
 /// Why a place or height is refused; the words go to the operator.
 #[derive(Debug, Clone, Copy, PartialEq, Error)]
 pub enum TargetError {
@@ -37,9 +43,15 @@ pub enum TargetError {
     /// The longitude is not on the Earth.
     #[error("longitude {0}° outside ±180°")]
     Longitude(f64),
-    /// The altitude is infinite.
+    /// The altitude is infinite (or, for a height that must be given, not a number).
     #[error("altitude {} m not finite", Metres(*.0))]
     Altitude(f64),
+    /// A new home too far above or below the current one.
+    #[error("new home {} m above the current one: more than {HOME_SHIFT_MAX_M} m up or down", Metres(*up_m))]
+    HomeShift {
+        /// Height of the new home above the current one (m).
+        up_m: f64,
+    },
     /// Closer to the ground than [`GROUND_CLEARANCE_M`].
     #[error("{} m above home, below the {GROUND_CLEARANCE_M} m ground clearance", Metres(*height_m))]
     BelowGround {
@@ -89,7 +101,10 @@ impl TargetError {
         match self {
             Self::Latitude(_) | Self::TooFar { .. } => 5,
             Self::Longitude(_) => 6,
-            Self::Altitude(_) | Self::BelowGround { .. } | Self::AboveCeiling { .. } => 7,
+            Self::Altitude(_)
+            | Self::BelowGround { .. }
+            | Self::AboveCeiling { .. }
+            | Self::HomeShift { .. } => 7,
         }
     }
 }
@@ -194,25 +209,28 @@ impl TargetLimits {
         Ok(())
     }
 
-    /// A new home (NED, m) for a vehicle at `here`: near it, within the ceiling of its altitude.
-    pub fn check_home(&self, home: &Vector3<f64>, here: &Vector3<f64>) -> Result<(), TargetError> {
+    /// A new home (NED, m) for a vehicle at `here` whose home is `current`: within the range
+    /// of the vehicle, and within [`HOME_SHIFT_MAX_M`] of the current home's height (heights
+    /// are measured from home: one moved far up or down would move every target with it).
+    pub fn check_home(
+        &self,
+        home: &Vector3<f64>,
+        here: &Vector3<f64>,
+        current: &Vector3<f64>,
+    ) -> Result<(), TargetError> {
         let distance_m = (home.xy() - here.xy()).norm();
-        if distance_m.is_nan() || distance_m > PLAUSIBLE_RANGE_M {
+        let (limit_m, by) = self.range;
+        if distance_m.is_nan() || distance_m > limit_m {
             return Err(TargetError::TooFar {
                 distance_m,
                 from: "the vehicle",
-                limit_m: PLAUSIBLE_RANGE_M,
-                by: "the plausible range",
-            });
-        }
-        let below_m = home.z - here.z;
-        let (ceiling_m, by) = self.ceiling;
-        if below_m.is_nan() || below_m.abs() > ceiling_m {
-            return Err(TargetError::AboveCeiling {
-                height_m: below_m,
-                ceiling_m,
+                limit_m,
                 by,
             });
+        }
+        let up_m = current.z - home.z;
+        if up_m.is_nan() || up_m.abs() > HOME_SHIFT_MAX_M {
+            return Err(TargetError::HomeShift { up_m });
         }
         Ok(())
     }
@@ -236,7 +254,7 @@ impl TargetLimits {
             MissionItem::SetHome { at: Some(at) } => {
                 check_point(at)?;
                 return home.map_or(Ok(()), |(origin, home)| {
-                    self.check_home(&at.to_ned(origin, home, &nowhere), home)
+                    self.check_home(&at.to_ned(origin, home, &nowhere), home, home)
                 });
             }
             _ => return Ok(()),
@@ -256,18 +274,24 @@ impl TargetLimits {
     }
 }
 
-/// A mission against home, item by item; the first refused item and why.
+/// A mission against home, item by item, home moving with its `DO_SET_HOME` items as it will
+/// in flight; the first refused item and why.
 pub fn check_mission(
     items: &[MissionItem],
     limits: &TargetLimits,
     origin: &LatLonAlt,
     home: &Vector3<f64>,
 ) -> Result<(), (usize, TargetError)> {
-    items.iter().enumerate().try_for_each(|(k, item)| {
+    let mut home = *home;
+    for (k, item) in items.iter().enumerate() {
         limits
-            .check_item(item, Some((origin, home)))
-            .map_err(|e| (k, e))
-    })
+            .check_item(item, Some((origin, &home)))
+            .map_err(|e| (k, e))?;
+        if let MissionItem::SetHome { at: Some(at) } = item {
+            home = at.to_ned(origin, &home, &home);
+        }
+    }
+    Ok(())
 }
 
 /// The global position `p` in the local frame of `origin`, checked on the Earth.

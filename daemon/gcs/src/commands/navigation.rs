@@ -16,11 +16,14 @@ impl GroundStation {
         let p = c.p;
         match c.command {
             MavCmd::MAV_CMD_NAV_TAKEOFF => {
-                // param7: altitude AMSL (PX4); NaN: the take-off altitude parameter.
-                if p[6].is_finite() {
+                // param7: altitude AMSL (PX4; below home + MIS_TAKEOFF_ALT it is raised to
+                // that, as PX4 does); NaN: the take-off altitude parameter.
+                if p[6].is_nan() {
+                    vehicle(out, to, AutopilotCommand::Takeoff(None));
+                } else if p[6].is_finite() {
                     vehicle(out, to, AutopilotCommand::TakeoffAmsl(p[6] as f64));
                 } else {
-                    vehicle(out, to, AutopilotCommand::Takeoff(None));
+                    self.deny(to, out, &format!("take-off refused: altitude {} m", p[6]));
                 }
             }
             MavCmd::MAV_CMD_NAV_LAND => {

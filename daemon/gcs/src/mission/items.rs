@@ -5,7 +5,7 @@
 use flight_core::math::geo::LatLonAlt;
 use flight_core::mission::{MissionAltitude, MissionItem, MissionPoint, SpeedChange};
 use flight_core::safety::geofence::GeoZone;
-use flight_core::safety::targets::{TargetError, TargetLimits};
+use flight_core::safety::targets::{TargetError, TargetLimits, check_point};
 use mavlink::dialects::common::*;
 use nalgebra::Vector3;
 
@@ -24,14 +24,18 @@ impl MissionBounds {
     /// An item within the bounds, or the field at fault as the mission protocol names it.
     pub(super) fn check(&self, item: &MissionItem) -> Result<(), (TargetError, MavMissionResult)> {
         let home = self.home.as_ref().map(|(o, h)| (o, h));
-        self.limits.check_item(item, home).map_err(|e| {
-            let result = match e.mission_param() {
-                5 => MavMissionResult::MAV_MISSION_INVALID_PARAM5_X,
-                6 => MavMissionResult::MAV_MISSION_INVALID_PARAM6_Y,
-                _ => MavMissionResult::MAV_MISSION_INVALID_PARAM7,
-            };
-            (e, result)
-        })
+        self.limits
+            .check_item(item, home)
+            .map_err(|e| (e, field_at_fault(&e)))
+    }
+}
+
+/// The mission result naming the field of a place that is refused.
+fn field_at_fault(e: &TargetError) -> MavMissionResult {
+    match e.mission_param() {
+        5 => MavMissionResult::MAV_MISSION_INVALID_PARAM5_X,
+        6 => MavMissionResult::MAV_MISSION_INVALID_PARAM6_Y,
+        _ => MavMissionResult::MAV_MISSION_INVALID_PARAM7,
     }
 }
 
@@ -95,25 +99,17 @@ pub fn decode(m: &MISSION_ITEM_INT_DATA) -> Result<MissionItem, MavMissionResult
         let Some(relative) = relative else {
             return Err(MAV_MISSION_UNSUPPORTED_FRAME);
         };
-        let (lat, lon) = (m.x as f64 * 1e-7, m.y as f64 * 1e-7);
-        if !(-90.0..=90.0).contains(&lat) {
-            return Err(MAV_MISSION_INVALID_PARAM5_X);
-        }
-        if !(-180.0..=180.0).contains(&lon) {
-            return Err(MAV_MISSION_INVALID_PARAM6_Y);
-        }
-        let z = m.z as f64;
-        if z.is_infinite() {
-            return Err(MAV_MISSION_INVALID_PARAM7);
-        }
-        Ok(MissionPoint {
+        let (lat, lon, z) = (m.x as f64 * 1e-7, m.y as f64 * 1e-7, m.z as f64);
+        let point = MissionPoint {
             lat_lon_deg: (m.x != 0 || m.y != 0).then_some((lat, lon)),
-            alt: z.is_finite().then_some(if relative {
+            alt: (!z.is_nan()).then_some(if relative {
                 MissionAltitude::AboveHome(z)
             } else {
                 MissionAltitude::Amsl(z)
             }),
-        })
+        };
+        check_point(&point).map_err(|e| field_at_fault(&e))?;
+        Ok(point)
     };
     let yaw = |deg: f32| -> Result<Option<f64>, MavMissionResult> {
         match deg {

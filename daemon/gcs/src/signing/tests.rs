@@ -276,11 +276,23 @@ fn a_vehicle_without_a_believable_clock_takes_the_ground_stations() {
         Verdict::Signed
     );
     assert_eq!(vehicle.timestamp(), gcs.timestamp() - 1);
-    // From then on the clock is believable: far ahead is refused.
-    let mut ahead = signing(KEY);
-    ahead.tick(NOW_USEC + 3_600_000_000);
+    // Restarted after a day powered off, its memory kept, still without a wall clock: the
+    // ground station's timestamps, a day ahead of the remembered clock, are taken.
+    let mut restarted = Signing::new(Some(SecretKey(KEY)));
+    restarted.remember(&vehicle.memory());
+    restarted.tick(0);
+    let mut gcs = signing(KEY);
+    gcs.tick(NOW_USEC + 86_400_000_000);
     assert_eq!(
-        vehicle.check(&signed(&mut ahead, &arm()), false),
+        restarted.check(&signed(&mut gcs, &arm()), false),
+        Verdict::Signed
+    );
+    // Once the wall clock is believable, far ahead is refused.
+    restarted.tick(NOW_USEC + 86_400_000_000);
+    let mut ahead = signing(KEY);
+    ahead.tick(NOW_USEC + 2 * 86_400_000_000);
+    assert_eq!(
+        restarted.check(&signed(&mut ahead, &arm()), false),
         Verdict::RefusedFuture
     );
 }

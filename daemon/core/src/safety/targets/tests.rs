@@ -92,16 +92,52 @@ fn places_off_the_earth_or_far_from_home_are_refused() {
 }
 
 #[test]
-fn a_new_home_is_near_the_vehicle_and_within_the_ceiling_of_its_altitude() {
+fn a_new_home_is_near_the_vehicle_and_near_the_height_of_the_current_one() {
     let l = limits();
-    let here = Vector3::new(0.0, 0.0, -30.0);
-    assert_eq!(l.check_home(&Vector3::new(100.0, 0.0, 0.0), &here), Ok(()));
+    let (here, home) = (Vector3::new(0.0, 0.0, -30.0), Vector3::zeros());
+    assert_eq!(
+        l.check_home(&Vector3::new(100.0, 0.0, -20.0), &here, &home),
+        Ok(())
+    );
+    // 488 m underground (home at sea level) and far up: every target would move with it.
+    for z in [488.0, -2.0e9, -101.0] {
+        let e = l
+            .check_home(&Vector3::new(0.0, 0.0, z), &here, &home)
+            .unwrap_err();
+        assert!(matches!(e, TargetError::HomeShift { .. }), "{z}: {e}");
+    }
+    assert_eq!(
+        l.check_home(&Vector3::new(0.0, 0.0, 488.0), &here, &home)
+            .unwrap_err()
+            .to_string(),
+        "new home -488.0 m above the current one: more than 100 m up or down"
+    );
     assert!(
-        l.check_home(&Vector3::new(0.0, 0.0, -2.0e9), &here)
+        l.check_home(&Vector3::new(1e7, 0.0, 0.0), &here, &home)
             .is_err()
     );
-    assert!(l.check_home(&Vector3::new(1e7, 0.0, 0.0), &here).is_err());
-    assert!(l.check_home(&Vector3::repeat(f64::NAN), &here).is_err());
+    assert!(
+        l.check_home(&Vector3::repeat(f64::NAN), &here, &home)
+            .is_err()
+    );
+    // Within GF_MAX_HOR_DIST of the vehicle when it is set.
+    let fenced = TargetLimits::new(&SafetyParams {
+        fence_max_horizontal_m: 300.0,
+        ..SafetyParams::default()
+    });
+    let far = fenced
+        .check_home(&Vector3::new(400.0, 0.0, 0.0), &here, &home)
+        .unwrap_err();
+    assert!(
+        matches!(
+            far,
+            TargetError::TooFar {
+                by: "GF_MAX_HOR_DIST",
+                ..
+            }
+        ),
+        "{far}"
+    );
 }
 
 #[test]
@@ -162,6 +198,20 @@ fn mission_items_are_checked_where_they_go_and_a_landing_altitude_is_not() {
             .mission_param(),
         5
     );
+    // A DO_SET_HOME item moves the home later items are measured from: with home 90 m up (a
+    // hill), a waypoint 50 m above the first home is 40 m below the new one.
+    let up = frame.to_geodetic(&Vector3::new(0.0, 0.0, -90.0));
+    let moved = [
+        MissionItem::SetHome {
+            at: Some(MissionPoint {
+                lat_lon_deg: Some((up.lat_deg, up.lon_deg)),
+                alt: Some(MissionAltitude::Amsl(up.alt_m)),
+            }),
+        },
+        wp(MissionAltitude::Amsl(o.alt_m + 50.0)),
+    ];
+    assert_eq!(check_mission(&moved[1..], &l, &o, &home), Ok(()));
+    assert_eq!(check_mission(&moved, &l, &o, &home).unwrap_err().0, 1);
     // Without home: the height above home is checked, an altitude above sea level waits.
     let high = wp(MissionAltitude::AboveHome(1e30));
     assert_eq!(l.check_item(&high, None).unwrap_err().mission_param(), 7);
