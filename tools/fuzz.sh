@@ -8,6 +8,10 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds="${1:-30}"
+if ! [[ "$seconds" =~ ^[0-9]+$ ]] || [ "$seconds" -eq 0 ]; then
+    echo "usage: tools/fuzz.sh [SECONDS] [TARGET...] (SECONDS a whole number above 0, not $seconds)" >&2
+    exit 2
+fi
 shift || true
 if ! cargo +nightly --version >/dev/null 2>&1; then
     echo "== fuzz: SKIPPED: no nightly toolchain (cargo +nightly), which cargo fuzz needs"
@@ -18,7 +22,12 @@ if ! cargo +nightly fuzz --version >/dev/null 2>&1; then
 fi
 targets=("$@")
 if [ ${#targets[@]} -eq 0 ]; then
-    mapfile -t targets < <(cargo +nightly fuzz list --fuzz-dir fuzz)
+    listed="$(cargo +nightly fuzz list --fuzz-dir fuzz)"
+    mapfile -t targets <<<"$listed"
+fi
+if [ ${#targets[@]} -eq 0 ] || [ -z "${targets[0]}" ]; then
+    echo "== fuzz: no targets found in fuzz/" >&2
+    exit 1
 fi
 # Safe Rust: no address sanitizer (twice the speed); panics and overflows abort as crashes.
 flags=(--fuzz-dir fuzz --sanitizer none --release --debug-assertions)
@@ -30,15 +39,15 @@ for t in "${targets[@]}"; do
     if ! cargo +nightly fuzz run "${flags[@]}" "$t" -- -max_total_time="$seconds" \
         -print_final_stats=1 -rss_limit_mb=2048 >"$log" 2>&1; then
         tail -n 40 "$log"
-        echo "== fuzz: $t FAILED (input in fuzz/artifacts/$t/)"
+        echo "== fuzz: $t FAILED (a crash leaves its input in fuzz/artifacts/$t/; log: $log)"
         exit 1
     fi
     runs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log")
     speed=$(sed -n 's/^stat::average_exec_per_sec: *//p' "$log")
-    last=$(grep -E '^#[0-9]+' "$log" | tail -n 1)
+    last=$(grep -E '^#[0-9]+' "$log" | tail -n 1 || true)
     cov=$(sed -n 's/.* cov: \([0-9]*\) .*/\1/p' <<<"$last")
     ft=$(sed -n 's/.* ft: \([0-9]*\) .*/\1/p' <<<"$last")
-    corpus=$(find "fuzz/corpus/$t" -type f | wc -l)
+    corpus=$(sed -n 's/.* corp: \([0-9]*\)\/.*/\1/p' <<<"$last")
     peak=$(sed -n 's/^stat::peak_rss_mb: *//p' "$log")
     echo "== fuzz: $t: ${seconds} s, ${runs} executions (${speed}/s), coverage ${cov} edges ${ft} features, corpus ${corpus} inputs, peak RSS ${peak} MB, no crash"
     rm -f "$log"

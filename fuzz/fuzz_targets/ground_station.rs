@@ -3,7 +3,8 @@
 //! random bytes: each command the vehicle answers with any parameters, as `COMMAND_LONG` or
 //! `COMMAND_INT`; `PARAM_SET` of every parameter with any value and type; uploads by the book of
 //! any items; any other message of the dialect from raw bytes; polls. The commands the protocol
-//! passes on are carried out by an autopilot. No panic; the parameters stay valid.
+//! passes on are carried out by an autopilot; each message arrives on one of four links. No
+//! panic; the parameters stay valid.
 #![no_main]
 // The deprecated commands are still answered, so still fuzzed.
 #![allow(deprecated)]
@@ -111,6 +112,8 @@ enum Action {
 #[derive(Arbitrary, Debug)]
 struct Input {
     armed: bool,
+    /// The link each action arrives on (of four).
+    links: Vec<u8>,
     actions: Vec<Action>,
 }
 
@@ -224,9 +227,11 @@ fuzz_target!(|input: Input| {
     };
     let mut out = gcs::Outbox::default();
     let mut now_s = 1.0;
-    for a in input.actions.iter().take(64) {
+    for (k, a) in input.actions.iter().take(64).enumerate() {
+        let link = input.links.get(k).map_or(0, |l| l % 4);
         for m in message(a) {
-            v.gcs.on_message(&header, &m, &v.telemetry, &mut out);
+            v.gcs
+                .on_link_message(link, &header, &m, &v.telemetry, &mut out);
             v.carry_out(&mut out);
         }
         if let Action::Poll { dt_ms } = a {

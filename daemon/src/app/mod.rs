@@ -188,9 +188,21 @@ fn serve(
         .build()
         .context("starting the async runtime")?;
     let exits = runtime.block_on(async move {
+        // A vehicle whose links cannot open stops every vehicle of the process (`--count`).
         let links: Vec<_> = vehicles
             .into_iter()
-            .map(|(endpoints, vehicle)| tokio::spawn(gcs_links::run(endpoints, vehicle)))
+            .map(|(endpoints, vehicle)| {
+                let stop_all = commands.clone();
+                tokio::spawn(async move {
+                    let run = gcs_links::run(endpoints, vehicle).await;
+                    if run.is_err() {
+                        for c in &stop_all {
+                            let _ = c.send(LoopCommand::Stop).await;
+                        }
+                    }
+                    run
+                })
+            })
             .collect();
         tokio::spawn(interrupts(commands));
         status_line(telemetry, ended).await;

@@ -18,6 +18,8 @@
 //! falls behind loses frames, not the vehicle's time.
 
 pub mod endpoint;
+mod guard;
+mod signing;
 #[cfg(test)]
 mod tests;
 mod transport;
@@ -26,7 +28,7 @@ pub use endpoint::EndpointSpec;
 
 use crate::control_loop::LoopCommand;
 use crate::records::log_files::Tlog;
-use crate::records::{param_file, signing_file};
+use crate::records::param_file;
 use anyhow::Result;
 use flight_core::autopilot::command::AutopilotCommand;
 use flight_core::commander::Denial;
@@ -37,13 +39,14 @@ use gcs::signing::{SecretKey, Signing, SigningMemory};
 use gcs::telemetry::Telemetry;
 use gcs::{AckTo, COMPONENT_ID, GroundStation, HostAction, LinkId, Outbox, Outgoing};
 
+use guard::Guard;
 use hil::Encoder;
 use mavlink::dialects::common::{MavMessage, MavSeverity, MavType};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
-use transport::{Frame, Guard, Inbound, Notices, open};
+use transport::{Frame, Inbound, Notices, open};
 
 /// PX4 SITL's links: QGroundControl and MAVSDK ports pushed to, each from its own bound port,
 /// and a TCP server.
@@ -102,109 +105,6 @@ fn unix_usec() -> u64 {
         .map_or(0, |d| d.as_micros() as u64)
 }
 
-/// `SETUP_SIGNING` (<https://mavlink.io/en/guide/message_signing.html>): only from a trusted
-/// link; the key is used at once and saved (mode 0600) where the daemon was told to keep it;
-/// an all-zero key turns signing off (and removes the file). Returns what to tell the sender.
-fn setup_signing(
-    signing: &Mutex<Signing>,
-    key_file: Option<&std::path::Path>,
-    data: &mavlink::dialects::common::SETUP_SIGNING_DATA,
-    trusted: bool,
-) -> (MavSeverity, String) {
-    if !trusted {
-        tracing::warn!("SETUP_SIGNING refused: it came over a link not marked trusted");
-        return (
-            MavSeverity::MAV_SEVERITY_WARNING,
-            "SETUP_SIGNING refused: link not trusted".into(),
-        );
-    }
-    let key = SecretKey(data.secret_key);
-    let on = key.0 != [0; 32];
-    let saved = match key_file {
-        Some(path) if on => {
-            crate::records::param_file::write_private(path, &format!("{}\n", key.to_hex()))
-        }
-        Some(path) => match std::fs::remove_file(path) {
-            Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
-                Err(anyhow::Error::from(e).context(format!("removing {}", path.display())))
-            }
-            _ => Ok(()),
-        },
-        None => Ok(()),
-    };
-    let mut s = signing.lock().unwrap_or_else(|e| e.into_inner());
-    s.set_key(key, data.initial_timestamp);
-    let state = if s.active() {
-        "signing on"
-    } else {
-        "signing off"
-    };
-    drop(s);
-    match saved {
-        Ok(()) => {
-            tracing::info!(
-                file = ?key_file,
-                "SETUP_SIGNING from a trusted link: MAVLink {state}"
-            );
-            (MavSeverity::MAV_SEVERITY_INFO, format!("MAVLink {state}"))
-        }
-        Err(e) => {
-            tracing::error!("SETUP_SIGNING: MAVLink {state}, but the key is not kept: {e:#}");
-            (
-                MavSeverity::MAV_SEVERITY_ERROR,
-                format!("MAVLink {state}; key not saved"),
-            )
-        }
-    }
-}
-
-/// Keeps signing's memory in its file: at most once a second while signed frames arrive, and
-/// at the end (a reboot or shutdown), so a frame captured before a restart is a replay after it.
-struct SigningMemoryKeeper {
-    path: Option<std::path::PathBuf>,
-    saved: Option<SigningMemory>,
-    next: Instant,
-}
-
-impl SigningMemoryKeeper {
-    fn new(key_file: Option<&std::path::Path>) -> Self {
-        Self {
-            path: key_file.map(signing_file::memory_path),
-            saved: None,
-            next: Instant::now(),
-        }
-    }
-
-    /// Saves the memory if it changed and a second has passed (or `now`); a failure is logged.
-    async fn save_if_due(&mut self, signing: &Mutex<Signing>, now: bool) {
-        let Some(path) = self.path.clone() else {
-            return;
-        };
-        if !now && Instant::now() < self.next {
-            return;
-        }
-        let m = {
-            let s = signing.lock().unwrap_or_else(|e| e.into_inner());
-            if !s.active() {
-                return;
-            }
-            s.memory()
-        };
-        if self.saved.as_ref() == Some(&m) {
-            return;
-        }
-        self.next = Instant::now() + Duration::from_secs(1);
-        let kept = m.clone();
-        let saved =
-            tokio::task::spawn_blocking(move || signing_file::save_memory(&path, &kept)).await;
-        match saved {
-            Ok(Ok(())) => self.saved = Some(m),
-            Ok(Err(e)) => tracing::error!("signing timestamps not saved: {e:#}"),
-            Err(e) => tracing::error!("signing timestamps not saved: {e}"),
-        }
-    }
-}
-
 /// Saves every store it is handed, the latest first (a burst of sets is one write), and says
 /// so when a save fails.
 async fn saver(mut stores: watch::Receiver<Option<ParamStore>>, notices: Notices) {
@@ -257,7 +157,7 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Result<Optio
             "off"
         }
     );
-    let mut memory = SigningMemoryKeeper::new(signing_key_file.as_deref());
+    let mut memory = signing::MemoryKeeper::new(signing_key_file.as_deref());
     let mut restored = Signing::new(signing_key);
     restored.remember(&signing_memory);
     let signing = Arc::new(Mutex::new(restored));
@@ -289,14 +189,18 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Result<Optio
             }
             Err(e) => {
                 // Flying on without a link the user asked for would be worse: stop.
-                let _ = commands.try_send(LoopCommand::Stop);
+                let _ = commands.send(LoopCommand::Stop).await;
                 return Err(e.context(
                     "a ground-station endpoint could not be opened (another program or vehicle holds the port? give it `-i N`, or mark the endpoint `?optional`)",
                 ));
             }
         }
     }
-    let mut encoder = Encoder::with_ids(system_id, COMPONENT_ID);
+    // One encoder (one sequence) per link, so that each ground station sees its link's
+    // sequence without gaps; at least one, for the telemetry log.
+    let mut encoders: Vec<Encoder> = (0..endpoints.len().max(1))
+        .map(|_| Encoder::with_ids(system_id, COMPONENT_ID))
+        .collect();
     let mut out = Outbox::default();
     let mut tick = tokio::time::interval(POLL);
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
@@ -318,7 +222,7 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Result<Optio
                     match m {
                         MavMessage::SETUP_SIGNING(d) if d.target_system == system_id => {
                             let (severity, text) =
-                                setup_signing(&signing, signing_key_file.as_deref(), d, i.trusted);
+                                signing::setup_signing(&signing, signing_key_file.as_deref(), d, i.trusted);
                             out.say(severity, &text);
                         }
                         _ => gcs.on_link_message(i.link, h, m, &t, &mut out),
@@ -345,7 +249,9 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Result<Optio
                     tracing::error!(file = %log.path().display(), "telemetry log: {e}; logging stopped");
                     tlog = None;
                 }
-                memory.save_if_due(&signing, false).await;
+                if let Some(m) = memory.as_mut() {
+                    m.note(&signing);
+                }
                 if Instant::now() >= refusals_next {
                     refusals_next = Instant::now() + REFUSALS_REPORT;
                     let now = (
@@ -458,9 +364,18 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Result<Optio
                 .unwrap_or_else(|e| e.into_inner())
                 .tick(unix_usec());
         }
-        let everywhere = out.messages.drain(..).map(|m| (None, m));
-        let one_link = out.streamed.drain(..).map(|(l, m)| (Some(l), m));
+        // A message for every link goes out on each in its own sequence; the telemetry log
+        // records what link 0 carries.
+        let links = encoders.len() as LinkId;
+        let everywhere = out
+            .messages
+            .drain(..)
+            .flat_map(|m| (0..links).map(move |l| (l, m.clone())));
+        let one_link = out.streamed.drain(..);
         for (link, m) in everywhere.chain(one_link) {
+            let Some(encoder) = encoders.get_mut(usize::from(link)) else {
+                continue;
+            };
             let mut bytes = Vec::with_capacity(64);
             match &m {
                 Outgoing::Message(m) => encoder.push(&mut bytes, m),
@@ -470,14 +385,18 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Result<Optio
                 .lock()
                 .unwrap_or_else(|e| e.into_inner())
                 .sign(&mut bytes);
-            if let Some(log) = tlog.as_mut() {
+            if link == 0
+                && let Some(log) = tlog.as_mut()
+            {
                 log.record(unix_usec(), &bytes);
             }
             // No endpoint listening is not an error.
             let _ = frames.send((link, bytes.into()));
         }
     }
-    memory.save_if_due(&signing, true).await;
+    if let Some(m) = memory {
+        m.finish(&signing).await;
+    }
     let refused = signing.lock().unwrap_or_else(|e| e.into_inner()).refused;
     tracing::info!(
         malformed,

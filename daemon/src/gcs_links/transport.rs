@@ -3,17 +3,17 @@
 //! ([`Guard`]) before it is parsed and hands what it heard to the links' task; every frame the
 //! vehicle sends reaches every transport.
 
-use super::endpoint::{Endpoint, EndpointSpec, LinkOptions};
+use super::endpoint::{Endpoint, EndpointSpec};
+use super::guard::{Guard, Heard};
 use anyhow::{Context, Result};
 use gcs::LinkId;
-use gcs::signing::{Signing, Verdict};
 use hil::transport::{LineRead, SerialLine};
 use hil::{Decoded, RawMessage, StreamDecoder};
 use mavlink::MavHeader;
 use mavlink::dialects::common::{MavMessage, MavSeverity};
 use std::net::SocketAddr;
+use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream, UdpSocket};
@@ -23,86 +23,6 @@ use tokio::sync::{broadcast, mpsc};
 const PEER_TIMEOUT: Duration = Duration::from_secs(10);
 /// Peers answered per UDP endpoint at most.
 const MAX_PEERS: usize = 16;
-
-/// Where a frame is checked before it is parsed: the endpoint's allow-list, then signing.
-#[derive(Debug, Clone)]
-pub(super) struct Guard {
-    /// The endpoint's options.
-    pub(super) options: LinkOptions,
-    /// The signing state every endpoint shares.
-    pub(super) signing: Arc<Mutex<Signing>>,
-    /// Frames from systems not on an allow-list (all endpoints).
-    pub(super) not_allowed: Arc<AtomicU64>,
-    /// The endpoint's link: what it hears is asked of this link's streams, and only this
-    /// link's streamed frames go out on it.
-    pub(super) link: LinkId,
-}
-
-impl Guard {
-    /// The frame if it goes out on this link.
-    fn ours<'a>(&self, frame: &'a Frame) -> Option<&'a [u8]> {
-        frame
-            .0
-            .is_none_or(|l| l == self.link)
-            .then_some(&frame.1[..])
-    }
-}
-
-impl Guard {
-    /// Splits a datagram into `out`, checking each frame; whether one of them earns its
-    /// sender the vehicle's answers ([`Self::check`]).
-    fn decode(&self, datagram: &[u8], out: &mut Decoded) -> bool {
-        let mut signing = self.signing.lock().unwrap_or_else(|e| e.into_inner());
-        let mut earned = false;
-        hil::decode_checked(datagram, out, &mut |f| {
-            self.check(&mut signing, f, &mut earned)
-        });
-        earned
-    }
-
-    /// Adds a stream's bytes to `splitter`, checking each frame; whether one of them earns
-    /// its sender the vehicle's answers.
-    fn push(&self, splitter: &mut StreamDecoder, bytes: &[u8], out: &mut Decoded) -> bool {
-        let mut signing = self.signing.lock().unwrap_or_else(|e| e.into_inner());
-        let mut earned = false;
-        splitter.push_checked(bytes, out, &mut |f| {
-            self.check(&mut signing, f, &mut earned)
-        });
-        earned
-    }
-
-    /// Signing is on.
-    fn signing_active(&self) -> bool {
-        self.signing
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .active()
-    }
-
-    /// One frame judged on its own (the signing state locked for it alone).
-    fn check_one(&self, frame: &[u8]) -> bool {
-        let mut signing = self.signing.lock().unwrap_or_else(|e| e.into_inner());
-        self.check(&mut signing, frame, &mut false)
-    }
-
-    /// Whether `frame` may act; `earned` is set when it also earns its sender the vehicle's
-    /// answers: any accepted frame without signing or on a trusted link, else only a signed
-    /// one (an unsigned radio's or vehicle's heartbeat, which the spec lets through, does not:
-    /// otherwise anyone could take the answer slots and hear the telemetry).
-    fn check(&self, signing: &mut Signing, frame: &[u8], earned: &mut bool) -> bool {
-        let system = if frame[0] == 0xFE { frame[3] } else { frame[5] };
-        if !self.options.allowed_systems.is_empty()
-            && !self.options.allowed_systems.contains(&system)
-        {
-            self.not_allowed.fetch_add(1, Ordering::Relaxed);
-            return false;
-        }
-        let verdict = signing.check(frame, self.options.trusted);
-        *earned |= verdict == Verdict::Signed
-            || (verdict.accepted() && (self.options.trusted || !signing.active()));
-        verdict.accepted()
-    }
-}
 
 /// What an endpoint received: the messages of one datagram or read.
 #[derive(Debug)]
@@ -119,8 +39,8 @@ pub(super) struct Inbound {
     pub(super) link: LinkId,
 }
 
-/// A frame going out, and the one link it is for (none: every link).
-pub(super) type Frame = (Option<LinkId>, Arc<[u8]>);
+/// A frame going out, and the link it is for.
+pub(super) type Frame = (LinkId, Arc<[u8]>);
 
 /// The frames going out, shared by every endpoint.
 pub(super) type Frames = broadcast::Sender<Frame>;
@@ -205,7 +125,7 @@ async fn udp(
         tokio::select! {
             r = socket.recv_from(&mut buf) => match r {
                 Ok((n, from)) => {
-                    let earned = guard.decode(&buf[..n], &mut decoded);
+                    let earned = guard.decode(&buf[..n], &mut decoded).earns(guard.signing_active());
                     deliver(&mut decoded, &inbound, &guard);
                     if earned && Some(from) != target {
                         peers.heard(from, Instant::now());
@@ -237,12 +157,27 @@ async fn udp(
 /// TCP clients served at once at most.
 const MAX_TCP_CLIENTS: usize = 8;
 
-/// What the server knows of a client: whether it earned the vehicle's answers, and when it
-/// last did (ms since the server started).
+/// A new client is not evicted for not having earned answers yet before this (ms): a ground
+/// station's first signed frame takes a moment.
+const TCP_GRACE_MS: u64 = 3_000;
+
+/// What the server knows of a client: what its frames showed, when it connected and when it
+/// last sent an accepted frame (ms since the server started).
 #[derive(Debug, Default)]
 struct ClientState {
-    earned: std::sync::atomic::AtomicBool,
-    last_earned_ms: AtomicU64,
+    accepted: std::sync::atomic::AtomicBool,
+    signed: std::sync::atomic::AtomicBool,
+    connected_ms: u64,
+    last_heard_ms: AtomicU64,
+}
+
+impl ClientState {
+    fn heard(&self) -> Heard {
+        Heard {
+            accepted: self.accepted.load(Ordering::Relaxed),
+            signed: self.signed.load(Ordering::Relaxed),
+        }
+    }
 }
 
 async fn tcp_client(
@@ -264,18 +199,23 @@ async fn tcp_client(
             r = rd.read(&mut buf) => match r {
                 Ok(0) | Err(_) => break,
                 Ok(n) => {
-                    if guard.push(&mut splitter, &buf[..n], &mut decoded) {
-                        state.earned.store(true, Ordering::Relaxed);
+                    let heard = guard.push(&mut splitter, &buf[..n], &mut decoded);
+                    if heard.accepted {
+                        state.accepted.store(true, Ordering::Relaxed);
                         let ms = started.elapsed().as_millis() as u64;
-                        state.last_earned_ms.store(ms, Ordering::Relaxed);
+                        state.last_heard_ms.store(ms, Ordering::Relaxed);
+                    }
+                    if heard.signed {
+                        state.signed.store(true, Ordering::Relaxed);
                     }
                     deliver(&mut decoded, &inbound, &guard);
                 }
             },
             f = frames.recv() => match f {
                 Ok(frame) => {
-                    // With signing on, nothing for a client that has not signed.
-                    if !state.earned.load(Ordering::Relaxed) && guard.signing_active() {
+                    // With signing on (even turned on since), nothing for a client that has
+                    // not signed.
+                    if guard.signing_active() && !state.heard().signed {
                         continue;
                     }
                     let Some(frame) = guard.ours(&frame) else {
@@ -302,19 +242,27 @@ struct TcpClient {
     state: Arc<ClientState>,
 }
 
-/// With [`MAX_TCP_CLIENTS`] connected, which one a new client replaces: one that never earned
-/// the vehicle's answers first, else one silent for [`PEER_TIMEOUT`]; none (the new client is
-/// turned away) if every one is live.
-fn evictable(clients: &[TcpClient], now_ms: u64) -> Option<usize> {
-    let silent =
-        |c: &TcpClient| now_ms.saturating_sub(c.state.last_earned_ms.load(Ordering::Relaxed));
-    (0..clients.len())
-        .find(|&k| !clients[k].state.earned.load(Ordering::Relaxed))
-        .or_else(|| {
-            (0..clients.len())
-                .filter(|&k| silent(&clients[k]) >= PEER_TIMEOUT.as_millis() as u64)
-                .max_by_key(|&k| silent(&clients[k]))
+/// With [`MAX_TCP_CLIENTS`] connected, which one a new client replaces: the longest connected
+/// of those that have not earned answers past their grace; else the longest silent of those
+/// silent for [`PEER_TIMEOUT`]; none (the new client is turned away) if every one is live or
+/// new.
+fn evictable(clients: &[TcpClient], now_ms: u64, signing_active: bool) -> Option<usize> {
+    // Silent since it was last heard, or since it connected.
+    let silent = |c: &TcpClient| {
+        let last = c.state.last_heard_ms.load(Ordering::Relaxed);
+        now_ms.saturating_sub(last.max(c.state.connected_ms))
+    };
+    let unearned = (0..clients.len())
+        .filter(|&k| {
+            let c = &clients[k].state;
+            !c.heard().earns(signing_active) && now_ms >= c.connected_ms + TCP_GRACE_MS
         })
+        .min_by_key(|&k| clients[k].state.connected_ms);
+    unearned.or_else(|| {
+        (0..clients.len())
+            .filter(|&k| silent(&clients[k]) >= PEER_TIMEOUT.as_millis() as u64)
+            .max_by_key(|&k| silent(&clients[k]))
+    })
 }
 
 async fn tcp_server(
@@ -329,18 +277,21 @@ async fn tcp_server(
         match listener.accept().await {
             Ok((stream, peer)) => {
                 clients.retain(|c| !c.task.is_finished());
+                let now_ms = started.elapsed().as_millis() as u64;
                 if clients.len() >= MAX_TCP_CLIENTS {
-                    let now_ms = started.elapsed().as_millis() as u64;
-                    let Some(k) = evictable(&clients, now_ms) else {
+                    let Some(k) = evictable(&clients, now_ms, guard.signing_active()) else {
                         tracing::warn!(%peer, "ground station turned away (TCP): {MAX_TCP_CLIENTS} clients connected and live");
                         continue;
                     };
-                    let old = clients.swap_remove(k);
+                    let old = clients.remove(k);
                     tracing::warn!(peer = %old.peer, new = %peer, "ground station dropped for a new one (TCP, too many)");
                     old.task.abort();
                 }
                 tracing::info!(%peer, "ground station connected (TCP)");
-                let state = Arc::new(ClientState::default());
+                let state = Arc::new(ClientState {
+                    connected_ms: now_ms,
+                    ..ClientState::default()
+                });
                 let task = tokio::spawn(tcp_client(
                     stream,
                     peer,
@@ -555,12 +506,17 @@ mod tests {
     }
 
     #[test]
-    fn a_tcp_client_that_never_earned_answers_goes_first_then_a_silent_one() {
-        let client = |earned: bool, last_ms: u64| {
-            let state = Arc::new(ClientState::default());
-            state.earned.store(earned, Ordering::Relaxed);
-            state.last_earned_ms.store(last_ms, Ordering::Relaxed);
-            state
+    fn a_tcp_client_that_never_earned_answers_goes_first_after_its_grace_then_a_silent_one() {
+        // (accepted, signed, connected, last heard) in ms.
+        let client = |accepted: bool, signed: bool, connected_ms: u64, last_ms: u64| {
+            let state = ClientState {
+                connected_ms,
+                ..ClientState::default()
+            };
+            state.accepted.store(accepted, Ordering::Relaxed);
+            state.signed.store(signed, Ordering::Relaxed);
+            state.last_heard_ms.store(last_ms, Ordering::Relaxed);
+            Arc::new(state)
         };
         let rt = tokio::runtime::Builder::new_current_thread()
             .build()
@@ -578,17 +534,37 @@ mod tests {
                 .collect()
         };
         let now = 60_000;
-        let c = clients(vec![client(true, now), client(false, 0), client(true, 0)]);
-        assert_eq!(evictable(&c, now), Some(1), "never earned");
+        // Signing on: unsigned clients are the ones to go, the oldest first, never a signed one
+        // and never one within its grace.
         let c = clients(vec![
-            client(true, now),
-            client(true, 1_000),
-            client(true, 30_000),
+            client(true, true, 0, now),
+            client(true, false, 2_000, now),
+            client(false, false, 1_000, 0),
+            client(false, false, now - 1_000, 0),
         ]);
-        assert_eq!(evictable(&c, now), Some(1), "the longest silent");
-        let c = clients(vec![client(true, now), client(true, now - 1_000)]);
+        assert_eq!(evictable(&c, now, true), Some(2), "the oldest unsigned");
+        let c = clients(vec![
+            client(true, true, 0, now),
+            client(false, false, now - 1_000, 0),
+        ]);
         assert_eq!(
-            evictable(&c, now),
+            evictable(&c, now, true),
+            None,
+            "within its grace: the newcomer waits"
+        );
+        // Signing off: an accepted frame earns; then the longest silent goes.
+        let c = clients(vec![
+            client(true, false, 0, now),
+            client(true, false, 0, 1_000),
+            client(true, false, 0, 30_000),
+        ]);
+        assert_eq!(evictable(&c, now, false), Some(1), "the longest silent");
+        let c = clients(vec![
+            client(true, false, 0, now),
+            client(true, false, 0, now - 1_000),
+        ]);
+        assert_eq!(
+            evictable(&c, now, false),
             None,
             "all live: the new one is turned away"
         );
