@@ -6,6 +6,7 @@ harmless, and the vehicle still flies afterwards.
 """
 
 import math
+import os
 import socket
 import subprocess
 import time
@@ -331,4 +332,52 @@ def test_stopping_heartbeats_on_one_link_leaves_the_others_alone(tmp_path):
         assert heard[("other", "HEARTBEAT")] == 0 and heard[("other", "ATTITUDE")] >= 10, heard
     finally:
         other.close()
+        daemon.close()
+
+
+def test_idle_tcp_connections_are_capped_and_a_ground_station_still_gets_in(tmp_path):
+    port = free_udp_port()  # a free port number, taken here for TCP
+    daemon = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0",
+                    ap_args=["--mavlink", f"tcpin://127.0.0.1:{port}"])
+    idle = []
+    gcs = None
+    try:
+        assert daemon.gcs.wait_heartbeat(timeout=30)
+        # Twenty connections that never say a word: at most eight are kept.
+        for _ in range(20):
+            s = socket.create_connection(("127.0.0.1", port))
+            s.setblocking(False)
+            idle.append(s)
+
+        def open_count():
+            return len(os.listdir(f"/proc/{daemon.ap.pid}/fd"))
+
+        # Past the new ones' grace, a ground station takes an idle one's place.
+        end = time.monotonic() + 30
+        hb = None
+        while hb is None and time.monotonic() < end:
+            gcs = mavutil.mavlink_connection(f"tcp:127.0.0.1:{port}", source_system=255)
+            gcs.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS,
+                                   mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+            hb = gcs.wait_heartbeat(timeout=2)
+            if hb is None:
+                gcs.close()
+        assert hb is not None, "the ground station was turned away"
+        closed = 0
+        for s in idle:
+            try:
+                while s.recv(1 << 16):  # telemetry sent before it was closed, if any
+                    pass
+                closed += 1
+            except BlockingIOError:
+                pass  # open, nothing more yet
+            except ConnectionResetError:
+                closed += 1
+        assert closed >= 12, f"{closed} of the 20 idle connections closed"
+        assert open_count() < 60, open_count()
+    finally:
+        for s in idle:
+            s.close()
+        if gcs is not None:
+            gcs.close()
         daemon.close()
