@@ -16,33 +16,6 @@ use libfuzzer_sys::fuzz_target;
 use mavlink::dialects::common::*;
 use mavlink::{MavHeader, MavlinkVersion, Message};
 
-/// The commands the vehicle answers.
-const COMMANDS: [MavCmd; 23] = [
-    MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
-    MavCmd::MAV_CMD_NAV_TAKEOFF,
-    MavCmd::MAV_CMD_NAV_LAND,
-    MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH,
-    MavCmd::MAV_CMD_NAV_LOITER_UNLIM,
-    MavCmd::MAV_CMD_DO_REPOSITION,
-    MavCmd::MAV_CMD_DO_CHANGE_SPEED,
-    MavCmd::MAV_CMD_CONDITION_YAW,
-    MavCmd::MAV_CMD_MISSION_START,
-    MavCmd::MAV_CMD_DO_SET_MISSION_CURRENT,
-    MavCmd::MAV_CMD_DO_PAUSE_CONTINUE,
-    MavCmd::MAV_CMD_DO_SET_MODE,
-    MavCmd::MAV_CMD_DO_SET_STANDARD_MODE,
-    MavCmd::MAV_CMD_DO_SET_HOME,
-    MavCmd::MAV_CMD_GET_HOME_POSITION,
-    MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
-    MavCmd::MAV_CMD_GET_MESSAGE_INTERVAL,
-    MavCmd::MAV_CMD_REQUEST_MESSAGE,
-    MavCmd::MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES,
-    MavCmd::MAV_CMD_PREFLIGHT_STORAGE,
-    MavCmd::MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN,
-    MavCmd::MAV_CMD_PREFLIGHT_CALIBRATION,
-    MavCmd::MAV_CMD_INJECT_FAILURE,
-];
-
 /// Mission item commands and frames the vehicle knows, and a few it does not.
 const ITEM_COMMANDS: [MavCmd; 12] = [
     MavCmd::MAV_CMD_NAV_WAYPOINT,
@@ -131,7 +104,7 @@ fn message(a: &Action) -> Vec<MavMessage> {
             y,
             frame,
         } => {
-            let command = pick(&COMMANDS, *which);
+            let command = pick(&gcs::ANSWERED_COMMANDS, *which);
             vec![if *as_int {
                 MavMessage::COMMAND_INT(COMMAND_INT_DATA {
                     param1: p[0],

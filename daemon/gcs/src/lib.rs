@@ -25,6 +25,7 @@ pub mod telemetry;
 #[cfg(any(test, feature = "testing"))]
 pub mod testing;
 
+pub use commands::ANSWERED_COMMANDS;
 use flight_core::autopilot::command::AutopilotCommand;
 use flight_core::commander::{
     CommanderStatus, Denial, FlightMode, LandedState, OffboardTarget, Sticks,

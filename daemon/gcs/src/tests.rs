@@ -317,3 +317,34 @@ pub(crate) fn statustexts(out: &Outbox) -> Vec<String> {
         })
         .collect()
 }
+
+#[test]
+fn every_answered_command_is_handled_and_others_are_unsupported() {
+    let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
+    let t = telemetry(false, FlightMode::Loiter);
+    let mut result = |command| {
+        let mut out = Outbox::default();
+        g.on_message(
+            &gcs_header(),
+            &command_long(command, [0.0; 7], (1, 1)),
+            &t,
+            &mut out,
+        );
+        // Passed to the vehicle (answered later), or answered here.
+        (
+            !out.vehicle.is_empty() || !out.actions.is_empty(),
+            acks(&out).first().map(|a| a.result),
+        )
+    };
+    for command in ANSWERED_COMMANDS {
+        let (passed_on, ack) = result(command);
+        assert!(
+            passed_on || ack.is_some_and(|r| r != MavResult::MAV_RESULT_UNSUPPORTED),
+            "{command:?}: {ack:?}"
+        );
+    }
+    assert_eq!(
+        result(MavCmd::MAV_CMD_DO_ORBIT).1,
+        Some(MavResult::MAV_RESULT_UNSUPPORTED)
+    );
+}

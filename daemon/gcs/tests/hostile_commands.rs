@@ -52,33 +52,6 @@ const HOSTILE_XY: [i32; 6] = [
     -1_800_000_001,
 ];
 
-/// Every command the vehicle answers (others are `MAV_RESULT_UNSUPPORTED`).
-const COMMANDS: [MavCmd; 23] = [
-    MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
-    MavCmd::MAV_CMD_NAV_TAKEOFF,
-    MavCmd::MAV_CMD_NAV_LAND,
-    MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH,
-    MavCmd::MAV_CMD_NAV_LOITER_UNLIM,
-    MavCmd::MAV_CMD_DO_REPOSITION,
-    MavCmd::MAV_CMD_DO_CHANGE_SPEED,
-    MavCmd::MAV_CMD_CONDITION_YAW,
-    MavCmd::MAV_CMD_MISSION_START,
-    MavCmd::MAV_CMD_DO_SET_MISSION_CURRENT,
-    MavCmd::MAV_CMD_DO_PAUSE_CONTINUE,
-    MavCmd::MAV_CMD_DO_SET_MODE,
-    MavCmd::MAV_CMD_DO_SET_STANDARD_MODE,
-    MavCmd::MAV_CMD_DO_SET_HOME,
-    MavCmd::MAV_CMD_GET_HOME_POSITION,
-    MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
-    MavCmd::MAV_CMD_GET_MESSAGE_INTERVAL,
-    MavCmd::MAV_CMD_REQUEST_MESSAGE,
-    MavCmd::MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES,
-    MavCmd::MAV_CMD_PREFLIGHT_STORAGE,
-    MavCmd::MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN,
-    MavCmd::MAV_CMD_PREFLIGHT_CALIBRATION,
-    MavCmd::MAV_CMD_INJECT_FAILURE,
-];
-
 fn gcs_header() -> MavHeader {
     MavHeader {
         system_id: 255,
@@ -347,7 +320,7 @@ fn may_accept(command: MavCmd, slot: usize, value: f32, v: &Vehicle) -> Option<b
 fn table(hover: bool) {
     let mut refused = 0;
     let mut cases = 0;
-    for command in COMMANDS {
+    for command in gcs::ANSWERED_COMMANDS {
         let mut v = Vehicle::new(hover);
         let (_, _, h) = v.home();
         let base = sane(command, &h);
@@ -389,58 +362,47 @@ fn table(hover: bool) {
                 v.assert_sane(&case);
             }
         }
+        // COMMAND_INT: hostile latitudes and longitudes (INT32_MAX in a reposition keeps the
+        // current place), and hostile heights above home in the relative frame.
+        let (x, y) = (
+            (h.lat_deg * 1e7).round() as i32,
+            (h.lon_deg * 1e7).round() as i32,
+        );
+        let mut int_cases = Vec::new();
         if matches!(
             command,
             MavCmd::MAV_CMD_DO_REPOSITION | MavCmd::MAV_CMD_DO_SET_HOME
         ) {
-            let (x, y) = (
-                (h.lat_deg * 1e7).round() as i32,
-                (h.lon_deg * 1e7).round() as i32,
-            );
             for bad in HOSTILE_XY {
+                let keep = command == MavCmd::MAV_CMD_DO_REPOSITION && bad == i32::MAX;
                 for (x, y) in [(bad, y), (x, bad)] {
-                    let case = format!("{command:?} COMMAND_INT x {x} y {y}");
-                    let result = v.send(&int(command, base, x, y, MavFrame::MAV_FRAME_GLOBAL));
-                    cases += 1;
-                    // INT32_MAX in a reposition keeps the current place.
-                    let keep = command == MavCmd::MAV_CMD_DO_REPOSITION && bad == i32::MAX;
-                    if !keep {
-                        assert!(
-                            result.is_some_and(|r| r != MavResult::MAV_RESULT_ACCEPTED),
-                            "{case}: {result:?}"
-                        );
-                        refused += 1;
-                    }
-                    v.fly(0.2);
-                    v.assert_sane(&case);
+                    int_cases.push((int(command, base, x, y, MavFrame::MAV_FRAME_GLOBAL), keep));
                 }
             }
         }
         if command == MavCmd::MAV_CMD_DO_REPOSITION {
-            // The altitude above home, as COMMAND_INT in the relative frame.
-            let (x, y) = (
-                (h.lat_deg * 1e7).round() as i32,
-                (h.lon_deg * 1e7).round() as i32,
-            );
             for z in HOSTILE {
                 let mut p = base;
                 p[6] = z;
-                let case = format!("{command:?} COMMAND_INT relative z {z}");
-                let msg = int(command, p, x, y, MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT);
-                let result = v.send(&msg);
-                cases += 1;
                 let height = z as f64;
                 let ok = z.is_nan() || (GROUND_CLEARANCE_M..=v.limits.ceiling.0).contains(&height);
-                if !ok {
-                    assert!(
-                        result.is_some_and(|r| r != MavResult::MAV_RESULT_ACCEPTED),
-                        "{case}: {result:?}"
-                    );
-                    refused += 1;
-                }
-                v.fly(0.2);
-                v.assert_sane(&case);
+                let msg = int(command, p, x, y, MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT);
+                int_cases.push((msg, ok));
             }
+        }
+        for (msg, may_accept) in int_cases {
+            let case = format!("{msg:?}");
+            let result = v.send(&msg);
+            cases += 1;
+            if !may_accept {
+                assert!(
+                    result.is_some_and(|r| r != MavResult::MAV_RESULT_ACCEPTED),
+                    "{case}: {result:?}"
+                );
+                refused += 1;
+            }
+            v.fly(0.2);
+            v.assert_sane(&case);
         }
         // Whatever was accepted, the vehicle flies on (or rests) upright.
         v.fly(3.0);

@@ -16,6 +16,34 @@ use flight_core::autopilot::command::AutopilotCommand;
 use flight_core::math::geo::LatLonAlt;
 use mavlink::dialects::common::*;
 
+/// Every command the vehicle answers, in the order of its families below; any other is
+/// answered `MAV_RESULT_UNSUPPORTED`.
+pub const ANSWERED_COMMANDS: [MavCmd; 23] = [
+    MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
+    MavCmd::MAV_CMD_NAV_TAKEOFF,
+    MavCmd::MAV_CMD_NAV_LAND,
+    MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH,
+    MavCmd::MAV_CMD_NAV_LOITER_UNLIM,
+    MavCmd::MAV_CMD_DO_REPOSITION,
+    MavCmd::MAV_CMD_DO_CHANGE_SPEED,
+    MavCmd::MAV_CMD_CONDITION_YAW,
+    MavCmd::MAV_CMD_MISSION_START,
+    MavCmd::MAV_CMD_DO_SET_MISSION_CURRENT,
+    MavCmd::MAV_CMD_DO_PAUSE_CONTINUE,
+    MavCmd::MAV_CMD_DO_SET_MODE,
+    MavCmd::MAV_CMD_DO_SET_STANDARD_MODE,
+    MavCmd::MAV_CMD_DO_SET_HOME,
+    MavCmd::MAV_CMD_GET_HOME_POSITION,
+    MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
+    MavCmd::MAV_CMD_GET_MESSAGE_INTERVAL,
+    MavCmd::MAV_CMD_REQUEST_MESSAGE,
+    MavCmd::MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES,
+    MavCmd::MAV_CMD_PREFLIGHT_STORAGE,
+    MavCmd::MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN,
+    MavCmd::MAV_CMD_PREFLIGHT_CALIBRATION,
+    MavCmd::MAV_CMD_INJECT_FAILURE,
+];
+
 /// A command to handle: what it asks, whom to answer, the latest telemetry.
 struct Call<'a> {
     c: CommandMessage,
