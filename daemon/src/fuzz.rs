@@ -110,31 +110,6 @@ impl FuzzedVehicle {
     }
 }
 
-/// Hands what the protocol produced to the vehicle, as the links and the control loop do.
-fn carry_out(gcs: &GroundStation, out: &mut Outbox, vehicle: &mut FuzzedVehicle) {
-    for (cmd, _) in out.vehicle.drain(..) {
-        let _ = vehicle.command(cmd);
-    }
-    if let Some(s) = out.sticks.take() {
-        let _ = vehicle.command(AutopilotCommand::Sticks(s));
-    }
-    if let Some(t) = out.offboard.take() {
-        let _ = vehicle.command(AutopilotCommand::Offboard(t));
-    }
-    if let Some(m) = out.mission.take() {
-        let _ = vehicle.command(AutopilotCommand::SetMission(m));
-    }
-    if let Some(z) = out.fence.take() {
-        let _ = vehicle.command(AutopilotCommand::SetFence(z));
-    }
-    for a in out.actions.drain(..) {
-        if matches!(a, gcs::HostAction::ParamsChanged) {
-            vehicle.autopilot.set_params(gcs.parameters().values());
-        }
-    }
-    out.messages.clear();
-}
-
 proptest! {
     #![proptest_config(cases(400))]
 
@@ -171,7 +146,7 @@ proptest! {
                 ),
             }
             gcs.poll(3.0 + i as f64 * 0.05, &t, &mut out);
-            carry_out(&gcs, &mut out, &mut vehicle);
+            gcs::testing::carry_out(&mut gcs, &mut vehicle.autopilot, &mut out);
         }
         let values = gcs.parameters().values();
         for (group, meta) in FlightParams::metadata() {
@@ -217,7 +192,7 @@ proptest! {
                     check_motors(&step, &m)?;
                 }
             }
-            carry_out(&gcs, &mut out, &mut vehicle);
+            gcs::testing::carry_out(&mut gcs, &mut vehicle.autopilot, &mut out);
         }
     }
 }

@@ -12,6 +12,7 @@
 use arbitrary::Arbitrary;
 use autopilot_fuzz::Vehicle;
 use flight_core::params::FlightParams;
+use gcs::testing::{command_int, command_long};
 use libfuzzer_sys::fuzz_target;
 use mavlink::dialects::common::*;
 use mavlink::{MavHeader, MavlinkVersion, Message};
@@ -106,35 +107,10 @@ fn message(a: &Action) -> Vec<MavMessage> {
         } => {
             let command = pick(&gcs::ANSWERED_COMMANDS, *which);
             vec![if *as_int {
-                MavMessage::COMMAND_INT(COMMAND_INT_DATA {
-                    param1: p[0],
-                    param2: p[1],
-                    param3: p[2],
-                    param4: p[3],
-                    x: *x,
-                    y: *y,
-                    z: p[6],
-                    command,
-                    target_system: 1,
-                    target_component: 1,
-                    frame: pick(&FRAMES, *frame),
-                    current: 0,
-                    autocontinue: 0,
-                })
+                let p = [p[0], p[1], p[2], p[3], 0.0, 0.0, p[6]];
+                command_int(command, p, *x, *y, pick(&FRAMES, *frame))
             } else {
-                MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-                    param1: p[0],
-                    param2: p[1],
-                    param3: p[2],
-                    param4: p[3],
-                    param5: p[4],
-                    param6: p[5],
-                    param7: p[6],
-                    command,
-                    target_system: 1,
-                    target_component: 1,
-                    confirmation: 0,
-                })
+                command_long(command, *p, (1, 1))
             }]
         }
         Action::ParamSet { which, value, int } => {

@@ -3,11 +3,10 @@
 
 use airframe::Airframe;
 use flight_core::autopilot::Autopilot;
-use flight_core::autopilot::command::AutopilotCommand;
 use flight_core::commander::FlightMode;
 use flight_core::params::FlightParams;
 use gcs::telemetry::Telemetry;
-use gcs::{GroundStation, HostAction, Outbox};
+use gcs::{GroundStation, Outbox};
 use mavlink::dialects::common::MavType;
 
 /// The default quad, compiled in (no file is read while fuzzing), parsed once.
@@ -47,29 +46,7 @@ impl Vehicle {
 
     /// Carries out what the protocol passed on, as the links and the control loop do.
     pub fn carry_out(&mut self, out: &mut Outbox) {
-        for (c, to) in std::mem::take(&mut out.vehicle) {
-            let r = self.autopilot.command(c);
-            self.gcs.answered(to, r, out);
-        }
-        if let Some(s) = out.sticks.take() {
-            let _ = self.autopilot.command(AutopilotCommand::Sticks(s));
-        }
-        if let Some(t) = out.offboard.take() {
-            let _ = self.autopilot.command(AutopilotCommand::Offboard(t));
-        }
-        if let Some(m) = out.mission.take() {
-            let _ = self.autopilot.command(AutopilotCommand::SetMission(m));
-        }
-        if let Some(z) = out.fence.take() {
-            let _ = self.autopilot.command(AutopilotCommand::SetFence(z));
-        }
-        for a in out.actions.drain(..) {
-            if a == HostAction::ParamsChanged {
-                self.autopilot.set_params(self.gcs.parameters().values());
-            }
-        }
-        out.messages.clear();
-        out.streamed.clear();
+        gcs::testing::carry_out(&mut self.gcs, &mut self.autopilot, out);
     }
 
     /// Every parameter finite, in its range, consistent: whatever was sent.

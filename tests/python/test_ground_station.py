@@ -188,6 +188,18 @@ def test_raw_command_long_takeoff_and_land(vehicle):
     take_off_and_land(gcs, home.alt / 1000 + 4.0, (3.6, 4.4))
 
 
+def arm_and_take_off(gcs):
+    """Arms once ready and takes off to MIS_TAKEOFF_ALT (NAV_TAKEOFF without an altitude), both
+    accepted; returns once the vehicle holds there, armed, in Hold."""
+    ready_to_arm(gcs)
+    gcs.arducopter_arm()
+    assert ack(gcs, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM) == 0
+    gcs.mav.command_long_send(1, 1, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF, 0,
+                              0, 0, 0, math.nan, math.nan, math.nan, math.nan)
+    assert ack(gcs, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF) == 0
+    wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER" and armed(m), timeout=30)
+
+
 def take_off_and_land(gcs, amsl, height_range):
     """NAV_TAKEOFF to `amsl` (NaN: MIS_TAKEOFF_ALT) of an armed vehicle, Hold reached at a
     height within `height_range` (m), then NAV_LAND and the disarm that ends it."""
@@ -289,13 +301,7 @@ def test_parameters_fetch_set_persist_across_restart_and_reboot(daemon):
     assert from_bits(param(gcs, "ATT_ALIGN_N").param_value) == 300
 
     # And flown: a take-off without an altitude climbs to MIS_TAKEOFF_ALT.
-    ready_to_arm(gcs)
-    gcs.arducopter_arm()
-    assert ack(gcs, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM) == 0
-    gcs.mav.command_long_send(1, 1, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF, 0,
-                              0, 0, 0, math.nan, math.nan, math.nan, math.nan)
-    assert ack(gcs, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF) == 0
-    wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER" and armed(m), timeout=30)
+    arm_and_take_off(gcs)
     p = wait(gcs, "GLOBAL_POSITION_INT", lambda m: True)
     assert 3.6 < p.relative_alt / 1000 < 4.4, p
     # Reboot is refused in the air.

@@ -15,7 +15,8 @@ from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mavlink2
 
 from conftest import ROOT, Daemon, binary, free_udp_port
-from test_ground_station import ack, armed, ready_to_arm, set_param, start_afresh, wait
+from test_ground_station import (ack, arm_and_take_off, armed, ready_to_arm, set_param,
+                                 start_afresh, wait)
 from test_signing import KEY, now_10us, packer, param_set_frame, signed_gcs, takeoff_alt_after
 
 DENIED = mavutil.mavlink.MAV_RESULT_DENIED
@@ -70,12 +71,7 @@ def test_impossible_places_and_heights_are_refused_and_the_vehicle_still_flies(t
             result = upload_result(gcs, [(wp, RELATIVE, lat, lon, 10.0), (wp, frame, lat, lon, z)])
             assert result == cmd.MAV_MISSION_INVALID_PARAM7, (z, result)
         # In the air: a reposition 50 m below home, and one 1e30 m up.
-        gcs.arducopter_arm()
-        assert ack(gcs, cmd.MAV_CMD_COMPONENT_ARM_DISARM) == 0
-        gcs.mav.command_long_send(1, 1, cmd.MAV_CMD_NAV_TAKEOFF, 0,
-                                  0, 0, 0, math.nan, math.nan, math.nan, math.nan)
-        assert ack(gcs, cmd.MAV_CMD_NAV_TAKEOFF) == 0
-        wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER" and armed(m), timeout=30)
+        arm_and_take_off(gcs)
         for z in [-50.0, 1e30]:
             gcs.mav.command_int_send(1, 1, cmd.MAV_FRAME_GLOBAL_RELATIVE_ALT,
                                      cmd.MAV_CMD_DO_REPOSITION, 0, 0, -1, 1, 0, math.nan,
@@ -269,13 +265,7 @@ def test_a_second_sender_on_the_simulator_port_does_not_take_over_the_vehicle(tm
     try:
         gcs = daemon.gcs
         assert gcs.wait_heartbeat(timeout=30)
-        ready_to_arm(gcs)
-        gcs.arducopter_arm()
-        assert ack(gcs, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM) == 0
-        gcs.mav.command_long_send(1, 1, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF, 0,
-                                  0, 0, 0, math.nan, math.nan, math.nan, math.nan)
-        assert ack(gcs, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF) == 0
-        wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER" and armed(m), timeout=30)
+        arm_and_take_off(gcs)
         # A stream of HIL_SENSOR frames saying the vehicle falls upside down.
         mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=51)
         usec = 10**12

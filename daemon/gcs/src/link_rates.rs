@@ -34,23 +34,26 @@ impl Default for LinkRates {
 impl LinkRates {
     /// A link with the default streams (nothing if it exists).
     pub(crate) fn add(&mut self, link: LinkId) {
-        if self.links.iter().any(|l| l.0 == link) {
-            return;
-        }
-        let streams = DEFAULT_STREAMS
-            .iter()
-            .map(|&(id, hz)| Stream {
-                id,
-                interval_s: 1.0 / hz,
-                next_s: 0.0,
-            })
-            .collect();
-        self.links.push((link, streams));
+        self.streams(link);
     }
 
+    /// The streams of `link`, which starts with the default ones if it is new.
     fn streams(&mut self, link: LinkId) -> &mut Vec<Stream> {
-        self.add(link);
-        let k = self.links.iter().position(|l| l.0 == link).unwrap_or(0);
+        let k = match self.links.iter().position(|l| l.0 == link) {
+            Some(k) => k,
+            None => {
+                let streams = DEFAULT_STREAMS
+                    .iter()
+                    .map(|&(id, hz)| Stream {
+                        id,
+                        interval_s: 1.0 / hz,
+                        next_s: 0.0,
+                    })
+                    .collect();
+                self.links.push((link, streams));
+                self.links.len() - 1
+            }
+        };
         &mut self.links[k].1
     }
 

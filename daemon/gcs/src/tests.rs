@@ -19,21 +19,7 @@ pub(crate) fn gcs_header() -> MavHeader {
     }
 }
 
-pub(crate) fn command_long(command: MavCmd, p: [f32; 7], target: (u8, u8)) -> MavMessage {
-    MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-        param1: p[0],
-        param2: p[1],
-        param3: p[2],
-        param4: p[3],
-        param5: p[4],
-        param6: p[5],
-        param7: p[6],
-        command,
-        target_system: target.0,
-        target_component: target.1,
-        confirmation: 0,
-    })
-}
+pub(crate) use crate::testing::command_long;
 
 pub(crate) fn acks(out: &Outbox) -> Vec<&COMMAND_ACK_DATA> {
     out.messages

@@ -21,6 +21,7 @@ use flight_core::safety::targets::{
     GROUND_CLEARANCE_M, HOME_SHIFT_MAX_M, PLAUSIBLE_RANGE_M, TargetLimits,
 };
 use gcs::telemetry::Telemetry;
+use gcs::testing::{command_int, command_long};
 use gcs::{GroundStation, Outbox, Outgoing};
 use mavlink::MavHeader;
 use mavlink::dialects::common::*;
@@ -235,42 +236,6 @@ impl Vehicle {
     }
 }
 
-/// A `COMMAND_LONG` to the vehicle.
-fn long(command: MavCmd, p: [f32; 7]) -> MavMessage {
-    MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-        param1: p[0],
-        param2: p[1],
-        param3: p[2],
-        param4: p[3],
-        param5: p[4],
-        param6: p[5],
-        param7: p[6],
-        command,
-        target_system: 1,
-        target_component: 1,
-        confirmation: 0,
-    })
-}
-
-/// A `COMMAND_INT` to the vehicle in `frame`.
-fn int(command: MavCmd, p: [f32; 7], x: i32, y: i32, frame: MavFrame) -> MavMessage {
-    MavMessage::COMMAND_INT(COMMAND_INT_DATA {
-        param1: p[0],
-        param2: p[1],
-        param3: p[2],
-        param4: p[3],
-        x,
-        y,
-        z: p[6],
-        command,
-        target_system: 1,
-        target_component: 1,
-        frame,
-        current: 0,
-        autocontinue: 0,
-    })
-}
-
 /// A command's sane parameters for a vehicle with home at `h` (AMSL altitudes): each case
 /// makes one of them hostile.
 fn sane(command: MavCmd, h: &LatLonAlt) -> [f32; 7] {
@@ -334,7 +299,7 @@ fn table(hover: bool) {
             _ => false,
         };
         if applies {
-            let sane_result = v.send(&long(command, base));
+            let sane_result = v.send(&command_long(command, base, (1, 1)));
             assert_eq!(
                 sane_result,
                 Some(MavResult::MAV_RESULT_ACCEPTED),
@@ -351,7 +316,7 @@ fn table(hover: bool) {
                     slot + 1,
                     if hover { "hovering" } else { "on the ground" }
                 );
-                let result = v.send(&long(command, p));
+                let result = v.send(&command_long(command, p, (1, 1)));
                 cases += 1;
                 let accepted = result.is_none_or(|r| r == MavResult::MAV_RESULT_ACCEPTED);
                 refused += usize::from(!accepted);
@@ -376,7 +341,10 @@ fn table(hover: bool) {
             for bad in HOSTILE_XY {
                 let keep = command == MavCmd::MAV_CMD_DO_REPOSITION && bad == i32::MAX;
                 for (x, y) in [(bad, y), (x, bad)] {
-                    int_cases.push((int(command, base, x, y, MavFrame::MAV_FRAME_GLOBAL), keep));
+                    int_cases.push((
+                        command_int(command, base, x, y, MavFrame::MAV_FRAME_GLOBAL),
+                        keep,
+                    ));
                 }
             }
         }
@@ -386,7 +354,7 @@ fn table(hover: bool) {
                 p[6] = z;
                 let height = z as f64;
                 let ok = z.is_nan() || (GROUND_CLEARANCE_M..=v.limits.ceiling.0).contains(&height);
-                let msg = int(command, p, x, y, MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT);
+                let msg = command_int(command, p, x, y, MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT);
                 int_cases.push((msg, ok));
             }
         }
