@@ -27,7 +27,7 @@ pub struct Cli {
 pub struct FlightArgs {
     /// Settings file (TOML): every key mirrors a flag below (source, instance, count, airframe,
     /// params, params_dir, takeoff_m, hover_s, speed, seed, sensors, truth_csv, flight_csv,
-    /// log_dir, tlog, loop_hz, loop_spin_us, loop_cpu, loop_stats_s,
+    /// log_dir, tlog, ulog, loop_hz, loop_spin_us, loop_cpu, loop_stats_s,
     /// mavlink, param_store); flags given here win. Paths in it are relative to its directory.
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
@@ -93,14 +93,19 @@ pub struct FlightArgs {
     #[arg(long, value_name = "FILE")]
     pub flight_csv: Option<PathBuf>,
     /// Where every run leaves its logs, named by its start time (UTC): a MAVLink telemetry log
-    /// (`.tlog`: mavlogdump.py, MAVExplorer, QGroundControl) and the flight-data CSV; `none`
-    /// for no logs but those asked for by --tlog or --flight-csv [default: ./logs].
+    /// (`.tlog`: mavlogdump.py, MAVExplorer, QGroundControl), the flight log (`.ulg`, PX4's
+    /// ULog: Flight Review, PlotJuggler, pyulog) and the flight-data CSV; `none` for no logs
+    /// but those asked for by --tlog, --ulog or --flight-csv [default: ./logs].
     #[arg(long, value_name = "DIR|none")]
     pub log_dir: Option<PathBuf>,
     /// Write the MAVLink telemetry log (every frame sent and every message heard, each after
     /// its 8-byte big-endian Unix time in µs) to this file [default: LOG_DIR/<start time>.tlog].
     #[arg(long, value_name = "FILE")]
     pub tlog: Option<PathBuf>,
+    /// Write the flight log in PX4's ULog format to this file [default: LOG_DIR/<start
+    /// time>.ulg].
+    #[arg(long, value_name = "FILE")]
+    pub ulog: Option<PathBuf>,
     /// With a source that does not wait for answers (a flight board, or `?lockstep=false`):
     /// the control loop's rate, 50 to 2000 Hz. It wakes at absolute deadlines, steps on every
     /// sensor frame that arrived, and logs its jitter and overruns [default: 1000].

@@ -77,6 +77,8 @@ pub struct Settings {
     pub log_dir: Option<PathBuf>,
     /// MAVLink telemetry log (none: `LOG_DIR/<start time>.tlog`).
     pub tlog: Option<PathBuf>,
+    /// ULog flight log (none: `LOG_DIR/<start time>.ulg`).
+    pub ulog: Option<PathBuf>,
     /// Rate of the deadline-paced loop (Hz).
     pub loop_hz: f64,
     /// Spin before each deadline (µs).
@@ -112,6 +114,7 @@ impl Default for Settings {
             flight_csv: None,
             log_dir: None,
             tlog: None,
+            ulog: None,
             loop_hz: 1000.0,
             loop_spin_us: 150.0,
             loop_cpu: None,
@@ -240,6 +243,7 @@ impl Settings {
         rebase(&mut self.truth_csv);
         rebase(&mut self.flight_csv);
         rebase(&mut self.tlog);
+        rebase(&mut self.ulog);
         if self.log_dir.as_deref() != Some(Path::new("none")) {
             rebase(&mut self.log_dir);
         }
@@ -303,6 +307,7 @@ impl Settings {
         given(&f.flight_csv, &mut self.flight_csv);
         given(&f.log_dir, &mut self.log_dir);
         given(&f.tlog, &mut self.tlog);
+        given(&f.ulog, &mut self.ulog);
         given(&f.param_store, &mut self.param_store);
         given(&f.signing_key_file, &mut self.signing_key_file);
         self.instance = f.instance.unwrap_or(self.instance);

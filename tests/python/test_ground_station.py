@@ -57,6 +57,18 @@ def ready_to_arm(gcs):
     wait(gcs, "SYS_STATUS", lambda m: m.onboard_control_sensors_health & PREARM_CHECK)
 
 
+def wait_holding_in_air(gcs, timeout=30, min_height_m=1.0):
+    """Hold (LOITER), armed, at least `min_height_m` above home: a take-off has ended. Hold
+    armed on the ground does not count (arming enters it; a heartbeat sent before the take-off
+    command was acted on may still be queued)."""
+    end = time.monotonic() + timeout
+    while True:
+        wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER" and armed(m),
+             end - time.monotonic())
+        if wait(gcs, "GLOBAL_POSITION_INT", lambda m: True, 5).relative_alt > min_height_m * 1e3:
+            return
+
+
 def test_identity_gps_and_requests(vehicle):
     gcs = vehicle
     hb = wait(gcs, "HEARTBEAT", lambda m: True)
@@ -197,7 +209,7 @@ def arm_and_take_off(gcs):
     gcs.mav.command_long_send(1, 1, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF, 0,
                               0, 0, 0, math.nan, math.nan, math.nan, math.nan)
     assert ack(gcs, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF) == 0
-    wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER" and armed(m), timeout=30)
+    wait_holding_in_air(gcs)
 
 
 def take_off_and_land(gcs, amsl, height_range):
@@ -206,7 +218,7 @@ def take_off_and_land(gcs, amsl, height_range):
     gcs.mav.command_long_send(1, 1, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF, 0,
                               0, 0, 0, math.nan, math.nan, math.nan, amsl)
     assert ack(gcs, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF) == 0
-    wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER" and armed(m), timeout=30)
+    wait_holding_in_air(gcs)
     p = wait(gcs, "GLOBAL_POSITION_INT", lambda m: True)
     assert height_range[0] < p.relative_alt / 1000 < height_range[1], p
     gcs.mav.command_long_send(1, 1, mavutil.mavlink.MAV_CMD_NAV_LAND, 0, 0, 0, 0, 0, 0, 0, 0)

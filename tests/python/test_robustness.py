@@ -15,10 +15,11 @@ import time
 from pathlib import Path
 
 from pymavlink import mavutil
+from pyulog import ULog
 
 from conftest import ROOT, Daemon, PtyLink, binary, free_udp_port, greet
 from test_ground_station import (INT32, REAL32, ack, armed, int_bits, ready_to_arm, set_param,
-                                 start_afresh, take_off_and_land, wait)
+                                 start_afresh, take_off_and_land, wait, wait_holding_in_air)
 from test_safety import Heartbeats, reposition_north
 
 
@@ -42,7 +43,7 @@ def test_logs_are_flushed_on_sigterm_and_a_killed_daemon_loses_under_a_second(tm
     """SIGTERM on the ground: the daemon stops at once, cleanly (exit 0, its summary), its
     flight CSV whole. SIGKILL in the air: the CSV on disk reaches to within a second of the
     vehicle's last telemetry (the simulator runs 3x real time, so a wall-clock flush policy
-    would lose three times more)."""
+    would lose three times more), the ULog flight log to within half a second."""
     first, second = tmp_path / "flight1.csv", tmp_path / "flight2.csv"
     daemon = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0",
                     ap_args=["--flight-csv", str(first)])
@@ -67,7 +68,7 @@ def test_logs_are_flushed_on_sigterm_and_a_killed_daemon_loses_under_a_second(tm
         assert ack(gcs, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM) == 0
         gcs.mav.command_long_send(1, 1, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF, 0,
                                   0, 0, 0, float("nan"), float("nan"), float("nan"), float("nan"))
-        wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER" and armed(m), timeout=30)
+        wait_holding_in_air(gcs)
         seen_s = vehicle_time_s(gcs)
         killed_at = time.time()
         daemon.ap.kill()
@@ -85,6 +86,12 @@ def test_logs_are_flushed_on_sigterm_and_a_killed_daemon_loses_under_a_second(tm
             assert m.get_type() != "BAD_DATA", m
             stamps.append(m._timestamp)
         assert stamps and stamps[-1] >= killed_at - 1.0, (stamps[-1:], killed_at)
+        # The flight log (handed over every half second of the vehicle's time) reads in pyulog,
+        # whole, to within half a second of the vehicle's last telemetry.
+        ulg = max(daemon.logs.glob("*.ulg"), key=lambda p: p.stat().st_mtime)
+        flight_log = ULog(str(ulg))
+        assert not flight_log.file_corruption
+        assert flight_log.last_timestamp / 1e6 >= seen_s - 0.5, (flight_log.last_timestamp, seen_s)
     finally:
         daemon.close()
 
@@ -211,7 +218,7 @@ def test_a_flood_at_the_ground_station_port_neither_starves_the_loop_nor_the_gro
         assert command(gcs, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1, 0, 0, 0, 0, 0, 0) == 0
         assert command(gcs, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan,
                        math.nan, math.nan) == 0
-        wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER" and armed(m), timeout=30)
+        wait_holding_in_air(gcs)
 
         # Two reports of the loop's timing unloaded, then two flooded (each over REPORT_S).
         quiet = timing.next_reports(gcs, 3)[1:]  # the first began before the hover
@@ -280,7 +287,7 @@ def source_lost_in_the_air_and_back(gcs, home, stop, start):
     assert ack(gcs, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM) == 0
     gcs.mav.command_long_send(1, 1, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF, 0,
                               0, 0, 0, math.nan, math.nan, math.nan, math.nan)
-    wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER" and armed(m), timeout=30)
+    wait_holding_in_air(gcs)
     stop()
     wait(gcs, "STATUSTEXT", lambda m: m.text == "sensor frames stopped: DESCEND", 5)
     start()
@@ -475,7 +482,7 @@ def test_a_ground_station_that_goes_away_is_met_by_a_failsafe_and_one_that_comes
         assert ack(first, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM) == 0
         first.mav.command_long_send(1, 1, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF, 0,
                                     0, 0, 0, math.nan, math.nan, math.nan, math.nan)
-        wait(observer, "HEARTBEAT", lambda m: observer.flightmode == "LOITER" and armed(m), 30)
+        wait_holding_in_air(observer)
         start = wait(observer, "LOCAL_POSITION_NED", lambda m: True)
         reposition_north(first, home, 8)
         wait(observer, "LOCAL_POSITION_NED", lambda m: m.x - start.x > 7.0 and abs(m.vx) < 0.3, 30)

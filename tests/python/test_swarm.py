@@ -11,7 +11,7 @@ import time
 
 import pytest
 from conftest import ROOT, binary, greet, mavutil
-from test_ground_station import ack, armed, ready_to_arm, wait
+from test_ground_station import ack, armed, ready_to_arm, wait, wait_holding_in_air
 
 COUNT = 10
 
@@ -120,7 +120,7 @@ def test_ten_vehicles_in_one_process_fly_on_one_clock(tmp_path):
                                     math.nan, math.nan, math.nan, home.alt / 1000 + heights[k])
             assert ack(c, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF) == 0, k
         for k, c in enumerate(conns):
-            wait(c, "HEARTBEAT", lambda m: c.flightmode == "LOITER" and armed(m), timeout=60)
+            wait_holding_in_air(c, timeout=60)
             p = wait(c, "GLOBAL_POSITION_INT",
                      lambda m: abs(m.relative_alt / 1000 - heights[k]) < 0.3, timeout=20)
             # Every other vehicle flies on meanwhile: all are in the air at once.

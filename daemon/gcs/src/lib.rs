@@ -130,6 +130,8 @@ pub struct Outbox {
     pub fence: Option<Vec<flight_core::safety::geofence::GeoZone>>,
     /// A ground station's heartbeat arrived (the link-loss failsafe's clock restarts).
     pub gcs_heartbeat: bool,
+    /// Every text told the operator, whole (for the host's flight log; drain it).
+    pub said: Vec<(MavSeverity, String)>,
     /// The `id` of the last text sent in chunks.
     statustext_id: u16,
 }
@@ -145,6 +147,7 @@ impl Outbox {
     /// asks; QGroundControl shows them reassembled, a ground station that does not reassemble
     /// shows the pieces in order. Longer than 255 chunks is cut.
     pub fn say(&mut self, severity: MavSeverity, text: &str) {
+        self.said.push((severity, text.to_owned()));
         let bytes = text.as_bytes();
         let id = if bytes.len() <= STATUSTEXT_BYTES {
             0

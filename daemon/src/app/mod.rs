@@ -228,9 +228,13 @@ fn fly_together(cfg: Settings, source: Source) -> Result<()> {
             "--count flies vehicles in the embedded simulator (--sim); with simulator processes or flight boards run one autopilot per vehicle, each with its own --instance"
         );
     }
-    if cfg.truth_csv.is_some() || cfg.flight_csv.is_some() || cfg.tlog.is_some() {
+    if cfg.truth_csv.is_some()
+        || cfg.flight_csv.is_some()
+        || cfg.tlog.is_some()
+        || cfg.ulog.is_some()
+    {
         bail!(
-            "--truth-csv, --flight-csv and --tlog name one vehicle's file; with --count every vehicle logs to --log-dir"
+            "--truth-csv, --flight-csv, --tlog and --ulog name one vehicle's file; with --count every vehicle logs to --log-dir"
         );
     }
     if let Some(p) = cfg.named_param_store() {

@@ -5,6 +5,7 @@ use crate::control_loop::Ports;
 use crate::gcs_links;
 use crate::links::Source;
 use crate::records::flight_csv::FlightCsv;
+use crate::records::flight_ulog::{FlightUlog, UlogStart};
 use crate::records::{self, FlightRecords};
 use crate::records::{param_file, signing_file};
 use crate::settings::Settings;
@@ -73,7 +74,13 @@ pub(super) fn prepare(
     });
     let autopilot = Autopilot::new(airframe, &params, auto).context("building the mixer")?;
     let mut records = FlightRecords::new(params.commander.takeoff_alt_m);
-    let (flight_csv, tlog) = log_paths(cfg, instance, &mut notices);
+    let system_id = (instance + 1) as u8;
+    let mav_type = gcs::GroundStation::mav_type(airframe.rotors.len());
+    let LogPaths {
+        flight_csv,
+        tlog,
+        ulog,
+    } = log_paths(cfg, instance, &mut notices);
     if let Some(path) = &flight_csv {
         records.log_to(
             FlightCsv::create(path, airframe.rotors.len(), source.lockstep())
@@ -87,14 +94,31 @@ pub(super) fn prepare(
         ),
         None => None,
     };
-    if flight_csv.is_some() || tlog.is_some() {
+    let mut ulog_events = None;
+    if let Some(path) = &ulog {
+        let start = UlogStart {
+            params: params.clone(),
+            system_id,
+            mav_type: mav_type as u8,
+            airframe: airframe.name.clone(),
+            unix_start_us: std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0, |d| d.as_micros() as u64),
+            lockstep: source.lockstep(),
+        };
+        let log = FlightUlog::create(path, start)
+            .with_context(|| format!("creating {}", path.display()))?;
+        ulog_events = log.events();
+        records.log_ulog_to(log);
+    }
+    if flight_csv.is_some() || tlog.is_some() || ulog.is_some() {
         tracing::info!(
             tlog = ?tlog.as_ref().map(|t| t.path()),
+            ulog = ?ulog,
             flight_csv = ?flight_csv,
             "logging"
         );
     }
-    let system_id = (instance + 1) as u8;
     let endpoints = cfg
         .mavlink
         .iter()
@@ -128,7 +152,7 @@ pub(super) fn prepare(
         endpoints,
         gcs: gcs_links::Vehicle {
             system_id,
-            mav_type: gcs::GroundStation::mav_type(airframe.rotors.len()),
+            mav_type,
             telemetry,
             commands,
             parameters: gcs::params::Parameters::new(params, store),
@@ -139,6 +163,7 @@ pub(super) fn prepare(
             signing_key_file: cfg.signing_key_file.clone(),
             signing_memory,
             tlog,
+            ulog: ulog_events,
             reboot_allowed: cfg.count == 1,
         },
     })
@@ -149,16 +174,19 @@ pub(super) fn sensor_preset(cfg: &Settings) -> Result<SensorPreset> {
     crate::settings::sensor_preset(&cfg.sensors)
 }
 
-/// The run's flight-data CSV and telemetry log: those named, else `LOG_DIR/<start time>.csv` and
-/// .tlog. A log directory that cannot be made costs the default logs, not the flight: it is
-/// said in the log and to the first ground station.
-fn log_paths(
-    cfg: &Settings,
-    instance: u16,
-    notices: &mut Vec<String>,
-) -> (Option<PathBuf>, Option<PathBuf>) {
-    let both_named = cfg.flight_csv.is_some() && cfg.tlog.is_some();
-    let stem = cfg.log_dir().filter(|_| !both_named).and_then(|dir| {
+/// A run's log files.
+struct LogPaths {
+    flight_csv: Option<PathBuf>,
+    tlog: Option<PathBuf>,
+    ulog: Option<PathBuf>,
+}
+
+/// The run's flight-data CSV, telemetry log and flight log: those named, else
+/// `LOG_DIR/<start time>.csv`, `.tlog` and `.ulg`. A log directory that cannot be made costs
+/// the default logs, not the flight: it is said in the log and to the first ground station.
+fn log_paths(cfg: &Settings, instance: u16, notices: &mut Vec<String>) -> LogPaths {
+    let all_named = cfg.flight_csv.is_some() && cfg.tlog.is_some() && cfg.ulog.is_some();
+    let stem = cfg.log_dir().filter(|_| !all_named).and_then(|dir| {
         let now = std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
             .map_or(0, |d| d.as_secs());
@@ -172,8 +200,9 @@ fn log_paths(
         }
     });
     let default = |ext| stem.as_ref().map(|s| s.with_extension(ext));
-    (
-        cfg.flight_csv.clone().or_else(|| default("csv")),
-        cfg.tlog.clone().or_else(|| default("tlog")),
-    )
+    LogPaths {
+        flight_csv: cfg.flight_csv.clone().or_else(|| default("csv")),
+        tlog: cfg.tlog.clone().or_else(|| default("tlog")),
+        ulog: cfg.ulog.clone().or_else(|| default("ulg")),
+    }
 }

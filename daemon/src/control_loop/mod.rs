@@ -380,7 +380,8 @@ impl<'a> ControlLoop<'a> {
                 continue;
             };
             let status = self.autopilot.status();
-            self.records.observe(&step, &status, frame.truth);
+            self.records
+                .observe(&step, &status, frame.truth, self.autopilot);
             self.last_frame = Instant::now();
             self.silence_logged = false;
             self.last_frame_clock = self.link.silence_clock_s();

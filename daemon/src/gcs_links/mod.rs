@@ -27,6 +27,7 @@ mod transport;
 pub use endpoint::EndpointSpec;
 
 use crate::control_loop::LoopCommand;
+use crate::records::flight_ulog::UlogEvents;
 use crate::records::log_files::Tlog;
 use crate::records::param_file;
 use anyhow::Result;
@@ -90,6 +91,8 @@ pub struct Vehicle {
     pub signing_memory: SigningMemory,
     /// The MAVLink telemetry log, if one is kept.
     pub tlog: Option<Tlog>,
+    /// The flight log's way in for what is said and parameter changes, if one is kept.
+    pub ulog: Option<UlogEvents>,
     /// Whether a reboot is allowed: it restarts the process, so not for one of several
     /// vehicles in it.
     pub reboot_allowed: bool,
@@ -147,6 +150,7 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Result<Optio
         signing_key_file,
         signing_memory,
         mut tlog,
+        ulog,
         reboot_allowed,
     } = vehicle;
     tracing::info!(
@@ -332,7 +336,10 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Result<Optio
         for action in std::mem::take(&mut out.actions) {
             match action {
                 HostAction::ParamsChanged => {
-                    params.send_replace(gcs.parameters().values().clone());
+                    let before = params.send_replace(gcs.parameters().values().clone());
+                    if let Some(log) = &ulog {
+                        log_param_changes(log, &before, gcs.parameters().values());
+                    }
                 }
                 HostAction::SaveParams => {
                     save_tx.send_replace(Some(gcs.parameters().store().clone()));
@@ -349,13 +356,22 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Result<Optio
                         }),
                     };
                     gcs.params_reloaded(to, loaded, &mut out);
-                    params.send_replace(gcs.parameters().values().clone());
+                    let before = params.send_replace(gcs.parameters().values().clone());
+                    if let Some(log) = &ulog {
+                        log_param_changes(log, &before, gcs.parameters().values());
+                    }
                 }
                 HostAction::Reboot | HostAction::Shutdown => {
                     exit = Some(action);
                     // Disarmed (checked before): the loop may stop at once.
                     let _ = commands.try_send(LoopCommand::Stop);
                 }
+            }
+        }
+        for (severity, text) in out.said.drain(..) {
+            if let Some(log) = &ulog {
+                let t_us = (telemetry.borrow().t_s * 1e6) as u64;
+                log.said(severity as u8, t_us, &text);
             }
         }
         if !out.messages.is_empty() || !out.streamed.is_empty() {
@@ -419,6 +435,16 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Result<Optio
     drop(save_tx);
     let _ = saving.await;
     Ok(exit)
+}
+
+/// Logs in the flight log each parameter whose value differs between `before` and `after`.
+fn log_param_changes(log: &UlogEvents, before: &FlightParams, after: &FlightParams) {
+    for (group, m) in FlightParams::metadata() {
+        let value = after.get(group, m.key);
+        if before.get(group, m.key) != value {
+            log.param_changed(m.name, m.kind, value.unwrap_or(m.default));
+        }
+    }
 }
 
 /// Records in the telemetry log what a link heard, each message framed again as its sender

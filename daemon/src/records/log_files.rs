@@ -22,7 +22,8 @@ const QUEUE: usize = 64;
 /// the thread formats, so that formatting costs the producer nothing either).
 pub struct LogFile<T: Send + 'static = Vec<u8>> {
     path: PathBuf,
-    chunks: Option<SyncSender<T>>,
+    /// Chunks to write; `None` ends the file (other producers may still hold a sender).
+    chunks: Option<SyncSender<Option<T>>>,
     writer: Option<JoinHandle<std::io::Result<()>>>,
     /// Chunks dropped because the writer was behind.
     dropped: u64,
@@ -48,12 +49,13 @@ impl<T: Send + 'static> LogFile<T> {
     ) -> std::io::Result<Self> {
         let mut file = std::fs::File::create(path)?;
         file.write_all(header)?;
-        let (tx, rx) = sync_channel::<T>(QUEUE);
+        let (tx, rx) = sync_channel::<Option<T>>(QUEUE);
         let writer = std::thread::Builder::new()
             .name("log-writer".into())
             .spawn(move || -> std::io::Result<()> {
                 let mut out = std::io::BufWriter::with_capacity(256 * 1024, file);
-                for chunk in rx {
+                // Until the owner's end: another producer's sender may outlive it.
+                for chunk in rx.iter().map_while(|c| c) {
                     encode(chunk, &mut out)?;
                     // To the kernel with every chunk: nothing is held here that a kill would lose.
                     out.flush()?;
@@ -90,10 +92,10 @@ impl<T: Send + 'static> LogFile<T> {
         };
         if self.lossless {
             return tx
-                .send(chunk)
+                .send(Some(chunk))
                 .map_err(|_| std::io::Error::other("the log writer stopped"));
         }
-        match tx.try_send(chunk) {
+        match tx.try_send(Some(chunk)) {
             Ok(()) => Ok(()),
             Err(TrySendError::Full(_)) => {
                 self.dropped += 1;
@@ -108,14 +110,45 @@ impl<T: Send + 'static> LogFile<T> {
         }
     }
 
+    /// Another producer's way into the file (the ground-station task's, say), which never
+    /// waits; what it hands over after [`LogFile::finish`] is lost.
+    pub fn producer(&self) -> Option<LogProducer<T>> {
+        self.chunks.clone().map(|chunks| LogProducer { chunks })
+    }
+
     /// Waits for the writer to write everything handed to it; its error, if it met one.
     pub fn finish(&mut self) -> std::io::Result<()> {
-        self.chunks = None;
+        if let Some(tx) = self.chunks.take() {
+            // Waits for room: the end must arrive (a stopped writer has hung up: no wait).
+            let _ = tx.send(None);
+        }
         match self.writer.take().map(JoinHandle::join) {
             None => Ok(()),
             Some(Ok(r)) => r,
             Some(Err(_)) => Err(std::io::Error::other("the log writer panicked")),
         }
+    }
+}
+
+/// A second producer of a [`LogFile`]: it hands chunks over without waiting, and loses one
+/// when the writer is behind or finished.
+#[derive(Debug)]
+pub struct LogProducer<T> {
+    chunks: SyncSender<Option<T>>,
+}
+
+impl<T> Clone for LogProducer<T> {
+    fn clone(&self) -> Self {
+        Self {
+            chunks: self.chunks.clone(),
+        }
+    }
+}
+
+impl<T> LogProducer<T> {
+    /// Hands `chunk` to the writer; false if it was lost.
+    pub fn write(&self, chunk: T) -> bool {
+        self.chunks.try_send(Some(chunk)).is_ok()
     }
 }
 
@@ -185,7 +218,7 @@ impl Tlog {
     }
 }
 
-/// Where a run's default logs go: `dir/STEM.tlog` and `dir/STEM.csv`, STEM the UTC date and time
+/// Where a run's default logs go: `dir/STEM.tlog`, `.ulg` and `.csv`, STEM the UTC date and time
 /// of `unix_s` (`2026-11-23_10-15-02`), `_iN` added for instance N > 0 and `-2`, `-3`, … when
 /// a run of the same second already left logs. Creates `dir`.
 pub fn run_stem(dir: &Path, unix_s: u64, instance: u16) -> std::io::Result<PathBuf> {
@@ -195,7 +228,7 @@ pub fn run_stem(dir: &Path, unix_s: u64, instance: u16) -> std::io::Result<PathB
         stem += &format!("_i{instance}");
     }
     let taken = |s: &str| {
-        ["tlog", "csv"]
+        ["tlog", "csv", "ulg"]
             .iter()
             .any(|ext| dir.join(format!("{s}.{ext}")).exists())
     };

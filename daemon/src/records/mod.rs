@@ -3,27 +3,33 @@
 //! the signing key's file with what signing remembers across restarts.
 
 pub mod flight_csv;
+pub mod flight_ulog;
 pub mod log_files;
 pub mod param_file;
 pub mod score;
 pub mod signing_file;
+pub mod ulog;
+mod ulog_topics;
 
 use anyhow::{Context, Result};
-use flight_core::autopilot::{AutopilotOutput, StepKind};
+use flight_core::autopilot::{Autopilot, AutopilotOutput, StepKind};
 use flight_core::commander::CommanderStatus;
 use flight_csv::FlightCsv;
+use flight_ulog::FlightUlog;
 use hil::TruthReport;
 use score::FlightScore;
 use std::time::Duration;
 
-/// The records one vehicle's steps feed: its score, its flight-data CSV, the simulator's last
-/// truth.
+/// The records one vehicle's steps feed: its score, its flight-data CSV and ULog flight log,
+/// the simulator's last truth.
 pub struct FlightRecords {
     /// The take-off altitude the score measures the hover against (m).
     takeoff_m: f64,
     score: FlightScore,
     csv: Option<FlightCsv>,
     csv_error: Option<std::io::Error>,
+    ulog: Option<FlightUlog>,
+    ulog_error: Option<std::io::Error>,
     /// How late the control loop woke for the frames it is stepping (deadline pacing only).
     loop_late: Option<Duration>,
     last_truth: Option<TruthReport>,
@@ -37,6 +43,8 @@ impl FlightRecords {
             score: FlightScore::new(takeoff_m),
             csv: None,
             csv_error: None,
+            ulog: None,
+            ulog_error: None,
             loop_late: None,
             last_truth: None,
         }
@@ -45,6 +53,11 @@ impl FlightRecords {
     /// Writes a flight-data row per step to `csv` from now on.
     pub fn log_to(&mut self, csv: FlightCsv) {
         self.csv = Some(csv);
+    }
+
+    /// Writes the flown steps to the ULog flight log `ulog` from now on.
+    pub fn log_ulog_to(&mut self, ulog: FlightUlog) {
+        self.ulog = Some(ulog);
     }
 
     /// How late the control loop woke for the frames it steps next (for the flight-data CSV).
@@ -62,13 +75,15 @@ impl FlightRecords {
         self.last_truth
     }
 
-    /// Observes one step: the truth that came with its frame scores it, a flown step is a CSV
-    /// row. A repeated frame adds nothing; a frame flown blind is scored, with no estimate.
+    /// Observes one step of `vehicle`: the truth that came with its frame scores it, a flown
+    /// step is a CSV row and logged. A repeated frame adds nothing; a frame flown blind is
+    /// scored, with no estimate.
     pub fn observe(
         &mut self,
         step: &AutopilotOutput,
         status: &CommanderStatus,
         truth: Option<TruthReport>,
+        vehicle: &Autopilot,
     ) {
         if step.restarted {
             // Another world: its flight is scored from the start.
@@ -98,18 +113,31 @@ impl FlightRecords {
                     self.csv = None;
                     self.csv_error = Some(e);
                 }
+                if let Some(ulog) = self.ulog.as_mut()
+                    && let Err(e) = ulog.record(step, status, vehicle)
+                {
+                    tracing::error!("ULog flight log: {e}; logging stopped");
+                    self.ulog = None;
+                    self.ulog_error = Some(e);
+                }
             }
         }
     }
 
-    /// Writes the rest of the flight-data CSV, reporting the first write error of the flight.
+    /// Writes the rest of the flight-data CSV and the flight log, reporting the first write
+    /// error of the flight.
     pub fn finish(&mut self) -> Result<()> {
+        let ulog = match (self.ulog_error.take(), self.ulog.as_mut()) {
+            (Some(e), _) => Err(e),
+            (None, Some(ulog)) => ulog.finish(),
+            (None, None) => Ok(()),
+        };
         if let Some(e) = self.csv_error.take() {
             return Err(e).context("writing the flight-data CSV");
         }
         if let Some(csv) = self.csv.as_mut() {
             csv.finish().context("writing the flight-data CSV")?;
         }
-        Ok(())
+        ulog.context("writing the ULog flight log")
     }
 }
