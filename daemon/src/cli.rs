@@ -27,7 +27,7 @@ pub struct Cli {
 pub struct FlightArgs {
     /// Settings file (TOML): every key mirrors a flag below (source, instance, count, airframe,
     /// params, params_dir, takeoff_m, hover_s, speed, seed, sensors, truth_csv, flight_csv,
-    /// log_dir, tlog, ulog, loop_hz, loop_spin_us, loop_cpu, loop_stats_s,
+    /// log_dir, tlog, ulog, ftp_root, ftp_read_only, loop_hz, loop_spin_us, loop_cpu, loop_stats_s,
     /// mavlink, param_store); flags given here win. Paths in it are relative to its directory.
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
@@ -106,6 +106,13 @@ pub struct FlightArgs {
     /// time>.ulg].
     #[arg(long, value_name = "FILE")]
     pub ulog: Option<PathBuf>,
+    /// The directory MAVLink FTP serves (its `/`; the flight logs are also at `@MAV_LOG`), or
+    /// `none` to refuse every FTP request [default: LOG_DIR].
+    #[arg(long, value_name = "DIR|none")]
+    pub ftp_root: Option<PathBuf>,
+    /// MAVLink FTP reads only: it creates, writes, renames and removes nothing.
+    #[arg(long)]
+    pub ftp_read_only: bool,
     /// With a source that does not wait for answers (a flight board, or `?lockstep=false`):
     /// the control loop's rate, 50 to 2000 Hz. It wakes at absolute deadlines, steps on every
     /// sensor frame that arrived, and logs its jitter and overruns [default: 1000].

@@ -79,6 +79,11 @@ pub struct Settings {
     pub tlog: Option<PathBuf>,
     /// ULog flight log (none: `LOG_DIR/<start time>.ulg`).
     pub ulog: Option<PathBuf>,
+    /// The directory MAVLink FTP serves, or `"none"` (none given: the log directory); see
+    /// [`Self::ftp_root`].
+    pub ftp_root: Option<PathBuf>,
+    /// MAVLink FTP may not change files.
+    pub ftp_read_only: bool,
     /// Rate of the deadline-paced loop (Hz).
     pub loop_hz: f64,
     /// Spin before each deadline (µs).
@@ -115,6 +120,8 @@ impl Default for Settings {
             log_dir: None,
             tlog: None,
             ulog: None,
+            ftp_root: None,
+            ftp_read_only: false,
             loop_hz: 1000.0,
             loop_spin_us: 150.0,
             loop_cpu: None,
@@ -244,6 +251,9 @@ impl Settings {
         rebase(&mut self.flight_csv);
         rebase(&mut self.tlog);
         rebase(&mut self.ulog);
+        if self.ftp_root.as_deref() != Some(Path::new("none")) {
+            rebase(&mut self.ftp_root);
+        }
         if self.log_dir.as_deref() != Some(Path::new("none")) {
             rebase(&mut self.log_dir);
         }
@@ -308,6 +318,8 @@ impl Settings {
         given(&f.log_dir, &mut self.log_dir);
         given(&f.tlog, &mut self.tlog);
         given(&f.ulog, &mut self.ulog);
+        given(&f.ftp_root, &mut self.ftp_root);
+        self.ftp_read_only |= f.ftp_read_only;
         given(&f.param_store, &mut self.param_store);
         given(&f.signing_key_file, &mut self.signing_key_file);
         self.instance = f.instance.unwrap_or(self.instance);
@@ -352,6 +364,16 @@ impl Settings {
             Some(p) if p == Path::new("none") => None,
             Some(p) => Some(p),
             None => Some(Path::new("logs")),
+        }
+    }
+
+    /// The directory MAVLink FTP serves: the one given, else the log directory (none: FTP
+    /// refuses every request).
+    pub fn ftp_root(&self) -> Option<&Path> {
+        match self.ftp_root.as_deref() {
+            Some(p) if p == Path::new("none") => None,
+            Some(p) => Some(p),
+            None => self.log_dir(),
         }
     }
 

@@ -187,11 +187,6 @@ impl GroundStation {
                     target_component: from.component_id,
                 }));
             }
-            MavMessage::FILE_TRANSFER_PROTOCOL(f)
-                if self.for_us(f.target_system, Some(f.target_component)) =>
-            {
-                out.send(ftp_nak(f, from));
-            }
             _ => {}
         }
     }
@@ -280,35 +275,4 @@ fn sticks(m: &MANUAL_CONTROL_DATA) -> Sticks {
         yaw: axis(m.r),
     }
     .clamped()
-}
-
-/// MAVLink FTP: every request is refused (NAK), so that clients fall back to the parameter
-/// and mission protocols at once instead of waiting for a time-out.
-fn ftp_nak(f: &FILE_TRANSFER_PROTOCOL_DATA, from: &MavHeader) -> MavMessage {
-    const NAK: u8 = 129;
-    const ERR_FAIL: u8 = 1;
-    const ERR_FILE_NOT_FOUND: u8 = 10;
-    const OPEN_FILE_RO: u8 = 4;
-    let req = &f.payload;
-    let mut payload = [0u8; 251];
-    payload[0..3].copy_from_slice(&req[0..3]); // seq, session
-    payload[0..2].copy_from_slice(
-        &u16::from_le_bytes([req[0], req[1]])
-            .wrapping_add(1)
-            .to_le_bytes(),
-    );
-    payload[3] = NAK;
-    payload[4] = 1; // size
-    payload[5] = req[3]; // the request's opcode
-    payload[12] = if req[3] == OPEN_FILE_RO {
-        ERR_FILE_NOT_FOUND
-    } else {
-        ERR_FAIL
-    };
-    MavMessage::FILE_TRANSFER_PROTOCOL(FILE_TRANSFER_PROTOCOL_DATA {
-        target_network: 0,
-        target_system: from.system_id as u8,
-        target_component: from.component_id,
-        payload,
-    })
 }

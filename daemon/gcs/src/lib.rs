@@ -522,7 +522,8 @@ impl GroundStation {
                 | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET
                 | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
                 | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT
-                | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE,
+                | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
+                | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_FTP,
             uid: 0x4155_5450_0000_0000 | self.system_id as u64,
             flight_sw_version: version,
             ..Default::default()

@@ -15,7 +15,7 @@ use flight_core::params::FlightParams;
 use gcs::param_store::ParamStore;
 use sitl_core::Airframe;
 use sitl_core::sensors::SensorPreset;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use tokio::sync::watch;
 
 /// One vehicle made ready to fly: its flight core and logs, the control loop's channels, and
@@ -87,6 +87,7 @@ pub(super) fn prepare(
                 .with_context(|| format!("creating {}", path.display()))?,
         );
     }
+    let tlog_path = tlog.clone();
     let tlog = match &tlog {
         Some(path) => Some(
             records::log_files::Tlog::create(path)
@@ -141,6 +142,19 @@ pub(super) fn prepare(
         }
         None => Default::default(),
     };
+    let files = vehicle_files::FilesConfig {
+        ftp_root: cfg.ftp_root().map(Path::to_path_buf),
+        logs: cfg.log_dir().map(Path::to_path_buf).or_else(|| {
+            ulog.as_ref()
+                .and_then(|u| u.parent().map(Path::to_path_buf))
+        }),
+        writable: !cfg.ftp_read_only,
+        busy: [&ulog, &tlog_path, &flight_csv]
+            .into_iter()
+            .flatten()
+            .cloned()
+            .collect(),
+    };
     let (mut ports, commands, telemetry) = Ports::new(16);
     let (params_tx, params_rx) = watch::channel(params.clone());
     ports.params = Some(params_rx);
@@ -164,6 +178,7 @@ pub(super) fn prepare(
             signing_memory,
             tlog,
             ulog: ulog_events,
+            files,
             reboot_allowed: cfg.count == 1,
         },
     })

@@ -39,6 +39,7 @@ use gcs::params::Parameters;
 use gcs::signing::{SecretKey, Signing, SigningMemory};
 use gcs::telemetry::Telemetry;
 use gcs::{AckTo, COMPONENT_ID, GroundStation, HostAction, LinkId, Outbox, Outgoing};
+use vehicle_files::{FileServices, FilesConfig};
 
 use guard::Guard;
 use hil::Encoder;
@@ -93,10 +94,17 @@ pub struct Vehicle {
     pub tlog: Option<Tlog>,
     /// The flight log's way in for what is said and parameter changes, if one is kept.
     pub ulog: Option<UlogEvents>,
+    /// What MAVLink FTP and the log download serve.
+    pub files: FilesConfig,
     /// Whether a reboot is allowed: it restarts the process, so not for one of several
     /// vehicles in it.
     pub reboot_allowed: bool,
 }
+
+/// Messages of file transfers (FTP burst reads, log downloads) sent per poll: with a poll
+/// every 10 ms, up to 12 800 a second. Over loopback UDP that is 1.7 MB/s of FTP to pymavlink
+/// and 1.1 MB/s of log download to MAVSDK (the clients' own pace: tests/python/test_files.py).
+const FILES_PER_POLL: usize = 128;
 
 /// How often refused frames are reported in the log.
 const REFUSALS_REPORT: Duration = Duration::from_secs(5);
@@ -151,8 +159,11 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Result<Optio
         signing_memory,
         mut tlog,
         ulog,
+        files,
         reboot_allowed,
     } = vehicle;
+    let mut files = FileServices::new(system_id, COMPONENT_ID, &files);
+    let mut files_out = Vec::new();
     tracing::info!(
         "MAVLink signing {}",
         if signing_key.is_some() {
@@ -224,6 +235,10 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Result<Optio
                 let t = *telemetry.borrow();
                 for (h, m) in &i.messages {
                     match m {
+                        m if FileServices::handles(m) => {
+                            let now = start.elapsed().as_secs_f64();
+                            files.on_message(i.link, h, m, now, &mut files_out);
+                        }
                         MavMessage::SETUP_SIGNING(d) if d.target_system == system_id => {
                             let (severity, text) =
                                 signing::setup_signing(&signing, signing_key_file.as_deref(), d, i.trusted);
@@ -246,6 +261,7 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Result<Optio
                     break;
                 }
                 gcs.poll(start.elapsed().as_secs_f64(), &t, &mut out);
+                files.poll(start.elapsed().as_secs_f64(), FILES_PER_POLL, &mut files_out);
                 if let Some(log) = tlog.as_mut()
                     && let Err(e) = log.ship_if_due(unix_usec())
                 {
@@ -368,6 +384,11 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Result<Optio
                 }
             }
         }
+        out.streamed.extend(
+            files_out
+                .drain(..)
+                .map(|(link, m)| (link, Outgoing::Message(m))),
+        );
         for (severity, text) in out.said.drain(..) {
             if let Some(log) = &ulog {
                 let t_us = (telemetry.borrow().t_s * 1e6) as u64;

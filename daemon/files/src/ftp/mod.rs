@@ -1,0 +1,370 @@
+//! The MAVLink FTP server (`FILE_TRANSFER_PROTOCOL`), as PX4's `MavlinkFTP` answers: every
+//! opcode of the microservice, one session at a time closed after 10 s unused (its id the one
+//! the opening request carried, as ArduPilot takes it: pymavlink numbers its sessions and
+//! writes before the open is answered; MAVSDK always uses 0), a reply's
+//! sequence number its request's plus one, a repeated request answered with the same small
+//! reply without acting twice, burst reads streamed by [`FtpServer::poll`] at the pace the
+//! host allows, the spec's error codes.
+//!
+//! Files are read and written here, through `std::fs`, under an [`FtpRoot`].
+
+pub mod listing;
+pub mod paths;
+pub mod payload;
+
+use paths::FtpRoot;
+use payload::{FtpError, FtpPayload, MAX_DATA, Opcode};
+use std::fs::File;
+use std::io::{Read, Seek, SeekFrom, Write};
+
+/// A session unused this long is closed (s), as PX4 closes it.
+pub const SESSION_IDLE_S: f64 = 10.0;
+
+/// Bytes a burst sends before it pauses (`burst_complete`) for the client to ask for the
+/// next, as PX4 pauses: a client that has asked nothing for a few seconds takes the
+/// transfer for stalled (pymavlink's `mavftp` after 3.7 s).
+pub const BURST_BYTES: u64 = 35_000;
+
+/// Who asked: the link it came on and the sender's ids, which the reply is addressed to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Requester {
+    /// The endpoint it came on.
+    pub link: u8,
+    /// The sender's system id.
+    pub system: u8,
+    /// The sender's component id.
+    pub component: u8,
+}
+
+/// The open file of the session.
+#[derive(Debug)]
+struct Session {
+    /// Its id.
+    id: u8,
+    file: File,
+    /// Its size when opened (reads end there).
+    size: u64,
+    writable: bool,
+    last_used_s: f64,
+}
+
+/// A burst read under way.
+#[derive(Debug, Clone, Copy)]
+struct Burst {
+    to: Requester,
+    /// The next packet's sequence number and offset.
+    seq: u16,
+    offset: u64,
+    /// Bytes sent since the request.
+    sent: u64,
+}
+
+/// The FTP server.
+#[derive(Debug)]
+pub struct FtpServer {
+    root: FtpRoot,
+    session: Option<Session>,
+    burst: Option<Burst>,
+    /// The last small reply (≤ 4 bytes of data) and the request it answered: a request
+    /// repeated (its reply lost) gets it again rather than acting twice.
+    last: Option<(Requester, u16, FtpPayload)>,
+}
+
+/// Replies to send, each to its requester.
+pub type Replies = Vec<(Requester, FtpPayload)>;
+
+impl FtpServer {
+    /// A server of `root`.
+    pub fn new(root: FtpRoot) -> Self {
+        Self {
+            root,
+            session: None,
+            burst: None,
+            last: None,
+        }
+    }
+
+    /// The file system served (to mark the files the vehicle is writing).
+    pub fn root_mut(&mut self) -> &mut FtpRoot {
+        &mut self.root
+    }
+
+    /// Answers one request at time `now_s` (any monotonic clock, s).
+    pub fn handle(&mut self, from: Requester, req: &FtpPayload, now_s: f64, out: &mut Replies) {
+        if let Some((to, seq, reply)) = &self.last
+            && *to == from
+            && *seq == req.seq
+        {
+            out.push((from, reply.clone()));
+            return;
+        }
+        let reply = match self.act(from, req, now_s) {
+            Ok(Some(reply)) => reply,
+            Ok(None) => {
+                self.last = None; // a burst answers from poll()
+                return;
+            }
+            Err(e) => req.nak(e),
+        };
+        self.last = (reply.data.len() <= 4).then(|| (from, req.seq, reply.clone()));
+        out.push((from, reply));
+    }
+
+    /// Sends up to `budget` packets of a burst under way, and closes a session unused for
+    /// [`SESSION_IDLE_S`].
+    pub fn poll(&mut self, now_s: f64, budget: usize, out: &mut Replies) {
+        if self
+            .session
+            .as_ref()
+            .is_some_and(|s| now_s - s.last_used_s > SESSION_IDLE_S)
+        {
+            tracing::debug!("FTP session closed after {SESSION_IDLE_S} s unused");
+            self.close();
+        }
+        for _ in 0..budget {
+            let (Some(b), Some(s)) = (self.burst.as_mut(), self.session.as_mut()) else {
+                return;
+            };
+            s.last_used_s = now_s;
+            let mut packet = FtpPayload {
+                seq: b.seq,
+                session: s.id,
+                opcode: Opcode::Ack as u8,
+                req_opcode: Opcode::BurstReadFile as u8,
+                offset: b.offset as u32,
+                ..FtpPayload::default()
+            };
+            b.seq = b.seq.wrapping_add(1);
+            match read_at(&mut s.file, b.offset, s.size, MAX_DATA) {
+                Ok(data) if !data.is_empty() => {
+                    b.offset += data.len() as u64;
+                    b.sent += data.len() as u64;
+                    packet.data = data;
+                    packet.burst_complete = b.sent >= BURST_BYTES;
+                    out.push((b.to, packet));
+                    if b.sent >= BURST_BYTES {
+                        self.burst = None;
+                    }
+                }
+                Ok(_) => {
+                    packet.opcode = Opcode::Nak as u8;
+                    packet.data = FtpError::Eof.data();
+                    out.push((b.to, packet));
+                    self.burst = None;
+                }
+                Err(e) => {
+                    packet.opcode = Opcode::Nak as u8;
+                    packet.data = e.data();
+                    out.push((b.to, packet));
+                    self.burst = None;
+                }
+            }
+        }
+    }
+
+    fn close(&mut self) {
+        self.session = None;
+        self.burst = None;
+    }
+
+    /// The open session a request names, marked used.
+    fn session(&mut self, req: &FtpPayload, now_s: f64) -> Result<&mut Session, FtpError> {
+        match self.session.as_mut() {
+            Some(s) if req.session == s.id => {
+                s.last_used_s = now_s;
+                Ok(s)
+            }
+            _ => Err(FtpError::InvalidSession),
+        }
+    }
+
+    /// Opens a session on `file`; the ACK carries `size_data` (a size, u32).
+    fn open(
+        &mut self,
+        req: &FtpPayload,
+        file: File,
+        writable: bool,
+        now_s: f64,
+    ) -> Result<Option<FtpPayload>, FtpError> {
+        let size = file.metadata().map_err(|e| FtpError::of_io(&e))?.len();
+        self.session = Some(Session {
+            id: req.session,
+            file,
+            size,
+            writable,
+            last_used_s: now_s,
+        });
+        let size = u32::try_from(size).unwrap_or(u32::MAX);
+        Ok(Some(req.ack(size.to_le_bytes().to_vec())))
+    }
+
+    fn act(
+        &mut self,
+        from: Requester,
+        req: &FtpPayload,
+        now_s: f64,
+    ) -> Result<Option<FtpPayload>, FtpError> {
+        if usize::from(req.size) > MAX_DATA {
+            return Err(FtpError::InvalidDataSize);
+        }
+        let op = Opcode::from_u8(req.opcode).ok_or(FtpError::UnknownCommand)?;
+        let done = |data: Vec<u8>| Ok(Some(req.ack(data)));
+        let io = |e: std::io::Error| FtpError::of_io(&e);
+        match op {
+            Opcode::None => done(Vec::new()),
+            Opcode::TerminateSession => {
+                self.session(req, now_s)?;
+                self.close();
+                done(Vec::new())
+            }
+            Opcode::ResetSessions => {
+                self.close();
+                done(Vec::new())
+            }
+            Opcode::ListDirectory | Opcode::ListDirectoryWithTime => {
+                let path = self.root.resolve(req.text())?;
+                let with_time = op == Opcode::ListDirectoryWithTime;
+                let virtual_logs = self.root.is_root(&path) && self.root.has_logs();
+                let data = listing::entries(&path, req.offset, with_time, virtual_logs)?;
+                done(data)
+            }
+            Opcode::OpenFileRO => {
+                if self.session.is_some() {
+                    return Err(FtpError::NoSessionsAvailable);
+                }
+                let path = self.root.resolve(req.text())?;
+                if path.is_dir() {
+                    return Err(FtpError::FailErrno(EISDIR));
+                }
+                let file = File::open(&path).map_err(io)?;
+                self.open(req, file, false, now_s)
+            }
+            Opcode::CreateFile | Opcode::OpenFileWO => {
+                if self.session.is_some() {
+                    return Err(FtpError::NoSessionsAvailable);
+                }
+                let path = self.root.resolve_for_write(req.text())?;
+                let file = std::fs::OpenOptions::new()
+                    .write(true)
+                    .create(true)
+                    .truncate(op == Opcode::CreateFile)
+                    .open(&path)
+                    .map_err(io)?;
+                self.open(req, file, true, now_s)
+            }
+            Opcode::ReadFile => {
+                let s = self.session(req, now_s)?;
+                let data = read_at(&mut s.file, u64::from(req.offset), s.size, req.size.into())?;
+                if data.is_empty() {
+                    return Err(FtpError::Eof);
+                }
+                done(data)
+            }
+            Opcode::BurstReadFile => {
+                let s = self.session(req, now_s)?;
+                if u64::from(req.offset) >= s.size {
+                    return Err(FtpError::Eof);
+                }
+                self.burst = Some(Burst {
+                    to: from,
+                    seq: req.seq.wrapping_add(1),
+                    offset: req.offset.into(),
+                    sent: 0,
+                });
+                Ok(None)
+            }
+            Opcode::WriteFile => {
+                let s = self.session(req, now_s)?;
+                if !s.writable {
+                    return Err(FtpError::FileProtected);
+                }
+                s.file
+                    .seek(SeekFrom::Start(req.offset.into()))
+                    .and_then(|_| s.file.write_all(&req.data))
+                    .map_err(io)?;
+                done((req.data.len() as u32).to_le_bytes().to_vec())
+            }
+            Opcode::RemoveFile => {
+                let path = self.root.resolve_for_write(req.text())?;
+                if path.is_dir() {
+                    return Err(FtpError::FailErrno(EISDIR));
+                }
+                std::fs::remove_file(&path).map_err(io)?;
+                done(Vec::new())
+            }
+            Opcode::CreateDirectory => {
+                let path = self.root.resolve_for_write(req.text())?;
+                std::fs::create_dir(&path).map_err(io)?;
+                done(Vec::new())
+            }
+            Opcode::RemoveDirectory => {
+                let path = self.root.resolve_for_write(req.text())?;
+                std::fs::remove_dir(&path).map_err(io)?;
+                done(Vec::new())
+            }
+            Opcode::TruncateFile => {
+                let path = self.root.resolve_for_write(req.text())?;
+                let file = std::fs::OpenOptions::new()
+                    .write(true)
+                    .open(&path)
+                    .map_err(io)?;
+                file.set_len(req.offset.into()).map_err(io)?;
+                done(Vec::new())
+            }
+            Opcode::Rename => {
+                let (old, new) = rename_paths(&req.data).ok_or(FtpError::FailErrno(EINVAL))?;
+                let old = self.root.resolve_for_write(old)?;
+                let new = self.root.resolve_for_write(new)?;
+                std::fs::rename(&old, &new).map_err(io)?;
+                done(Vec::new())
+            }
+            Opcode::CalcFileCRC32 => {
+                let path = self.root.resolve(req.text())?;
+                done(crc32(&path)?.to_le_bytes().to_vec())
+            }
+            Opcode::Ack | Opcode::Nak => Err(FtpError::UnknownCommand),
+        }
+    }
+}
+
+/// `EISDIR`, `EINVAL` (Linux's numbers, which clients print).
+const EISDIR: u8 = 21;
+const EINVAL: u8 = 22;
+
+/// Up to `want` bytes (at most [`MAX_DATA`]) from `offset`, not past `size`; empty at the end.
+fn read_at(file: &mut File, offset: u64, size: u64, want: usize) -> Result<Vec<u8>, FtpError> {
+    let n = (size.saturating_sub(offset)).min(want.min(MAX_DATA) as u64) as usize;
+    let mut data = vec![0u8; n];
+    if n > 0 {
+        file.seek(SeekFrom::Start(offset))
+            .and_then(|_| file.read_exact(&mut data))
+            .map_err(|e| FtpError::of_io(&e))?;
+    }
+    Ok(data)
+}
+
+/// Rename's two paths: `old\0new` (a trailing NUL or not).
+fn rename_paths(data: &[u8]) -> Option<(&[u8], &[u8])> {
+    let nul = data.iter().position(|&b| b == 0)?;
+    let (old, rest) = (&data[..nul], &data[nul + 1..]);
+    let new = &rest[..rest.iter().position(|&b| b == 0).unwrap_or(rest.len())];
+    (!old.is_empty() && !new.is_empty()).then_some((old, new))
+}
+
+/// A file's CRC-32 as MAVLink FTP computes it: reflected, polynomial 0xEDB88320, starting
+/// from 0 and without the final inversion (zlib's CRC-32 seeded with !0, inverted).
+pub fn crc32(path: &std::path::Path) -> Result<u32, FtpError> {
+    let mut file = File::open(path).map_err(|e| FtpError::of_io(&e))?;
+    let mut hasher = crc32fast::Hasher::new_with_initial(u32::MAX);
+    let mut buf = vec![0u8; 64 * 1024];
+    loop {
+        let n = file.read(&mut buf).map_err(|e| FtpError::of_io(&e))?;
+        if n == 0 {
+            return Ok(hasher.finalize() ^ u32::MAX);
+        }
+        hasher.update(&buf[..n]);
+    }
+}
+
+#[cfg(test)]
+mod tests;
