@@ -69,6 +69,10 @@ fuzz_target!(|steps: Vec<Step>| {
         logs: Some(dir.join("logs")),
         writable: steps.len() % 2 == 0,
         busy: vec![dir.join("logs/2026-01-02_00-00-00.ulg")],
+        virtual_dir: vehicle_files::VirtualDir {
+            name: "@META".into(),
+            files: vec![("general.json".into(), b"{}".as_slice().into())],
+        },
     };
     let mut files = FileServices::new(1, 1, &config);
     let mut now = 0.0;

@@ -334,6 +334,14 @@ impl FlightParams {
         Ok(())
     }
 
+    /// A group's title (`position`: "Position loops").
+    pub fn group_title(group: &str) -> &str {
+        GROUP_TITLES
+            .iter()
+            .find(|(name, _)| *name == group)
+            .map_or(group, |(_, t)| t)
+    }
+
     /// Every parameter's metadata, group by group.
     pub fn metadata() -> impl Iterator<Item = (&'static str, &'static ParamMeta)> {
         [
@@ -368,10 +376,7 @@ impl FlightParams {
         for (g, m) in Self::metadata() {
             if g != group {
                 group = g;
-                let title = GROUP_TITLES
-                    .iter()
-                    .find(|(name, _)| *name == g)
-                    .map_or(g, |(_, t)| t);
+                let title = Self::group_title(g);
                 let _ = write!(
                     md,
                     "\n## {title} (`[{g}]`)\n\n\

@@ -8,6 +8,7 @@ pub mod logs;
 
 use ftp::paths::FtpRoot;
 use ftp::payload::{FtpError, FtpPayload, PAYLOAD_LEN};
+pub use ftp::virtual_dir::VirtualDir;
 use ftp::{FtpServer, Replies, Requester};
 use logs::LogService;
 use mavlink::MavHeader;
@@ -25,6 +26,8 @@ pub struct FilesConfig {
     pub writable: bool,
     /// The files the vehicle is writing now (its logs): never changed or erased from outside.
     pub busy: Vec<PathBuf>,
+    /// Files held in memory, served read-only beside the root (the component metadata).
+    pub virtual_dir: VirtualDir,
 }
 
 /// Messages to send, each on its link.
@@ -48,7 +51,7 @@ impl FileServices {
             match FtpRoot::new(root, config.logs.as_deref(), config.writable) {
                 Ok(mut r) => {
                     r.set_busy(&config.busy);
-                    Some(FtpServer::new(r))
+                    Some(FtpServer::new(r, config.virtual_dir.clone()))
                 }
                 Err(e) => {
                     tracing::warn!(root = %root.display(), "MAVLink FTP off: {e}");

@@ -12,6 +12,7 @@
 
 mod calibration;
 mod commands;
+pub mod component_metadata;
 mod incoming;
 mod link_rates;
 pub mod mission;
@@ -195,6 +196,8 @@ pub struct GroundStation {
     link: LinkId,
     /// One-off messages asked for (REQUEST_MESSAGE), sent on the next poll.
     requested: Vec<(u32, f32)>,
+    /// The general component-metadata file's URI and CRC, when the files are served.
+    metadata: Option<(String, u32)>,
     /// What the last heartbeat showed: a change sends one at once.
     shown: Option<(bool, FlightMode, LandedState)>,
     home_shown: Option<[f64; 3]>,
@@ -241,6 +244,7 @@ impl GroundStation {
             rates: LinkRates::default(),
             link: 0,
             requested: Vec::new(),
+            metadata: None,
             shown: None,
             home_shown: None,
             dropped: 0,
@@ -274,6 +278,13 @@ impl GroundStation {
     /// flown by one process, whose reboot would restart them all (a shutdown still ends it).
     pub fn with_reboot(mut self, allowed: bool) -> Self {
         self.reboot_allowed = allowed;
+        self
+    }
+
+    /// Answers `REQUEST_MESSAGE(COMPONENT_METADATA)` with the general metadata file's `uri`
+    /// and `crc` (the host serves the files: [`component_metadata::ComponentMetadata`]).
+    pub fn with_component_metadata(mut self, uri: &str, crc: u32) -> Self {
+        self.metadata = Some((uri.to_owned(), crc));
         self
     }
 
@@ -497,15 +508,23 @@ impl GroundStation {
             HEARTBEAT_DATA::ID => Some(streams::heartbeat(t, self.mav_type)),
             AUTOPILOT_VERSION_DATA::ID => Some(self.autopilot_version()),
             AVAILABLE_MODES_DATA::ID => streams::available_mode(param as usize),
+            COMPONENT_METADATA_DATA::ID => self.metadata.as_ref().map(|(uri, crc)| {
+                MavMessage::COMPONENT_METADATA(COMPONENT_METADATA_DATA {
+                    time_boot_ms: (t.t_s * 1e3) as u32,
+                    file_crc: *crc,
+                    uri: uri.as_str().into(),
+                })
+            }),
             _ => streams::build(id, t, unix),
         }
     }
 
     /// Whether REQUEST_MESSAGE can give message `id`.
-    fn can_send(id: u32) -> bool {
+    fn can_send(&self, id: u32) -> bool {
         DEFAULT_STREAMS.iter().any(|&(i, _)| i == id)
             || streams::ON_REQUEST.contains(&id)
             || matches!(id, AUTOPILOT_VERSION_DATA::ID | AVAILABLE_MODES_DATA::ID)
+            || (id == COMPONENT_METADATA_DATA::ID && self.metadata.is_some())
     }
 
     /// `AUTOPILOT_VERSION`: what this vehicle speaks, its version and a uid from its system id.

@@ -12,6 +12,7 @@ use crate::settings::Settings;
 use anyhow::{Context, Result};
 use flight_core::autopilot::{AutoFlight, Autopilot};
 use flight_core::params::FlightParams;
+use gcs::component_metadata::{ComponentMetadata, METADATA_DIR};
 use gcs::param_store::ParamStore;
 use sitl_core::Airframe;
 use sitl_core::sensors::SensorPreset;
@@ -142,7 +143,7 @@ pub(super) fn prepare(
         }
         None => Default::default(),
     };
-    let files = vehicle_files::FilesConfig {
+    let mut files = vehicle_files::FilesConfig {
         ftp_root: cfg.ftp_root().map(Path::to_path_buf),
         logs: cfg.log_dir().map(Path::to_path_buf).or_else(|| {
             ulog.as_ref()
@@ -154,7 +155,22 @@ pub(super) fn prepare(
             .flatten()
             .cloned()
             .collect(),
+        virtual_dir: vehicle_files::VirtualDir::default(),
     };
+    // The component metadata, read by FTP: named only when FTP serves it.
+    let metadata = ComponentMetadata::new(&airframe.name, gcs::COMPONENT_ID);
+    files.virtual_dir = vehicle_files::VirtualDir {
+        name: METADATA_DIR.to_owned(),
+        files: metadata
+            .files
+            .iter()
+            .map(|(name, bytes)| (name.clone(), bytes.as_slice().into()))
+            .collect(),
+    };
+    let metadata = files
+        .ftp_root
+        .is_some()
+        .then_some((metadata.uri, metadata.crc));
     let (mut ports, commands, telemetry) = Ports::new(16);
     let (params_tx, params_rx) = watch::channel(params.clone());
     ports.params = Some(params_rx);
@@ -179,6 +195,7 @@ pub(super) fn prepare(
             tlog,
             ulog: ulog_events,
             files,
+            metadata,
             reboot_allowed: cfg.count == 1,
         },
     })

@@ -96,6 +96,8 @@ pub struct Vehicle {
     pub ulog: Option<UlogEvents>,
     /// What MAVLink FTP and the log download serve.
     pub files: FilesConfig,
+    /// The general component-metadata file's URI and CRC, when FTP serves it.
+    pub metadata: Option<(String, u32)>,
     /// Whether a reboot is allowed: it restarts the process, so not for one of several
     /// vehicles in it.
     pub reboot_allowed: bool,
@@ -160,6 +162,7 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Result<Optio
         mut tlog,
         ulog,
         files,
+        metadata,
         reboot_allowed,
     } = vehicle;
     let mut files = FileServices::new(system_id, COMPONENT_ID, &files);
@@ -183,7 +186,11 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Result<Optio
     let (notices_tx, mut notices) = mpsc::channel::<(MavSeverity, String)>(8);
     let (save_tx, save_rx) = watch::channel(None::<ParamStore>);
     let saving = tokio::spawn(saver(save_rx, notices_tx.clone()));
-    let mut gcs = GroundStation::new(system_id, mav_type)
+    let mut gcs = GroundStation::new(system_id, mav_type);
+    if let Some((uri, crc)) = &metadata {
+        gcs = gcs.with_component_metadata(uri, *crc);
+    }
+    let mut gcs = gcs
         .with_parameters(parameters, base_params)
         .with_reboot(reboot_allowed)
         .with_unix_start(unix_usec());

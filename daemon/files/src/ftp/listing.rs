@@ -2,9 +2,8 @@
 //! payload, `F<name>\t<size>` (and `\t<mtime>` for `ListDirectoryWithTime`) for a file,
 //! `D<name>` for a directory, `S` for anything else, each ending in NUL. Entries are sorted
 //! by name, so that the indices a client counts stay put between its requests; the root
-//! lists `@MAV_LOG` first when the logs are served.
+//! lists its virtual directories (`@MAV_LOG`, the metadata's) first.
 
-use super::paths::MAV_LOG;
 use super::payload::{FtpError, MAX_DATA};
 use std::path::Path;
 
@@ -14,7 +13,7 @@ pub fn entries(
     dir: &Path,
     offset: u32,
     with_time: bool,
-    virtual_logs: bool,
+    virtual_dirs: &[&str],
 ) -> Result<Vec<u8>, FtpError> {
     if !dir.is_dir() {
         return Err(match dir.exists() {
@@ -28,8 +27,8 @@ pub fn entries(
         .collect();
     names.sort_by_key(|e| e.file_name());
     let mut all: Vec<Vec<u8>> = Vec::with_capacity(names.len() + 1);
-    if virtual_logs {
-        all.push(format!("D{MAV_LOG}").into_bytes());
+    for name in virtual_dirs {
+        all.push(format!("D{name}").into_bytes());
     }
     for e in names {
         all.push(entry(&e, with_time));

@@ -11,11 +11,13 @@
 pub mod listing;
 pub mod paths;
 pub mod payload;
+pub mod virtual_dir;
 
 use paths::FtpRoot;
 use payload::{FtpError, FtpPayload, MAX_DATA, Opcode};
 use std::fs::File;
 use std::io::{Read, Seek, SeekFrom, Write};
+use virtual_dir::{OpenFile, VirtualDir, VirtualPlace};
 
 /// A session unused this long is closed (s), as PX4 closes it.
 pub const SESSION_IDLE_S: f64 = 10.0;
@@ -41,7 +43,7 @@ pub struct Requester {
 struct Session {
     /// Its id.
     id: u8,
-    file: File,
+    file: OpenFile,
     /// Its size when opened (reads end there).
     size: u64,
     writable: bool,
@@ -63,6 +65,8 @@ struct Burst {
 #[derive(Debug)]
 pub struct FtpServer {
     root: FtpRoot,
+    /// Files held in memory, read-only, at `/<name>/`.
+    virtual_dir: VirtualDir,
     session: Option<Session>,
     burst: Option<Burst>,
     /// The last small reply (≤ 4 bytes of data) and the request it answered: a request
@@ -75,9 +79,10 @@ pub type Replies = Vec<(Requester, FtpPayload)>;
 
 impl FtpServer {
     /// A server of `root`.
-    pub fn new(root: FtpRoot) -> Self {
+    pub fn new(root: FtpRoot, virtual_dir: VirtualDir) -> Self {
         Self {
             root,
+            virtual_dir,
             session: None,
             burst: None,
             last: None,
@@ -135,7 +140,7 @@ impl FtpServer {
                 ..FtpPayload::default()
             };
             b.seq = b.seq.wrapping_add(1);
-            match read_at(&mut s.file, b.offset, s.size, MAX_DATA) {
+            match s.file.read_at(b.offset, s.size, MAX_DATA) {
                 Ok(data) if !data.is_empty() => {
                     b.offset += data.len() as u64;
                     b.sent += data.len() as u64;
@@ -182,11 +187,17 @@ impl FtpServer {
     fn open(
         &mut self,
         req: &FtpPayload,
-        file: File,
+        file: OpenFile,
         writable: bool,
         now_s: f64,
     ) -> Result<Option<FtpPayload>, FtpError> {
-        let size = file.metadata().map_err(|e| FtpError::of_io(&e))?.len();
+        if self.session.is_some() {
+            return Err(FtpError::NoSessionsAvailable);
+        }
+        let size = match &file {
+            OpenFile::Disk(f) => f.metadata().map_err(|e| FtpError::of_io(&e))?.len(),
+            OpenFile::Memory(bytes) => bytes.len() as u64,
+        };
         self.session = Some(Session {
             id: req.session,
             file,
@@ -196,6 +207,54 @@ impl FtpServer {
         });
         let size = u32::try_from(size).unwrap_or(u32::MAX);
         Ok(Some(req.ack(size.to_le_bytes().to_vec())))
+    }
+
+    /// The answer to a request on the virtual directory, if it names it.
+    fn act_virtual(
+        &mut self,
+        op: Opcode,
+        req: &FtpPayload,
+        now_s: f64,
+    ) -> Option<Result<Option<FtpPayload>, FtpError>> {
+        use Opcode::*;
+        let names_a_path = !matches!(
+            op,
+            None | TerminateSession
+                | ResetSessions
+                | ReadFile
+                | WriteFile
+                | BurstReadFile
+                | Ack
+                | Nak
+        );
+        let reads = matches!(
+            op,
+            ListDirectory | ListDirectoryWithTime | OpenFileRO | CalcFileCRC32
+        );
+        let place = match self.virtual_dir.find(req.text()) {
+            _ if !names_a_path || self.virtual_dir.files.is_empty() => return Option::None,
+            Option::None => return Option::None,
+            Some(_) if !reads => return Some(Err(FtpError::FileProtected)), // read-only
+            Some(Err(e)) => return Some(Err(e)),
+            Some(Ok(place)) => place,
+        };
+        Some(match (op, place) {
+            (ListDirectory | ListDirectoryWithTime, VirtualPlace::Dir) => self
+                .virtual_dir
+                .entries(req.offset)
+                .map(|data| Some(req.ack(data))),
+            (OpenFileRO, VirtualPlace::File(bytes)) => {
+                self.open(req, OpenFile::Memory(bytes), false, now_s)
+            }
+            (CalcFileCRC32, VirtualPlace::File(bytes)) => {
+                Ok(Some(req.ack(crc32_of(&bytes).to_le_bytes().to_vec())))
+            }
+            (ListDirectory | ListDirectoryWithTime, VirtualPlace::File(_)) => {
+                Err(FtpError::FailErrno(ENOTDIR))
+            }
+            (_, VirtualPlace::Dir) => Err(FtpError::FailErrno(EISDIR)),
+            (_, VirtualPlace::File(_)) => Err(FtpError::FileProtected), // not reached: reads only
+        })
     }
 
     fn act(
@@ -208,6 +267,9 @@ impl FtpServer {
             return Err(FtpError::InvalidDataSize);
         }
         let op = Opcode::from_u8(req.opcode).ok_or(FtpError::UnknownCommand)?;
+        if let Some(answer) = self.act_virtual(op, req, now_s) {
+            return answer;
+        }
         let done = |data: Vec<u8>| Ok(Some(req.ack(data)));
         let io = |e: std::io::Error| FtpError::of_io(&e);
         match op {
@@ -224,20 +286,24 @@ impl FtpServer {
             Opcode::ListDirectory | Opcode::ListDirectoryWithTime => {
                 let path = self.root.resolve(req.text())?;
                 let with_time = op == Opcode::ListDirectoryWithTime;
-                let virtual_logs = self.root.is_root(&path) && self.root.has_logs();
-                let data = listing::entries(&path, req.offset, with_time, virtual_logs)?;
-                done(data)
+                let mut extra = Vec::new();
+                if self.root.is_root(&path) {
+                    if self.root.has_logs() {
+                        extra.push(paths::MAV_LOG);
+                    }
+                    if !self.virtual_dir.files.is_empty() {
+                        extra.push(self.virtual_dir.name.as_str());
+                    }
+                }
+                done(listing::entries(&path, req.offset, with_time, &extra)?)
             }
             Opcode::OpenFileRO => {
-                if self.session.is_some() {
-                    return Err(FtpError::NoSessionsAvailable);
-                }
                 let path = self.root.resolve(req.text())?;
                 if path.is_dir() {
                     return Err(FtpError::FailErrno(EISDIR));
                 }
                 let file = File::open(&path).map_err(io)?;
-                self.open(req, file, false, now_s)
+                self.open(req, OpenFile::Disk(file), false, now_s)
             }
             Opcode::CreateFile | Opcode::OpenFileWO => {
                 if self.session.is_some() {
@@ -250,11 +316,11 @@ impl FtpServer {
                     .truncate(op == Opcode::CreateFile)
                     .open(&path)
                     .map_err(io)?;
-                self.open(req, file, true, now_s)
+                self.open(req, OpenFile::Disk(file), true, now_s)
             }
             Opcode::ReadFile => {
                 let s = self.session(req, now_s)?;
-                let data = read_at(&mut s.file, u64::from(req.offset), s.size, req.size.into())?;
+                let data = s.file.read_at(req.offset.into(), s.size, req.size.into())?;
                 if data.is_empty() {
                     return Err(FtpError::Eof);
                 }
@@ -278,9 +344,11 @@ impl FtpServer {
                 if !s.writable {
                     return Err(FtpError::FileProtected);
                 }
-                s.file
-                    .seek(SeekFrom::Start(req.offset.into()))
-                    .and_then(|_| s.file.write_all(&req.data))
+                let OpenFile::Disk(file) = &mut s.file else {
+                    return Err(FtpError::FileProtected);
+                };
+                file.seek(SeekFrom::Start(req.offset.into()))
+                    .and_then(|_| file.write_all(&req.data))
                     .map_err(io)?;
                 done((req.data.len() as u32).to_le_bytes().to_vec())
             }
@@ -327,21 +395,10 @@ impl FtpServer {
     }
 }
 
-/// `EISDIR`, `EINVAL` (Linux's numbers, which clients print).
+/// `ENOTDIR`, `EISDIR`, `EINVAL` (Linux's numbers, which clients print).
+const ENOTDIR: u8 = 20;
 const EISDIR: u8 = 21;
 const EINVAL: u8 = 22;
-
-/// Up to `want` bytes (at most [`MAX_DATA`]) from `offset`, not past `size`; empty at the end.
-fn read_at(file: &mut File, offset: u64, size: u64, want: usize) -> Result<Vec<u8>, FtpError> {
-    let n = (size.saturating_sub(offset)).min(want.min(MAX_DATA) as u64) as usize;
-    let mut data = vec![0u8; n];
-    if n > 0 {
-        file.seek(SeekFrom::Start(offset))
-            .and_then(|_| file.read_exact(&mut data))
-            .map_err(|e| FtpError::of_io(&e))?;
-    }
-    Ok(data)
-}
 
 /// Rename's two paths: `old\0new` (a trailing NUL or not).
 fn rename_paths(data: &[u8]) -> Option<(&[u8], &[u8])> {
@@ -349,6 +406,13 @@ fn rename_paths(data: &[u8]) -> Option<(&[u8], &[u8])> {
     let (old, rest) = (&data[..nul], &data[nul + 1..]);
     let new = &rest[..rest.iter().position(|&b| b == 0).unwrap_or(rest.len())];
     (!old.is_empty() && !new.is_empty()).then_some((old, new))
+}
+
+/// The CRC-32 of bytes held in memory, as [`crc32`] computes a file's.
+pub fn crc32_of(bytes: &[u8]) -> u32 {
+    let mut hasher = crc32fast::Hasher::new_with_initial(u32::MAX);
+    hasher.update(bytes);
+    hasher.finalize() ^ u32::MAX
 }
 
 /// A file's CRC-32 as MAVLink FTP computes it: reflected, polynomial 0xEDB88320, starting

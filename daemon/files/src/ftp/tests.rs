@@ -23,8 +23,12 @@ impl Fixture {
         std::fs::create_dir_all(dir.join("root")).expect("root");
         std::fs::create_dir_all(dir.join("logs")).expect("logs");
         let root = FtpRoot::new(&dir.join("root"), Some(&dir.join("logs")), writable);
+        let metadata = VirtualDir {
+            name: "@META".into(),
+            files: vec![("general.json".into(), b"{\"version\": 1}".as_slice().into())],
+        };
         Self {
-            server: FtpServer::new(root.expect("root")),
+            server: FtpServer::new(root.expect("root"), metadata),
             dir,
             seq: 0,
         }
@@ -191,8 +195,11 @@ fn write_then_read_back_list_rename_crc_and_remove() {
         Err(FtpError::FileNotFound)
     );
     assert_eq!(f.one(RemoveDirectory, b"/data", 0), Ok(vec![]));
-    // The root lists the logs' virtual directory; an empty listing is the end.
-    assert_eq!(f.one(ListDirectory, b"/", 0), Ok(b"D@MAV_LOG\0".to_vec()));
+    // The root lists the virtual directories; an empty listing is the end.
+    assert_eq!(
+        f.one(ListDirectory, b"/", 0),
+        Ok(b"D@MAV_LOG\0D@META\0".to_vec())
+    );
     assert_eq!(f.one(ListDirectory, b"@MAV_LOG", 0), Err(FtpError::Eof));
 }
 
@@ -282,5 +289,46 @@ fn a_repeated_request_gets_the_same_reply_without_acting_twice() {
         first[0].1.opcode,
         Opcode::Ack as u8,
         "not refused as a second session"
+    );
+}
+
+#[test]
+fn the_virtual_directory_reads_and_refuses_changes() {
+    let mut f = Fixture::new("virtual", true);
+    use Opcode::*;
+    assert_eq!(
+        f.one(ListDirectory, b"/@META", 0),
+        Ok(b"Fgeneral.json\t14\0".to_vec())
+    );
+    assert_eq!(f.one(ListDirectory, b"/@META", 1), Err(FtpError::Eof));
+    assert_eq!(
+        f.one(OpenFileRO, b"@META/nothing.json", 0),
+        Err(FtpError::FileNotFound)
+    );
+    assert_eq!(
+        f.one(RemoveFile, b"@META/general.json", 0),
+        Err(FtpError::FileProtected)
+    );
+    assert_eq!(
+        f.one(CreateFile, b"@META/x", 0),
+        Err(FtpError::FileProtected)
+    );
+    assert_eq!(
+        f.one(CalcFileCRC32, b"@META/general.json", 0),
+        Ok(crc32_of(b"{\"version\": 1}").to_le_bytes().to_vec())
+    );
+    assert_eq!(
+        f.one(OpenFileRO, b"/@META/general.json", 0),
+        Ok(14u32.to_le_bytes().to_vec())
+    );
+    assert_eq!(
+        f.one_sized(ReadFile, b"", 10, Some(239)),
+        Ok(b": 1}".to_vec())
+    );
+    assert_eq!(f.one(WriteFile, b"x", 0), Err(FtpError::FileProtected));
+    // A name that only starts alike is the root's.
+    assert_eq!(
+        f.one(OpenFileRO, b"@METADATA", 0),
+        Err(FtpError::FileNotFound)
     );
 }

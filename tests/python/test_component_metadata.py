@@ -1,0 +1,74 @@
+"""Component metadata as QGroundControl reads a PX4 vehicle's, with MAVSDK's own
+component-metadata client (pinned, unmodified): `REQUEST_MESSAGE` for `COMPONENT_METADATA`,
+the general file fetched over MAVLink FTP from the `mftp://` URI it names, then the parameter
+metadata it lists. The files are checked against the MAVLink project's JSON schemas
+(`../shared/specs/component_metadata/`, pinned `jsonschema`) and their CRCs, fetched again with
+pymavlink's FTP client; the parameter metadata is the table the parameter protocol serves."""
+
+import asyncio
+import json
+import re
+import zlib
+
+import jsonschema
+import mavsdk_grpc as mavsdk
+from mavsdk_grpc.component_metadata import MetadataType
+from pymavlink.mavftp import MAVFTP, FtpError
+
+from conftest import ROOT, first
+from test_ground_station import daemon  # noqa: F401 (the fixture)
+from test_mavsdk import free_tcp_port
+from test_ulog import fetch_params
+
+SCHEMAS = ROOT.parent / "shared" / "specs" / "component_metadata"
+
+
+def ftp_crc32(data):
+    """CRC-32 as MAVLink FTP computes it (from 0, no final inversion)."""
+    return zlib.crc32(data, 0xFFFFFFFF) ^ 0xFFFFFFFF
+
+
+def ftp_get(ftp, path, tmp_path):
+    local = tmp_path / path.replace("/", "_")
+    ftp.cmd_get([path, str(local)])
+    assert ftp.process_ftp_reply("OpenFileRO", timeout=10).error_code == FtpError.Success
+    return local.read_bytes()
+
+
+def test_component_metadata_over_ftp_matches_the_schemas_and_the_parameters(daemon, tmp_path):
+    async def mavsdk_reads_it():
+        drone = mavsdk.System(port=free_tcp_port())
+        await drone.connect(system_address=f"udpin://127.0.0.1:{daemon.gcs_port}")
+        await first(drone.core.connection_state(), lambda s: s.is_connected, 30)
+        await drone.component_metadata.request_autopilot_component()
+        await first(drone.component_metadata.metadata_available(),
+                    lambda u: u.type == MetadataType.ALL_COMPLETED, 30)
+        data = await drone.component_metadata.get_metadata(1, MetadataType.PARAMETER)
+        return json.loads(data.json_metadata)
+
+    metadata = asyncio.run(mavsdk_reads_it())
+    jsonschema.validate(metadata, json.loads((SCHEMAS / "parameter.schema.json").read_text()))
+
+    # The general file, and the parameters' file it names with its CRC, over pymavlink's FTP.
+    gcs = daemon.gcs
+    ftp = MAVFTP(gcs, 1, 1)
+    general = json.loads(ftp_get(ftp, "@META/general.json", tmp_path))
+    jsonschema.validate(general, json.loads((SCHEMAS / "general.schema.json").read_text()))
+    [entry] = [t for t in general["metadataTypes"] if t["type"] == 1]  # PARAMETER
+    path = re.fullmatch(r"mftp://\[;comp=1\](.+)", entry["uri"]).group(1)
+    param_bytes = ftp_get(ftp, path, tmp_path)
+    assert ftp_crc32(param_bytes) == entry["fileCrc"]
+    assert json.loads(param_bytes) == metadata
+
+    # The same table as the parameter protocol: every name once, each value in its range.
+    values = fetch_params(gcs)
+    by_name = {p["name"]: p for p in metadata["parameters"]}
+    assert by_name.keys() == values.keys()
+    for name, value in values.items():
+        p = by_name[name]
+        assert p["min"] <= value <= p["max"], (name, value, p)
+        assert p["shortDesc"] and p["longDesc"] and p["group"], p
+        if p["type"] == "Int32":
+            assert p["decimalPlaces"] == 0 and value == int(value), p
+    assert by_name["MIS_TAKEOFF_ALT"]["default"] == 2.5
+    assert by_name["MIS_TAKEOFF_ALT"]["units"] == "m"
