@@ -508,6 +508,7 @@ impl GroundStation {
             HEARTBEAT_DATA::ID => Some(streams::heartbeat(t, self.mav_type)),
             AUTOPILOT_VERSION_DATA::ID => Some(self.autopilot_version()),
             AVAILABLE_MODES_DATA::ID => streams::available_mode(param as usize),
+            MISSION_CURRENT_DATA::ID => t.status.map(|s| self.mission_current(&s)),
             COMPONENT_METADATA_DATA::ID => self.metadata.as_ref().map(|(uri, crc)| {
                 MavMessage::COMPONENT_METADATA(COMPONENT_METADATA_DATA {
                     time_boot_ms: (t.t_s * 1e3) as u32,
@@ -523,7 +524,10 @@ impl GroundStation {
     fn can_send(&self, id: u32) -> bool {
         DEFAULT_STREAMS.iter().any(|&(i, _)| i == id)
             || streams::ON_REQUEST.contains(&id)
-            || matches!(id, AUTOPILOT_VERSION_DATA::ID | AVAILABLE_MODES_DATA::ID)
+            || matches!(
+                id,
+                AUTOPILOT_VERSION_DATA::ID | AVAILABLE_MODES_DATA::ID | MISSION_CURRENT_DATA::ID
+            )
             || (id == COMPONENT_METADATA_DATA::ID && self.metadata.is_some())
     }
 

@@ -21,12 +21,14 @@ mod current_mode;
 mod estimator_status;
 mod extended_sys_state;
 mod global_position_int;
+mod gps_global_origin;
 mod gps_raw_int;
 mod highres_imu;
 mod hil_state_quaternion;
 mod home_position;
 mod local_position_ned;
 mod position_target_local_ned;
+mod protocol_version;
 mod scaled_imu;
 mod servo_output_raw;
 mod sys_status;
@@ -175,13 +177,17 @@ pub fn build(id: u32, t: &Telemetry, unix_usec: u64) -> Option<MavMessage> {
         ATTITUDE_TARGET_DATA::ID => attitude_target::message(&s),
         POSITION_TARGET_LOCAL_NED_DATA::ID => position_target_local_ned::message(&s),
         HIL_STATE_QUATERNION_DATA::ID => hil_state_quaternion::message(&s),
+        GPS_GLOBAL_ORIGIN_DATA::ID => gps_global_origin::message(&s),
+        PROTOCOL_VERSION_DATA::ID => protocol_version::message(&s),
         _ => None,
     }
 }
 
 /// Messages sent only when asked for (`REQUEST_MESSAGE`, or a rate through
 /// `SET_MESSAGE_INTERVAL`): sensor, estimator and output detail, and SITL's truth.
-pub const ON_REQUEST: [u32; 6] = [
+pub const ON_REQUEST: [u32; 8] = [
+    GPS_GLOBAL_ORIGIN_DATA::ID,
+    PROTOCOL_VERSION_DATA::ID,
     HIGHRES_IMU_DATA::ID,
     SCALED_IMU_DATA::ID,
     ESTIMATOR_STATUS_DATA::ID,

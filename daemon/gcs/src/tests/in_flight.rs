@@ -519,3 +519,43 @@ fn long_texts_go_in_chunks_that_reassemble() {
         assert_eq!(whole, text.as_bytes());
     }
 }
+
+#[test]
+fn protocol_version_origin_mission_and_component_metadata_are_answered_on_request() {
+    // (The origin once the estimator has one: tests/python/test_component_metadata.py.)
+    let t = telemetry(true, FlightMode::Loiter);
+    let ask = |g: &mut GroundStation, id: u32| {
+        let mut out = Outbox::default();
+        let m = command_long(
+            MavCmd::MAV_CMD_REQUEST_MESSAGE,
+            [id as f32, 0., 0., 0., 0., 0., 0.],
+            (1, 1),
+        );
+        g.on_message(&gcs_header(), &m, &t, &mut out);
+        let result = acks(&out)[0].result;
+        let mut sent = Outbox::default();
+        g.poll(0.0, &t, &mut sent);
+        let found = sent.messages.iter().any(|o| match o {
+            Outgoing::Message(m) => m.message_id() == id,
+            Outgoing::Raw(i, _) => *i == id,
+        });
+        (result, found)
+    };
+    let accepted = (MavResult::MAV_RESULT_ACCEPTED, true);
+    let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
+    for id in [
+        PROTOCOL_VERSION_DATA::ID,
+        MISSION_CURRENT_DATA::ID,
+        AUTOPILOT_VERSION_DATA::ID,
+    ] {
+        assert_eq!(ask(&mut g, id), accepted, "{id}");
+    }
+    // Known, but no origin yet: refused for now.
+    let origin = ask(&mut g, GPS_GLOBAL_ORIGIN_DATA::ID);
+    assert_eq!(origin, (MavResult::MAV_RESULT_TEMPORARILY_REJECTED, false));
+    // Component metadata only when its files are served.
+    let refused = ask(&mut g, COMPONENT_METADATA_DATA::ID);
+    assert_ne!(refused.0, MavResult::MAV_RESULT_ACCEPTED);
+    let mut g = g.with_component_metadata("mftp://[;comp=1]@META/general.json", 7);
+    assert_eq!(ask(&mut g, COMPONENT_METADATA_DATA::ID), accepted);
+}
