@@ -1,7 +1,8 @@
 //! Component metadata (the MAVLink component-information microservice, as QGroundControl reads
 //! a PX4 vehicle's): the general metadata file, which lists the others by `mftp://` URI and
 //! CRC, and the parameter metadata file (name, type, default, range, units, descriptions,
-//! group, decimal places), made from the same parameter declarations as `params/README.md`.
+//! group, decimal places), made from the same parameter declarations as `params/README.md`, and
+//! the events metadata ([`crate::events`]).
 //! The files are served by MAVLink FTP; `COMPONENT_METADATA` names the general one.
 
 use flight_core::params::{FlightParams, ParamKind};
@@ -12,6 +13,9 @@ pub const METADATA_DIR: &str = "@META";
 
 /// `COMP_METADATA_TYPE_PARAMETER`.
 const COMP_METADATA_TYPE_PARAMETER: u32 = 1;
+
+/// `COMP_METADATA_TYPE_EVENTS`.
+const COMP_METADATA_TYPE_EVENTS: u32 = 4;
 
 /// The metadata files of one vehicle, and what `COMPONENT_METADATA` says of them.
 #[derive(Debug, Clone, PartialEq)]
@@ -38,6 +42,7 @@ impl ComponentMetadata {
     pub fn new(model: &str, component_id: u8) -> Self {
         let uri = |name: &str| format!("mftp://[;comp={component_id}]{METADATA_DIR}/{name}");
         let parameters = to_bytes(&parameters_json());
+        let events = to_bytes(&crate::events::metadata_json());
         let general = to_bytes(&json!({
             "version": 1,
             "vendorName": "autopilot",
@@ -47,6 +52,10 @@ impl ComponentMetadata {
                 "type": COMP_METADATA_TYPE_PARAMETER,
                 "uri": uri("parameters.json"),
                 "fileCrc": ftp_crc32(&parameters),
+            }, {
+                "type": COMP_METADATA_TYPE_EVENTS,
+                "uri": uri("events.json"),
+                "fileCrc": ftp_crc32(&events),
             }],
         }));
         Self {
@@ -55,6 +64,7 @@ impl ComponentMetadata {
             files: vec![
                 ("general.json".to_owned(), general),
                 ("parameters.json".to_owned(), parameters),
+                ("events.json".to_owned(), events),
             ],
         }
     }

@@ -178,6 +178,11 @@ impl GroundStation {
                     target_component: from.component_id,
                 }));
             }
+            MavMessage::REQUEST_EVENT(r)
+                if self.for_us(r.target_system, Some(r.target_component)) =>
+            {
+                self.events_requested(r, from, out);
+            }
             MavMessage::TIMESYNC(s) if s.tc1 == 0 => {
                 let now_ns = (t.t_s * 1e9) as i64;
                 out.send(MavMessage::TIMESYNC(TIMESYNC_DATA {

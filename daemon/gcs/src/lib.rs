@@ -13,6 +13,7 @@
 mod calibration;
 mod commands;
 pub mod component_metadata;
+pub mod events;
 mod incoming;
 mod link_rates;
 pub mod mission;
@@ -198,6 +199,12 @@ pub struct GroundStation {
     requested: Vec<(u32, f32)>,
     /// The general component-metadata file's URI and CRC, when the files are served.
     metadata: Option<(String, u32)>,
+    /// The events sent (the events interface).
+    events: events::EventLog,
+    /// When `CURRENT_EVENT_SEQUENCE` is next due (s).
+    events_current_due: f64,
+    /// The vehicle's time at the last poll (ms): an event between polls is stamped with it.
+    events_now_ms: u32,
     /// What the last heartbeat showed: a change sends one at once.
     shown: Option<(bool, FlightMode, LandedState)>,
     home_shown: Option<[f64; 3]>,
@@ -245,6 +252,9 @@ impl GroundStation {
             link: 0,
             requested: Vec::new(),
             metadata: None,
+            events: Default::default(),
+            events_current_due: 0.0,
+            events_now_ms: 0,
             shown: None,
             home_shown: None,
             dropped: 0,
@@ -354,8 +364,10 @@ impl GroundStation {
     /// the armed state, mode or landed state changed.
     pub fn poll(&mut self, now_s: f64, t: &Telemetry, out: &mut Outbox) {
         let unix = self.unix_start_usec + (now_s * 1e6) as u64;
+        self.events_poll(now_s, t, out);
         let shown = t.status.map(|s| (s.armed, s.mode, s.landed));
         if shown != self.shown {
+            self.said_in_events(self.shown, shown, t, out);
             self.shown = shown;
             out.send(streams::heartbeat(t, self.mav_type));
             for id in [EXTENDED_SYS_STATE_DATA::ID, CURRENT_MODE_DATA::ID] {
@@ -424,6 +436,7 @@ impl GroundStation {
                 );
             }
             for e in events {
+                self.failsafe_event(&e, t, out);
                 let severity = match e {
                     SafetyEvent::Cleared(_) => MavSeverity::MAV_SEVERITY_NOTICE,
                     SafetyEvent::Triggered(_, FailsafeAction::None | FailsafeAction::Warn) => {
@@ -581,7 +594,12 @@ impl GroundStation {
         }
         match result {
             Ok(()) => out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED)),
-            Err(reason) => self.deny(to, out, &reason),
+            Err(reason) => {
+                if reason.starts_with("arming refused") {
+                    self.arming_denied_event(&reason, out);
+                }
+                self.deny(to, out, &reason)
+            }
         }
     }
 
