@@ -553,6 +553,8 @@ impl GroundStation {
             | 0xFF; // FIRMWARE_VERSION_TYPE_OFFICIAL
         MavMessage::AUTOPILOT_VERSION(AUTOPILOT_VERSION_DATA {
             capabilities: MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_MISSION_INT
+                | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_MISSION_FENCE
+                | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_MISSION_RALLY
                 | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_COMMAND_INT
                 | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_MAVLINK2
                 | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET

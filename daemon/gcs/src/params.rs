@@ -36,6 +36,9 @@ impl Default for Parameters {
     }
 }
 
+/// PX4's pseudo-parameter carrying the hash of all the others.
+const HASH_CHECK: &str = "_HASH_CHECK";
+
 /// The MAVLink type of a parameter kind.
 fn mav_type(kind: ParamKind) -> MavParamType {
     match kind {
@@ -102,9 +105,38 @@ impl Parameters {
         }
     }
 
-    /// The parameter `PARAM_REQUEST_READ` asks for: by index when it is not −1, else by name.
+    /// PX4's `_HASH_CHECK`: the CRC-32 (MAVLink FTP's variant, from 0) of every parameter's
+    /// name and value bytes (a float's, an integer's), in name order, as PX4's
+    /// `param_hash_check` computes it and QGroundControl checks its cache against.
+    pub fn hash(&self) -> u32 {
+        let mut all: Vec<_> = FlightParams::metadata().collect();
+        all.sort_by_key(|(_, m)| m.name);
+        let mut bytes = Vec::with_capacity(all.len() * 24);
+        for (group, m) in all {
+            let value = self.values.get(group, m.key).unwrap_or(m.default);
+            bytes.extend_from_slice(m.name.as_bytes());
+            match m.kind {
+                ParamKind::Real32 => bytes.extend_from_slice(&(value as f32).to_le_bytes()),
+                ParamKind::Int32 => bytes.extend_from_slice(&(value as i32).to_le_bytes()),
+            }
+        }
+        crate::component_metadata::ftp_crc32(&bytes)
+    }
+
+    /// The parameter `PARAM_REQUEST_READ` asks for: by index when it is not −1, else by name
+    /// (PX4's `_HASH_CHECK` among them).
     fn read(&self, r: &PARAM_REQUEST_READ_DATA, out: &mut Outbox) {
         let name = r.param_id.to_str().unwrap_or("");
+        if r.param_index < 0 && name == HASH_CHECK {
+            out.send(MavMessage::PARAM_VALUE(PARAM_VALUE_DATA {
+                param_value: f32::from_bits(self.hash()),
+                param_count: FlightParams::count() as u16,
+                param_index: u16::MAX,
+                param_id: HASH_CHECK.into(),
+                param_type: MavParamType::MAV_PARAM_TYPE_UINT32,
+            }));
+            return;
+        }
         let found = if r.param_index >= 0 {
             FlightParams::metadata()
                 .nth(r.param_index as usize)
@@ -122,6 +154,10 @@ impl Parameters {
     /// `PARAM_SET`: checks type and value, applies, and answers with the value now in force.
     fn set(&mut self, s: &PARAM_SET_DATA, out: &mut Outbox) -> ParamChange {
         let name = s.param_id.to_str().unwrap_or("");
+        if name == HASH_CHECK {
+            // QGroundControl's "the cache matched, stop sending": the list is sent at once.
+            return ParamChange::default();
+        }
         let Some((i, group, m)) = FlightParams::find(name) else {
             warn(out, &format!("no parameter {name}"));
             return ParamChange::default();

@@ -4,6 +4,7 @@
 use super::Call;
 use crate::DEFAULT_STREAMS;
 use crate::{GroundStation, Outbox};
+use mavlink::MessageData;
 use mavlink::dialects::common::*;
 
 impl GroundStation {
@@ -50,6 +51,13 @@ impl GroundStation {
                 let id = p[0] as u32;
                 if !(p[0].is_finite() && self.can_send(id)) {
                     return self.deny(to, out, &format!("request message: cannot send {}", p[0]));
+                }
+                if id == AVAILABLE_MODES_DATA::ID && p[1] == 0.0 {
+                    // Every mode, one message each (param2 = 0), as QGroundControl may ask.
+                    out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED));
+                    let n = crate::modes::SELECTABLE.len();
+                    self.requested.extend((1..=n).map(|k| (id, k as f32)));
+                    return;
                 }
                 if self.one_off(id, p[1], t, 0).is_none() {
                     // Known, but no data for it yet (no position, no home).
