@@ -529,6 +529,16 @@ impl GroundStation {
                     uri: uri.as_str().into(),
                 })
             }),
+            // The legacy form of the same (PX4 still answers it; QGC falls back to it).
+            COMPONENT_INFORMATION_DATA::ID => self.metadata.as_ref().map(|(uri, crc)| {
+                MavMessage::COMPONENT_INFORMATION(COMPONENT_INFORMATION_DATA {
+                    time_boot_ms: (t.t_s * 1e3) as u32,
+                    general_metadata_file_crc: *crc,
+                    peripherals_metadata_file_crc: 0,
+                    general_metadata_uri: uri.as_str().into(),
+                    peripherals_metadata_uri: "".into(),
+                })
+            }),
             _ => streams::build(id, t, unix),
         }
     }
@@ -541,7 +551,10 @@ impl GroundStation {
                 id,
                 AUTOPILOT_VERSION_DATA::ID | AVAILABLE_MODES_DATA::ID | MISSION_CURRENT_DATA::ID
             )
-            || (id == COMPONENT_METADATA_DATA::ID && self.metadata.is_some())
+            || (matches!(
+                id,
+                COMPONENT_METADATA_DATA::ID | COMPONENT_INFORMATION_DATA::ID
+            ) && self.metadata.is_some())
     }
 
     /// `AUTOPILOT_VERSION`: what this vehicle speaks, its version and a uid from its system id.

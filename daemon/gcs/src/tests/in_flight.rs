@@ -558,4 +558,5 @@ fn protocol_version_origin_mission_and_component_metadata_are_answered_on_reques
     assert_ne!(refused.0, MavResult::MAV_RESULT_ACCEPTED);
     let mut g = g.with_component_metadata("mftp://[;comp=1]@META/general.json", 7);
     assert_eq!(ask(&mut g, COMPONENT_METADATA_DATA::ID), accepted);
+    assert_eq!(ask(&mut g, COMPONENT_INFORMATION_DATA::ID), accepted);
 }
