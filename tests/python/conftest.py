@@ -50,6 +50,35 @@ def greet(conn, timeout=30.0):
     raise AssertionError(f"no heartbeat on {conn.address} in {timeout:.0f} s")
 
 
+def receive(gcs, what, condition, timeout):
+    """The first `what` from component 1 for which condition holds within `timeout` s, and
+    when it came; (None, now) if none. A message pymavlink's dialect does not know
+    (`UNKNOWN_<id>`) keeps its whole frame, the sender's component in it."""
+    end = time.monotonic() + timeout
+    while (left := end - time.monotonic()) > 0:
+        m = gcs.recv_match(type=what, blocking=True, timeout=min(left, 0.1))
+        if m is None:
+            continue
+        unknown = m.get_type().startswith("UNKNOWN_")
+        component = m.data[6] if unknown else m.get_srcComponent()
+        if component == 1 and condition(m):
+            return m, time.monotonic()
+    return None, time.monotonic()
+
+
+def request_message(gcs, msg_id, what, param2=0, condition=lambda m: True, within_s=1.0):
+    """REQUEST_MESSAGE as QGroundControl sends it: accepted within 1.2 s, the message within
+    `within_s` (QGC: 1 s) of the ack."""
+    gcs.mav.command_long_send(1, 1, mavutil.mavlink.MAV_CMD_REQUEST_MESSAGE, 0, msg_id, param2,
+                              0, 0, 0, 0, 0)
+    ack, _ = receive(gcs, "COMMAND_ACK",
+                     lambda m: m.command == mavutil.mavlink.MAV_CMD_REQUEST_MESSAGE, 1.2)
+    assert ack is not None and ack.result == mavutil.mavlink.MAV_RESULT_ACCEPTED, (msg_id, ack)
+    m, _ = receive(gcs, what, condition, within_s)
+    assert m is not None, f"{what} not within {within_s} s of the ack"
+    return m
+
+
 def sim_control(port):
     """A pymavlink connection to the simulator's own endpoint (`sitl --control`), greeted."""
     sim = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=255)

@@ -62,11 +62,12 @@ def wait_holding_in_air(gcs, timeout=30, min_height_m=1.0):
     armed on the ground does not count (arming enters it; a heartbeat sent before the take-off
     command was acted on may still be queued)."""
     end = time.monotonic() + timeout
-    while True:
+    while time.monotonic() < end:
         wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER" and armed(m),
-             end - time.monotonic())
+             max(end - time.monotonic(), 0.5))
         if wait(gcs, "GLOBAL_POSITION_INT", lambda m: True, 5).relative_alt > min_height_m * 1e3:
             return
+    pytest.fail(f"not holding {min_height_m} m up within {timeout} s")
 
 
 def test_identity_gps_and_requests(vehicle):

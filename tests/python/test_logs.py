@@ -61,8 +61,8 @@ def test_every_run_leaves_a_tlog_pymavlink_reads_and_a_full_rate_flight_csv(tmp_
     started, ended, out = fly_with_a_ground_station(tmp_path)
     logs = sorted((tmp_path / "logs").iterdir())
     names = [p.name for p in logs]
-    assert len(logs) == 2 and {p.suffix for p in logs} == {".csv", ".tlog"}, names
-    assert logs[0].stem == logs[1].stem  # one run, one name: its UTC start time
+    assert len(logs) == 3 and {p.suffix for p in logs} == {".csv", ".tlog", ".ulg"}, names
+    assert len({p.stem for p in logs}) == 1  # one run, one name: its UTC start time
     assert time.strftime("%Y-%m-%d_%H-%M", time.gmtime(started)) <= logs[0].stem[:16] <= \
         time.strftime("%Y-%m-%d_%H-%M", time.gmtime(ended)), names
     tlog = tmp_path / "logs" / f"{logs[0].stem}.tlog"

@@ -91,7 +91,8 @@ def test_logs_are_flushed_on_sigterm_and_a_killed_daemon_loses_under_a_second(tm
         ulg = max(daemon.logs.glob("*.ulg"), key=lambda p: p.stat().st_mtime)
         flight_log = ULog(str(ulg))
         assert not flight_log.file_corruption
-        assert flight_log.last_timestamp / 1e6 >= seen_s - 0.5, (flight_log.last_timestamp, seen_s)
+        # (0.5 s handed over at a time, and a moment for the writer thread to write it.)
+        assert flight_log.last_timestamp / 1e6 >= seen_s - 0.6, (flight_log.last_timestamp, seen_s)
     finally:
         daemon.close()
 

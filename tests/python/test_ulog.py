@@ -69,15 +69,15 @@ def test_a_flight_log_reads_in_pyulog_with_px4_topics_csv_values_params_and_text
         arm_and_take_off(gcs)
         gcs.mav.command_long_send(1, 1, mavutil.mavlink.MAV_CMD_NAV_LAND, 0, 0, 0, 0, 0, 0, 0, 0)
         assert ack(gcs, mavutil.mavlink.MAV_CMD_NAV_LAND) == 0
-        end = time.monotonic() + 60
-        while time.monotonic() < end:
+        end, landed = time.monotonic() + 60, False
+        while time.monotonic() < end and not landed:
             m = gcs.recv_match(type=["HEARTBEAT", "STATUSTEXT"], blocking=True, timeout=0.5)
             if m is None or m.get_srcComponent() != 1:
                 continue
             if m.get_type() == "STATUSTEXT":
                 texts.append(m.text)
-            elif not armed(m):
-                break
+            landed = m.get_type() == "HEARTBEAT" and not armed(m)
+        assert landed, "not disarmed after landing within 60 s"
         daemon.stop()
     finally:
         daemon.close()

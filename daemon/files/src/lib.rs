@@ -10,6 +10,7 @@ use ftp::paths::FtpRoot;
 use ftp::payload::{FtpError, FtpPayload, PAYLOAD_LEN};
 pub use ftp::virtual_dir::VirtualDir;
 use ftp::{FtpServer, Replies, Requester};
+pub use logs::FileSends;
 use logs::LogService;
 use mavlink::MavHeader;
 use mavlink::dialects::common::{FILE_TRANSFER_PROTOCOL_DATA, MavMessage};
@@ -22,16 +23,13 @@ pub struct FilesConfig {
     pub ftp_root: Option<PathBuf>,
     /// The flight logs' directory: `@MAV_LOG` and the log download.
     pub logs: Option<PathBuf>,
-    /// FTP may change files.
+    /// FTP may change files, and `LOG_ERASE` remove logs.
     pub writable: bool,
     /// The files the vehicle is writing now (its logs): never changed or erased from outside.
     pub busy: Vec<PathBuf>,
     /// Files held in memory, served read-only beside the root (the component metadata).
     pub virtual_dir: VirtualDir,
 }
-
-/// Messages to send, each on its link.
-pub type Outgoing = Vec<(u8, MavMessage)>;
 
 /// The FTP and log download services of one vehicle.
 #[derive(Debug)]
@@ -40,6 +38,8 @@ pub struct FileServices {
     component_id: u8,
     ftp: Option<FtpServer>,
     logs: Option<LogService>,
+    /// Files may be changed (FTP writes, log erase).
+    writable: bool,
     replies: Replies,
 }
 
@@ -69,6 +69,7 @@ impl FileServices {
             component_id,
             ftp,
             logs,
+            writable: config.writable,
             replies: Vec::new(),
         }
     }
@@ -99,7 +100,7 @@ impl FileServices {
         header: &MavHeader,
         m: &MavMessage,
         now_s: f64,
-        out: &mut Outgoing,
+        out: &mut FileSends,
     ) {
         match m {
             MavMessage::FILE_TRANSFER_PROTOCOL(f)
@@ -132,8 +133,10 @@ impl FileServices {
                 }
             }
             MavMessage::LOG_ERASE(r) if self.for_us(r.target_system, r.target_component) => {
-                if let Some(logs) = self.logs.as_mut() {
-                    logs.erase();
+                match self.logs.as_mut() {
+                    Some(logs) if self.writable => logs.erase(),
+                    Some(_) => tracing::warn!("log erase refused: read-only (--ftp-read-only)"),
+                    None => {}
                 }
             }
             _ => {}
@@ -143,7 +146,7 @@ impl FileServices {
 
     /// Up to `budget` messages of the transfers under way (a burst read, a log listing or
     /// download), and the FTP session's idle time-out.
-    pub fn poll(&mut self, now_s: f64, budget: usize, out: &mut Outgoing) {
+    pub fn poll(&mut self, now_s: f64, budget: usize, out: &mut FileSends) {
         let before = out.len();
         if let Some(ftp) = self.ftp.as_mut() {
             ftp.poll(now_s, budget, &mut self.replies);
@@ -154,7 +157,7 @@ impl FileServices {
         }
     }
 
-    fn drain_replies(&mut self, out: &mut Outgoing) {
+    fn drain_replies(&mut self, out: &mut FileSends) {
         for (to, p) in self.replies.drain(..) {
             let payload: [u8; PAYLOAD_LEN] = p.encode();
             out.push((

@@ -49,14 +49,13 @@ pub fn list(dir: &Path) -> Vec<LogFileEntry> {
     logs
 }
 
-/// Sorts a run's logs by start time, then by the `-N` of a later run in the same second.
-fn order_key(path: &Path) -> (String, usize, String) {
-    let stem = path
-        .file_stem()
-        .map_or(String::new(), |s| s.to_string_lossy().into_owned());
-    // The start time is the first 19 characters (`YYYY-MM-DD_HH-MM-SS`).
+/// Sorts a run's logs by start time, then by the `-N` of a later run in the same second
+/// (bytes, not characters: any name sorts, none can fail).
+fn order_key(path: &Path) -> (Vec<u8>, usize, Vec<u8>) {
+    let stem = path.file_stem().map_or(&[][..], |s| s.as_encoded_bytes());
+    // The start time is the first 19 bytes (`YYYY-MM-DD_HH-MM-SS`).
     let (time, rest) = stem.split_at(stem.len().min(19));
-    (time.to_owned(), rest.len(), rest.to_owned())
+    (time.to_vec(), rest.len(), rest.to_vec())
 }
 
 /// A download under way.
@@ -83,7 +82,7 @@ pub struct LogService {
 }
 
 /// Messages to send, each on its link.
-pub type LogReplies = Vec<(u8, MavMessage)>;
+pub type FileSends = Vec<(u8, MavMessage)>;
 
 impl LogService {
     /// The service of the logs in `dir`.
@@ -104,7 +103,7 @@ impl LogService {
 
     /// `LOG_REQUEST_LIST` from `link`: entries `start` to `end` (0xffff: the last) follow from
     /// [`LogService::poll`]; no log at all is one entry saying so.
-    pub fn request_list(&mut self, link: u8, start: u16, end: u16, out: &mut LogReplies) {
+    pub fn request_list(&mut self, link: u8, start: u16, end: u16, out: &mut FileSends) {
         self.listed = list(&self.dir);
         let n = u16::try_from(self.listed.len()).unwrap_or(u16::MAX);
         if n == 0 {
@@ -118,7 +117,7 @@ impl LogService {
 
     /// `LOG_REQUEST_DATA`: `count` bytes (0xffffffff: to the end) of log `id` from `ofs`. An
     /// unknown id is ignored, as PX4 does; a start at or past the end is one empty piece.
-    pub fn request_data(&mut self, link: u8, id: u16, ofs: u32, count: u32, out: &mut LogReplies) {
+    pub fn request_data(&mut self, link: u8, id: u16, ofs: u32, count: u32, out: &mut FileSends) {
         let Some(log) = self.listed.get(usize::from(id)) else {
             return;
         };
@@ -169,14 +168,17 @@ impl LogService {
     }
 
     /// Sends up to `budget` messages of the listing, then of the download, under way.
-    pub fn poll(&mut self, budget: usize, out: &mut LogReplies) {
+    pub fn poll(&mut self, budget: usize, out: &mut FileSends) {
         let mut sent = 0;
         while sent < budget {
             let Some((link, id, last)) = self.listing else {
                 break;
             };
-            let n = self.listed.len() as u16;
-            let log = &self.listed[usize::from(id)];
+            let n = u16::try_from(self.listed.len()).unwrap_or(u16::MAX);
+            let Some(log) = self.listed.get(usize::from(id)) else {
+                self.listing = None;
+                break;
+            };
             out.push((link, entry_message(id, n, Some(log))));
             sent += 1;
             self.listing = (id < last).then_some((link, id + 1, last));

@@ -228,7 +228,11 @@ pub const ARMING_CHECKS: [(&str, &str, &str); 23] = [
         "offboard",
         "no offboard set-points",
     ),
-    ("throttle stick", "throttle", "throttle stick not low"),
+    (
+        "throttle stick",
+        "throttle",
+        "throttle stick not low (or above centre)",
+    ),
 ];
 
 /// The `arming_check_t` value of a refusal's words.
@@ -252,14 +256,35 @@ pub fn condition_arg(c: Condition) -> u8 {
     index_of(&CONDITIONS, c)
 }
 
-/// `failsafe_action_t` of an action.
+/// `failsafe_action_t` of an action: its place in [`ACTIONS`] (a test keeps them in step).
 pub fn action_arg(a: FailsafeAction) -> u8 {
-    index_of(&ACTIONS, a)
+    match a {
+        FailsafeAction::None => 0,
+        FailsafeAction::Warn => 1,
+        FailsafeAction::Hold => 2,
+        FailsafeAction::Return => 3,
+        FailsafeAction::Land => 4,
+        FailsafeAction::Descend => 5,
+        FailsafeAction::Disarm => 6,
+        FailsafeAction::Terminate => 7,
+    }
 }
 
-/// `navigation_mode_t` of a mode.
+/// `navigation_mode_t` of a mode: its place in [`MODES`] (a test keeps them in step).
 pub fn mode_arg(m: FlightMode) -> u8 {
-    index_of(&MODES, m)
+    match m {
+        FlightMode::Manual => 0,
+        FlightMode::Stabilized => 1,
+        FlightMode::Altctl => 2,
+        FlightMode::Posctl => 3,
+        FlightMode::Takeoff => 4,
+        FlightMode::Loiter => 5,
+        FlightMode::Mission => 6,
+        FlightMode::Rtl => 7,
+        FlightMode::Land => 8,
+        FlightMode::Offboard => 9,
+        FlightMode::Descend => 10,
+    }
 }
 
 /// The events sent, and their numbering.
@@ -313,23 +338,27 @@ impl EventLog {
         })
     }
 
-    /// The answers to `REQUEST_EVENT` (an inclusive range, which may wrap): each event again,
-    /// or `RESPONSE_EVENT_ERROR` naming the oldest one kept after it. At most [`KEPT`] + 1.
+    /// The answers to `REQUEST_EVENT` (an inclusive range, which may wrap): each event again
+    /// up to the first that is not kept, for which one `RESPONSE_EVENT_ERROR` names the oldest
+    /// kept after it (a receiver asks again from there). At most [`KEPT`] + 1.
     pub fn request(&self, r: &REQUEST_EVENT_DATA, from: &MavHeader) -> Vec<MavMessage> {
         let mut out = Vec::new();
         let mut seq = r.first_sequence;
         loop {
             match self.sent.iter().find(|e| e.sequence == seq) {
                 Some(e) => out.push(MavMessage::EVENT(e.clone())),
-                None => out.push(MavMessage::RESPONSE_EVENT_ERROR(
-                    RESPONSE_EVENT_ERROR_DATA {
-                        target_system: from.system_id as u8,
-                        target_component: from.component_id,
-                        sequence: seq,
-                        sequence_oldest_available: self.oldest_after(seq),
-                        reason: MavEventErrorReason::MAV_EVENT_ERROR_REASON_UNAVAILABLE,
-                    },
-                )),
+                None => {
+                    out.push(MavMessage::RESPONSE_EVENT_ERROR(
+                        RESPONSE_EVENT_ERROR_DATA {
+                            target_system: from.system_id as u8,
+                            target_component: from.component_id,
+                            sequence: seq,
+                            sequence_oldest_available: self.oldest_after(seq),
+                            reason: MavEventErrorReason::MAV_EVENT_ERROR_REASON_UNAVAILABLE,
+                        },
+                    ));
+                    return out;
+                }
             }
             if seq == r.last_sequence || out.len() > KEPT {
                 return out;
@@ -338,9 +367,14 @@ impl EventLog {
         }
     }
 
-    /// The oldest kept sequence at or after `seq` (counting with the wrap); the next to come
-    /// when none is kept.
+    /// The oldest kept sequence after `seq` (counting with the wrap); the next to come when
+    /// none is kept, or `seq` is not sent yet.
     fn oldest_after(&self, seq: u16) -> u16 {
+        let last = self.next.wrapping_sub(1);
+        // Ahead of the last one sent (within half the range): nothing kept comes after it.
+        if seq.wrapping_sub(last) != 0 && seq.wrapping_sub(last) < 0x8000 {
+            return self.next;
+        }
         self.sent
             .iter()
             .map(|e| e.sequence)
@@ -427,9 +461,14 @@ impl GroundStation {
         from: &MavHeader,
         out: &mut Outbox,
     ) {
-        for m in self.events.request(r, from) {
-            out.send(m);
-        }
+        // On the requester's link only: a request must not multiply traffic everywhere.
+        let link = self.link;
+        out.streamed.extend(
+            self.events
+                .request(r, from)
+                .into_iter()
+                .map(|m| (link, crate::Outgoing::Message(m))),
+        );
     }
 }
 
@@ -594,6 +633,11 @@ mod tests {
         };
         assert_eq!(test1.id() & 0xff_ffff, 2_306_236);
         assert_eq!(condition_arg(Condition::GcsLinkLost), 0);
-        assert_eq!(action_arg(FailsafeAction::Return), 3);
+        for (k, a) in ACTIONS.iter().enumerate() {
+            assert_eq!(usize::from(action_arg(*a)), k);
+        }
+        for (k, m) in MODES.iter().enumerate() {
+            assert_eq!(usize::from(mode_arg(*m)), k);
+        }
     }
 }

@@ -543,6 +543,11 @@ impl GroundStation {
         }
     }
 
+    /// Whether message `id` can be streamed at a rate (`SET_MESSAGE_INTERVAL`).
+    fn can_stream(id: u32) -> bool {
+        DEFAULT_STREAMS.iter().any(|&(i, _)| i == id) || streams::ON_REQUEST.contains(&id)
+    }
+
     /// Whether REQUEST_MESSAGE can give message `id`.
     fn can_send(&self, id: u32) -> bool {
         DEFAULT_STREAMS.iter().any(|&(i, _)| i == id)
@@ -574,7 +579,12 @@ impl GroundStation {
                 | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
                 | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT
                 | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
-                | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_FTP,
+                | if self.metadata.is_some() {
+                    // FTP serves files (the metadata among them).
+                    MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_FTP
+                } else {
+                    MavProtocolCapability::empty()
+                },
             uid: 0x4155_5450_0000_0000 | self.system_id as u64,
             flight_sw_version: version,
             ..Default::default()

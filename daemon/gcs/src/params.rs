@@ -115,10 +115,8 @@ impl Parameters {
         for (group, m) in all {
             let value = self.values.get(group, m.key).unwrap_or(m.default);
             bytes.extend_from_slice(m.name.as_bytes());
-            match m.kind {
-                ParamKind::Real32 => bytes.extend_from_slice(&(value as f32).to_le_bytes()),
-                ParamKind::Int32 => bytes.extend_from_slice(&(value as i32).to_le_bytes()),
-            }
+            // The bytes PARAM_VALUE carries.
+            bytes.extend_from_slice(&encode(m.kind, value).to_bits().to_le_bytes());
         }
         crate::component_metadata::ftp_crc32(&bytes)
     }

@@ -99,4 +99,5 @@ pub fn carry_out(gcs: &mut GroundStation, autopilot: &mut Autopilot, out: &mut O
     }
     out.messages.clear();
     out.streamed.clear();
+    out.said.clear();
 }

@@ -261,6 +261,14 @@ fn fly_together(cfg: Settings, source: Source) -> Result<()> {
         sims.push(EmbeddedSim::with_world(&airframe, world, &[], None, None)?);
         vehicles.push(p);
     }
+    // They share the log directory: none may erase or change another's logs being written.
+    let busy: Vec<_> = vehicles
+        .iter()
+        .flat_map(|p| p.gcs.files.busy.clone())
+        .collect();
+    for p in &mut vehicles {
+        p.gcs.files.busy.clone_from(&busy);
+    }
     let commands: Vec<_> = vehicles.iter().map(|p| p.gcs.commands.clone()).collect();
     let telemetry: Vec<_> = vehicles.iter().map(|p| p.gcs.telemetry.clone()).collect();
     let (mut cores, links): (Vec<_>, Vec<_>) = vehicles

@@ -146,8 +146,14 @@ pub(super) fn prepare(
     let mut files = vehicle_files::FilesConfig {
         ftp_root: cfg.ftp_root().map(Path::to_path_buf),
         logs: cfg.log_dir().map(Path::to_path_buf).or_else(|| {
-            ulog.as_ref()
-                .and_then(|u| u.parent().map(Path::to_path_buf))
+            // `--ulog x.ulg` names a file here: its directory is `.`.
+            let dir = ulog.as_ref()?.parent()?;
+            let dir = if dir.as_os_str().is_empty() {
+                Path::new(".")
+            } else {
+                dir
+            };
+            Some(dir.to_path_buf())
         }),
         writable: !cfg.ftp_read_only,
         busy: [&ulog, &tlog_path, &flight_csv]

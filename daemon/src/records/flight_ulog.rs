@@ -22,7 +22,7 @@ use std::path::Path;
 pub struct UlogStart {
     /// The parameters flown at the start.
     pub params: FlightParams,
-    /// MAVLink system id and `MAV_TYPE`.
+    /// MAVLink system id.
     pub system_id: u8,
     /// The vehicle's `MAV_TYPE`.
     pub mav_type: u8,
@@ -52,27 +52,38 @@ pub struct FlightUlog {
     mode_us: u64,
 }
 
-/// The ground-station task's way into the flight log: logged strings and parameter changes.
-#[derive(Debug, Clone)]
-pub struct UlogEvents(LogProducer<Vec<u8>>);
+/// The ground-station task's way into the flight log: logged strings and parameter changes,
+/// gathered and handed over together ([`UlogEvents::flush`]) so that a burst of them takes
+/// one place in the writer's queue.
+#[derive(Debug)]
+pub struct UlogEvents {
+    producer: LogProducer<Vec<u8>>,
+    buf: Vec<u8>,
+    /// Batches lost because the writer was behind (or finished).
+    pub lost: u64,
+}
 
 impl UlogEvents {
-    /// A `STATUSTEXT` of `severity` (MAV_SEVERITY) said at sample time `t_us`. Lost (a log
-    /// never waits) only when the writer is far behind.
-    pub fn said(&self, severity: u8, t_us: u64, text: &str) {
+    /// A `STATUSTEXT` of `severity` (MAV_SEVERITY) said at sample time `t_us`.
+    pub fn said(&mut self, severity: u8, t_us: u64, text: &str) {
         if text.is_empty() {
             return; // Flight Review cannot show an empty string
         }
-        let mut out = Vec::with_capacity(16 + text.len());
-        ulog::logged_string(&mut out, Level::from_mav_severity(severity), t_us, text);
-        self.0.write(out);
+        let level = Level::from_mav_severity(severity);
+        ulog::logged_string(&mut self.buf, level, t_us, text);
     }
 
     /// A parameter's new value.
-    pub fn param_changed(&self, name: &str, kind: ParamKind, value: f64) {
-        let mut out = Vec::with_capacity(40);
-        ulog::parameter(&mut out, name, param_value(kind, value));
-        self.0.write(out);
+    pub fn param_changed(&mut self, name: &str, kind: ParamKind, value: f64) {
+        ulog::parameter(&mut self.buf, name, param_value(kind, value));
+    }
+
+    /// Hands what was gathered to the writer, which never waits: a writer far behind loses it
+    /// (counted).
+    pub fn flush(&mut self) {
+        if !self.buf.is_empty() && !self.producer.write(std::mem::take(&mut self.buf)) {
+            self.lost += 1;
+        }
     }
 }
 
@@ -135,7 +146,11 @@ impl FlightUlog {
 
     /// The handle the ground-station task logs strings and parameter changes through.
     pub fn events(&self) -> Option<UlogEvents> {
-        self.file.producer().map(UlogEvents)
+        self.file.producer().map(|producer| UlogEvents {
+            producer,
+            buf: Vec::new(),
+            lost: 0,
+        })
     }
 
     /// Whether topic `id` is due at `t` (and when it is next).

@@ -4,11 +4,12 @@
 //! by name, so that the indices a client counts stay put between its requests; the root
 //! lists its virtual directories (`@MAV_LOG`, the metadata's) first.
 
-use super::payload::{FtpError, MAX_DATA};
+use super::payload::{ENOTDIR, FtpError, MAX_DATA};
 use std::path::Path;
 
 /// The entries of `dir` from index `offset` that fit in one payload; [`FtpError::Eof`] when
-/// none is left (an empty directory included, which clients take as the end).
+/// none is left (an empty directory included, which clients take as the end). Only the
+/// entries sent are looked at beyond their names.
 pub fn entries(
     dir: &Path,
     offset: u32,
@@ -21,20 +22,22 @@ pub fn entries(
             false => FtpError::FileNotFound,
         });
     }
-    let mut names: Vec<_> = std::fs::read_dir(dir)
+    let mut found: Vec<_> = std::fs::read_dir(dir)
         .map_err(|e| FtpError::of_io(&e))?
         .filter_map(|e| e.ok())
         .collect();
-    names.sort_by_key(|e| e.file_name());
-    let mut all: Vec<Vec<u8>> = Vec::with_capacity(names.len() + 1);
-    for name in virtual_dirs {
-        all.push(format!("D{name}").into_bytes());
-    }
-    for e in names {
-        all.push(entry(&e, with_time));
-    }
+    found.sort_by_key(|e| e.file_name());
+    // Skipped before anything but the name is read.
+    let names = virtual_dirs
+        .iter()
+        .map(|name| Err(*name))
+        .chain(found.iter().map(Ok));
+    let texts = names.skip(offset as usize).map(|n| match n {
+        Err(name) => format!("D{name}").into_bytes(),
+        Ok(e) => entry(e, with_time),
+    });
     let mut out = Vec::new();
-    for mut e in all.into_iter().skip(offset as usize) {
+    for mut e in texts {
         if e.len() + 1 > MAX_DATA {
             e = b"S".to_vec(); // a name too long for any payload
         }
@@ -49,9 +52,6 @@ pub fn entries(
     }
     Ok(out)
 }
-
-/// `ENOTDIR` (Linux's number).
-const ENOTDIR: u8 = 20;
 
 /// One entry's text (without its NUL).
 fn entry(e: &std::fs::DirEntry, with_time: bool) -> Vec<u8> {

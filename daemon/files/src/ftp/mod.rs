@@ -14,7 +14,7 @@ pub mod payload;
 pub mod virtual_dir;
 
 use paths::FtpRoot;
-use payload::{FtpError, FtpPayload, MAX_DATA, Opcode};
+use payload::{EFBIG, EINVAL, EISDIR, ENOTDIR, FtpError, FtpPayload, MAX_DATA, Opcode};
 use std::fs::File;
 use std::io::{Read, Seek, SeekFrom, Write};
 use virtual_dir::{OpenFile, VirtualDir, VirtualPlace};
@@ -61,6 +61,22 @@ struct Burst {
     sent: u64,
 }
 
+/// A `CalcFileCRC32` being computed: the file is read [`CRC_BYTES_PER_POLL`] at a time.
+#[derive(Debug)]
+struct PendingCrc {
+    to: Requester,
+    req: FtpPayload,
+    file: File,
+    hasher: crc32fast::Hasher,
+}
+
+/// The largest file a ground station may make (a write or truncation beyond is refused with
+/// `EFBIG`): uploads to a vehicle are plans and settings, not gigabytes.
+pub const MAX_FILE_BYTES: u64 = 64 << 20;
+
+/// Bytes of a file a poll reads for a CRC (1 MiB: a poll every 10 ms reads 100 MiB/s).
+const CRC_BYTES_PER_POLL: usize = 1 << 20;
+
 /// The FTP server.
 #[derive(Debug)]
 pub struct FtpServer {
@@ -69,6 +85,8 @@ pub struct FtpServer {
     virtual_dir: VirtualDir,
     session: Option<Session>,
     burst: Option<Burst>,
+    /// A CRC under way.
+    crc: Option<PendingCrc>,
     /// The last small reply (≤ 4 bytes of data) and the request it answered: a request
     /// repeated (its reply lost) gets it again rather than acting twice.
     last: Option<(Requester, u16, FtpPayload)>,
@@ -85,13 +103,9 @@ impl FtpServer {
             virtual_dir,
             session: None,
             burst: None,
+            crc: None,
             last: None,
         }
-    }
-
-    /// The file system served (to mark the files the vehicle is writing).
-    pub fn root_mut(&mut self) -> &mut FtpRoot {
-        &mut self.root
     }
 
     /// Answers one request at time `now_s` (any monotonic clock, s).
@@ -99,6 +113,7 @@ impl FtpServer {
         if let Some((to, seq, reply)) = &self.last
             && *to == from
             && *seq == req.seq
+            && reply.req_opcode == req.opcode
         {
             out.push((from, reply.clone()));
             return;
@@ -126,10 +141,13 @@ impl FtpServer {
             tracing::debug!("FTP session closed after {SESSION_IDLE_S} s unused");
             self.close();
         }
+        self.crc_step(out);
         for _ in 0..budget {
             let (Some(b), Some(s)) = (self.burst.as_mut(), self.session.as_mut()) else {
-                return;
+                break;
             };
+            // Offsets are 32 bits: a file is served up to 4 GiB.
+            let size = s.size.min(u64::from(u32::MAX));
             s.last_used_s = now_s;
             let mut packet = FtpPayload {
                 seq: b.seq,
@@ -140,7 +158,7 @@ impl FtpServer {
                 ..FtpPayload::default()
             };
             b.seq = b.seq.wrapping_add(1);
-            match s.file.read_at(b.offset, s.size, MAX_DATA) {
+            match s.file.read_at(b.offset, size, MAX_DATA) {
                 Ok(data) if !data.is_empty() => {
                     b.offset += data.len() as u64;
                     b.sent += data.len() as u64;
@@ -167,9 +185,41 @@ impl FtpServer {
         }
     }
 
+    /// Reads the next slice of a CRC under way; its answer once the file is read.
+    fn crc_step(&mut self, out: &mut Replies) {
+        let Some(c) = self.crc.as_mut() else {
+            return;
+        };
+        let mut buf = vec![0u8; 64 * 1024];
+        let mut read = 0;
+        let answer = loop {
+            match c.file.read(&mut buf) {
+                Ok(0) => break Some(Ok(c.hasher.clone().finalize() ^ u32::MAX)),
+                Ok(n) => {
+                    c.hasher.update(&buf[..n]);
+                    read += n;
+                    if read >= CRC_BYTES_PER_POLL {
+                        break None;
+                    }
+                }
+                Err(e) => break Some(Err(FtpError::of_io(&e))),
+            }
+        };
+        if let Some(answer) = answer {
+            let reply = match answer {
+                Ok(crc) => c.req.ack(crc.to_le_bytes().to_vec()),
+                Err(e) => c.req.nak(e),
+            };
+            out.push((c.to, reply));
+            self.crc = None;
+        }
+    }
+
     fn close(&mut self) {
         self.session = None;
         self.burst = None;
+        self.crc = None;
+        self.last = None;
     }
 
     /// The open session a request names, marked used.
@@ -231,12 +281,13 @@ impl FtpServer {
             op,
             ListDirectory | ListDirectoryWithTime | OpenFileRO | CalcFileCRC32
         );
-        let place = match self.virtual_dir.find(req.text()) {
-            _ if !names_a_path || self.virtual_dir.files.is_empty() => return Option::None,
-            Option::None => return Option::None,
-            Some(_) if !reads => return Some(Err(FtpError::FileProtected)), // read-only
-            Some(Err(e)) => return Some(Err(e)),
-            Some(Ok(place)) => place,
+        if !names_a_path || self.virtual_dir.files.is_empty() {
+            return Option::None;
+        }
+        let place = match self.virtual_dir.find(req.text())? {
+            _ if !reads => return Some(Err(FtpError::FileProtected)), // read-only
+            Err(e) => return Some(Err(e)),
+            Ok(place) => place,
         };
         Some(match (op, place) {
             (ListDirectory | ListDirectoryWithTime, VirtualPlace::Dir) => self
@@ -344,6 +395,9 @@ impl FtpServer {
                 if !s.writable {
                     return Err(FtpError::FileProtected);
                 }
+                if u64::from(req.offset) + req.data.len() as u64 > MAX_FILE_BYTES {
+                    return Err(FtpError::FailErrno(EFBIG));
+                }
                 let OpenFile::Disk(file) = &mut s.file else {
                     return Err(FtpError::FileProtected);
                 };
@@ -371,6 +425,9 @@ impl FtpServer {
                 done(Vec::new())
             }
             Opcode::TruncateFile => {
+                if u64::from(req.offset) > MAX_FILE_BYTES {
+                    return Err(FtpError::FailErrno(EFBIG));
+                }
                 let path = self.root.resolve_for_write(req.text())?;
                 let file = std::fs::OpenOptions::new()
                     .write(true)
@@ -387,18 +444,21 @@ impl FtpServer {
                 done(Vec::new())
             }
             Opcode::CalcFileCRC32 => {
+                // Computed a slice per poll: a large file never holds up the links.
                 let path = self.root.resolve(req.text())?;
-                done(crc32(&path)?.to_le_bytes().to_vec())
+                let file = File::open(&path).map_err(io)?;
+                self.crc = Some(PendingCrc {
+                    to: from,
+                    req: req.clone(),
+                    file,
+                    hasher: crc32fast::Hasher::new_with_initial(u32::MAX),
+                });
+                Ok(None)
             }
             Opcode::Ack | Opcode::Nak => Err(FtpError::UnknownCommand),
         }
     }
 }
-
-/// `ENOTDIR`, `EISDIR`, `EINVAL` (Linux's numbers, which clients print).
-const ENOTDIR: u8 = 20;
-const EISDIR: u8 = 21;
-const EINVAL: u8 = 22;
 
 /// Rename's two paths: `old\0new` (a trailing NUL or not).
 fn rename_paths(data: &[u8]) -> Option<(&[u8], &[u8])> {
@@ -408,26 +468,12 @@ fn rename_paths(data: &[u8]) -> Option<(&[u8], &[u8])> {
     (!old.is_empty() && !new.is_empty()).then_some((old, new))
 }
 
-/// The CRC-32 of bytes held in memory, as [`crc32`] computes a file's.
+/// A CRC-32 as MAVLink FTP computes it: reflected, polynomial 0xEDB88320, starting from 0
+/// and without the final inversion (zlib's CRC-32 seeded with !0, inverted).
 pub fn crc32_of(bytes: &[u8]) -> u32 {
     let mut hasher = crc32fast::Hasher::new_with_initial(u32::MAX);
     hasher.update(bytes);
     hasher.finalize() ^ u32::MAX
-}
-
-/// A file's CRC-32 as MAVLink FTP computes it: reflected, polynomial 0xEDB88320, starting
-/// from 0 and without the final inversion (zlib's CRC-32 seeded with !0, inverted).
-pub fn crc32(path: &std::path::Path) -> Result<u32, FtpError> {
-    let mut file = File::open(path).map_err(|e| FtpError::of_io(&e))?;
-    let mut hasher = crc32fast::Hasher::new_with_initial(u32::MAX);
-    let mut buf = vec![0u8; 64 * 1024];
-    loop {
-        let n = file.read(&mut buf).map_err(|e| FtpError::of_io(&e))?;
-        if n == 0 {
-            return Ok(hasher.finalize() ^ u32::MAX);
-        }
-        hasher.update(&buf[..n]);
-    }
 }
 
 #[cfg(test)]

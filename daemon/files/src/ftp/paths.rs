@@ -81,15 +81,16 @@ impl FtpRoot {
     }
 
     /// The place of a path to change (write, create, remove, rename): refused when writes are
-    /// off, for the root itself and for the vehicle's own logs being written.
+    /// off, for the root, and for the logs' directory, the logs being written and every
+    /// directory holding them (a rename of a parent would move them).
     pub fn resolve_for_write(&self, requested: &[u8]) -> Result<PathBuf, FtpError> {
         if !self.writable {
             return Err(FtpError::FileProtected);
         }
         let path = self.resolve(requested)?;
-        let is_base = Some(&path) == self.logs.as_ref() || path == self.root;
-        let busy = path.canonicalize().is_ok_and(|p| self.busy.contains(&p));
-        if is_base || busy {
+        let real = path.canonicalize().unwrap_or_else(|_| path.clone());
+        let holds = |p: &PathBuf| p.starts_with(&real);
+        if real == self.root || self.logs.iter().chain(&self.busy).any(holds) {
             return Err(FtpError::FileProtected);
         }
         Ok(path)

@@ -81,28 +81,47 @@ impl Opcode {
     }
 }
 
+/// `ENOTDIR`, `EISDIR`, `EINVAL`: Linux's numbers, which clients print.
+pub const ENOTDIR: u8 = 20;
+/// See [`ENOTDIR`].
+pub const EISDIR: u8 = 21;
+/// See [`ENOTDIR`].
+pub const EINVAL: u8 = 22;
+/// `EFBIG`: a write or truncation past [`super::MAX_FILE_BYTES`].
+pub const EFBIG: u8 = 27;
+
 /// Why a request was refused (`MAV_FTP_ERR`), the first byte of a NAK's data.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
 pub enum FtpError {
     /// Failed, no more said.
+    #[error("failed")]
     Fail,
     /// Failed in the file system: the `errno` follows.
+    #[error("failed: errno {0}")]
     FailErrno(u8),
     /// The data size is wrong for the request.
+    #[error("invalid data size")]
     InvalidDataSize,
     /// No such session, or it has no file open.
+    #[error("invalid session")]
     InvalidSession,
     /// Every session is in use.
+    #[error("no session available")]
     NoSessionsAvailable,
     /// Read or listed past the end.
+    #[error("end of file")]
     Eof,
     /// An opcode this server does not know.
+    #[error("unknown command")]
     UnknownCommand,
     /// The file or directory exists already.
+    #[error("file exists")]
     FileExists,
     /// Not allowed: outside the root, or writes are off.
+    #[error("file protected")]
     FileProtected,
     /// No such file or directory.
+    #[error("file not found")]
     FileNotFound,
 }
 

@@ -97,10 +97,7 @@ fn error_of(data: &[u8]) -> FtpError {
 
 #[test]
 fn crc32_is_mavlinks_variant() {
-    let dir = std::env::temp_dir().join(format!("ftp-crc-{}", std::process::id()));
-    std::fs::write(&dir, b"123456789").expect("file");
-    assert_eq!(crc32(&dir), Ok(0x2DFD_2D88));
-    let _ = std::fs::remove_file(&dir);
+    assert_eq!(crc32_of(b"123456789"), 0x2DFD_2D88);
 }
 
 #[test]
@@ -165,10 +162,15 @@ fn write_then_read_back_list_rename_crc_and_remove() {
         (f.seq + 1..f.seq + 1 + out.len() as u16).collect::<Vec<_>>()
     );
     assert_eq!(f.one(ResetSessions, b"", 0), Ok(vec![]));
-    assert_eq!(
-        f.one(CalcFileCRC32, b"/data/a.bin", 0).map(|d| d.len()),
-        Ok(4)
+    // A CRC is computed in poll()s, then answered.
+    assert!(
+        f.ask(CalcFileCRC32, b"/data/a.bin", 0, Option::None)
+            .is_empty()
     );
+    let mut out = Vec::new();
+    f.server.poll(0.0, 0, &mut out);
+    let want = crc32_of(&bytes).to_le_bytes().to_vec();
+    assert_eq!((out[0].1.seq, &out[0].1.data), (f.seq + 1, &want));
     assert_eq!(f.one(Rename, b"/data/a.bin\0/data/b.bin", 0), Ok(vec![]));
     assert_eq!(
         f.one(Rename, b"/data/b.bin", 0),

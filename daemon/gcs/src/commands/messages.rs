@@ -15,7 +15,7 @@ impl GroundStation {
         match c.command {
             MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL => {
                 let id = p[0] as u32;
-                if !(p[0].is_finite() && self.can_send(id)) {
+                if !(p[0].is_finite() && Self::can_stream(id)) {
                     return self.deny(
                         to,
                         out,
@@ -38,7 +38,7 @@ impl GroundStation {
                 let id = p[0] as u32;
                 let interval_us = match self.interval_s(id) {
                     Some(s) => (s * 1e6) as i32,
-                    None if self.can_send(id) => -1,
+                    None if Self::can_stream(id) => -1,
                     None => 0,
                 };
                 out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED));
