@@ -10,6 +10,7 @@ import socket
 import subprocess
 import threading
 import time
+import zlib
 from pathlib import Path
 
 import pytest
@@ -77,6 +78,11 @@ def request_message(gcs, msg_id, what, param2=0, condition=lambda m: True, withi
     m, _ = receive(gcs, what, condition, within_s)
     assert m is not None, f"{what} not within {within_s} s of the ack"
     return m
+
+
+def ftp_crc32(data):
+    """CRC-32 as MAVLink FTP computes it (from 0, no final inversion)."""
+    return zlib.crc32(data, 0xFFFFFFFF) ^ 0xFFFFFFFF
 
 
 def sim_control(port):

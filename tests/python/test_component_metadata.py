@@ -8,7 +8,6 @@ pymavlink's FTP client; the parameter metadata is the table the parameter protoc
 import asyncio
 import json
 import re
-import zlib
 
 import jsonschema
 import mavsdk_grpc as mavsdk
@@ -16,7 +15,7 @@ from mavsdk_grpc.component_metadata import MetadataType
 from pymavlink import mavutil
 from pymavlink.mavftp import MAVFTP, FtpError
 
-from conftest import ROOT, first, request_message
+from conftest import ROOT, first, ftp_crc32, request_message
 from test_ground_station import ack, daemon, wait  # noqa: F401 (the fixture)
 from test_mavsdk import free_tcp_port
 from test_ulog import fetch_params
@@ -24,11 +23,6 @@ from test_ulog import fetch_params
 # The MAVLink project's schemas, kept beside the project (not copied into it).
 SCHEMAS = ROOT.parent / "shared" / "specs" / "component_metadata"
 assert SCHEMAS.is_dir(), f"MAVLink's component-metadata schemas expected in {SCHEMAS}"
-
-
-def ftp_crc32(data):
-    """CRC-32 as MAVLink FTP computes it (from 0, no final inversion)."""
-    return zlib.crc32(data, 0xFFFFFFFF) ^ 0xFFFFFFFF
 
 
 def ftp_get(ftp, path, tmp_path):

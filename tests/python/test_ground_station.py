@@ -270,9 +270,9 @@ def set_param(gcs, name, value, ptype=REAL32, texts=None):
     pytest.fail(f"no PARAM_VALUE {name} after PARAM_SET")
 
 
-def test_parameters_fetch_set_persist_across_restart_and_reboot(daemon):
-    gcs = daemon.gcs
-    # Fetch all: a constant count, every index once, each name once.
+def param_list(gcs):
+    """PARAM_REQUEST_LIST's answer: every index once, with a constant count; index ->
+    PARAM_VALUE."""
     gcs.mav.param_request_list_send(1, 0)
     first = wait(gcs, "PARAM_VALUE", lambda m: True, 3)
     count, seen = first.param_count, {first.param_index: first}
@@ -283,6 +283,14 @@ def test_parameters_fetch_set_persist_across_restart_and_reboot(daemon):
             assert m.param_count == count
             seen[m.param_index] = m
     assert sorted(seen) == list(range(count)), f"{len(seen)} of {count}"
+    return seen
+
+
+def test_parameters_fetch_set_persist_across_restart_and_reboot(daemon):
+    gcs = daemon.gcs
+    # Fetch all: a constant count, every index once, each name once.
+    seen = param_list(gcs)
+    count = len(seen)
     by_name = {m.param_id: m for m in seen.values()}
     assert len(by_name) == count >= 50
     assert (by_name["MIS_TAKEOFF_ALT"].param_type, by_name["MIS_TAKEOFF_ALT"].param_value) == \

@@ -10,7 +10,7 @@ import zlib
 from pymavlink import mavutil
 from pymavlink.mavftp import MAVFTP, FtpError
 
-from conftest import receive, request_message as request
+from conftest import ftp_crc32, receive, request_message as request
 from test_ground_station import daemon  # noqa: F401 (the fixture)
 
 ML = mavutil.mavlink
@@ -75,7 +75,7 @@ def test_qgroundcontrols_initial_connect_is_answered_in_its_order_and_time(daemo
     local = tmp_path / "general.json"
     ftp.cmd_get([uri.removeprefix("mftp://[;comp=1]"), str(local)])
     assert ftp.process_ftp_reply("OpenFileRO", timeout=30).error_code == FtpError.Success
-    assert zlib.crc32(local.read_bytes(), 0xFFFFFFFF) ^ 0xFFFFFFFF == crc
+    assert ftp_crc32(local.read_bytes()) == crc
 
     # 4. Parameters: `_HASH_CHECK` first (QGC waits 2.5 s for its cache check), then the list
     # (first value in 5 s, no gap of 3 s, every index), whose hash is the one announced.

@@ -10,8 +10,8 @@ from pymavlink import mavutil
 from pyulog import ULog
 
 from conftest import Daemon
-from test_ground_station import (INT32, ack, arm_and_take_off, armed, from_bits,
-                                 set_param, wait)
+from test_ground_station import (INT32, ack, arm_and_take_off, armed, from_bits, param_list,
+                                 set_param)
 
 TOPICS = {
     "sensor_combined", "vehicle_attitude", "vehicle_angular_velocity", "vehicle_rates_setpoint",
@@ -24,17 +24,8 @@ TOPICS = {
 
 def fetch_params(gcs):
     """Every parameter as PARAM_REQUEST_LIST gives it: name -> value (INT32 decoded)."""
-    gcs.mav.param_request_list_send(1, 0)
-    first = wait(gcs, "PARAM_VALUE", lambda m: True, 3)
-    count, seen = first.param_count, {first.param_index: first}
-    end = time.monotonic() + 10
-    while len(seen) < count and time.monotonic() < end:
-        m = gcs.recv_match(type="PARAM_VALUE", blocking=True, timeout=0.5)
-        if m is not None:
-            seen[m.param_index] = m
-    assert len(seen) == count
     return {m.param_id: from_bits(m.param_value) if m.param_type == INT32 else m.param_value
-            for m in seen.values()}
+            for m in param_list(gcs).values()}
 
 
 def euler_deg(q0, q1, q2, q3):
