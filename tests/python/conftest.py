@@ -182,6 +182,13 @@ class PtyLink:
     def recv(self, what, condition, timeout=10):
         """The first message of type `what` from component 1 for which condition(msg) holds
         (those before it are dropped)."""
+        m = self.try_recv(what, condition, timeout)
+        if m is None:
+            pytest.fail(f"no {what} over the serial line within {timeout} s")
+        return m
+
+    def try_recv(self, what, condition, timeout):
+        """As `recv`, None when nothing came in time."""
         end = time.monotonic() + timeout
         while (left := end - time.monotonic()) > 0:
             try:
@@ -190,7 +197,7 @@ class PtyLink:
                 break
             if m.get_type() == what and m.get_srcComponent() == 1 and condition(m):
                 return m
-        pytest.fail(f"no {what} over the serial line within {timeout} s")
+        return None
 
 
 @pytest.fixture
