@@ -28,13 +28,8 @@ pub struct ComponentMetadata {
     pub crc: u32,
 }
 
-/// CRC-32 as MAVLink FTP computes it (reflected 0xEDB88320, from 0, no final inversion), so a
-/// client can check a file with FTP's own opcode.
-pub fn ftp_crc32(bytes: &[u8]) -> u32 {
-    let mut h = crc32fast::Hasher::new_with_initial(u32::MAX);
-    h.update(bytes);
-    h.finalize() ^ u32::MAX
-}
+/// CRC-32 as MAVLink FTP computes it, so a client can check a file with FTP's own opcode.
+pub use vehicle_files::ftp::crc32_of as ftp_crc32;
 
 impl ComponentMetadata {
     /// The metadata of this build's parameters, for the vehicle `model` (its airframe),

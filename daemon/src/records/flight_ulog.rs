@@ -10,7 +10,7 @@
 
 use crate::records::log_files::{LogFile, LogProducer, SHIP_INTERVAL_S};
 use crate::records::ulog::{self, Level, UlogParam, UlogRow};
-use crate::records::ulog_topics::{MOTORS, OUTPUTS, PERIOD_US, TOPICS, nav_state};
+use crate::records::ulog_topics::{MOTORS, OUTPUTS, PERIOD_US, TOPICS, id, nav_state};
 use flight_core::autopilot::{Autopilot, AutopilotOutput};
 use flight_core::commander::{CommanderStatus, FlightMode, LandedState};
 use flight_core::params::{FlightParams, ParamKind};
@@ -182,7 +182,7 @@ impl FlightUlog {
         let (est, s) = (&step.estimate, &step.sample);
         let tr = &est.translation;
         let q = est.attitude.map(|a| a.q);
-        if self.due(0, t) {
+        if self.due(id::SENSOR_COMBINED, t) {
             let dt = 2_000; // the loop's nominal period (µs)
             let row = UlogRow::at(t)
                 .f32s(s.gyro.as_slice())
@@ -190,21 +190,24 @@ impl FlightUlog {
                 .i32(0)
                 .f32s(s.accel.as_slice())
                 .u32(dt);
-            self.data(0, row);
+            self.data(id::SENSOR_COMBINED, row);
         }
         if let Some(q) = q
-            && self.due(1, t)
+            && self.due(id::VEHICLE_ATTITUDE, t)
         {
-            self.data(1, UlogRow::at(t).u64(t).f32s(&quat(&q)));
+            self.data(id::VEHICLE_ATTITUDE, UlogRow::at(t).u64(t).f32s(&quat(&q)));
         }
-        if self.due(2, t) {
+        if self.due(id::VEHICLE_ANGULAR_VELOCITY, t) {
             let rate = est.attitude.map_or(s.gyro, |a| a.rate);
-            self.data(2, UlogRow::at(t).u64(t).f32s(rate.as_slice()));
+            self.data(
+                id::VEHICLE_ANGULAR_VELOCITY,
+                UlogRow::at(t).u64(t).f32s(rate.as_slice()),
+            );
         }
         let max_thrust = vehicle.max_thrust_n().max(1e-6);
         let sp = est.attitude_setpoint;
         let thrust_body = sp.map_or([f64::NAN; 3], |a| [0.0, 0.0, -a.thrust_n / max_thrust]);
-        if self.due(3, t) {
+        if self.due(id::VEHICLE_RATES_SETPOINT, t) {
             let r = est.rate_reference;
             self.data(
                 3,
@@ -212,33 +215,39 @@ impl FlightUlog {
             );
         }
         if let Some(a) = sp
-            && self.due(4, t)
+            && self.due(id::VEHICLE_ATTITUDE_SETPOINT, t)
         {
             let row = UlogRow::at(t)
                 .f32(0.0)
                 .f32s(&quat(&a.q_d))
                 .f32s(&thrust_body);
-            self.data(4, row);
+            self.data(id::VEHICLE_ATTITUDE_SETPOINT, row);
         }
         let rotors = vehicle.rotors();
-        if self.due(5, t) {
+        if self.due(id::ACTUATOR_MOTORS, t) {
             let motor = |i: usize| match (i < rotors, step.armed) {
                 (false, _) | (true, false) => f64::NAN,
                 (true, true) => step.commands[i],
             };
             let control: Vec<f64> = (0..MOTORS).map(motor).collect();
-            self.data(5, UlogRow::at(t).u64(t).f32s(&control).u16(0));
+            self.data(
+                id::ACTUATOR_MOTORS,
+                UlogRow::at(t).u64(t).f32s(&control).u16(0),
+            );
         }
-        if self.due(6, t) {
+        if self.due(id::ACTUATOR_OUTPUTS, t) {
             // PWM as a flight board would drive the ESCs: 1000 µs stopped, 2000 µs full.
             let pwm = |i: usize| match i < rotors {
                 true => 1000.0 + 1000.0 * step.commands[i].clamp(0.0, 1.0),
                 false => 0.0,
             };
             let output: Vec<f64> = (0..OUTPUTS).map(pwm).collect();
-            self.data(6, UlogRow::at(t).f32s(&output).u32(rotors as u32));
+            self.data(
+                id::ACTUATOR_OUTPUTS,
+                UlogRow::at(t).f32s(&output).u32(rotors as u32),
+            );
         }
-        if self.due(7, t) {
+        if self.due(id::VEHICLE_LOCAL_POSITION, t) {
             let (p, v, a) = (tr.pos_ned_m, tr.vel_ned_m_s, tr.accel_ned_m_s2);
             let origin = tr.origin;
             let heading = q.map_or(f64::NAN, |q| q.euler_angles().2);
@@ -258,10 +267,10 @@ impl FlightUlog {
                 .bool(tr.vertical_valid)
                 .bool(origin.is_some())
                 .bool(origin.is_some());
-            self.data(7, row);
+            self.data(id::VEHICLE_LOCAL_POSITION, row);
         }
         if let Some(origin) = tr.origin
-            && self.due(8, t)
+            && self.due(id::VEHICLE_GLOBAL_POSITION, t)
         {
             let here = origin.offset_by_ned(&tr.pos_ned_m);
             let row = UlogRow::at(t)
@@ -271,17 +280,17 @@ impl FlightUlog {
                 .f32(here.alt_m)
                 .bool(tr.horizontal_valid)
                 .bool(tr.vertical_valid);
-            self.data(8, row);
+            self.data(id::VEHICLE_GLOBAL_POSITION, row);
         }
         if let Some(p) = step.setpoint.position()
-            && self.due(9, t)
+            && self.due(id::VEHICLE_LOCAL_POSITION_SETPOINT, t)
         {
             let row = UlogRow::at(t)
                 .f32s(p.pos_ned_m.as_slice())
                 .f32(p.yaw_rad)
                 .f32s(p.vel_ned_m_s.as_slice())
                 .f32s(p.accel_ned_m_s2.as_slice());
-            self.data(9, row);
+            self.data(id::VEHICLE_LOCAL_POSITION_SETPOINT, row);
         }
         if let Some(g) = s.gps {
             let since_start = t.saturating_sub(self.first_us.unwrap_or(t));
@@ -299,15 +308,18 @@ impl FlightUlog {
                 .u8(g.fix_type)
                 .u8(g.satellites)
                 .bool(true);
-            self.data(10, row);
+            self.data(id::VEHICLE_GPS_POSITION, row);
         }
         if let Some(alt) = s.baro_alt_m {
-            self.data(11, UlogRow::at(t).u64(t).f32(alt));
+            self.data(id::VEHICLE_AIR_DATA, UlogRow::at(t).u64(t).f32(alt));
         }
         if let Some(m) = s.mag {
-            self.data(12, UlogRow::at(t).u64(t).f32s(m.as_slice()));
+            self.data(
+                id::VEHICLE_MAGNETOMETER,
+                UlogRow::at(t).u64(t).f32s(m.as_slice()),
+            );
         }
-        if self.due(13, t) {
+        if self.due(id::BATTERY_STATUS, t) {
             let b = vehicle.battery();
             let row = UlogRow::at(t)
                 .f32(b.voltage_v)
@@ -316,9 +328,9 @@ impl FlightUlog {
                 .f32(b.remaining.unwrap_or(-1.0))
                 .f32(b.time_remaining_s.unwrap_or(f64::NAN))
                 .bool(b.voltage_v > 0.0);
-            self.data(13, row);
+            self.data(id::BATTERY_STATUS, row);
         }
-        if self.due(14, t) {
+        if self.due(id::ESTIMATOR_STATUS, t) {
             let bias = est.attitude.map_or([f64::NAN; 3], |a| a.gyro_bias.into());
             let h_acc = s.gps.map_or(f64::NAN, |g| g.h_acc_m);
             // PX4's health bits: velocity, horizontal position, height.
@@ -330,7 +342,7 @@ impl FlightUlog {
                 .f32(0.0)
                 .u8(health)
                 .u8(0);
-            self.data(14, row);
+            self.data(id::ESTIMATOR_STATUS, row);
         }
         self.status(t, step, status);
         let due = self.shipped_us.is_none_or(|s| t < s || t >= s + ship_us());
@@ -359,10 +371,10 @@ impl FlightUlog {
         }
         self.last_status = Some(now);
         if changed {
-            self.due_us[15] = 0;
-            self.due_us[16] = 0;
+            self.due_us[id::VEHICLE_STATUS] = 0;
+            self.due_us[id::VEHICLE_LAND_DETECTED] = 0;
         }
-        if self.due(15, t) {
+        if self.due(id::VEHICLE_STATUS, t) {
             let row = UlogRow::at(t)
                 .u64(self.armed_us)
                 .u64(self.takeoff_us)
@@ -376,12 +388,12 @@ impl FlightUlog {
                 .u8(self.start.system_id)
                 .u8(1)
                 .bool(st.prearm_ok);
-            self.data(15, row);
+            self.data(id::VEHICLE_STATUS, row);
         }
-        if self.due(16, t) {
+        if self.due(id::VEHICLE_LAND_DETECTED, t) {
             let landed = st.landed == LandedState::OnGround;
             let row = UlogRow::at(t).bool(landed).bool(landed).bool(landed);
-            self.data(16, row);
+            self.data(id::VEHICLE_LAND_DETECTED, row);
         }
     }
 

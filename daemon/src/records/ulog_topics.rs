@@ -217,6 +217,44 @@ pub(super) const VEHICLE_LAND_DETECTED: Format = topic(
     ],
 );
 
+/// Each topic's message id: its place in [`TOPICS`].
+pub(super) mod id {
+    /// `sensor_combined`.
+    pub const SENSOR_COMBINED: usize = 0;
+    /// `vehicle_attitude`.
+    pub const VEHICLE_ATTITUDE: usize = 1;
+    /// `vehicle_angular_velocity`.
+    pub const VEHICLE_ANGULAR_VELOCITY: usize = 2;
+    /// `vehicle_rates_setpoint`.
+    pub const VEHICLE_RATES_SETPOINT: usize = 3;
+    /// `vehicle_attitude_setpoint`.
+    pub const VEHICLE_ATTITUDE_SETPOINT: usize = 4;
+    /// `actuator_motors`.
+    pub const ACTUATOR_MOTORS: usize = 5;
+    /// `actuator_outputs`.
+    pub const ACTUATOR_OUTPUTS: usize = 6;
+    /// `vehicle_local_position`.
+    pub const VEHICLE_LOCAL_POSITION: usize = 7;
+    /// `vehicle_global_position`.
+    pub const VEHICLE_GLOBAL_POSITION: usize = 8;
+    /// `vehicle_local_position_setpoint`.
+    pub const VEHICLE_LOCAL_POSITION_SETPOINT: usize = 9;
+    /// `vehicle_gps_position`.
+    pub const VEHICLE_GPS_POSITION: usize = 10;
+    /// `vehicle_air_data`.
+    pub const VEHICLE_AIR_DATA: usize = 11;
+    /// `vehicle_magnetometer`.
+    pub const VEHICLE_MAGNETOMETER: usize = 12;
+    /// `battery_status`.
+    pub const BATTERY_STATUS: usize = 13;
+    /// `estimator_status`.
+    pub const ESTIMATOR_STATUS: usize = 14;
+    /// `vehicle_status`.
+    pub const VEHICLE_STATUS: usize = 15;
+    /// `vehicle_land_detected`.
+    pub const VEHICLE_LAND_DETECTED: usize = 16;
+}
+
 /// The topics, in the order of their message ids.
 pub(super) const TOPICS: [Format; 17] = [
     SENSOR_COMBINED,
@@ -281,6 +319,15 @@ mod tests {
             names.sort_unstable();
             names.dedup();
             assert_eq!(names.len(), f.fields.len(), "{}", f.name);
+        }
+        // The ids name their topics.
+        for (i, name) in [
+            (id::SENSOR_COMBINED, "sensor_combined"),
+            (id::VEHICLE_GPS_POSITION, "vehicle_gps_position"),
+            (id::VEHICLE_STATUS, "vehicle_status"),
+            (id::VEHICLE_LAND_DETECTED, "vehicle_land_detected"),
+        ] {
+            assert_eq!(TOPICS[i].name, name);
         }
         let mut topics: Vec<_> = TOPICS.iter().map(|f| f.name).collect();
         topics.sort_unstable();

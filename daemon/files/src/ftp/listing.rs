@@ -36,8 +36,14 @@ pub fn entries(
         Err(name) => format!("D{name}").into_bytes(),
         Ok(e) => entry(e, with_time),
     });
+    pack(texts)
+}
+
+/// As many `entries` as fit in one payload, each ending in NUL (one too long for any payload
+/// becomes `S`); [`FtpError::Eof`] when there is none.
+pub fn pack(entries: impl Iterator<Item = Vec<u8>>) -> Result<Vec<u8>, FtpError> {
     let mut out = Vec::new();
-    for mut e in texts {
+    for mut e in entries {
         if e.len() + 1 > MAX_DATA {
             e = b"S".to_vec(); // a name too long for any payload
         }

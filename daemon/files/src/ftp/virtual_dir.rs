@@ -49,19 +49,10 @@ impl VirtualDir {
 
     /// Its listing from entry `offset`, as [`super::listing::entries`] gives a directory's.
     pub fn entries(&self, offset: u32) -> Result<Vec<u8>, FtpError> {
-        let mut out = Vec::new();
-        for (name, bytes) in self.files.iter().skip(offset as usize) {
-            let e = format!("F{name}\t{}", bytes.len());
-            if out.len() + e.len() + 1 > MAX_DATA {
-                break;
-            }
-            out.extend_from_slice(e.as_bytes());
-            out.push(0);
-        }
-        if out.is_empty() {
-            return Err(FtpError::Eof);
-        }
-        Ok(out)
+        let files = self.files.iter().skip(offset as usize);
+        super::listing::pack(
+            files.map(|(name, bytes)| format!("F{name}\t{}", bytes.len()).into_bytes()),
+        )
     }
 }
 
