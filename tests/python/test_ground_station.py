@@ -149,6 +149,52 @@ def test_set_message_interval_changes_a_measured_rate(vehicle):
     assert rate(gcs, "ATTITUDE", 1.0) == 0
 
 
+def test_sensor_messages_stream_up_to_the_sensor_rate(vehicle):
+    """HIGHRES_IMU and SCALED_IMU as fast as asked up to the sensor rate (250 Hz), each message
+    a sample of its own, the measured rate within 5 % of the one asked; faster is refused with
+    the reason, and nothing changes."""
+    gcs = vehicle
+    ML = mavutil.mavlink
+    wait(gcs, "ATTITUDE", lambda m: True)
+    asked = {"HIGHRES_IMU": 200.0, "SCALED_IMU": 50.0, "ATTITUDE_QUATERNION": 250.0}
+    for name, hz in asked.items():
+        msg_id = getattr(ML, f"MAVLINK_MSG_ID_{name}")
+        gcs.mav.command_long_send(1, 1, ML.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                                  msg_id, 1e6 / hz, 0, 0, 0, 0, 0)
+        assert ack(gcs, ML.MAV_CMD_SET_MESSAGE_INTERVAL) == ML.MAV_RESULT_ACCEPTED, name
+    gcs.recv_match(type="HIGHRES_IMU", blocking=True, timeout=1.0)
+    counts = {name: 0 for name in asked}
+    stamps = set()
+    seconds = 4.0
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        m = gcs.recv_match(type=list(asked), blocking=True, timeout=0.1)
+        if m is not None:
+            counts[m.get_type()] += 1
+            if m.get_type() == "HIGHRES_IMU":
+                stamps.add(m.time_usec)
+    measured = {name: n / seconds for name, n in counts.items()}
+    print("asked", asked, "measured", measured)
+    for name, hz in asked.items():
+        assert abs(measured[name] - hz) <= 0.05 * hz, (name, measured[name], hz)
+    assert len(stamps) >= 0.99 * counts["HIGHRES_IMU"], "a sample sent twice"
+    gcs.mav.command_long_send(1, 1, ML.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                              ML.MAVLINK_MSG_ID_HIGHRES_IMU, 1000, 0, 0, 0, 0, 0)
+    result, why, end = None, None, time.monotonic() + 3
+    while (result is None or why is None) and time.monotonic() < end:
+        m = gcs.recv_match(type=["COMMAND_ACK", "STATUSTEXT"], blocking=True, timeout=0.1)
+        if m is not None and m.get_type() == "COMMAND_ACK":
+            result = m.result if m.command == ML.MAV_CMD_SET_MESSAGE_INTERVAL else result
+        elif m is not None and "HIGHRES_IMU" in m.text:
+            why = m.text
+    print(why)
+    assert result == ML.MAV_RESULT_DENIED and why == "HIGHRES_IMU: at most 250 Hz (sensor rate)", why
+    gcs.mav.command_long_send(1, 1, ML.MAV_CMD_GET_MESSAGE_INTERVAL, 0,
+                              ML.MAVLINK_MSG_ID_HIGHRES_IMU, 0, 0, 0, 0, 0, 0)
+    m = wait(gcs, "MESSAGE_INTERVAL", lambda m: m.message_id == ML.MAVLINK_MSG_ID_HIGHRES_IMU, 2)
+    assert m.interval_us == 5000, m
+
+
 def test_takeoff_loiter_land_by_mode(vehicle):
     gcs = vehicle
     ready_to_arm(gcs)

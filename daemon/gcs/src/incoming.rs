@@ -255,9 +255,26 @@ impl GroundStation {
         }
     }
 
-    /// Sets message `id` to `hz` (`None`: off) on the link of the message being handled.
+    /// Sets message `id` to `hz` (`None`: off) on the link of the message being handled, at
+    /// most at its [`GroundStation::max_rate_hz`].
     pub(super) fn set_rate(&mut self, id: u32, hz: Option<f64>) {
-        self.rates.set(self.link, id, hz);
+        let max = self.max_rate_hz(id);
+        self.rates.set(self.link, id, hz, max);
+    }
+
+    /// The fastest message `id` may be streamed (Hz): a sensor message at the rate the
+    /// sensors deliver (once measured), any other at the top of [`crate::RATE_RANGE_HZ`].
+    pub fn max_rate_hz(&self, id: u32) -> f64 {
+        match self.sample_rate.hz() {
+            Some(hz) if crate::link_rates::SENSOR_STREAMS.contains(&id) => hz,
+            _ => crate::RATE_RANGE_HZ.1,
+        }
+    }
+
+    /// Whether a stream is faster than the link task's own poll: it then polls on every
+    /// sensor sample.
+    pub fn wants_every_sample(&self) -> bool {
+        self.rates.fastest_hz() > crate::POLLED_STREAMS_HZ
     }
 }
 

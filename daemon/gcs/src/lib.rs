@@ -68,8 +68,13 @@ const DEFAULT_STREAMS: [(u32, f64); 16] = [
     (POSITION_TARGET_LOCAL_NED_DATA::ID, 1.0),
 ];
 
-/// Slowest and fastest stream rates a ground station may ask for (Hz).
+/// Slowest and fastest stream rates a ground station may ask for (Hz); sensor messages may
+/// go faster, up to the sensor rate.
 const RATE_RANGE_HZ: (f64, f64) = (0.01, 100.0);
+
+/// The fastest stream the link task's fixed poll serves well (Hz); faster ones have it poll on
+/// every sensor sample ([`GroundStation::wants_every_sample`]).
+const POLLED_STREAMS_HZ: f64 = 50.0;
 
 /// What the vehicle sends: a message, or a raw payload the dialect cannot express. (Held for
 /// a moment in the outbox; the size difference is harmless.)
@@ -193,6 +198,8 @@ pub struct GroundStation {
     mav_type: MavType,
     /// Each link's streams.
     rates: LinkRates,
+    /// The rate the sensor samples arrive at: how fast a sensor message may be streamed.
+    sample_rate: link_rates::SampleRate,
     /// The link of the message being handled.
     link: LinkId,
     /// One-off messages asked for (REQUEST_MESSAGE), sent on the next poll.
@@ -249,6 +256,7 @@ impl GroundStation {
             system_id,
             mav_type,
             rates: LinkRates::default(),
+            sample_rate: Default::default(),
             link: 0,
             requested: Vec::new(),
             metadata: None,
@@ -364,6 +372,7 @@ impl GroundStation {
     /// the armed state, mode or landed state changed.
     pub fn poll(&mut self, now_s: f64, t: &Telemetry, out: &mut Outbox) {
         let unix = self.unix_start_usec + (now_s * 1e6) as u64;
+        self.sample_rate.observe(t.t_s, t.frames);
         self.events_poll(now_s, t, out);
         let shown = t.status.map(|s| (s.armed, s.mode, s.landed));
         if shown != self.shown {

@@ -20,7 +20,7 @@ use mavlink::MavHeader;
 use mavlink::dialects::common::*;
 
 use items::item_float;
-pub use items::{MissionBounds, decode, decode_fence, item_int, speed_change};
+pub use items::{FencePlan, MissionBounds, decode, decode_fence, item_int, speed_change};
 
 /// Time without the item asked for before asking again (s, wall clock).
 pub const RETRY_S: f64 = 0.5;
@@ -359,7 +359,19 @@ impl Missions {
         let k = index(u.kind).unwrap_or(0);
         if u.kind == MavMissionType::MAV_MISSION_TYPE_FENCE {
             match decode_fence(&u.items) {
-                Ok(zones) => out.fence = Some(zones),
+                Ok(plan) => {
+                    if plan.placeholders > 0 {
+                        tracing::warn!(n = plan.placeholders, "fence: radius-0 circles ignored");
+                        out.say(
+                            MavSeverity::MAV_SEVERITY_WARNING,
+                            &format!(
+                                "fence: {} circle(s) of radius 0 ignored (no circle)",
+                                plan.placeholders
+                            ),
+                        );
+                    }
+                    out.fence = Some(plan.zones);
+                }
                 Err(why) => {
                     tracing::warn!(?why, "fence upload refused");
                     out.send(ack(peer, u.kind, why, 0));

@@ -263,6 +263,14 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Result<Optio
             Some((severity, text)) = notices.recv() => {
                 out.say(severity, &text);
             }
+            // A stream faster than the tick: polled on every sensor sample as well.
+            changed = telemetry.changed(), if gcs.wants_every_sample() => {
+                if changed.is_err() {
+                    break;
+                }
+                let t = *telemetry.borrow_and_update();
+                gcs.poll(start.elapsed().as_secs_f64(), &t, &mut out);
+            }
             _ = tick.tick() => {
                 let t = *telemetry.borrow_and_update();
                 if t.finished || telemetry.has_changed().is_err() {

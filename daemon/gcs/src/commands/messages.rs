@@ -4,8 +4,8 @@
 use super::Call;
 use crate::DEFAULT_STREAMS;
 use crate::{GroundStation, Outbox};
-use mavlink::MessageData;
 use mavlink::dialects::common::*;
+use mavlink::{Message, MessageData};
 
 impl GroundStation {
     /// One of this file's commands: answered, refused, or passed to the vehicle.
@@ -31,6 +31,20 @@ impl GroundStation {
                         return self.deny(to, out, &format!("message interval: bad interval {x}"));
                     }
                 };
+                let max = self.max_rate_hz(id);
+                if let Some(hz) = hz.filter(|&hz| hz > max * 1.05) {
+                    // Faster than it can be sent: refused, rather than sent slower than asked
+                    // (said in one STATUSTEXT's 50 characters).
+                    let name = MavMessage::default_message_from_id(id)
+                        .map_or_else(|| id.to_string(), |m| m.message_name().to_owned());
+                    let why = if crate::link_rates::SENSOR_STREAMS.contains(&id) {
+                        format!("{name}: at most {max:.0} Hz (sensor rate)")
+                    } else {
+                        format!("{name}: at most {max:.0} Hz")
+                    };
+                    tracing::info!(hz, "message interval refused: {why}");
+                    return self.deny(to, out, &why);
+                }
                 self.set_rate(id, hz);
                 out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED));
             }

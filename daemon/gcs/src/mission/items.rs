@@ -206,12 +206,24 @@ pub fn speed_change(p: f32) -> Result<SpeedChange, MavMissionResult> {
     }
 }
 
+/// A fence plan decoded: its zones, and how many of its circles were MAVSDK's "no circle".
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct FencePlan {
+    /// The zones to keep the vehicle in (or out of).
+    pub zones: Vec<GeoZone>,
+    /// Circles of radius 0, ignored: MAVSDK's geofence plugin sends one as its placeholder for
+    /// "no circle", and PX4 takes the plan without it.
+    pub placeholders: usize,
+}
+
 /// A fence plan as zones: consecutive polygon vertices of one kind, as many as each one's
-/// param1 says, make one polygon; a circle is one item (param1 its radius); a return point is
-/// kept in the plan but not a zone. Coordinates in a global frame only.
-pub fn decode_fence(items: &[MISSION_ITEM_INT_DATA]) -> Result<Vec<GeoZone>, MavMissionResult> {
+/// param1 says, make one polygon; a circle is one item (param1 its radius, 0 a placeholder
+/// for none); a return point is kept in the plan but not a zone. Coordinates in a global
+/// frame only.
+pub fn decode_fence(items: &[MISSION_ITEM_INT_DATA]) -> Result<FencePlan, MavMissionResult> {
     use MavCmd::*;
     let mut zones = Vec::new();
+    let mut placeholders = 0;
     let mut k = 0;
     while k < items.len() {
         let m = &items[k];
@@ -246,6 +258,12 @@ pub fn decode_fence(items: &[MISSION_ITEM_INT_DATA]) -> Result<Vec<GeoZone>, Mav
                 });
                 k += n as usize;
             }
+            MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION | MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION
+                if m.param1 == 0.0 =>
+            {
+                placeholders += 1;
+                k += 1;
+            }
             MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION | MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION => {
                 if !(m.param1.is_finite() && m.param1 > 0.0) {
                     return Err(MavMissionResult::MAV_MISSION_INVALID_PARAM1);
@@ -260,7 +278,10 @@ pub fn decode_fence(items: &[MISSION_ITEM_INT_DATA]) -> Result<Vec<GeoZone>, Mav
             _ => k += 1,
         }
     }
-    Ok(zones)
+    Ok(FencePlan {
+        zones,
+        placeholders,
+    })
 }
 
 /// A stored item as the old `MISSION_ITEM` (float coordinates), for `peer`.

@@ -694,7 +694,7 @@ fn fence_plans_become_zones_or_are_refused() {
         MAV_FRAME_GLOBAL_INT,
         473_970_000,
     ));
-    let zones = decode_fence(&good).unwrap();
+    let zones = decode_fence(&good).unwrap().zones;
     assert_eq!(zones.len(), 2);
     assert!(
         matches!(&zones[0], GeoZone::Polygon { inclusion: false, vertices_deg } if vertices_deg.len() == 4)
@@ -750,12 +750,22 @@ fn fence_plans_become_zones_or_are_refused() {
             .collect(),
             MavMissionResult::MAV_MISSION_INVALID_PARAM1,
         ),
-        // A circle of no radius.
+        // Circles of negative and of no number radius.
         (
             vec![fence_item(
                 0,
                 MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION,
-                0.0,
+                -5.0,
+                MAV_FRAME_GLOBAL_INT,
+                473_970_000,
+            )],
+            MavMissionResult::MAV_MISSION_INVALID_PARAM1,
+        ),
+        (
+            vec![fence_item(
+                0,
+                MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION,
+                f32::NAN,
                 MAV_FRAME_GLOBAL_INT,
                 473_970_000,
             )],
@@ -782,6 +792,59 @@ fn fence_plans_become_zones_or_are_refused() {
     let out = send(&mut m, GCS, count(0, kind));
     assert_eq!(acked(&out).0, MavMissionResult::MAV_MISSION_ACCEPTED);
     assert_eq!(out.fence, Some(Vec::new()));
+}
+
+/// MAVSDK's geofence plugin uploads a polygon with, as its placeholder for "no circle", an
+/// inclusion circle of radius 0 at (0, 0): taken as PX4 takes it, the circle ignored and said.
+#[test]
+fn fence_radius_zero_circle_is_no_circle() {
+    use MavCmd::*;
+    use MavFrame::*;
+    let kind = MavMissionType::MAV_MISSION_TYPE_FENCE;
+    let fence_item = |seq, command, p1: f32, lat_lon: (i32, i32)| MISSION_ITEM_INT_DATA {
+        mission_type: kind,
+        ..item(
+            seq,
+            command,
+            MAV_FRAME_GLOBAL_INT,
+            [p1, 0.0, 0.0, 0.0],
+            (lat_lon.0, lat_lon.1, 0.0),
+        )
+    };
+    let corners = [
+        (473_970_000, 85_450_000),
+        (473_980_000, 85_450_000),
+        (473_980_000, 85_460_000),
+    ];
+    let mut items: Vec<_> = (0..3)
+        .map(|k| {
+            fence_item(
+                k,
+                MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,
+                3.0,
+                corners[k as usize],
+            )
+        })
+        .collect();
+    items.push(fence_item(
+        3,
+        MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION,
+        0.0,
+        (0, 0),
+    ));
+    let mut m = Missions::default();
+    let out = upload(&mut m, kind, &items);
+    assert_eq!(acked(&out).0, MavMissionResult::MAV_MISSION_ACCEPTED);
+    let zones = out.fence.as_ref().expect("fence set");
+    assert_eq!(zones.len(), 1);
+    assert!(
+        matches!(&zones[0], GeoZone::Polygon { inclusion: true, vertices_deg } if vertices_deg.len() == 3)
+    );
+    assert!(
+        out.said.iter().any(|(_, t)| t.contains("radius 0 ignored")),
+        "{:?}",
+        out.said
+    );
 }
 
 /// Places off the Earth, heights below the ground or above the ceiling and places far from
