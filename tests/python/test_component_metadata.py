@@ -17,7 +17,7 @@ from pymavlink.mavftp import MAVFTP, FtpError
 
 from conftest import ROOT, first, ftp_crc32, request_message
 from test_ground_station import ack, daemon, wait  # noqa: F401 (the fixture)
-from test_mavsdk import free_tcp_port
+from conftest import free_tcp_port
 from test_ulog import fetch_params
 
 # The MAVLink project's schemas, kept beside the project (not copied into it).

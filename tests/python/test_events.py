@@ -16,7 +16,7 @@ from pymavlink import mavutil
 
 from conftest import first, receive
 from test_ground_station import daemon, ready_to_arm  # noqa: F401 (the fixture)
-from test_mavsdk import free_tcp_port
+from conftest import free_tcp_port
 
 
 def test_mavsdk_events_show_arming_refusals_modes_and_arming(daemon):

@@ -15,7 +15,7 @@ from mavsdk_grpc.ftp import FtpError as MavsdkFtpError
 from pymavlink.mavftp import MAVFTP, FtpError
 
 from conftest import Daemon, first
-from test_mavsdk import free_tcp_port
+from conftest import free_tcp_port
 from test_robustness import LoopTiming
 
 MIB = 1024 * 1024

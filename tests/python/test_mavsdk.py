@@ -2,20 +2,12 @@
 which ships and starts its own `mavsdk_server`) sees it: sitl + autopilot over UDP, MAVSDK on the
 port the autopilot pushes to. Every wait is on a telemetry stream with a time-out."""
 
-import socket
-
 import mavsdk_grpc as mavsdk
 import pytest
 from mavsdk_grpc.param import ParamError
 from mavsdk_grpc.telemetry import FlightMode, LandedState
 
-from conftest import first, run_mavsdk_flight
-
-
-def free_tcp_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+from conftest import first, free_tcp_port, run_mavsdk_flight
 
 
 async def fly(gcs_port):

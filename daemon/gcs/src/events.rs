@@ -129,7 +129,7 @@ pub mod kinds {
 }
 
 /// The modes, in the order of their `navigation_mode_t` values.
-pub const MODES: [FlightMode; 11] = [
+pub const MODES: [FlightMode; 12] = [
     FlightMode::Manual,
     FlightMode::Stabilized,
     FlightMode::Altctl,
@@ -141,6 +141,7 @@ pub const MODES: [FlightMode; 11] = [
     FlightMode::Land,
     FlightMode::Offboard,
     FlightMode::Descend,
+    FlightMode::Orbit,
 ];
 
 /// The failsafe actions, in the order of their `failsafe_action_t` values.
@@ -284,6 +285,7 @@ pub fn mode_arg(m: FlightMode) -> u8 {
         FlightMode::Land => 8,
         FlightMode::Offboard => 9,
         FlightMode::Descend => 10,
+        FlightMode::Orbit => 11,
     }
 }
 

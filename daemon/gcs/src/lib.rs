@@ -48,7 +48,7 @@ pub const COMPONENT_ID: u8 = 1;
 const FORCE_MAGIC: f32 = 21196.0;
 
 /// Messages sent without being asked, with their default rates (Hz), PX4-like.
-const DEFAULT_STREAMS: [(u32, f64); 16] = [
+const DEFAULT_STREAMS: [(u32, f64); 17] = [
     (HEARTBEAT_DATA::ID, 1.0),
     (SYS_STATUS_DATA::ID, 1.0),
     (EXTENDED_SYS_STATE_DATA::ID, 1.0),
@@ -66,6 +66,8 @@ const DEFAULT_STREAMS: [(u32, f64); 16] = [
     // The set-points flown, echoed (PX4's normal stream set has them too).
     (ATTITUDE_TARGET_DATA::ID, 2.0),
     (POSITION_TARGET_LOCAL_NED_DATA::ID, 1.0),
+    // In Orbit only, at PX4's rate of its normal stream set.
+    (ORBIT_EXECUTION_STATUS_DATA::ID, 2.0),
 ];
 
 /// Slowest and fastest stream rates a ground station may ask for (Hz); sensor messages may

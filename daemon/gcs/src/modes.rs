@@ -14,8 +14,9 @@ mod main {
     pub const STABILIZED: u8 = 7;
 }
 
-/// PX4's AUTO sub-modes (`custom_mode` bits 24–31).
+/// PX4's sub-modes (`custom_mode` bits 24–31): of AUTO, and POSCTL's Orbit.
 mod sub {
+    pub const ORBIT: u8 = 1;
     pub const TAKEOFF: u8 = 2;
     pub const LOITER: u8 = 3;
     pub const MISSION: u8 = 4;
@@ -24,7 +25,7 @@ mod sub {
 }
 
 /// Every mode a ground station may select, in the order `AVAILABLE_MODES` lists them.
-pub const SELECTABLE: [FlightMode; 10] = [
+pub const SELECTABLE: [FlightMode; 11] = [
     FlightMode::Manual,
     FlightMode::Stabilized,
     FlightMode::Altctl,
@@ -35,6 +36,7 @@ pub const SELECTABLE: [FlightMode; 10] = [
     FlightMode::Rtl,
     FlightMode::Land,
     FlightMode::Offboard,
+    FlightMode::Orbit,
 ];
 
 const fn px4(main: u8, sub: u8) -> u32 {
@@ -54,16 +56,19 @@ pub fn custom_mode(mode: FlightMode) -> u32 {
         FlightMode::Rtl => px4(main::AUTO, sub::RTL),
         FlightMode::Land | FlightMode::Descend => px4(main::AUTO, sub::LAND),
         FlightMode::Offboard => px4(main::OFFBOARD, 0),
+        FlightMode::Orbit => px4(main::POSCTL, sub::ORBIT),
     }
 }
 
 /// The mode a PX4 `custom_mode` names (`MAV_CMD_DO_SET_MODE` param2/param3, `SET_MODE`), or
-/// `None` for one this vehicle does not have. The sub-mode counts only for AUTO.
+/// `None` for one this vehicle does not have. The sub-mode counts for AUTO, and for POSCTL's
+/// Orbit.
 pub fn from_px4(main_mode: u8, sub_mode: u8) -> Option<FlightMode> {
     Some(match (main_mode, sub_mode) {
         (main::MANUAL, _) => FlightMode::Manual,
         (main::STABILIZED, _) => FlightMode::Stabilized,
         (main::ALTCTL, _) => FlightMode::Altctl,
+        (main::POSCTL, sub::ORBIT) => FlightMode::Orbit,
         (main::POSCTL, _) => FlightMode::Posctl,
         (main::OFFBOARD, _) => FlightMode::Offboard,
         (main::AUTO, sub::TAKEOFF) => FlightMode::Takeoff,
@@ -84,6 +89,7 @@ pub fn standard_mode(mode: FlightMode) -> MavStandardMode {
         FlightMode::Mission => MavStandardMode::MAV_STANDARD_MODE_MISSION,
         FlightMode::Land => MavStandardMode::MAV_STANDARD_MODE_LAND,
         FlightMode::Takeoff => MavStandardMode::MAV_STANDARD_MODE_TAKEOFF,
+        FlightMode::Orbit => MavStandardMode::MAV_STANDARD_MODE_ORBIT,
         _ => MavStandardMode::MAV_STANDARD_MODE_NON_STANDARD,
     }
 }
@@ -116,7 +122,9 @@ mod tests {
             custom_mode(FlightMode::Descend),
             custom_mode(FlightMode::Land)
         );
-        // Sub-modes count only for AUTO; AUTO.READY and unknown mains are not modes here.
+        // Sub-modes count for AUTO and POSCTL's Orbit (PX4's POSCTL_ORBIT = 1); AUTO.READY
+        // and unknown mains are not modes here.
+        assert_eq!(custom_mode(FlightMode::Orbit), 0x0103_0000);
         assert_eq!(from_px4(3, 9), Some(FlightMode::Posctl));
         assert_eq!(from_px4(4, 1), None);
         assert_eq!(from_px4(9, 0), None);
@@ -127,6 +135,7 @@ mod tests {
         assert_eq!(from_standard(7), Some(FlightMode::Land));
         assert_eq!(from_standard(5), Some(FlightMode::Rtl));
         assert_eq!(from_standard(0), None);
-        assert_eq!(from_standard(2), None, "no orbit");
+        assert_eq!(from_standard(2), Some(FlightMode::Orbit));
+        assert_eq!(from_standard(3), None, "no cruise");
     }
 }

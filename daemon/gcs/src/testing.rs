@@ -22,6 +22,7 @@ pub fn telemetry(armed: bool, mode: FlightMode) -> Telemetry {
             motor_failed: None,
             failsafe_conditions: 0,
             safety_log: Default::default(),
+            orbit: None,
             prearm_ok: true,
             ready: true,
             in_mode_s: 0.0,

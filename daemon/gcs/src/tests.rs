@@ -330,7 +330,7 @@ fn every_answered_command_is_handled_and_others_are_unsupported() {
         );
     }
     assert_eq!(
-        result(MavCmd::MAV_CMD_DO_ORBIT).1,
+        result(MavCmd::MAV_CMD_DO_FOLLOW).1,
         Some(MavResult::MAV_RESULT_UNSUPPORTED)
     );
 }

@@ -300,6 +300,7 @@ pub(super) fn nav_state(mode: FlightMode) -> u8 {
         FlightMode::Stabilized => 15,
         FlightMode::Takeoff => 17,
         FlightMode::Land => 18,
+        FlightMode::Orbit => 21,
     }
 }
 

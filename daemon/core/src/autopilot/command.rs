@@ -2,7 +2,7 @@
 //! or refused.
 
 use super::Autopilot;
-use crate::commander::{Denial, FlightMode, OffboardTarget, Sticks};
+use crate::commander::{Denial, FlightMode, OffboardTarget, OrbitRequest, OrbitYaw, Sticks};
 use crate::math::geo::{LatLonAlt, LocalFrame};
 use crate::mission::{MissionItem, MissionPoint, SpeedChange};
 use crate::safety::failure_injection::{Injection, Refusal};
@@ -65,6 +65,20 @@ pub enum AutopilotCommand {
         direction: i8,
         /// `angle_deg` is a turn from the current heading.
         relative: bool,
+    },
+    /// Circle a point (`DO_ORBIT`); what is left open keeps the orbit flown, or starting one,
+    /// the current position and the defaults.
+    Orbit {
+        /// The centre, the altitude the circle's.
+        center: MissionPoint,
+        /// Radius (m), positive clockwise.
+        radius_m: Option<f64>,
+        /// Tangential speed (m/s).
+        speed_m_s: Option<f64>,
+        /// Which way to face.
+        yaw: Option<OrbitYaw>,
+        /// Turns to fly before Hold (0: until another mode).
+        turns: Option<f64>,
     },
     /// Fly to a point and hold there (`DO_REPOSITION`).
     Reposition {
@@ -224,6 +238,28 @@ impl Autopilot {
                 // The parts left open stay NaN: the commander keeps them.
                 let target = at.to_ned(&origin, &home, &Vector3::repeat(f64::NAN));
                 c_.reposition(target, speed_m_s, yaw_rad, change_mode)
+            }
+            AutopilotCommand::Orbit {
+                center,
+                radius_m,
+                speed_m_s,
+                yaw,
+                turns,
+            } => {
+                let (Some(out), Some(origin)) = (last, origin) else {
+                    return Err("orbit refused: no global position yet".into());
+                };
+                check_point(&center).map_err(|e| format!("orbit refused: {e}"))?;
+                let home = c_.home().unwrap_or(out.translation.pos_ned_m);
+                let c = center.to_ned(&origin, &home, &Vector3::repeat(f64::NAN));
+                c_.orbit(OrbitRequest {
+                    radius_m,
+                    speed_m_s,
+                    yaw,
+                    turns,
+                    center_ne_m: (!c.x.is_nan()).then(|| c.xy()),
+                    center_down_m: (!c.z.is_nan()).then_some(c.z),
+                })
             }
         }
     }

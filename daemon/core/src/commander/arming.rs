@@ -48,7 +48,7 @@ impl Commander {
                     return Err("arming refused: no offboard set-points".into());
                 }
             }
-            FlightMode::Land | FlightMode::Rtl | FlightMode::Descend => {
+            FlightMode::Land | FlightMode::Rtl | FlightMode::Descend | FlightMode::Orbit => {
                 return Err(format!(
                     "arming refused: not in a mode to start in ({})",
                     self.mode.name()

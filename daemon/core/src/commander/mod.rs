@@ -20,6 +20,9 @@
 //! Descend, disarm); arming asks its [`crate::safety::preflight::preflight`] checks.
 
 pub use input::{CommanderInput, Health, OffboardTarget, Sticks};
+pub use orbit::{
+    OrbitRequest, OrbitStatus, OrbitYaw, SPEED_MAX_M_S as ORBIT_SPEED_MAX_M_S, speed_bound_m_s,
+};
 pub use params::{COMMANDER_META, CommanderParams};
 
 use crate::control::Setpoint;
@@ -57,6 +60,8 @@ pub enum FlightMode {
     Land,
     /// Follow set-points streamed by a companion computer or script.
     Offboard,
+    /// Circle a point (PX4's Orbit, `MAV_CMD_DO_ORBIT`).
+    Orbit,
     /// Failsafe: level and descend on what estimate is left.
     Descend,
 }
@@ -83,6 +88,7 @@ impl FlightMode {
             Self::Rtl => "RTL",
             Self::Land => "LAND",
             Self::Offboard => "OFFBOARD",
+            Self::Orbit => "ORBIT",
             Self::Descend => "DESCEND",
         }
     }
@@ -162,6 +168,8 @@ pub struct CommanderStatus {
     pub prearm_ok: bool,
     /// The failsafe machine's events, numbered: each to be said once.
     pub safety_log: crate::safety::failsafe::SafetyLog,
+    /// The orbit flown, in Orbit.
+    pub orbit: Option<OrbitStatus>,
 }
 
 /// The commander.
@@ -289,6 +297,10 @@ impl Commander {
             failsafe_conditions: self.safety.active_mask(),
             prearm_ok: !f.armed && self.prearm_ok,
             safety_log: self.safety_log,
+            orbit: match &self.task {
+                Task::Orbit(o) => Some(o.status()),
+                _ => None,
+            },
         }
     }
 
@@ -371,7 +383,11 @@ impl Commander {
         self.flight.landed = LandedState::OnGround;
         if matches!(
             self.mode,
-            FlightMode::Land | FlightMode::Rtl | FlightMode::Descend | FlightMode::Takeoff
+            FlightMode::Land
+                | FlightMode::Rtl
+                | FlightMode::Descend
+                | FlightMode::Takeoff
+                | FlightMode::Orbit
         ) {
             self.enter(FlightMode::Loiter);
         }
@@ -420,6 +436,8 @@ impl Commander {
                 }
             }
             FlightMode::Mission => self.mission_entry()?,
+            // Chosen without a command: about where it is, with the defaults.
+            FlightMode::Orbit => return self.orbit(OrbitRequest::default()),
             FlightMode::Descend => return Err("DESCEND is a failsafe, not a mode to select".into()),
         }
         if mode == FlightMode::Takeoff && self.flight.armed && !self.ready() {
@@ -597,6 +615,7 @@ mod manual_position;
 mod mission;
 mod mission_run;
 mod offboard;
+mod orbit;
 mod params;
 mod rtl;
 mod stabilized;

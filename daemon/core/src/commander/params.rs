@@ -57,5 +57,9 @@ crate::params::param_group! {
         auto_sink_m_s: f64 = 1.5, "MPC_Z_V_AUTO_DN", "m/s", [0.5, 4.0], "Descent speed of missions and repositions";
         /// Yaw rate of automatic flight (deg/s).
         auto_yaw_rate_deg_s: f64 = 45.0, "MPC_YAWRAUTO_MAX", "deg/s", [5.0, 360.0], "Yaw rate of missions, repositions and CONDITION_YAW";
+        /// Largest orbit radius (m).
+        orbit_radius_max_m: f64 = 1000.0, "MC_ORBIT_RAD_MAX", "m", [1.0, 10000.0], "Largest radius of an orbit (DO_ORBIT)";
+        /// Centripetal acceleration that bounds an orbit's speed (m/s²).
+        orbit_accel_m_s2: f64 = 3.0, "MC_ORBIT_ACC_MAX", "m/s^2", [0.5, 10.0], "Centripetal acceleration of an orbit: its speed is at most sqrt(this x radius)";
     }
 }

@@ -11,6 +11,7 @@ use super::line::Line;
 use super::manual_position::ManualPosition;
 use super::mission::MissionFlight;
 use super::offboard::Offboard;
+use super::orbit::Orbit;
 use super::rtl::Rtl;
 use super::stabilized::Stabilized;
 use super::takeoff::Takeoff;
@@ -45,6 +46,7 @@ pub(super) enum Task {
     ManualPosition(ManualPosition),
     Stabilized(Stabilized),
     Offboard(Offboard),
+    Orbit(Orbit),
     Descend(Descend),
 }
 
@@ -61,6 +63,8 @@ impl Task {
             FlightMode::Altctl => Self::ManualPosition(ManualPosition::new(false)),
             FlightMode::Manual | FlightMode::Stabilized => Self::Stabilized(Stabilized::default()),
             FlightMode::Offboard => Self::Offboard(Offboard::default()),
+            // An orbit is made by `Commander::orbit`, never from the mode alone: Hold stands in.
+            FlightMode::Orbit => Self::Hold(Hold::default()),
             FlightMode::Descend => Self::Descend(Descend::default()),
         }
     }
@@ -76,6 +80,7 @@ impl Task {
             Self::ManualPosition(t) => t,
             Self::Stabilized(t) => t,
             Self::Offboard(t) => t,
+            Self::Orbit(t) => t,
             Self::Descend(t) => t,
         }
     }

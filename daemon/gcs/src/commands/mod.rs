@@ -18,13 +18,14 @@ use mavlink::dialects::common::*;
 
 /// Every command the vehicle answers, in the order of its families below; any other is
 /// answered `MAV_RESULT_UNSUPPORTED`.
-pub const ANSWERED_COMMANDS: [MavCmd; 23] = [
+pub const ANSWERED_COMMANDS: [MavCmd; 24] = [
     MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
     MavCmd::MAV_CMD_NAV_TAKEOFF,
     MavCmd::MAV_CMD_NAV_LAND,
     MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH,
     MavCmd::MAV_CMD_NAV_LOITER_UNLIM,
     MavCmd::MAV_CMD_DO_REPOSITION,
+    MavCmd::MAV_CMD_DO_ORBIT,
     MavCmd::MAV_CMD_DO_CHANGE_SPEED,
     MavCmd::MAV_CMD_CONDITION_YAW,
     MavCmd::MAV_CMD_MISSION_START,
@@ -67,6 +68,7 @@ impl GroundStation {
             | MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH
             | MavCmd::MAV_CMD_NAV_LOITER_UNLIM
             | MavCmd::MAV_CMD_DO_REPOSITION
+            | MavCmd::MAV_CMD_DO_ORBIT
             | MavCmd::MAV_CMD_DO_CHANGE_SPEED
             | MavCmd::MAV_CMD_CONDITION_YAW => self.navigation(Call { c, to, t }, out),
             MavCmd::MAV_CMD_MISSION_START
@@ -104,12 +106,16 @@ impl GroundStation {
         t: &Telemetry,
         out: &mut Outbox,
     ) {
+        // INT32_MAX: keep the current latitude and longitude.
+        let degrees = global
+            .filter(|&(x, y)| x != i32::MAX && y != i32::MAX)
+            .map(|(x, y)| (x as f64 * 1e-7, y as f64 * 1e-7));
         if c.command == MavCmd::MAV_CMD_DO_REPOSITION {
-            // INT32_MAX: keep the current latitude and longitude.
-            let degrees = global
-                .filter(|&(x, y)| x != i32::MAX && y != i32::MAX)
-                .map(|(x, y)| (x as f64 * 1e-7, y as f64 * 1e-7));
             return self.reposition(c, degrees, frame, to, out);
+        }
+        if c.command == MavCmd::MAV_CMD_DO_ORBIT {
+            // The frame is not read: z is AMSL.
+            return self.orbit(c, degrees, to, out);
         }
         if c.command == MavCmd::MAV_CMD_DO_SET_HOME && c.p[0] != 1.0 {
             let Some((x, y)) = global else {

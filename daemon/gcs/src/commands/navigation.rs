@@ -1,5 +1,5 @@
-//! Where and how to fly: take-off, land, return, hold, `DO_REPOSITION` (from `COMMAND_LONG` or
-//! `COMMAND_INT`), `DO_CHANGE_SPEED`, `CONDITION_YAW`.
+//! Where and how to fly: take-off, land, return, hold, `DO_REPOSITION` and `DO_ORBIT` (from
+//! `COMMAND_LONG` or `COMMAND_INT`), `DO_CHANGE_SPEED`, `CONDITION_YAW`.
 
 use super::vehicle;
 use super::{Call, CommandMessage};
@@ -66,6 +66,12 @@ impl GroundStation {
                     (!p[4].is_nan() || !p[5].is_nan()).then_some((p[4] as f64, p[5] as f64));
                 self.reposition(c, global, MavFrame::MAV_FRAME_GLOBAL, to, out);
             }
+            MavCmd::MAV_CMD_DO_ORBIT => {
+                // COMMAND_LONG: latitude and longitude in degrees (NaN: keep).
+                let global =
+                    (!p[4].is_nan() || !p[5].is_nan()).then_some((p[4] as f64, p[5] as f64));
+                self.orbit(c, global, to, out);
+            }
             MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH => {
                 vehicle(out, to, AutopilotCommand::SetMode(FlightMode::Rtl));
             }
@@ -74,6 +80,54 @@ impl GroundStation {
             }
             _ => out.send(self.ack(to, MavResult::MAV_RESULT_UNSUPPORTED)),
         }
+    }
+
+    /// `DO_ORBIT`: param1 radius (m, negative counter-clockwise), param2 tangential speed,
+    /// param3 `ORBIT_YAW_BEHAVIOUR` (5: unchanged), param4 the angle to fly (rad; 0 forever),
+    /// the centre's latitude and longitude (deg) and z its altitude AMSL whatever the frame —
+    /// as PX4 reads it, and as MAVSDK's `do_orbit` sends it (in a relative frame). NaN keeps
+    /// the orbit flown's value (or starts at the current position and the defaults).
+    pub(super) fn orbit(
+        &mut self,
+        c: CommandMessage,
+        global: Option<(f64, f64)>,
+        to: AckTo,
+        out: &mut Outbox,
+    ) {
+        let p = c.p;
+        let given = |v: f32| (!v.is_nan()).then_some(v as f64);
+        let yaw = match p[2] {
+            y if y.is_nan() || y == 5.0 => None,
+            y => match flight_core::commander::OrbitYaw::from_mavlink(y as u8) {
+                Some(b) if y.fract() == 0.0 && y >= 0.0 => Some(b),
+                _ => return self.deny(to, out, &format!("orbit: yaw behaviour {y} unknown")),
+            },
+        };
+        if !(p[3].is_nan() || (p[3].is_finite() && p[3] >= 0.0)) {
+            return self.deny(to, out, &format!("orbit: angle to fly {} rad", p[3]));
+        }
+        let (radius, speed) = (given(p[0]), given(p[1]));
+        let accel = self.params.values().commander.orbit_accel_m_s2;
+        if let (Some(r), Some(v)) = (radius, speed) {
+            let bound = flight_core::commander::speed_bound_m_s(accel, r.abs());
+            if v > bound && v.is_finite() && r.is_finite() {
+                out.say(
+                    MavSeverity::MAV_SEVERITY_INFO,
+                    &format!("orbit: {v:.1} m/s lowered to {bound:.1} by the radius"),
+                );
+            }
+        }
+        let cmd = AutopilotCommand::Orbit {
+            center: flight_core::mission::MissionPoint {
+                lat_lon_deg: global,
+                alt: given(p[6]).map(flight_core::mission::MissionAltitude::Amsl),
+            },
+            radius_m: radius,
+            speed_m_s: speed,
+            yaw,
+            turns: given(p[3]).map(|rad| rad / std::f64::consts::TAU),
+        };
+        vehicle(out, to, cmd);
     }
 
     /// `DO_REPOSITION`: param1 speed (−1 default), param2 bit 0 "switch to Hold", param4

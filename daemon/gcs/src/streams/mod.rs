@@ -27,6 +27,7 @@ mod highres_imu;
 mod hil_state_quaternion;
 mod home_position;
 mod local_position_ned;
+mod orbit_execution_status;
 mod position_target_local_ned;
 mod protocol_version;
 mod scaled_imu;
@@ -179,6 +180,7 @@ pub fn build(id: u32, t: &Telemetry, unix_usec: u64) -> Option<MavMessage> {
         HIL_STATE_QUATERNION_DATA::ID => hil_state_quaternion::message(&s),
         GPS_GLOBAL_ORIGIN_DATA::ID => gps_global_origin::message(&s),
         PROTOCOL_VERSION_DATA::ID => protocol_version::message(&s),
+        ORBIT_EXECUTION_STATUS_DATA::ID => orbit_execution_status::message(&s),
         _ => None,
     }
 }

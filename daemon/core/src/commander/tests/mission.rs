@@ -1,9 +1,10 @@
-//! Mission mode, repositions and the guided commands, flown by a vehicle that follows its
+//! Mission mode, repositions, orbits and the guided commands, flown by a vehicle that follows its
 //! set-point exactly (the commander's logic alone; closed-loop flights are in `tests/`).
 
 use super::*;
 use crate::math::geo::{LatLonAlt, LocalFrame};
 use crate::mission::{MissionAltitude, MissionItem, MissionPoint, MissionState, SpeedChange};
+use nalgebra::Vector2;
 
 const ORIGIN: LatLonAlt = LatLonAlt {
     lat_deg: 47.397742,
@@ -40,6 +41,9 @@ struct Follower {
     path: Vec<PositionSetpoint>,
     /// North of this the vehicle is outside its geofence (what the caller's fence check says).
     fence_north_m: f64,
+    /// Where the set-point's velocity takes the vehicle from its position in a step, rather
+    /// than onto the position (an orbit's set-point is the nearest point of the circle).
+    leads: bool,
 }
 
 impl Follower {
@@ -52,6 +56,7 @@ impl Follower {
             yaw: 0.0,
             path: Vec::new(),
             fence_north_m: f64::INFINITY,
+            leads: false,
         };
         f.step();
         f
@@ -74,7 +79,9 @@ impl Follower {
         if armed {
             let mut next = self.pos;
             for k in 0..3 {
-                if sp.pos_ned_m[k].is_finite() {
+                if sp.pos_ned_m[k].is_finite() && self.leads {
+                    next[k] = sp.pos_ned_m[k] + sp.vel_ned_m_s[k] * dt;
+                } else if sp.pos_ned_m[k].is_finite() {
                     next[k] = sp.pos_ned_m[k];
                 } else if sp.vel_ned_m_s[k].is_finite() {
                     next[k] += sp.vel_ned_m_s[k] * dt;
@@ -391,5 +398,131 @@ fn a_fence_breach_on_a_reposition_leg_stops_it() {
         f.pos.x > 12.0 && f.pos.x < 17.5,
         "stopped at {:?} (fence at 12 m, braking from 5 m/s at 2.5 m/s²: 5 m)",
         f.pos
+    );
+}
+
+/// Hovering at 5 m, ready for an orbit.
+fn hovering_follower() -> Follower {
+    let mut f = Follower::new(CommanderParams::default());
+    f.leads = true;
+    f.c.takeoff(Some(5.0)).unwrap();
+    f.c.arm(false).unwrap();
+    assert!(f.until(20.0, |f| f.c.mode() == FlightMode::Loiter));
+    f
+}
+
+/// `DO_ORBIT` about a point 20 m north, 10 m clockwise at 5 m/s: the vehicle flies to the
+/// circle facing the centre, then circles it on the radius, north → east → south, the front
+/// at the centre; the status says the orbit; asked for one turn, it holds after one.
+#[test]
+fn an_orbit_flies_to_its_circle_then_circles_it_and_holds_after_its_turns() {
+    let mut f = hovering_follower();
+    let center = Vector2::new(20.0, 0.0);
+    f.c.orbit(OrbitRequest {
+        radius_m: Some(10.0),
+        speed_m_s: Some(5.0),
+        center_ne_m: Some(center),
+        center_down_m: Some(-8.0),
+        turns: Some(1.0),
+        ..OrbitRequest::default()
+    })
+    .unwrap();
+    assert_eq!(f.c.mode(), FlightMode::Orbit);
+    let s = f.c.status().orbit.unwrap();
+    assert!(
+        !s.circling && s.radius_m == 10.0 && s.speed_m_s == 5.0,
+        "{s:?}"
+    );
+    assert!(f.until(30.0, |f| f.c.status().orbit.is_some_and(|o| o.circling)));
+    let on = f.pos;
+    assert!(((on.xy() - center).norm() - 10.0).abs() < 0.5 && (on.z + 8.0).abs() < 0.5);
+    // Half a turn: clockwise seen from above, on the radius, facing the centre, at 5 m/s.
+    let mut worst = 0.0f64;
+    let mut angle = (on.y - center.y).atan2(on.x - center.x);
+    let mut turned = 0.0;
+    let t0 = f.t;
+    while f.t - t0 < 5.0 {
+        f.step();
+        let rel = f.pos.xy() - center;
+        let a = rel.y.atan2(rel.x);
+        turned += wrap(a - angle);
+        angle = a;
+        worst = worst.max((rel.norm() - 10.0).abs());
+        let facing = wrap(f.yaw - (-rel.y).atan2(-rel.x)).abs();
+        assert!(
+            f.t - t0 < 2.0 || facing < 0.05,
+            "facing {facing} rad off the centre"
+        );
+    }
+    assert!(turned > 0.0, "clockwise: {turned}");
+    assert!(worst < 0.3, "{worst} m off the radius");
+    let speed = f.vel.xy().norm();
+    assert!((speed - 5.0).abs() < 0.1, "{speed} m/s");
+    assert!(
+        f.until(20.0, |f| f.c.mode() == FlightMode::Loiter),
+        "one turn, then Hold"
+    );
+    assert!(f.c.status().orbit.is_none());
+}
+
+fn wrap(a: f64) -> f64 {
+    (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
+}
+
+/// What an orbit cannot be: on the ground, radii under 1 m or over `MC_ORBIT_RAD_MAX`, speeds
+/// not above zero or absurd, a centre too far from home; a speed above the radius's bound is
+/// lowered to it; a command that leaves parts out keeps the orbit's.
+#[test]
+fn orbits_that_cannot_be_flown_are_refused_with_the_reason() {
+    let mut f = Follower::new(CommanderParams::default());
+    let err = f.c.orbit(OrbitRequest::default()).unwrap_err();
+    assert!(err.contains("not flying"), "{err}");
+    let mut f = hovering_follower();
+    for (radius, speed, why) in [
+        (0.5, 2.0, "radius"),
+        (-0.0, 2.0, "radius"),
+        (2000.0, 2.0, "radius"),
+        (f64::INFINITY, 2.0, "radius"),
+        (10.0, 0.0, "speed"),
+        (10.0, -3.0, "speed"),
+        (10.0, 100.0, "speed"),
+    ] {
+        let req = OrbitRequest {
+            radius_m: Some(radius),
+            speed_m_s: Some(speed),
+            ..OrbitRequest::default()
+        };
+        let err = f.c.orbit(req).unwrap_err();
+        assert!(err.contains(why), "{radius} m, {speed} m/s: {err}");
+        assert_eq!(f.c.mode(), FlightMode::Loiter);
+    }
+    let far = OrbitRequest {
+        center_ne_m: Some(Vector2::new(1e7, 0.0)),
+        ..OrbitRequest::default()
+    };
+    assert!(f.c.orbit(far).is_err());
+    // 5 m/s on 4 m: √(3 m/s² × 4 m) = 3.46 m/s.
+    f.c.orbit(OrbitRequest {
+        radius_m: Some(-4.0),
+        speed_m_s: Some(5.0),
+        ..OrbitRequest::default()
+    })
+    .unwrap();
+    let s = f.c.status().orbit.unwrap();
+    assert!(
+        (s.speed_m_s - 12.0f64.sqrt()).abs() < 1e-9 && s.radius_m == -4.0,
+        "{s:?}"
+    );
+    // Only the speed changes: the centre (where it was) and the radius stay.
+    f.until(3.0, |_| false);
+    f.c.orbit(OrbitRequest {
+        speed_m_s: Some(1.0),
+        ..OrbitRequest::default()
+    })
+    .unwrap();
+    let t = f.c.status().orbit.unwrap();
+    assert_eq!(
+        (t.center_ned_m, t.radius_m, t.speed_m_s),
+        (s.center_ned_m, -4.0, 1.0)
     );
 }

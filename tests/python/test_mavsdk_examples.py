@@ -1,0 +1,228 @@
+"""What MAVSDK-Python's own example scripts do (`do_orbit.py`, `geofence.py`, `highres_imu.py`,
+…), through the same plugin calls of the classic gRPC API (PyPI `mavsdk-grpc`, its own
+`mavsdk_server`), in tests of our own: sitl + autopilot, MAVSDK on one ground-station endpoint and
+a pymavlink watcher on a second one reading what MAVSDK does not show (the simulator's truth,
+`ORBIT_EXECUTION_STATUS`, the mode's PX4 number). Every wait has a time-out."""
+
+import asyncio
+import math
+import threading
+import time
+
+import mavsdk_grpc as mavsdk
+from mavsdk_grpc.action import OrbitYawBehavior
+from mavsdk_grpc.telemetry import FlightMode
+from pymavlink import mavutil
+
+from conftest import Daemon, first, free_tcp_port, free_udp_port
+
+ML = mavutil.mavlink
+EARTH_RADIUS_M = 6378137.0
+
+
+class Watcher:
+    """A pymavlink ground station on its own endpoint, in a thread: it asks for the simulator's
+    truth (`HIL_STATE_QUATERNION`) at 25 Hz and keeps every message of the types asked."""
+
+    def __init__(self, port, kinds):
+        self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", source_system=254)
+        self.kinds = kinds
+        self.seen = {k: [] for k in kinds}
+        self.lock = threading.Lock()
+        self.stop = False
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    def _run(self):
+        asked = False
+        while not self.stop:
+            m = self.conn.recv_match(blocking=True, timeout=0.1)
+            if m is None or m.get_srcComponent() != 1:
+                continue
+            if not asked and m.get_type() == "HEARTBEAT":
+                self.conn.mav.command_long_send(1, 1, ML.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                                                ML.MAVLINK_MSG_ID_HIL_STATE_QUATERNION, 40_000,
+                                                0, 0, 0, 0, 0)
+                asked = True
+            if m.get_type() in self.kinds:
+                with self.lock:
+                    self.seen[m.get_type()].append((time.monotonic(), m))
+
+    def messages(self, kind, since=0.0):
+        with self.lock:
+            return [m for t, m in self.seen[kind] if t >= since]
+
+    def close(self):
+        self.stop = True
+        self.thread.join(timeout=2)
+        self.conn.close()
+
+
+def offset(lat, lon, north_m, east_m):
+    """The point `north_m`, `east_m` from (lat, lon), degrees."""
+    dlat = math.degrees(north_m / EARTH_RADIUS_M)
+    dlon = math.degrees(east_m / (EARTH_RADIUS_M * math.cos(math.radians(lat))))
+    return lat + dlat, lon + dlon
+
+
+def local(lat0, lon0, lat, lon):
+    """(north, east) of (lat, lon) from (lat0, lon0), metres."""
+    return (math.radians(lat - lat0) * EARTH_RADIUS_M,
+            math.radians(lon - lon0) * EARTH_RADIUS_M * math.cos(math.radians(lat0)))
+
+
+def with_watcher(tmp_path, flight, kinds, scenario=None):
+    """Runs `flight(drone, watcher)` against a fresh sitl + autopilot in lockstep: MAVSDK
+    (mavsdk_server on a free port) on one endpoint, the watcher on another."""
+    watch_port = free_udp_port()
+    daemon = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0", connect=False,
+                    scenario=scenario, lockstep=True,
+                    ap_args=["--mavlink", f"udpout://127.0.0.1:{watch_port}?bind=0"])
+    watcher = Watcher(watch_port, kinds)
+
+    async def run():
+        drone = mavsdk.System(port=free_tcp_port())
+        await drone.connect(system_address=f"udpin://127.0.0.1:{daemon.gcs_port}")
+        try:
+            await first(drone.core.connection_state(), lambda s: s.is_connected, 30)
+            await first(drone.telemetry.health(),
+                        lambda h: h.is_global_position_ok and h.is_home_position_ok, 60)
+            await flight(drone, watcher)
+        finally:
+            drone._stop_mavsdk_server()
+
+    try:
+        asyncio.run(run())
+    finally:
+        watcher.close()
+        daemon.close()
+
+
+WINDY = """
+airframe = "quad_x"
+duration_s = 100000.0
+[wind]
+mean_ned_m_s = [0.0, 5.0, 0.0]
+"""
+
+
+def test_do_orbit_circles_its_centre_in_the_wind_then_stops_after_its_turns(tmp_path, scenario):
+    """`do_orbit.py`: take off, orbit a point 15 m north of home, 10 m up, radius 10 m at 5 m/s
+    facing the centre — here in a 5 m/s wind from the west. Measured on the simulator's truth
+    over a turn and a half on the circle at speed: the radial error (RMS, and worst) and the
+    speed error.
+    `ORBIT_EXECUTION_STATUS` says the orbit; the mode is PX4's Orbit (POSCTL, sub-mode 1). The
+    same command from pymavlink with half a turn (param4 = π rad) ends in Hold after it."""
+
+    async def flight(drone, watcher):
+        home = await first(drone.telemetry.home(), lambda h: True, 5)
+        await drone.action.arm()
+        await drone.action.takeoff()
+        await first(drone.telemetry.flight_mode(), lambda m: m == FlightMode.HOLD, 40)
+        lat, lon = offset(home.latitude_deg, home.longitude_deg, 15.0, 0.0)
+        await drone.action.do_orbit(radius_m=10, velocity_ms=5,
+                                    yaw_behavior=OrbitYawBehavior.HOLD_FRONT_TO_CIRCLE_CENTER,
+                                    latitude_deg=lat, longitude_deg=lon,
+                                    absolute_altitude_m=home.absolute_altitude_m + 10)
+        started = time.monotonic()
+        # On the circle once within 1.5 m of it and of its altitude; then two turns (the first
+        # third of them to reach the speed).
+        on_since, turned, last_angle = None, 0.0, None
+        errors, speeds = [], []
+        deadline = time.monotonic() + 60
+        n = 0
+        while turned < 4 * math.pi:
+            assert time.monotonic() < deadline, f"turned {turned:.1f} rad in 60 s"
+            await asyncio.sleep(0.05)
+            truth = watcher.messages("HIL_STATE_QUATERNION", started)
+            for m in truth[n:]:
+                north, east = local(home.latitude_deg, home.longitude_deg, m.lat * 1e-7,
+                                    m.lon * 1e-7)
+                dn, de = north - 15.0, east
+                radial = math.hypot(dn, de) - 10.0
+                height = m.alt * 1e-3 - home.absolute_altitude_m
+                if on_since is None and abs(radial) < 1.5 and abs(height - 10) < 1.5:
+                    on_since = m.time_usec * 1e-6
+                if on_since is None:
+                    continue
+                angle = math.atan2(de, dn)
+                if last_angle is not None:
+                    turned += (angle - last_angle + math.pi) % (2 * math.pi) - math.pi
+                last_angle = angle
+                # Measured once up to speed: it ramps up on the circle at MPC_ACC_HOR (5 s
+                # at 1 m/s²), then a second to settle.
+                if m.time_usec * 1e-6 - on_since > 6.0:
+                    errors.append(radial)
+                    speeds.append(math.hypot(m.vx, m.vy) * 1e-2)
+            n = len(truth)
+        rms = math.sqrt(sum(e * e for e in errors) / len(errors))
+        worst = max(abs(e) for e in errors)
+        mean_speed = sum(speeds) / len(speeds)
+        speed_rms = math.sqrt(sum((s - 5.0) ** 2 for s in speeds) / len(speeds))
+        print(f"orbit 10 m / 5 m/s in a 5 m/s wind: radial error RMS {rms:.2f} m, worst "
+              f"{worst:.2f} m; ground speed mean {mean_speed:.2f} m/s, error RMS "
+              f"{speed_rms:.2f} m/s, over {len(errors)} truth samples")
+        assert turned > 0, "clockwise (positive radius)"
+        assert rms < 0.5 and worst < 1.2, (rms, worst)
+        assert abs(mean_speed - 5.0) < 0.25 and speed_rms < 0.6, (mean_speed, speed_rms)
+        status = watcher.messages("ORBIT_EXECUTION_STATUS", started)
+        assert status, "ORBIT_EXECUTION_STATUS streamed in Orbit"
+        s = status[-1]
+        assert s.radius == 10.0 and s.frame == ML.MAV_FRAME_GLOBAL, s
+        assert abs(s.x * 1e-7 - lat) < 1e-6 and abs(s.y * 1e-7 - lon) < 1e-6, s
+        assert abs(s.z - (home.absolute_altitude_m + 10)) < 0.1, s
+        beat = watcher.messages("HEARTBEAT", started)[-1]
+        assert beat.custom_mode == 0x0103_0000, hex(beat.custom_mode)  # POSCTL / ORBIT
+
+        # Half a turn more (param4 = π rad, the rest kept), then Hold: from pymavlink.
+        conn = watcher.conn
+        nan = float("nan")
+        conn.mav.command_long_send(1, 1, ML.MAV_CMD_DO_ORBIT, 0, nan, nan, nan, math.pi,
+                                   nan, nan, nan)
+        half = time.monotonic()
+        await first(drone.telemetry.flight_mode(), lambda m: m == FlightMode.HOLD, 30)
+        took = time.monotonic() - half
+        # Half a turn of 10 m at 5 m/s: 6.3 s of flight, 2.1 s here at three times real time.
+        assert 1.5 < took < 5.0, took
+        held = time.monotonic()
+        await asyncio.sleep(1.0)
+        assert not watcher.messages("ORBIT_EXECUTION_STATUS", held + 0.3), "streamed in Hold"
+        await drone.action.land()
+        await first(drone.telemetry.armed(), lambda a: not a, 90)
+
+    with_watcher(tmp_path, flight, ["HIL_STATE_QUATERNION", "ORBIT_EXECUTION_STATUS",
+                                    "HEARTBEAT"], scenario=scenario(WINDY))
+
+
+def test_orbits_that_cannot_be_flown_are_refused_with_the_reason(tmp_path):
+    """An orbit on the ground, an unknown yaw behaviour, a negative angle to fly: DENIED, the
+    reason said. (Radii and speeds out of range: the commander's unit tests.)"""
+    daemon = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0")
+    gcs = daemon.gcs
+    nan = float("nan")
+    try:
+        assert gcs.recv_match(type="HOME_POSITION", blocking=True, timeout=60), "no home"
+        cases = [
+            ((10, 2, 0, 0, nan, nan, nan), "not flying"),
+            ((10, 2, 9, 0, nan, nan, nan), "yaw behaviour 9"),
+            ((10, 2, 0, -1, nan, nan, nan), "angle to fly"),
+        ]
+        for params, why in cases:
+            gcs.mav.command_long_send(1, 1, ML.MAV_CMD_DO_ORBIT, 0, *params)
+            result, said, end = None, [], time.monotonic() + 5
+            while result is None and time.monotonic() < end:
+                m = gcs.recv_match(type=["COMMAND_ACK", "STATUSTEXT"], blocking=True, timeout=0.2)
+                if m is None:
+                    continue
+                if m.get_type() == "STATUSTEXT":
+                    said.append(m.text)
+                elif m.command == ML.MAV_CMD_DO_ORBIT:
+                    result = m.result
+            end = time.monotonic() + 1
+            while why and not any(why in t for t in said) and time.monotonic() < end:
+                m = gcs.recv_match(type="STATUSTEXT", blocking=True, timeout=0.2)
+                said += [m.text] if m else []
+            assert result == ML.MAV_RESULT_DENIED, (params, result)
+            assert why is None or any(why in t for t in said), (params, said)
+    finally:
+        daemon.close()
