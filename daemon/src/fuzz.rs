@@ -132,6 +132,9 @@ proptest! {
         for (i, (id, bytes)) in msgs.iter().enumerate() {
             match MavMessage::parse(MavlinkVersion::V2, *id, bytes) {
                 Ok(m) => {
+                    if let MavMessage::SERIAL_CONTROL(d) = &m {
+                        gcs.on_serial_control(0, &header, d, true, &t, &mut out);
+                    }
                     gcs.on_message(&header, &m, &t, &mut out);
                     if let Some(c) = vehicle.on_message(&m) {
                         prop_assert!(

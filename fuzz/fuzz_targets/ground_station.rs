@@ -78,6 +78,11 @@ enum Action {
         id: u16,
         payload: Vec<u8>,
     },
+    /// Bytes typed into the MAVLink shell.
+    Shell {
+        flags: u8,
+        bytes: Vec<u8>,
+    },
     Poll {
         dt_ms: u16,
     },
@@ -163,6 +168,21 @@ fn message(a: &Action) -> Vec<MavMessage> {
         Action::Raw { id, payload } => MavMessage::parse(MavlinkVersion::V2, (*id).into(), payload)
             .into_iter()
             .collect(),
+        Action::Shell { flags, bytes } => {
+            let mut data = [0u8; 70];
+            let n = bytes.len().min(70);
+            data[..n].copy_from_slice(&bytes[..n]);
+            vec![MavMessage::SERIAL_CONTROL(SERIAL_CONTROL_DATA {
+                baudrate: 0,
+                timeout: 0,
+                device: SerialControlDev::SERIAL_CONTROL_DEV_SHELL,
+                flags: SerialControlFlag::from_bits_truncate(*flags),
+                count: bytes.len().min(255) as u8,
+                data,
+                target_system: 0,
+                target_component: 0,
+            })]
+        }
         Action::Poll { .. } => Vec::new(),
     }
 }
@@ -179,8 +199,17 @@ fuzz_target!(|input: Input| {
     for (k, a) in input.actions.iter().take(64).enumerate() {
         let link = input.links.get(k).map_or(0, |l| l % 4);
         for m in message(a) {
-            v.gcs
-                .on_link_message(link, &header, &m, &v.telemetry, &mut out);
+            match &m {
+                // The shell, as the links' task routes it.
+                MavMessage::SERIAL_CONTROL(d) => {
+                    let allowed = link != 3;
+                    v.gcs
+                        .on_serial_control(link, &header, d, allowed, &v.telemetry, &mut out)
+                }
+                _ => v
+                    .gcs
+                    .on_link_message(link, &header, &m, &v.telemetry, &mut out),
+            }
             v.carry_out(&mut out);
         }
         if let Action::Poll { dt_ms } = a {

@@ -6,6 +6,7 @@ use super::{
     AckTo, CommandMessage, DEFAULT_STREAMS, GroundStation, HostAction, LinkId, Outbox, Outgoing,
     mission, offboard,
 };
+use crate::Reply;
 use crate::telemetry::Telemetry;
 use flight_core::autopilot::command::AutopilotCommand;
 use flight_core::commander::Sticks;
@@ -55,13 +56,13 @@ impl GroundStation {
             command,
             system: from.system_id as u8,
             component: from.component_id,
-            quiet: false,
+            reply: Reply::Ack,
         };
         if let Some((system, component)) = mission::target(msg) {
             if self.for_us(system, Some(component)) {
                 if let MavMessage::MISSION_SET_CURRENT(m) = msg {
                     let to = AckTo {
-                        quiet: true,
+                        reply: Reply::Quiet,
                         ..requester(MavCmd::MAV_CMD_DO_SET_MISSION_CURRENT)
                     };
                     out.vehicle

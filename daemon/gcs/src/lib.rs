@@ -21,6 +21,7 @@ pub mod modes;
 pub mod offboard;
 pub mod param_store;
 pub mod params;
+mod shell;
 pub mod signing;
 pub mod streams;
 pub mod telemetry;
@@ -98,9 +99,20 @@ pub struct AckTo {
     pub system: u8,
     /// The requester's component.
     pub component: u8,
+    /// How the answer is given.
+    pub reply: Reply,
+}
+
+/// How the answer to a command is given.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Reply {
+    /// A `COMMAND_ACK`, and a refusal's reason in a `STATUSTEXT`.
+    Ack,
     /// No `COMMAND_ACK` (a message that is not a command, e.g. `MISSION_SET_CURRENT`): only a
     /// refusal is said, in a `STATUSTEXT`.
-    pub quiet: bool,
+    Quiet,
+    /// Printed in the MAVLink shell that typed it.
+    Shell,
 }
 
 /// Work for the links' task that is not a message: I/O and the process.
@@ -202,6 +214,8 @@ pub struct GroundStation {
     rates: LinkRates,
     /// The rate the sensor samples arrive at: how fast a sensor message may be streamed.
     sample_rate: link_rates::SampleRate,
+    /// The MAVLink shell's session.
+    shell: shell::Shell,
     /// The link of the message being handled.
     link: LinkId,
     /// One-off messages asked for (REQUEST_MESSAGE), sent on the next poll.
@@ -259,6 +273,7 @@ impl GroundStation {
             mav_type,
             rates: LinkRates::default(),
             sample_rate: Default::default(),
+            shell: Default::default(),
             link: 0,
             requested: Vec::new(),
             metadata: None,
@@ -493,6 +508,7 @@ impl GroundStation {
             };
             out.streamed.extend(m.map(|m| (link, Outgoing::Message(m))));
         }
+        self.shell_poll(now_s, t, out);
         for (id, param) in std::mem::take(&mut self.requested) {
             out.messages
                 .extend(self.one_off(id, param, t, unix).map(Outgoing::Message));
@@ -622,11 +638,15 @@ impl GroundStation {
     /// The control loop's answer to a command sent through [`Outbox::vehicle`]: the ack, and
     /// the reason in a `STATUSTEXT` when denied.
     pub fn answered(&mut self, to: AckTo, result: Result<(), Denial>, out: &mut Outbox) {
-        if to.quiet {
-            if let Err(reason) = result {
-                out.say(MavSeverity::MAV_SEVERITY_WARNING, &reason);
+        match to.reply {
+            Reply::Ack => {}
+            Reply::Quiet => {
+                if let Err(reason) = result {
+                    out.say(MavSeverity::MAV_SEVERITY_WARNING, &reason);
+                }
+                return;
             }
-            return;
+            Reply::Shell => return self.shell_answer(result),
         }
         match result {
             Ok(()) => out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED)),

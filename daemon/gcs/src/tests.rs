@@ -120,7 +120,7 @@ fn every_command_gets_exactly_one_ack_addressed_to_the_requester() {
         command: MavCmd::MAV_CMD_NAV_LAND,
         system: 255,
         component: 190,
-        quiet: false,
+        reply: Reply::Ack,
     };
     let mut out = Outbox::default();
     g.answered(to, Err("not now".into()), &mut out);

@@ -252,6 +252,13 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Result<Optio
                                 signing::setup_signing(&signing, signing_key_file.as_deref(), d, i.trusted);
                             out.say(severity, &text);
                         }
+                        MavMessage::SERIAL_CONTROL(d) => {
+                            // The shell: with signing on, on a trusted endpoint only.
+                            let signing_on =
+                                signing.lock().unwrap_or_else(|e| e.into_inner()).active();
+                            let allowed = i.trusted || !signing_on;
+                            gcs.on_serial_control(i.link, h, d, allowed, &t, &mut out);
+                        }
                         _ => gcs.on_link_message(i.link, h, m, &t, &mut out),
                     }
                 }

@@ -1,0 +1,134 @@
+//! The shell typed into as clients type: lines in pieces, `\r\n`, backspace, any bytes.
+
+use super::*;
+use crate::Reply;
+use crate::testing::telemetry;
+use flight_core::commander::FlightMode;
+
+const SHELL: SerialControlDev = SerialControlDev::SERIAL_CONTROL_DEV_SHELL;
+
+fn typed(bytes: &[u8], flags: SerialControlFlag) -> SERIAL_CONTROL_DATA {
+    let mut data = [0u8; 70];
+    let n = bytes.len().min(70);
+    data[..n].copy_from_slice(&bytes[..n]);
+    SERIAL_CONTROL_DATA {
+        baudrate: 0,
+        timeout: 0,
+        device: SHELL,
+        flags,
+        count: n as u8,
+        data,
+        target_system: 0,
+        target_component: 0,
+    }
+}
+
+fn header() -> MavHeader {
+    MavHeader {
+        system_id: 255,
+        component_id: 190,
+        sequence: 0,
+    }
+}
+
+/// Types `text` in pieces of `piece` bytes; the text printed back.
+fn session(g: &mut GroundStation, text: &[u8], piece: usize) -> String {
+    let t = telemetry(false, FlightMode::Loiter);
+    let mut out = Outbox::default();
+    let respond = SerialControlFlag::SERIAL_CONTROL_FLAG_RESPOND
+        | SerialControlFlag::SERIAL_CONTROL_FLAG_EXCLUSIVE;
+    for chunk in text.chunks(piece.max(1)) {
+        g.on_serial_control(0, &header(), &typed(chunk, respond), true, &t, &mut out);
+    }
+    for k in 0..50 {
+        g.shell_poll(k as f64 * 0.05, &t, &mut out);
+    }
+    let mut printed = Vec::new();
+    for (link, m) in &out.streamed {
+        if let Outgoing::Message(MavMessage::SERIAL_CONTROL(r)) = m {
+            assert_eq!(*link, 0);
+            assert!(
+                r.flags
+                    .contains(SerialControlFlag::SERIAL_CONTROL_FLAG_REPLY)
+            );
+            assert!(r.count <= 70 && r.target_system == 255 && r.target_component == 190);
+            printed.extend_from_slice(&r.data[..usize::from(r.count)]);
+        }
+    }
+    String::from_utf8(printed).unwrap()
+}
+
+#[test]
+fn lines_typed_in_any_pieces_run_and_print_with_a_prompt() {
+    for piece in [1, 3, 70] {
+        let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
+        let text = session(&mut g, b"ver\r\nparam show MPC_XY_C*\nhelpx\x08\n", piece);
+        assert!(text.starts_with("nsh> ver\n"), "{text:?}");
+        assert!(text.contains("autopilot "), "{text:?}");
+        assert!(
+            text.contains("MPC_XY_CRUISE      5\n1 parameters\n"),
+            "{text:?}"
+        );
+        assert!(text.contains("helpx\x08 \x08\ncommands:"), "{text:?}");
+        assert!(text.ends_with("nsh> "), "{text:?}");
+        assert_eq!(text.matches("nsh> ").count(), 4, "{text:?}");
+    }
+}
+
+#[test]
+fn commands_for_the_vehicle_go_to_it_and_bad_input_is_answered() {
+    let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
+    let t = telemetry(false, FlightMode::Loiter);
+    let mut out = Outbox::default();
+    let respond = SerialControlFlag::SERIAL_CONTROL_FLAG_RESPOND;
+    for line in [
+        &b"commander arm\n"[..],
+        b"failure gps off -i 1\n",
+        b"commander mode orbit\n",
+    ] {
+        g.on_serial_control(0, &header(), &typed(line, respond), true, &t, &mut out);
+    }
+    assert_eq!(out.vehicle.len(), 3);
+    assert!(out.vehicle.iter().all(|(_, to)| to.reply == Reply::Shell));
+    g.answered(out.vehicle[0].1, Err("arming refused: no".into()), &mut out);
+    let text = session(&mut g, b"", 1);
+    assert!(
+        text.contains("refused: arming refused: no\nnsh> "),
+        "{text:?}"
+    );
+    // Every byte, and lines far too long: answered, never a panic.
+    let all: Vec<u8> = (0..=255u8).chain(std::iter::repeat_n(b'a', 500)).collect();
+    let text = session(
+        &mut g,
+        &[&all[..], b"\ncommander fly\nparam set NOPE 1\n"].concat(),
+        70,
+    );
+    assert!(text.contains("command not found"), "{text:?}");
+    assert!(
+        text.contains("commander: usage") || text.contains("usage: commander"),
+        "{text:?}"
+    );
+    assert!(text.contains("param set: "), "{text:?}");
+}
+
+#[test]
+fn a_refused_endpoint_gets_the_reason_and_an_empty_message_closes() {
+    let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
+    let t = telemetry(false, FlightMode::Loiter);
+    let mut out = Outbox::default();
+    let respond = SerialControlFlag::SERIAL_CONTROL_FLAG_RESPOND;
+    g.on_serial_control(0, &header(), &typed(b"ver\n", respond), false, &t, &mut out);
+    assert!(out.vehicle.is_empty() && g.shell.peer.is_none());
+    assert_eq!(out.streamed.len(), 1, "the reason only");
+    g.on_serial_control(0, &header(), &typed(b"", respond), true, &t, &mut out);
+    assert!(g.shell.peer.is_some());
+    g.on_serial_control(
+        0,
+        &header(),
+        &typed(b"", SerialControlFlag::empty()),
+        true,
+        &t,
+        &mut out,
+    );
+    assert!(g.shell.peer.is_none(), "closed");
+}
