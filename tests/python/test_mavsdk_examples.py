@@ -25,6 +25,7 @@ class Watcher:
     truth (`HIL_STATE_QUATERNION`) at 25 Hz and keeps every message of the types asked."""
 
     def __init__(self, port, kinds):
+        self.port = port
         self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", source_system=254)
         self.kinds = kinds
         self.seen = {k: [] for k in kinds}
@@ -53,9 +54,10 @@ class Watcher:
             return [m for t, m in self.seen[kind] if t >= since]
 
     def close(self):
-        self.stop = True
-        self.thread.join(timeout=2)
-        self.conn.close()
+        if not self.stop:
+            self.stop = True
+            self.thread.join(timeout=2)
+            self.conn.close()
 
 
 def offset(lat, lon, north_m, east_m):
@@ -226,3 +228,133 @@ def test_orbits_that_cannot_be_flown_are_refused_with_the_reason(tmp_path):
             assert why is None or any(why in t for t in said), (params, said)
     finally:
         daemon.close()
+
+
+def test_geofence_with_mavsdks_no_circle_and_the_imu_at_200_hz(tmp_path):
+    """`geofence.py`: a polygon uploaded by MAVSDK is flown: one beside home refuses arming, one
+    around home allows it. MAVSDK 3's plugin sends, after the polygon, the example's placeholder
+    for "no circle" (an inclusion circle of radius 0 at 0°, 0°; mavsdk_server 4.0 refuses it
+    before sending): those very items from pymavlink are taken, the circle ignored and said.
+    `highres_imu.py`: the IMU asked at 200 Hz arrives at 200 Hz (within 5 %), each a sample of
+    its own."""
+    from mavsdk_grpc.action import ActionError
+    from mavsdk_grpc.geofence import FenceType, GeofenceData, Point, Polygon
+
+    async def flight(drone, watcher):
+        home = await first(drone.telemetry.home(), lambda h: True, 5)
+
+        def square(north_m, half_m):
+            corners = [(north_m - half_m, -half_m), (north_m - half_m, half_m),
+                       (north_m + half_m, half_m), (north_m + half_m, -half_m)]
+            return [offset(home.latitude_deg, home.longitude_deg, n, e) for n, e in corners]
+
+        away = Polygon([Point(*c) for c in square(50.0, 20.0)], FenceType.INCLUSION)
+        await drone.geofence.upload_geofence(GeofenceData([away], []))
+        try:
+            await drone.action.arm()
+            raise AssertionError("armed outside the geofence")
+        except ActionError as e:
+            print("outside the fence:", e)
+
+        # MAVSDK 3's items (geofence_impl.cpp assemble_items): the polygon, then the circle.
+        conn, fence = watcher.conn, ML.MAV_MISSION_TYPE_FENCE
+        items = [(ML.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION, 4.0, lat, lon)
+                 for lat, lon in square(0.0, 20.0)]
+        items.append((ML.MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION, 0.0, 0.0, 0.0))
+        since = time.monotonic()
+        conn.mav.mission_count_send(1, 1, len(items), fence)
+        sent = set()
+        while len(sent) < len(items) or not watcher.messages("MISSION_ACK", since):
+            assert time.monotonic() < since + 10, f"upload stalled after {sorted(sent)}"
+            await asyncio.sleep(0.02)
+            for r in watcher.messages("MISSION_REQUEST_INT", since):
+                if r.seq not in sent:
+                    command, p1, lat, lon = items[r.seq]
+                    conn.mav.mission_item_int_send(
+                        1, 1, r.seq, ML.MAV_FRAME_GLOBAL_INT, command, 0, 1, p1, 0, 0, 0,
+                        round(lat * 1e7), round(lon * 1e7), 0, fence)
+                    sent.add(r.seq)
+        ack = watcher.messages("MISSION_ACK", since)[-1]
+        assert ack.type == ML.MAV_MISSION_ACCEPTED, ack
+        said = [m.text for m in watcher.messages("STATUSTEXT", since)]
+        assert any("radius 0 ignored" in t for t in said), said
+        await drone.action.arm()
+        await drone.action.disarm()
+
+        await drone.telemetry.set_rate_imu(200.0)
+        stream = drone.telemetry.imu()
+        await first(stream, lambda i: True, 5)
+        stamps, seconds = [], 3.0
+        end = time.monotonic() + seconds
+        async for imu in stream:
+            if time.monotonic() >= end:
+                break
+            stamps.append(imu.timestamp_us)
+        rate = len(stamps) / seconds
+        print(f"IMU asked at 200 Hz through MAVSDK: {rate:.1f} Hz, {len(set(stamps))} samples")
+        assert abs(rate - 200.0) <= 10.0, rate
+        assert len(set(stamps)) >= 0.99 * len(stamps)
+
+    with_watcher(tmp_path, flight, ["STATUSTEXT", "MISSION_REQUEST_INT", "MISSION_ACK"])
+
+
+async def shell_until(drone, stream, command, expected, timeout=10):
+    """Sends `command` through MAVSDK's shell plugin; the text received until `expected`."""
+    from mavsdk_grpc.shell import Device
+
+    await drone.shell.send(command, Device.SHELL)
+    text = ""
+
+    async def read():
+        nonlocal text
+        async for piece in stream:
+            text += piece.data
+            if expected in text:
+                return
+
+    try:
+        await asyncio.wait_for(read(), timeout)
+    except asyncio.TimeoutError:
+        raise AssertionError(f"{command!r}: no {expected!r} in {text!r}")
+    return text
+
+
+def test_the_mavlink_shell_through_mavsdk_and_pymavlink(tmp_path):
+    """`shell.py`: MAVSDK's shell plugin types `ver`, `status`, `param show`, `param set`,
+    `commander` and `listener` lines and reads the answers; pymavlink's `MavlinkSerialPort` (what
+    PX4's `mavlink_shell.py` drives) on a second endpoint gets the prompt and runs `help`; bytes
+    of every value and an overlong line are answered, never fatal."""
+
+    async def flight(drone, watcher):
+        stream = drone.shell.receive()
+        text = await shell_until(drone, stream, "ver", "PX4 custom modes")
+        assert "autopilot" in text, text
+        text = await shell_until(drone, stream, "status", "loop:")
+        assert "mode: LOITER  armed: no" in text and "attitude valid" in text, text
+        text = await shell_until(drone, stream, "param show MPC_XY_CR*", "parameters")
+        assert "MPC_XY_CRUISE" in text and "1 parameters" in text, text
+        await shell_until(drone, stream, "param set MPC_XY_CRUISE 4.5", "MPC_XY_CRUISE = 4.5")
+        assert await drone.param.get_param_float("MPC_XY_CRUISE") == 4.5
+        await shell_until(drone, stream, "commander arm", "accepted")
+        assert await first(drone.telemetry.armed(), bool, 5)
+        await shell_until(drone, stream, "commander disarm", "accepted")
+        text = await shell_until(drone, stream, "commander mode nowhere", "no mode")
+        text = await shell_until(drone, stream, "listener attitude 3", "nsh> ")
+        assert text.count("attitude t=") == 3, text
+        junk = bytes(range(1, 256)).decode("latin-1") + "x" * 300
+        await shell_until(drone, stream, junk, "command not found")
+        await shell_until(drone, stream, "ver", "PX4 custom modes")
+
+        # pymavlink on the second endpoint (in place of the watcher): its own session.
+        watcher.close()
+        port = mavutil.MavlinkSerialPort(f"udpin:127.0.0.1:{watcher.port}", 0, devnum=10)
+        port.write(b"\n")
+        port.write(b"help\n")
+        got, end = b"", time.monotonic() + 10
+        while b"listener TOPIC" not in got and time.monotonic() < end:
+            got += bytes(port.read(4096))
+        assert got.startswith(b"nsh> ") and b"listener TOPIC" in got, got
+        port.mav.mav.serial_control_send(10, 0, 0, 0, 0, [0] * 70)  # closes it
+        port.mav.close()
+
+    with_watcher(tmp_path, flight, ["HEARTBEAT"])
