@@ -135,6 +135,7 @@ impl Commander {
         self.target_limits()
             .check_target(&target, &home)
             .map_err(|e| format!("reposition refused: {e}"))?;
+        self.operator_takes_over()?;
         if let Some(s) = speed_m_s.filter(|s| s.is_finite() && *s > 0.0) {
             self.flight.speed_override = Some(s.min(20.0));
         }

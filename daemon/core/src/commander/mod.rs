@@ -402,11 +402,7 @@ impl Commander {
         if self.mode == FlightMode::Descend && self.flight.armed {
             return Err("mode change refused: failsafe descent in progress".into());
         }
-        if self.flight.armed && self.failsafe.0 > FailsafeAction::Warn {
-            // The operator takes over (refused while a failsafe allows none).
-            self.safety.take_over()?;
-            self.failsafe = (FailsafeAction::None, None);
-        }
+        self.operator_takes_over()?;
         match mode {
             FlightMode::Takeoff | FlightMode::Loiter | FlightMode::Land => {}
             FlightMode::Rtl => {
@@ -448,6 +444,16 @@ impl Commander {
             self.flight.takeoff_alt_m = self.flight.params.takeoff_alt_m;
         }
         self.enter(mode);
+        Ok(())
+    }
+
+    /// A command of the operator's changes what the vehicle flies: a failsafe acting ends,
+    /// unless it allows no take-over (then the command is refused).
+    fn operator_takes_over(&mut self) -> Result<(), Denial> {
+        if self.flight.armed && self.failsafe.0 > FailsafeAction::Warn {
+            self.safety.take_over()?;
+            self.failsafe = (FailsafeAction::None, None);
+        }
         Ok(())
     }
 

@@ -300,14 +300,20 @@ impl Commander {
             return Err("orbit refused: centre not finite".into());
         }
         let home = self.flight.home.map_or(here, |h| h.0);
+        // The circle's farthest point from home, not only its centre, within the limits.
+        let out = (center.xy() - home.xy())
+            .try_normalize(1e-9)
+            .unwrap_or(Vector2::x());
+        let far = center + Vector3::new(out.x, out.y, 0.0) * radius;
         self.target_limits()
-            .check_target(&center, &home)
+            .check_target(&far, &home)
             .map_err(|e| format!("orbit refused: {e}"))?;
         let yaw = req
             .yaw
             .or(current.as_ref().map(|o| o.yaw))
             .unwrap_or_default();
         let heading = current.as_ref().map_or(i.yaw_rad, |o| o.heading);
+        self.operator_takes_over()?;
         let mut orbit = Orbit {
             center,
             radius_m: radius,

@@ -909,3 +909,22 @@ fn position_mode_touchdown_disarms_at_once_and_a_new_flight_starts_afresh() {
     let (sp, _) = step(&mut c, &at(3.1, z, z, 0.0));
     assert_eq!(sp.yaw_rad, 0.0, "not the last flight's 1 rad");
 }
+
+/// A guided command is the operator taking over from a failsafe, as a mode change is: the
+/// failsafe's Hold (the link lost) ends, overridden, rather than staying on the books while
+/// the orbit flies.
+#[test]
+fn an_orbit_takes_over_from_a_failsafe_as_a_mode_change_does() {
+    use crate::safety::failsafe::SafetyParams;
+    let mut c = hovering(SafetyParams {
+        gcs_loss_action: 2,
+        ..SafetyParams::default()
+    });
+    step(&mut c, &with(7.0, |h| h.gcs_link_age_s = Some(5.5)));
+    assert!(c.status().failsafe && c.mode() == FlightMode::Loiter);
+    c.orbit(OrbitRequest::default()).unwrap();
+    assert_eq!(c.mode(), FlightMode::Orbit);
+    assert!(!c.status().failsafe, "taken over");
+    step(&mut c, &with(8.0, |h| h.gcs_link_age_s = Some(6.5)));
+    assert_eq!(c.mode(), FlightMode::Orbit, "overridden until it clears");
+}
