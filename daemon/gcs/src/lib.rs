@@ -646,7 +646,7 @@ impl GroundStation {
                 }
                 return;
             }
-            Reply::Shell => return self.shell_answer(result),
+            Reply::Shell => return self.shell_answer(to, result),
         }
         match result {
             Ok(()) => out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED)),

@@ -27,8 +27,15 @@ const PROMPT: &str = "nsh> ";
 /// The longest line typed (bytes).
 pub const LINE_MAX: usize = 200;
 
-/// Bytes of output sent per poll at most (the rest waits for the next).
-const OUTPUT_PER_POLL: usize = 70 * 32;
+/// Output sent per second at most (bytes): a shell's text, paced so that it cannot crowd out
+/// telemetry, in bursts of at most [`OUTPUT_BURST`].
+const OUTPUT_BYTES_PER_S: f64 = 10_000.0;
+
+/// The largest burst of output in one poll (bytes).
+const OUTPUT_BURST: f64 = 70.0 * 16.0;
+
+/// Output waiting to be sent at most (bytes); more is dropped, and said.
+const OUTPUT_MAX: usize = 16 * 1024;
 
 /// One shell session.
 #[derive(Debug, Default)]
@@ -41,11 +48,35 @@ pub(crate) struct Shell {
     output: VecDeque<u8>,
     /// A `listener` printing samples.
     listener: Option<Listener>,
+    /// A command passed to the vehicle has not been answered: the prompt waits for it.
+    pending: bool,
+    /// Output that may be sent now (bytes), and when it was last topped up (s).
+    budget: (f64, f64),
 }
 
 impl Shell {
+    /// Queues `text`; beyond [`OUTPUT_MAX`] waiting, it is dropped and a mark says so.
     fn print(&mut self, text: &str) {
-        self.output.extend(text.bytes());
+        const DROPPED: &str = "\n[output dropped]\n";
+        if self.output.len() + text.len() <= OUTPUT_MAX {
+            self.output.extend(text.bytes());
+        } else if !self
+            .output
+            .iter()
+            .rev()
+            .take(DROPPED.len())
+            .copied()
+            .eq(DROPPED.bytes().rev())
+        {
+            self.output.extend(DROPPED.bytes());
+        }
+    }
+
+    /// The prompt, unless a listener or an answer is awaited.
+    fn prompt(&mut self) {
+        if self.listener.is_none() && !self.pending {
+            self.print(PROMPT);
+        }
     }
 }
 
@@ -116,20 +147,18 @@ impl GroundStation {
                 let line = std::mem::take(&mut self.shell.line);
                 let text = self.run_line(&line, t, out);
                 self.shell.print(&text);
-                if self.shell.listener.is_none() {
-                    self.shell.print(PROMPT);
-                }
+                self.shell.prompt();
             }
             0x08 | 0x7f if self.shell.line.pop().is_some() => self.shell.print("\x08 \x08"),
             0x03 => {
                 self.shell.listener = None;
                 self.shell.line.clear();
                 self.shell.print("^C\n");
-                self.shell.print(PROMPT);
+                self.shell.prompt();
             }
             0x20..=0x7e if self.shell.line.len() < LINE_MAX => {
                 self.shell.line.push(char::from(b));
-                self.shell.output.push_back(b);
+                self.shell.print(std::str::from_utf8(&[b]).unwrap_or(""));
             }
             _ => {}
         }
@@ -145,24 +174,40 @@ impl GroundStation {
             self.shell.print(&text);
             if done {
                 self.shell.listener = None;
-                self.shell.print(PROMPT);
+                self.shell.prompt();
             }
         }
-        let n = self.shell.output.len().min(OUTPUT_PER_POLL);
+        let (budget, last) = self.shell.budget;
+        let budget = (budget + (now_s - last).max(0.0) * OUTPUT_BYTES_PER_S).min(OUTPUT_BURST);
+        let n = self.shell.output.len().min(budget as usize);
+        self.shell.budget = (budget - n as f64, now_s);
         if n > 0 {
             let bytes: Vec<u8> = self.shell.output.drain(..n).collect();
             reply(peer, &bytes, out);
         }
     }
 
-    /// The answer to a command the shell passed to the vehicle.
-    pub(crate) fn shell_answer(&mut self, result: Result<(), flight_core::commander::Denial>) {
+    /// The answer to a command the shell of `to` passed to the vehicle (dropped if that
+    /// session has ended).
+    pub(crate) fn shell_answer(
+        &mut self,
+        to: crate::AckTo,
+        result: Result<(), flight_core::commander::Denial>,
+    ) {
+        if self
+            .shell
+            .peer
+            .is_none_or(|p| (p.1, p.2) != (to.system, to.component))
+        {
+            return;
+        }
         let text = match result {
             Ok(()) => "accepted\n".to_owned(),
             Err(why) => format!("refused: {why}\n"),
         };
         self.shell.print(&text);
-        self.shell.print(PROMPT);
+        self.shell.pending = false;
+        self.shell.prompt();
     }
 }
 

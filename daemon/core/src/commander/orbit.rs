@@ -322,11 +322,15 @@ impl Commander {
             yaw,
             initial_yaw: current.as_ref().map_or(i.yaw_rad, |o| o.initial_yaw),
             turns: req.turns.or(current.as_ref().and_then(|o| o.turns)),
+            // Turns asked again count from now; kept, they count on.
+            turned_rad: match (&current, req.turns) {
+                (Some(o), None) => o.turned_rad,
+                _ => 0.0,
+            },
             approach: None,
             speed_now: current.as_ref().map_or(0.0, |o| o.speed_now),
             angle: None,
             drag_ff: 0.0,
-            turned_rad: 0.0,
             heading,
             done: false,
         };

@@ -114,7 +114,17 @@ impl GroundStation {
             return self.reposition(c, degrees, frame, to, out);
         }
         if c.command == MavCmd::MAV_CMD_DO_ORBIT {
-            // The frame is not read: z is AMSL.
+            // A global frame, whose z is read as AMSL whichever it is (as PX4 reads it).
+            let global_frame = matches!(
+                frame,
+                MavFrame::MAV_FRAME_GLOBAL
+                    | MavFrame::MAV_FRAME_GLOBAL_INT
+                    | MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT
+                    | MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
+            );
+            if !global_frame {
+                return self.deny(to, out, &format!("orbit: frame {frame:?} not supported"));
+            }
             return self.orbit(c, degrees, to, out);
         }
         if c.command == MavCmd::MAV_CMD_DO_SET_HOME && c.p[0] != 1.0 {

@@ -118,11 +118,11 @@ impl GroundStation {
             ["param", "show", pattern] => self.param_show(pattern),
             ["param", "set", name, value] => self.param_set(name, value, out),
             ["commander", rest @ ..] => match commander(rest) {
-                Ok(cmd) => for_vehicle(cmd, out),
+                Ok(cmd) => self.for_vehicle(cmd, out),
                 Err(e) => e,
             },
             ["failure", unit, kind, rest @ ..] => match failure(unit, kind, rest) {
-                Ok(i) => for_vehicle(AutopilotCommand::InjectFailure(i), out),
+                Ok(i) => self.for_vehicle(AutopilotCommand::InjectFailure(i), out),
                 Err(e) => e,
             },
             ["listener", topic, rest @ ..] => {
@@ -161,21 +161,23 @@ impl GroundStation {
             [other, ..] => format!("{other}: command not found (help lists them)\n"),
         }
     }
-}
 
-/// A command for the vehicle, its answer printed in the shell.
-fn for_vehicle(cmd: AutopilotCommand, out: &mut Outbox) -> String {
-    let to = AckTo {
-        command: MavCmd::MAV_CMD_USER_1,
-        system: 0,
-        component: 0,
-        reply: Reply::Shell,
-    };
-    out.vehicle.push((cmd, to));
-    String::new()
-}
+    /// A command for the vehicle, its answer printed in the shell (the prompt after it).
+    fn for_vehicle(&mut self, cmd: AutopilotCommand, out: &mut Outbox) -> String {
+        let Some((_, system, component)) = self.shell.peer else {
+            return String::new();
+        };
+        let to = AckTo {
+            command: MavCmd::MAV_CMD_USER_1,
+            system,
+            component,
+            reply: Reply::Shell,
+        };
+        out.vehicle.push((cmd, to));
+        self.shell.pending = true;
+        String::new()
+    }
 
-impl GroundStation {
     fn param_show(&self, pattern: &str) -> String {
         let values = self.params.values();
         let mut text = String::new();

@@ -132,3 +132,37 @@ fn a_refused_endpoint_gets_the_reason_and_an_empty_message_closes() {
     );
     assert!(g.shell.peer.is_none(), "closed");
 }
+
+#[test]
+fn a_command_for_the_vehicle_holds_the_prompt_until_its_answer_and_floods_are_bounded() {
+    let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
+    let t = telemetry(false, FlightMode::Loiter);
+    let mut out = Outbox::default();
+    let respond = SerialControlFlag::SERIAL_CONTROL_FLAG_RESPOND;
+    g.on_serial_control(
+        0,
+        &header(),
+        &typed(b"commander arm\n", respond),
+        true,
+        &t,
+        &mut out,
+    );
+    let to = out.vehicle[0].1;
+    assert_eq!((to.system, to.component), (255, 190));
+    g.answered(to, Ok(()), &mut out);
+    let text = session(&mut g, b"", 1);
+    assert_eq!(text, "nsh> commander arm\naccepted\nnsh> ");
+    // A client that types and never reads: what waits stays bounded, the loss said.
+    let flood =
+        b"help\nhelp\nhelp\nhelp\nhelp\nhelp\nhelp\nhelp\nhelp\nhelp\nhelp\nhelp\nhelp\nhelp\n";
+    for _ in 0..100 {
+        g.on_serial_control(0, &header(), &typed(flood, respond), true, &t, &mut out);
+    }
+    assert!(
+        g.shell.output.len() <= OUTPUT_MAX + 20,
+        "{}",
+        g.shell.output.len()
+    );
+    let waiting: Vec<u8> = g.shell.output.iter().copied().collect();
+    assert!(String::from_utf8_lossy(&waiting).contains("[output dropped]"));
+}
