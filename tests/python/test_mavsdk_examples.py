@@ -198,9 +198,10 @@ def test_do_orbit_circles_its_centre_in_the_wind_then_stops_after_its_turns(tmp_
                                     "HEARTBEAT"], scenario=scenario(WINDY))
 
 
-def test_orbits_that_cannot_be_flown_are_refused_with_the_reason(tmp_path):
+def test_orbits_and_follow_targets_that_cannot_be_flown_are_refused_with_the_reason(tmp_path):
     """An orbit on the ground, an unknown yaw behaviour, a negative angle to fly: DENIED, the
-    reason said. (Radii and speeds out of range: the commander's unit tests.)"""
+    reason said. (Radii and speeds out of range: the commander's unit tests.) A follow target
+    10 km away: refused, said (a fix 1 km from the vehicle is a wrong one)."""
     daemon = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0")
     gcs = daemon.gcs
     nan = float("nan")
@@ -228,6 +229,17 @@ def test_orbits_that_cannot_be_flown_are_refused_with_the_reason(tmp_path):
                 said += [m.text] if m else []
             assert result == ML.MAV_RESULT_DENIED, (params, result)
             assert why is None or any(why in t for t in said), (params, said)
+        # A follow target 10 km away, one at NaN: the first refused and said, the second
+        # dropped (not a place); neither fatal.
+        home = gcs.recv_match(type="HOME_POSITION", blocking=True, timeout=5)
+        lat, lon = offset(home.latitude * 1e-7, home.longitude * 1e-7, 10_000.0, 0.0)
+        for place in [(round(lat * 1e7), round(lon * 1e7), 500.0), (0, 0, nan)]:
+            gcs.mav.follow_target_send(0, 1, *place, [0, 0, 0], [0, 0, 0], [1, 0, 0, 0],
+                                       [0, 0, 0], [0, 0, 0], 0)
+        m = gcs.recv_match(type="STATUSTEXT", blocking=True, timeout=5,
+                           condition="'follow target refused' in STATUSTEXT.text")
+        assert m is not None and "away" in m.text, m
+        assert gcs.recv_match(type="HEARTBEAT", blocking=True, timeout=3), "still there"
     finally:
         daemon.close()
 
@@ -360,3 +372,83 @@ def test_the_mavlink_shell_through_mavsdk_and_pymavlink(tmp_path):
         port.mav.close()
 
     with_watcher(tmp_path, flight, ["HEARTBEAT"])
+
+
+def square_walk(t_s, side_m=20.0, speed=2.0):
+    """Where a target walking a square (north, east, south, west) from home at `speed` is after
+    `t_s` s: (north, east)."""
+    d = (t_s * speed) % (4 * side_m)
+    leg, along = int(d // side_m), d % side_m
+    return [(along, 0.0), (side_m, along), (side_m - along, side_m), (0.0, side_m - along)][leg]
+
+
+def test_follow_me_keeps_its_distance_from_a_target_walking_a_square(tmp_path):
+    """`follow_me_example.py`: MAVSDK's follow_me plugin configures FLW_TGT_* (its parameter
+    reads and writes), starts Follow Me (AUTO sub-mode 8) in the air and sends the target's
+    places. Here the target walks a 20 m square at 2 m/s, its fixes ±1 m noisy (seeded), a few
+    a second; measured on the simulator's truth against the true walk: the following
+    distance's error (8 m asked, behind the target). The target standing, the vehicle stops;
+    `stop()` is Hold. (Fixes that stop: MAVSDK repeats the last one while Follow Me lasts; see
+    the pymavlink test below.)"""
+    import random
+
+    from mavsdk_grpc.follow_me import Config, TargetLocation
+
+    async def flight(drone, watcher):
+        home = await first(drone.telemetry.home(), lambda h: True, 5)
+        config = Config(8.0, 8.0, 0.1, Config.FollowAltitudeMode.CONSTANT, 5.0, 180.0)
+        await drone.follow_me.set_config(config)
+        got = await drone.follow_me.get_config()
+        assert (got.follow_distance_m, got.follow_angle_deg) == (8.0, 180.0), got
+        await drone.action.arm()
+        await drone.action.takeoff()
+        await first(drone.telemetry.flight_mode(), lambda m: m == FlightMode.HOLD, 40)
+        sim_s = lambda: watcher.messages("HIL_STATE_QUATERNION")[-1].time_usec * 1e-6  # noqa
+        rng = random.Random(7)
+
+        async def walk_to(t):
+            north, east = square_walk(t)
+            lat, lon = offset(home.latitude_deg, home.longitude_deg,
+                              north + rng.uniform(-1, 1), east + rng.uniform(-1, 1))
+            await drone.follow_me.set_target_location(
+                TargetLocation(lat, lon, home.absolute_altitude_m, 0.0, 0.0, 0.0))
+
+        await drone.follow_me.start()
+        await first(drone.telemetry.flight_mode(), lambda m: m == FlightMode.FOLLOW_ME, 5)
+        start = sim_s()
+        errors, n = [], 0
+        while sim_s() - start < 50.0:
+            await walk_to(sim_s() - start)
+            await asyncio.sleep(0.1)
+            truth = watcher.messages("HIL_STATE_QUATERNION")
+            for m in truth[n:]:
+                t = m.time_usec * 1e-6 - start
+                if t < 12.0:  # climbing to 8 m and settling behind it
+                    continue
+                north, east = local(home.latitude_deg, home.longitude_deg, m.lat * 1e-7,
+                                    m.lon * 1e-7)
+                tn, te = square_walk(t)
+                errors.append(math.hypot(north - tn, east - te) - 8.0)
+            n = len(truth)
+        rms = math.sqrt(sum(e * e for e in errors) / len(errors))
+        mean = sum(errors) / len(errors)
+        worst = max(abs(e) for e in errors)
+        print(f"follow me, a 20 m square at 2 m/s, fixes ±1 m: distance error mean {mean:+.2f} m,"
+              f" RMS {rms:.2f} m, worst {worst:.2f} m over {len(errors)} truth samples")
+        assert rms < 2.5 and abs(mean) < 1.5, (mean, rms)
+
+        # The target stands (MAVSDK repeats its last place each second): the vehicle stops,
+        # within 15 s of simulator time.
+        stood = sim_s()
+        while True:
+            await asyncio.sleep(0.5)
+            recent = watcher.messages("HIL_STATE_QUATERNION", time.monotonic() - 0.5)
+            if max(math.hypot(m.vx, m.vy) * 1e-2 for m in recent) < 0.3:
+                break
+            assert sim_s() - stood < 15.0, "still moving"
+        await drone.follow_me.stop()
+        await first(drone.telemetry.flight_mode(), lambda m: m == FlightMode.HOLD, 5)
+        await drone.action.land()
+        await first(drone.telemetry.armed(), lambda a: not a, 90)
+
+    with_watcher(tmp_path, flight, ["HIL_STATE_QUATERNION", "STATUSTEXT"])

@@ -481,6 +481,7 @@ mod tests {
                 "MC_ATT_LAW",
                 "MC_RATE_CTRL",
                 "COM_OBL_RC_ACT",
+                "FLW_TGT_ALT_M",
                 "NAV_DLL_ACT",
                 "COM_LOW_BAT_ACT",
                 "GF_ACTION",

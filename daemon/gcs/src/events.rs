@@ -129,7 +129,7 @@ pub mod kinds {
 }
 
 /// The modes, in the order of their `navigation_mode_t` values.
-pub const MODES: [FlightMode; 12] = [
+pub const MODES: [FlightMode; 13] = [
     FlightMode::Manual,
     FlightMode::Stabilized,
     FlightMode::Altctl,
@@ -142,6 +142,7 @@ pub const MODES: [FlightMode; 12] = [
     FlightMode::Offboard,
     FlightMode::Descend,
     FlightMode::Orbit,
+    FlightMode::FollowTarget,
 ];
 
 /// The failsafe actions, in the order of their `failsafe_action_t` values.
@@ -286,6 +287,7 @@ pub fn mode_arg(m: FlightMode) -> u8 {
         FlightMode::Offboard => 9,
         FlightMode::Descend => 10,
         FlightMode::Orbit => 11,
+        FlightMode::FollowTarget => 12,
     }
 }
 

@@ -166,6 +166,20 @@ impl GroundStation {
             {
                 self.offboard(offboard::attitude(m), out);
             }
+            MavMessage::FOLLOW_TARGET(m) => {
+                // A stream, no ack: a refusal is said (Follow Target holds meanwhile).
+                let to = AckTo {
+                    reply: Reply::Quiet,
+                    ..requester(MavCmd::MAV_CMD_DO_FOLLOW)
+                };
+                match follow_target(m) {
+                    Some(cmd) => out.vehicle.push((cmd, to)),
+                    None => {
+                        self.dropped += 1;
+                        tracing::debug!(?m, "FOLLOW_TARGET dropped: not a place");
+                    }
+                }
+            }
             MavMessage::REQUEST_DATA_STREAM(r)
                 if self.for_us(r.target_system, Some(r.target_component)) =>
             {
@@ -298,4 +312,42 @@ fn sticks(m: &MANUAL_CONTROL_DATA) -> Sticks {
         yaw: axis(m.r),
     }
     .clamped()
+}
+
+impl GroundStation {
+    /// In Follow Target, says when the target's fixes stop (the vehicle holds behind its last
+    /// place) and when they come back.
+    pub(crate) fn follow_target_poll(&mut self, t: &Telemetry, out: &mut Outbox) {
+        let stale = t.status.and_then(|s| s.follow).map(|f| f.stale);
+        match (stale, self.follow_lost_shown) {
+            (Some(true), false) => out.say(
+                MavSeverity::MAV_SEVERITY_WARNING,
+                "follow target lost: holding behind its last place",
+            ),
+            (Some(false), true) => out.say(MavSeverity::MAV_SEVERITY_INFO, "follow target found"),
+            _ => {}
+        }
+        self.follow_lost_shown = stale == Some(true);
+    }
+}
+
+/// A `FOLLOW_TARGET` as a fix for the vehicle: its place (latitude and longitude on the Earth,
+/// altitude AMSL, all numbers), and its velocity when `est_capabilities` says it has one (bit 1;
+/// MAVSDK sends zeros with only the position bit). `None`: not a place.
+fn follow_target(m: &FOLLOW_TARGET_DATA) -> Option<AutopilotCommand> {
+    let at = flight_core::math::geo::LatLonAlt {
+        lat_deg: m.lat as f64 * 1e-7,
+        lon_deg: m.lon as f64 * 1e-7,
+        alt_m: m.alt as f64,
+    };
+    let on_earth = at.lat_deg.abs() <= 90.0 && at.lon_deg.abs() <= 180.0;
+    if !(on_earth && at.alt_m.is_finite()) {
+        return None;
+    }
+    let vel = nalgebra::Vector3::new(m.vel[0] as f64, m.vel[1] as f64, m.vel[2] as f64);
+    let vel = (m.est_capabilities & 2 != 0 && vel.iter().all(|v| v.is_finite())).then_some(vel);
+    Some(AutopilotCommand::FollowTarget {
+        at,
+        vel_ned_m_s: vel,
+    })
 }

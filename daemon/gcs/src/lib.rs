@@ -216,6 +216,8 @@ pub struct GroundStation {
     sample_rate: link_rates::SampleRate,
     /// The MAVLink shell's session.
     shell: shell::Shell,
+    /// The follow target was last said to be lost.
+    follow_lost_shown: bool,
     /// The link of the message being handled.
     link: LinkId,
     /// One-off messages asked for (REQUEST_MESSAGE), sent on the next poll.
@@ -274,6 +276,7 @@ impl GroundStation {
             rates: LinkRates::default(),
             sample_rate: Default::default(),
             shell: Default::default(),
+            follow_lost_shown: false,
             link: 0,
             requested: Vec::new(),
             metadata: None,
@@ -509,6 +512,7 @@ impl GroundStation {
             out.streamed.extend(m.map(|m| (link, Outgoing::Message(m))));
         }
         self.shell_poll(now_s, t, out);
+        self.follow_target_poll(t, out);
         for (id, param) in std::mem::take(&mut self.requested) {
             out.messages
                 .extend(self.one_off(id, param, t, unix).map(Outgoing::Message));

@@ -22,10 +22,11 @@ mod sub {
     pub const MISSION: u8 = 4;
     pub const RTL: u8 = 5;
     pub const LAND: u8 = 6;
+    pub const FOLLOW_TARGET: u8 = 8;
 }
 
 /// Every mode a ground station may select, in the order `AVAILABLE_MODES` lists them.
-pub const SELECTABLE: [FlightMode; 11] = [
+pub const SELECTABLE: [FlightMode; 12] = [
     FlightMode::Manual,
     FlightMode::Stabilized,
     FlightMode::Altctl,
@@ -37,6 +38,7 @@ pub const SELECTABLE: [FlightMode; 11] = [
     FlightMode::Land,
     FlightMode::Offboard,
     FlightMode::Orbit,
+    FlightMode::FollowTarget,
 ];
 
 const fn px4(main: u8, sub: u8) -> u32 {
@@ -57,6 +59,7 @@ pub fn custom_mode(mode: FlightMode) -> u32 {
         FlightMode::Land | FlightMode::Descend => px4(main::AUTO, sub::LAND),
         FlightMode::Offboard => px4(main::OFFBOARD, 0),
         FlightMode::Orbit => px4(main::POSCTL, sub::ORBIT),
+        FlightMode::FollowTarget => px4(main::AUTO, sub::FOLLOW_TARGET),
     }
 }
 
@@ -76,6 +79,7 @@ pub fn from_px4(main_mode: u8, sub_mode: u8) -> Option<FlightMode> {
         (main::AUTO, sub::MISSION) => FlightMode::Mission,
         (main::AUTO, sub::RTL) => FlightMode::Rtl,
         (main::AUTO, sub::LAND) => FlightMode::Land,
+        (main::AUTO, sub::FOLLOW_TARGET) => FlightMode::FollowTarget,
         _ => return None,
     })
 }

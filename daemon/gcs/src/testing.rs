@@ -23,6 +23,7 @@ pub fn telemetry(armed: bool, mode: FlightMode) -> Telemetry {
             failsafe_conditions: 0,
             safety_log: Default::default(),
             orbit: None,
+            follow: None,
             prearm_ok: true,
             ready: true,
             in_mode_s: 0.0,

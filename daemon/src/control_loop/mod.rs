@@ -271,9 +271,11 @@ impl<'a> ControlLoop<'a> {
                     self.gcs_heartbeat = Some(Instant::now());
                 }
                 LoopCommand::Autopilot(c, reply) => {
-                    // Sticks and offboard set-points arrive tens of times a second: not logged.
+                    // Sticks, offboard set-points and target fixes are streams: not logged.
                     let what = match &c {
-                        AutopilotCommand::Sticks(_) | AutopilotCommand::Offboard(_) => None,
+                        AutopilotCommand::Sticks(_)
+                        | AutopilotCommand::Offboard(_)
+                        | AutopilotCommand::FollowTarget { .. } => None,
                         AutopilotCommand::SetMission(items) => {
                             Some(format!("SetMission({} items)", items.len()))
                         }

@@ -2,7 +2,9 @@
 //! or refused.
 
 use super::Autopilot;
-use crate::commander::{Denial, FlightMode, OffboardTarget, OrbitRequest, OrbitYaw, Sticks};
+use crate::commander::{
+    Denial, FlightMode, OffboardTarget, OrbitRequest, OrbitYaw, Sticks, TargetFix,
+};
 use crate::math::geo::{LatLonAlt, LocalFrame};
 use crate::mission::{MissionItem, MissionPoint, SpeedChange};
 use crate::safety::failure_injection::{Injection, Refusal};
@@ -79,6 +81,13 @@ pub enum AutopilotCommand {
         yaw: Option<OrbitYaw>,
         /// Turns to fly before Hold (0: until another mode).
         turns: Option<f64>,
+    },
+    /// A fix of the follow target (`FOLLOW_TARGET`).
+    FollowTarget {
+        /// Where it is.
+        at: LatLonAlt,
+        /// Its velocity NED (m/s), if it reports one.
+        vel_ned_m_s: Option<Vector3<f64>>,
     },
     /// Fly to a point and hold there (`DO_REPOSITION`).
     Reposition {
@@ -238,6 +247,17 @@ impl Autopilot {
                 // The parts left open stay NaN: the commander keeps them.
                 let target = at.to_ned(&origin, &home, &Vector3::repeat(f64::NAN));
                 c_.reposition(target, speed_m_s, yaw_rad, change_mode)
+            }
+            AutopilotCommand::FollowTarget { at, vel_ned_m_s } => {
+                let Some(origin) = origin else {
+                    return Err("follow target refused: no global position yet".into());
+                };
+                let pos = global_to_ned(&at, &origin)
+                    .map_err(|e| format!("follow target refused: {e}"))?;
+                c_.follow_target_fix(TargetFix {
+                    pos_ned_m: pos,
+                    vel_ned_m_s,
+                })
             }
             AutopilotCommand::Orbit {
                 center,

@@ -48,7 +48,11 @@ impl Commander {
                     return Err("arming refused: no offboard set-points".into());
                 }
             }
-            FlightMode::Land | FlightMode::Rtl | FlightMode::Descend | FlightMode::Orbit => {
+            FlightMode::Land
+            | FlightMode::Rtl
+            | FlightMode::Descend
+            | FlightMode::Orbit
+            | FlightMode::FollowTarget => {
                 return Err(format!(
                     "arming refused: not in a mode to start in ({})",
                     self.mode.name()

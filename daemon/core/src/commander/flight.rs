@@ -160,6 +160,8 @@ pub(super) struct Tick<'a> {
     pub(super) sticks: Option<Sticks>,
     /// The offboard set-point, if it arrived within `COM_OF_LOSS_T`.
     pub(super) offboard: Option<OffboardTarget>,
+    /// The follow target as filtered, if there has been a fix.
+    pub(super) target: Option<super::TargetEstimate>,
 }
 
 /// Touchdown detection: the vehicle has stood still (as its task judges it) for a second.

@@ -19,6 +19,7 @@
 //! [`crate::safety`] state machine on every update and carried out here (Hold, Return, Land,
 //! Descend, disarm); arming asks its [`crate::safety::preflight::preflight`] checks.
 
+pub use follow_target::{STALE_S as FOLLOW_STALE_S, TargetEstimate, TargetFilter, TargetFix};
 pub use input::{CommanderInput, Health, OffboardTarget, Sticks};
 pub use orbit::{
     OrbitRequest, OrbitStatus, OrbitYaw, SPEED_MAX_M_S as ORBIT_SPEED_MAX_M_S, speed_bound_m_s,
@@ -62,6 +63,8 @@ pub enum FlightMode {
     Offboard,
     /// Circle a point (PX4's Orbit, `MAV_CMD_DO_ORBIT`).
     Orbit,
+    /// Follow a target that reports its place (PX4's Follow Me, `FOLLOW_TARGET`).
+    FollowTarget,
     /// Failsafe: level and descend on what estimate is left.
     Descend,
 }
@@ -89,6 +92,7 @@ impl FlightMode {
             Self::Land => "LAND",
             Self::Offboard => "OFFBOARD",
             Self::Orbit => "ORBIT",
+            Self::FollowTarget => "FOLLOW_TARGET",
             Self::Descend => "DESCEND",
         }
     }
@@ -170,6 +174,8 @@ pub struct CommanderStatus {
     pub safety_log: crate::safety::failsafe::SafetyLog,
     /// The orbit flown, in Orbit.
     pub orbit: Option<OrbitStatus>,
+    /// The follow target as filtered, in Follow Target once there has been a fix.
+    pub follow: Option<TargetEstimate>,
 }
 
 /// The commander.
@@ -204,6 +210,8 @@ pub struct Commander {
     safety_events: Vec<SafetyEvent>,
     /// What it said, numbered, for readers of [`Commander::status`].
     safety_log: SafetyLog,
+    /// The follow target's fixes, filtered.
+    target: TargetFilter,
 }
 
 impl Commander {
@@ -226,6 +234,7 @@ impl Commander {
             prearm_ok: false,
             safety_events: Vec::new(),
             safety_log: SafetyLog::default(),
+            target: TargetFilter::default(),
         }
     }
 
@@ -299,6 +308,10 @@ impl Commander {
             safety_log: self.safety_log,
             orbit: match &self.task {
                 Task::Orbit(o) => Some(o.status()),
+                _ => None,
+            },
+            follow: match self.mode {
+                FlightMode::FollowTarget => self.follow_target(),
                 _ => None,
             },
         }
@@ -388,6 +401,7 @@ impl Commander {
                 | FlightMode::Descend
                 | FlightMode::Takeoff
                 | FlightMode::Orbit
+                | FlightMode::FollowTarget
         ) {
             self.enter(FlightMode::Loiter);
         }
@@ -434,6 +448,7 @@ impl Commander {
             FlightMode::Mission => self.mission_entry()?,
             // Chosen without a command: about where it is, with the defaults.
             FlightMode::Orbit => return self.orbit(OrbitRequest::default()),
+            FlightMode::FollowTarget => self.follow_entry()?,
             FlightMode::Descend => return Err("DESCEND is a failsafe, not a mode to select".into()),
         }
         if mode == FlightMode::Takeoff && self.flight.armed && !self.ready() {
@@ -550,6 +565,7 @@ impl Commander {
             since_arming_s,
             sticks: self.fresh_sticks(),
             offboard: self.fresh_offboard(),
+            target: self.follow_target(),
         };
         if let Some(sp) = self.stream_lost(&tick) {
             return (Setpoint::Position(sp), self.flight.armed);
@@ -612,6 +628,7 @@ mod arming;
 mod descend;
 mod failsafes;
 mod flight;
+mod follow_target;
 mod guided;
 mod hold;
 mod input;

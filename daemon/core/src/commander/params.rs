@@ -59,6 +59,18 @@ crate::params::param_group! {
         auto_yaw_rate_deg_s: f64 = 45.0, "MPC_YAWRAUTO_MAX", "deg/s", [5.0, 360.0], "Yaw rate of missions, repositions and CONDITION_YAW";
         /// Largest orbit radius (m).
         orbit_radius_max_m: f64 = 1000.0, "MC_ORBIT_RAD_MAX", "m", [1.0, 10000.0], "Largest radius of an orbit (DO_ORBIT)";
+        /// Follow target: height (m).
+        follow_height_m: f64 = 8.0, "FLW_TGT_HT", "m", [8.0, 500.0], "Follow target: height above home (FLW_TGT_ALT_M 0) or above the target (2)";
+        /// Follow target: distance (m).
+        follow_distance_m: f64 = 8.0, "FLW_TGT_DST", "m", [1.0, 100.0], "Follow target: horizontal distance from the target";
+        /// Follow target: angle from the target's course (deg).
+        follow_angle_deg: f64 = 180.0, "FLW_TGT_FA", "deg", [-180.0, 180.0], "Follow target: angle from the target's course, clockwise (0 ahead, 180 behind)";
+        /// Follow target: responsiveness (0–1).
+        follow_responsiveness: f64 = 0.1, "FLW_TGT_RS", "", [0.0, 1.0], "Follow target: responsiveness of the target filter, 0.1 to 1 (lower follows the fixes more closely)";
+        /// Follow target: altitude mode.
+        follow_altitude_mode: u32 = 0, "FLW_TGT_ALT_M", "", [0.0, 2.0], "Follow target: altitude 0 above home, 1 above terrain (as 0: no distance sensor), 2 above the target";
+        /// Follow target: fastest turn about the target (m/s).
+        follow_max_speed_m_s: f64 = 5.0, "FLW_TGT_MAX_VEL", "m/s", [0.0, 20.0], "Follow target: fastest speed round the target when its course turns";
         /// Centripetal acceleration that bounds an orbit's speed (m/s²).
         orbit_accel_m_s2: f64 = 3.0, "MC_ORBIT_ACC_MAX", "m/s^2", [0.5, 10.0], "Centripetal acceleration of an orbit: its speed is at most sqrt(this x radius)";
     }

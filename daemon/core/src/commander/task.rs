@@ -5,6 +5,7 @@
 use super::FlightMode;
 use super::descend::Descend;
 use super::flight::{Flight, Tick};
+use super::follow_target::FollowTarget;
 use super::hold::Hold;
 use super::land::Land;
 use super::line::Line;
@@ -47,6 +48,7 @@ pub(super) enum Task {
     Stabilized(Stabilized),
     Offboard(Offboard),
     Orbit(Orbit),
+    FollowTarget(FollowTarget),
     Descend(Descend),
 }
 
@@ -65,6 +67,7 @@ impl Task {
             FlightMode::Offboard => Self::Offboard(Offboard::default()),
             // An orbit is made by `Commander::orbit`, never from the mode alone: Hold stands in.
             FlightMode::Orbit => Self::Hold(Hold::default()),
+            FlightMode::FollowTarget => Self::FollowTarget(FollowTarget::default()),
             FlightMode::Descend => Self::Descend(Descend::default()),
         }
     }
@@ -81,6 +84,7 @@ impl Task {
             Self::Stabilized(t) => t,
             Self::Offboard(t) => t,
             Self::Orbit(t) => t,
+            Self::FollowTarget(t) => t,
             Self::Descend(t) => t,
         }
     }

@@ -128,6 +128,7 @@ pub(super) fn is_auto(mode: FlightMode) -> bool {
             | FlightMode::Rtl
             | FlightMode::Land
             | FlightMode::Descend
+            | FlightMode::FollowTarget
     )
 }
 

@@ -526,3 +526,65 @@ fn orbits_that_cannot_be_flown_are_refused_with_the_reason() {
         (s.center_ned_m, -4.0, 1.0)
     );
 }
+
+/// Follow Target: refused on the ground; in the air it holds until the first fix, then flies
+/// 8 m behind a target walking north at 2 m/s, facing it, 8 m above home; fixes not numbers or
+/// 10 km away are refused; when the fixes stop the target stands where it was last estimated
+/// and the vehicle stops behind it.
+#[test]
+fn follow_target_flies_behind_the_target_and_stops_when_its_fixes_do() {
+    let mut f = Follower::new(CommanderParams::default());
+    assert!(
+        f.c.set_mode(FlightMode::FollowTarget).is_err(),
+        "on the ground"
+    );
+    let mut f = hovering_follower();
+    f.leads = false;
+    f.c.set_mode(FlightMode::FollowTarget).unwrap();
+    let at = f.pos;
+    f.until(2.0, |_| false);
+    assert!((f.pos - at).norm() < 1e-6, "holds without a fix");
+    let fix = |n: f64| TargetFix {
+        pos_ned_m: Vector3::new(n, 0.0, 0.0),
+        vel_ned_m_s: None,
+    };
+    let nan = TargetFix {
+        pos_ned_m: Vector3::new(f64::NAN, 0.0, 0.0),
+        vel_ned_m_s: None,
+    };
+    assert!(f.c.follow_target_fix(nan).is_err());
+    assert!(f.c.follow_target_fix(fix(1e7)).is_err(), "10 000 km away");
+    let err = f.c.follow_target_fix(fix(1e4)).unwrap_err();
+    assert!(err.contains("away"), "10 km: {err}");
+    let t0 = f.t;
+    let mut next = t0;
+    while f.t - t0 < 30.0 {
+        if f.t >= next {
+            f.c.follow_target_fix(fix(2.0 * (f.t - t0))).unwrap();
+            next += 0.5;
+        }
+        f.step();
+    }
+    let target = 2.0 * (f.t - t0);
+    let behind = target - f.pos.x;
+    assert!(
+        (behind - 8.0).abs() < 1.0 && f.pos.y.abs() < 0.5,
+        "{behind} m behind, {:?}",
+        f.pos
+    );
+    assert!((f.pos.z + 8.0).abs() < 0.1, "8 m above home: {}", f.pos.z);
+    assert!(f.yaw.abs() < 0.1, "facing it (north): {}", f.yaw);
+    // The fixes stop: after STALE_S the target stands; the vehicle stops behind it.
+    f.until(crate::commander::FOLLOW_STALE_S + 5.0, |_| false);
+    let stood = f.c.status().follow.unwrap();
+    assert!(stood.stale, "{stood:?}");
+    let here = f.pos;
+    f.until(3.0, |_| false);
+    assert!(
+        (f.pos - here).norm() < 0.01,
+        "stopped: {:?} → {:?}",
+        here,
+        f.pos
+    );
+    assert_eq!(f.c.mode(), FlightMode::FollowTarget);
+}
