@@ -388,8 +388,8 @@ def test_follow_me_keeps_its_distance_from_a_target_walking_a_square(tmp_path):
     places. Here the target walks a 20 m square at 2 m/s, its fixes ±1 m noisy (seeded), a few
     a second; measured on the simulator's truth against the true walk: the following
     distance's error (8 m asked, behind the target). The target standing, the vehicle stops;
-    `stop()` is Hold. (Fixes that stop: MAVSDK repeats the last one while Follow Me lasts; see
-    the pymavlink test below.)"""
+    `stop()` is Hold. (Fixes that stop: MAVSDK repeats the last one while Follow Me lasts; the
+    commander's unit test has the target lost.)"""
     import random
 
     from mavsdk_grpc.follow_me import Config, TargetLocation
@@ -416,7 +416,7 @@ def test_follow_me_keeps_its_distance_from_a_target_walking_a_square(tmp_path):
         await drone.follow_me.start()
         await first(drone.telemetry.flight_mode(), lambda m: m == FlightMode.FOLLOW_ME, 5)
         start = sim_s()
-        errors, n = [], 0
+        errors, behind, n = [], [], 0
         while sim_s() - start < 50.0:
             await walk_to(sim_s() - start)
             await asyncio.sleep(0.1)
@@ -429,6 +429,14 @@ def test_follow_me_keeps_its_distance_from_a_target_walking_a_square(tmp_path):
                                     m.lon * 1e-7)
                 tn, te = square_walk(t)
                 errors.append(math.hypot(north - tn, east - te) - 8.0)
+                # Mid-leg (the turn at the corner done), the vehicle is behind the target.
+                along = (t * 2.0) % 20.0
+                if 10.0 <= along <= 19.0:
+                    ahead_n, ahead_e = square_walk(t + 0.5)
+                    course = math.atan2(ahead_e - te, ahead_n - tn)
+                    bearing = math.atan2(east - te, north - tn)
+                    off = (bearing - course - math.pi + math.pi) % (2 * math.pi) - math.pi
+                    behind.append(abs(off) < math.radians(30))
             n = len(truth)
         rms = math.sqrt(sum(e * e for e in errors) / len(errors))
         mean = sum(errors) / len(errors)
@@ -436,6 +444,9 @@ def test_follow_me_keeps_its_distance_from_a_target_walking_a_square(tmp_path):
         print(f"follow me, a 20 m square at 2 m/s, fixes ±1 m: distance error mean {mean:+.2f} m,"
               f" RMS {rms:.2f} m, worst {worst:.2f} m over {len(errors)} truth samples")
         assert rms < 2.5 and abs(mean) < 1.5, (mean, rms)
+        share = sum(behind) / len(behind)
+        print(f"behind the target (within 30°) mid-leg: {100 * share:.0f} % of {len(behind)}")
+        assert share > 0.9, share
 
         # The target stands (MAVSDK repeats its last place each second): the vehicle stops,
         # within 15 s of simulator time.
@@ -443,7 +454,7 @@ def test_follow_me_keeps_its_distance_from_a_target_walking_a_square(tmp_path):
         while True:
             await asyncio.sleep(0.5)
             recent = watcher.messages("HIL_STATE_QUATERNION", time.monotonic() - 0.5)
-            if max(math.hypot(m.vx, m.vy) * 1e-2 for m in recent) < 0.3:
+            if recent and max(math.hypot(m.vx, m.vy) * 1e-2 for m in recent) < 0.3:
                 break
             assert sim_s() - stood < 15.0, "still moving"
         await drone.follow_me.stop()

@@ -315,6 +315,23 @@ fn sticks(m: &MANUAL_CONTROL_DATA) -> Sticks {
 }
 
 impl GroundStation {
+    /// The vehicle's answer to a follow-target fix: a refusal said when its reason changes
+    /// (its numbers aside), not at every fix of the stream.
+    pub(crate) fn follow_fix_answered(
+        &mut self,
+        result: Result<(), flight_core::commander::Denial>,
+        out: &mut Outbox,
+    ) {
+        let reason = result.err().map(|r| r.0);
+        let kind = reason
+            .as_ref()
+            .map(|r| r.replace(|c: char| c.is_ascii_digit(), ""));
+        if let Some(r) = reason.filter(|_| kind != self.follow_refusal_shown) {
+            out.say(MavSeverity::MAV_SEVERITY_WARNING, &r);
+        }
+        self.follow_refusal_shown = kind;
+    }
+
     /// In Follow Target, says when the target's fixes stop (the vehicle holds behind its last
     /// place) and when they come back.
     pub(crate) fn follow_target_poll(&mut self, t: &Telemetry, out: &mut Outbox) {

@@ -216,8 +216,9 @@ pub struct GroundStation {
     sample_rate: link_rates::SampleRate,
     /// The MAVLink shell's session.
     shell: shell::Shell,
-    /// The follow target was last said to be lost.
+    /// The follow target was last said to be lost; the last refusal of a fix said.
     follow_lost_shown: bool,
+    follow_refusal_shown: Option<String>,
     /// The link of the message being handled.
     link: LinkId,
     /// One-off messages asked for (REQUEST_MESSAGE), sent on the next poll.
@@ -277,6 +278,7 @@ impl GroundStation {
             sample_rate: Default::default(),
             shell: Default::default(),
             follow_lost_shown: false,
+            follow_refusal_shown: None,
             link: 0,
             requested: Vec::new(),
             metadata: None,
@@ -644,6 +646,9 @@ impl GroundStation {
     pub fn answered(&mut self, to: AckTo, result: Result<(), Denial>, out: &mut Outbox) {
         match to.reply {
             Reply::Ack => {}
+            Reply::Quiet if to.command == MavCmd::MAV_CMD_DO_FOLLOW => {
+                return self.follow_fix_answered(result, out);
+            }
             Reply::Quiet => {
                 if let Err(reason) = result {
                     out.say(MavSeverity::MAV_SEVERITY_WARNING, &reason);

@@ -34,6 +34,13 @@ pub const STALE_S: f64 = 3.0;
 /// the vehicle can be following.
 pub const TARGET_RANGE_M: f64 = 1000.0;
 
+/// Fixes closer together than this (s) move the position only: a velocity from a few
+/// milliseconds would be the noise divided by them.
+const MIN_FIX_INTERVAL_S: f64 = 0.05;
+
+/// The fastest target believed (m/s).
+const TARGET_SPEED_MAX_M_S: f64 = 30.0;
+
 /// The target's speed (m/s) from which its course counts.
 const COURSE_SPEED_M_S: f64 = 1.0;
 
@@ -60,30 +67,39 @@ impl TargetFilter {
     /// A fix at `t_s` with responsiveness `rs` (`FLW_TGT_RS`, 0.1 to 1: lower trusts the fixes
     /// more).
     pub fn fix(&mut self, fix: &TargetFix, t_s: f64, rs: f64) {
-        let beta = rs.clamp(0.1, 1.0).cbrt();
+        // At 1 the gains are zero and the filter would stand still.
+        let beta = rs.clamp(0.1, 0.99).cbrt();
         let (g_p, h_p) = (
             1.0 - beta.powi(3),
             1.5 * (1.0 - beta).powi(2) * (1.0 + beta),
         );
         let g_v = 1.0 - (0.9 * beta).powi(2);
-        let Some((x, v, t0)) = self.state else {
-            self.state = Some((fix.pos_ned_m, fix.vel_ned_m_s.unwrap_or_default(), t_s));
+        let first = (fix.pos_ned_m, fix.vel_ned_m_s.unwrap_or_default(), t_s);
+        let Some((x, v, t0)) = self.state.filter(|s| t_s - s.2 <= STALE_S && t_s >= s.2) else {
+            // The first fix, or the first after the target was lost: it starts again there.
+            self.state = Some(first);
             return;
         };
-        let dt = (t_s - t0).clamp(1e-3, STALE_S);
-        // A stale target stood still: predicted from where it stopped.
-        let v = if t_s - t0 > STALE_S {
-            Vector3::zeros()
+        let dt = t_s - t0;
+        let predicted = x + v * dt;
+        let r = fix.pos_ned_m - predicted;
+        let mut v = if dt >= MIN_FIX_INTERVAL_S {
+            v + r * (h_p / dt)
         } else {
             v
         };
-        let predicted = x + v * dt;
-        let r = fix.pos_ned_m - predicted;
-        let mut v = v + r * (h_p / dt);
         if let Some(m) = fix.vel_ned_m_s {
             v += (m - v) * g_v;
         }
+        let v = v * (TARGET_SPEED_MAX_M_S / v.norm().max(TARGET_SPEED_MAX_M_S));
         self.state = Some((predicted + r * g_p, v, t_s));
+    }
+
+    /// Forgets a target lost for longer than [`STALE_S`] at `t_s`.
+    pub fn forget_if_stale(&mut self, t_s: f64) {
+        if self.state.is_some_and(|s| t_s - s.2 > STALE_S) {
+            self.state = None;
+        }
     }
 
     /// The estimate at `t_s`, if there has been a fix.
@@ -137,7 +153,9 @@ impl FlightTask for FollowTarget {
         self.angle = Some(angle);
         let at = target.pos_ned_m.xy() + Vector2::new(angle.cos(), angle.sin()) * dist;
         let down = match p.follow_altitude_mode {
-            2 => target.pos_ned_m.z - p.follow_height_m,
+            // Above the target, but never below a metre above home (a target's altitude may
+            // be wrong by tens of metres).
+            2 => (target.pos_ned_m.z - p.follow_height_m).min(t.home.z - 1.0),
             _ => t.home.z - p.follow_height_m,
         };
         let to_target = target.pos_ned_m.xy() - i.pos_ned_m.xy();
@@ -191,11 +209,17 @@ impl Commander {
         self.target.estimate(self.now())
     }
 
-    /// Whether Follow Target may be entered: flying.
-    pub(super) fn follow_entry(&self) -> Result<(), Denial> {
+    /// Whether Follow Target may be entered: flying, with a global position (the fixes are
+    /// places on the Earth). A target lost before is forgotten: it holds until a fix.
+    pub(super) fn follow_entry(&mut self) -> Result<(), Denial> {
+        let name = FlightMode::FollowTarget.name();
         if !self.flight.armed || self.flight.landed != LandedState::InAir {
-            return Err(format!("{} refused: not flying", FlightMode::FollowTarget.name()).into());
+            return Err(format!("{name} refused: not flying").into());
         }
+        if self.last.and_then(|i| i.origin).is_none() {
+            return Err(format!("{name} refused: no global position yet").into());
+        }
+        self.target.forget_if_stale(self.now());
         Ok(())
     }
 }
@@ -229,5 +253,29 @@ mod tests {
             (later.pos_ned_m.x - (e.pos_ned_m.x + 2.0 * 2.5)).abs() < 1.0,
             "{later:?}"
         );
+    }
+
+    /// Two fixes a millisecond apart move the position, not the velocity; the first fix after
+    /// the target was lost starts the filter again there, standing.
+    #[test]
+    fn close_fixes_and_a_fix_after_a_loss_do_not_throw_the_velocity() {
+        let mut f = TargetFilter::default();
+        let at = |n: f64| TargetFix {
+            pos_ned_m: Vector3::new(n, 0.0, 0.0),
+            vel_ned_m_s: None,
+        };
+        f.fix(&at(0.0), 0.0, 0.1);
+        f.fix(&at(1.0), 1e-3, 0.1);
+        let e = f.estimate(1e-3).unwrap();
+        assert!(e.vel_ned_m_s.norm() < 1e-9, "{e:?}");
+        f.fix(&at(100.0), 60.0, 0.1);
+        let e = f.estimate(60.0).unwrap();
+        assert_eq!(
+            (e.pos_ned_m.x, e.vel_ned_m_s.norm(), e.stale),
+            (100.0, 0.0, false)
+        );
+        // However wild the fixes, the target is never believed faster than 30 m/s.
+        f.fix(&at(1e4), 61.0, 0.1);
+        assert!(f.estimate(61.0).unwrap().vel_ned_m_s.norm() <= 30.0 + 1e-9);
     }
 }

@@ -70,7 +70,7 @@ crate::params::param_group! {
         /// Follow target: altitude mode.
         follow_altitude_mode: u32 = 0, "FLW_TGT_ALT_M", "", [0.0, 2.0], "Follow target: altitude 0 above home, 1 above terrain (as 0: no distance sensor), 2 above the target";
         /// Follow target: fastest turn about the target (m/s).
-        follow_max_speed_m_s: f64 = 5.0, "FLW_TGT_MAX_VEL", "m/s", [0.0, 20.0], "Follow target: fastest speed round the target when its course turns";
+        follow_max_speed_m_s: f64 = 5.0, "FLW_TGT_MAX_VEL", "m/s", [0.1, 20.0], "Follow target: fastest speed round the target when its course turns";
         /// Centripetal acceleration that bounds an orbit's speed (m/s²).
         orbit_accel_m_s2: f64 = 3.0, "MC_ORBIT_ACC_MAX", "m/s^2", [0.5, 10.0], "Centripetal acceleration of an orbit: its speed is at most sqrt(this x radius)";
     }

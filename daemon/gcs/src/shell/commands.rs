@@ -262,6 +262,7 @@ fn mode(name: &str) -> Result<FlightMode, String> {
         "auto:rtl" | "rtl" => FlightMode::Rtl,
         "auto:takeoff" | "takeoff" => FlightMode::Takeoff,
         "auto:land" | "land" => FlightMode::Land,
+        "auto:follow_target" | "follow_target" => FlightMode::FollowTarget,
         other => return Err(format!("commander: no mode {other}\n")),
     })
 }
