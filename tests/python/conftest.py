@@ -231,14 +231,14 @@ class Daemon:
     with its parameter store in a temporary directory."""
 
     def __init__(self, tmp_path, mavlink, connect=True, airframe="quad_x", scenario=None,
-                 control=False, sim_args=(), lockstep=False, ap_args=()):
+                 control=False, sim_args=(), lockstep=False, ap_args=(), speed=3):
         """`mavlink`: the ground-station endpoint, `{port}` standing for a free UDP port (on which
         a pymavlink connection listens when `connect`); both processes fly `airframe`, the
         simulator in `scenario` (a file) if given, its weather controlled on `control_port` if
         `control` (sitl --control), with `sim_args` added to its command line. `lockstep`: the
         simulator waits for each answer (still no faster than x3), so that how the machine
         schedules the processes cannot change the flight. `ap_args` are added to the autopilot's
-        command line."""
+        command line. `speed`: the simulator's pace, times real time (at most)."""
         self.ap_args = list(ap_args)
         self.airframe = airframe
         self.lockstep = lockstep
@@ -255,7 +255,7 @@ class Daemon:
         self.ap = None
         self.start()
         self.sim_args = [
-            "--mode", "lockstep" if lockstep else "realtime", "--speed", "3",
+            "--mode", "lockstep" if lockstep else "realtime", "--speed", str(speed),
             "--duration", "100000",
             "--airframe", airframe,
             *(["--scenario", str(scenario)] if scenario else []),

@@ -74,11 +74,12 @@ def local(lat0, lon0, lat, lon):
 
 
 def with_watcher(tmp_path, flight, kinds, scenario=None):
-    """Runs `flight(drone, watcher)` against a fresh sitl + autopilot in lockstep: MAVSDK
-    (mavsdk_server on a free port) on one endpoint, the watcher on another."""
+    """Runs `flight(drone, watcher)` against a fresh sitl + autopilot in lockstep, at up to
+    eight times real time (the flights' times are the simulator's): MAVSDK (mavsdk_server on a
+    free port) on one endpoint, the watcher on another."""
     watch_port = free_udp_port()
     daemon = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0", connect=False,
-                    scenario=scenario, lockstep=True,
+                    scenario=scenario, lockstep=True, speed=8,
                     ap_args=["--mavlink", f"udpout://127.0.0.1:{watch_port}?bind=0"])
     watcher = Watcher(watch_port, kinds)
 
@@ -388,8 +389,7 @@ def test_follow_me_keeps_its_distance_from_a_target_walking_a_square(tmp_path):
     places. Here the target walks a 20 m square at 2 m/s, its fixes ±1 m noisy (seeded), a few
     a second; measured on the simulator's truth against the true walk: the following
     distance's error (8 m asked, behind the target). The target standing, the vehicle stops;
-    `stop()` is Hold. (Fixes that stop: MAVSDK repeats the last one while Follow Me lasts; the
-    commander's unit test has the target lost.)"""
+    `stop()` is Hold. (Fixes that stop: the commander's unit test has the target lost.)"""
     import random
 
     from mavsdk_grpc.follow_me import Config, TargetLocation
@@ -406,10 +406,10 @@ def test_follow_me_keeps_its_distance_from_a_target_walking_a_square(tmp_path):
         sim_s = lambda: watcher.messages("HIL_STATE_QUATERNION")[-1].time_usec * 1e-6  # noqa
         rng = random.Random(7)
 
-        async def walk_to(t):
+        async def walk_to(t, noise=1.0):
             north, east = square_walk(t)
             lat, lon = offset(home.latitude_deg, home.longitude_deg,
-                              north + rng.uniform(-1, 1), east + rng.uniform(-1, 1))
+                              north + rng.uniform(-noise, noise), east + rng.uniform(-noise, noise))
             await drone.follow_me.set_target_location(
                 TargetLocation(lat, lon, home.absolute_altitude_m, 0.0, 0.0, 0.0))
 
@@ -448,11 +448,12 @@ def test_follow_me_keeps_its_distance_from_a_target_walking_a_square(tmp_path):
         print(f"behind the target (within 30°) mid-leg: {100 * share:.0f} % of {len(behind)}")
         assert share > 0.9, share
 
-        # The target stands (MAVSDK repeats its last place each second): the vehicle stops,
-        # within 15 s of simulator time.
+        # The target stands, still sending its place: the vehicle stops, within 15 s of
+        # simulator time.
         stood = sim_s()
         while True:
-            await asyncio.sleep(0.5)
+            await walk_to(stood - start, noise=0.0)
+            await asyncio.sleep(0.1)
             recent = watcher.messages("HIL_STATE_QUATERNION", time.monotonic() - 0.5)
             if recent and max(math.hypot(m.vx, m.vy) * 1e-2 for m in recent) < 0.3:
                 break
