@@ -17,6 +17,7 @@ within 2° (and the total error within 5°) for 5 s. --json writes the figures f
 numpy and vqf (tests/requirements.txt).
 """
 import argparse
+import concurrent.futures
 import gzip
 import json
 import math
@@ -125,6 +126,30 @@ def score(scorer, trial_gz, est_csv):
     return {k: r[k + "_rmse_deg"] for k in ("total", "heading", "inclination")}
 
 
+def bench_trial(job):
+    """One trial: both modes replayed and scored, VQF run and scored, the convergence from the
+    middle of the motion. In a directory of its own (trials run side by side)."""
+    autopilot, scorer, trial_gz, params, tmp = job
+    name = os.path.basename(trial_gz)
+    tmp = tempfile.mkdtemp(dir=tmp)
+    trial = os.path.join(tmp, name[:-3])
+    with gzip.open(trial_gz, "rb") as src, open(trial, "wb") as dst:
+        dst.write(src.read())
+    row = {"trial": name[:-7], "replay_s": 0.0}
+    for who in MODES:
+        est = os.path.join(tmp, f"{who}.csv")
+        t0 = time.perf_counter()
+        subprocess.run([autopilot, "replay", "--input", trial, "--output", est,
+                        "--params", params[who]], check=True)
+        row["replay_s"] += time.perf_counter() - t0
+        row[who] = score(scorer, trial_gz, est)
+    run_vqf(trial, os.path.join(tmp, "vqf.csv"))
+    row["vqf"] = score(scorer, trial_gz, os.path.join(tmp, "vqf.csv"))
+    row["convergence_s"] = convergence(autopilot, params["tilt_heading"], trial, tmp)
+    os.remove(trial)
+    return row
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--autopilot", default=os.path.join(ROOT, "target", "release", "autopilot"))
@@ -149,25 +174,14 @@ def main():
             params[who] = os.path.join(tmp, f"{who}.toml")
             with open(params[who], "w") as f:
                 f.write(base.replace("[attitude]\n", f"[attitude]\nmode = {mode}\n", 1))
-        for n, name in enumerate(trials, 1):
-            trial_gz = os.path.join(a.trials, name)
-            trial = os.path.join(tmp, name[:-3])
-            with gzip.open(trial_gz, "rb") as src, open(trial, "wb") as dst:
-                dst.write(src.read())
-            row = {"trial": name[:-7], "replay_s": 0.0}
-            for who in MODES:
-                est = os.path.join(tmp, f"{who}.csv")
-                t0 = time.perf_counter()
-                subprocess.run([a.autopilot, "replay", "--input", trial, "--output", est,
-                                "--params", params[who]], check=True)
-                row["replay_s"] += time.perf_counter() - t0
-                row[who] = score(scorer, trial_gz, est)
-            run_vqf(trial, os.path.join(tmp, "vqf.csv"))
-            row["vqf"] = score(scorer, trial_gz, os.path.join(tmp, "vqf.csv"))
-            row["convergence_s"] = convergence(a.autopilot, params["tilt_heading"], trial, tmp)
-            rows.append(row)
-            os.remove(trial)
-            print(f"[{n}/{len(trials)}] {name[:-7]}", file=sys.stderr, flush=True)
+        # The trials are independent: two at a time (the machines this runs on have two
+        # cores; each replay is one process).
+        jobs = [(a.autopilot, scorer, os.path.join(a.trials, name), params, tmp)
+                for name in trials]
+        with concurrent.futures.ProcessPoolExecutor(max_workers=2) as pool:
+            for n, row in enumerate(pool.map(bench_trial, jobs), 1):
+                rows.append(row)
+                print(f"[{n}/{len(trials)}] {row['trial']}", file=sys.stderr, flush=True)
     who_all = list(MODES) + ["vqf"]
     mean = {who: {k: sum(r[who][k] for r in rows) / len(rows)
                   for k in ("total", "heading", "inclination")} for who in who_all}

@@ -9,8 +9,8 @@
 //! The commander only chooses the mode and switches; each mode is flown by a flight task of
 //! its own (`task.rs`: `activate`, `update`, `is_finished`, as PX4's `FlightTask`), in one file
 //! per mode: `takeoff.rs`, `hold.rs` (Loiter), `land.rs`, `rtl.rs`, `mission.rs`,
-//! `manual_position.rs` (Posctl, Altctl), `stabilized.rs` (Stabilized, Manual), `offboard.rs`
-//! and `descend.rs` (a failsafe, left only by landing). What outlives a mode — armed, landed,
+//! `manual_position.rs` (Posctl, Altctl), `stabilized.rs` (Stabilized, Manual), `offboard.rs`,
+//! `orbit.rs`, `follow_target.rs` and `descend.rs` (a failsafe, left only by landing). What outlives a mode — armed, landed,
 //! home, the uploaded mission, the heading and speed of automatic flight — is `flight.rs`.
 //! A finished take-off hands over to Hold; a touchdown disarms; a stick or offboard stream
 //! that stops (`COM_RC_LOSS_T`, `COM_OF_LOSS_T`) switches to Hold or `COM_OBL_RC_ACT`'s mode.
