@@ -73,6 +73,24 @@ def receive(gcs, what, condition, timeout):
     return None, time.monotonic()
 
 
+def ack_and_said(gcs, command, timeout=5, said_within=1.0, wanted=lambda text: True):
+    """The result of `command`'s COMMAND_ACK (None if none within `timeout` s) and every
+    STATUSTEXT around it, reading on up to `said_within` s after the ack until one is
+    `wanted` (a refusal's reason may come before or after its ack)."""
+    result, said = None, []
+    end = time.monotonic() + timeout
+    while time.monotonic() < end and (result is None or not any(map(wanted, said))):
+        m = gcs.recv_match(type=["COMMAND_ACK", "STATUSTEXT"], blocking=True, timeout=0.1)
+        if m is None:
+            continue
+        if m.get_type() == "STATUSTEXT":
+            said.append(m.text)
+        elif m.command == command and result is None:
+            result = m.result
+            end = min(end, time.monotonic() + said_within)
+    return result, said
+
+
 def request_message(gcs, msg_id, what, param2=0, condition=lambda m: True, within_s=1.0):
     """REQUEST_MESSAGE as QGroundControl sends it: accepted within 1.2 s, the message within
     `within_s` (QGC: 1 s) of the ack."""

@@ -14,7 +14,7 @@ import time
 import pytest
 from pymavlink import mavutil
 
-from conftest import Daemon, PtyLink
+from conftest import Daemon, PtyLink, ack_and_said
 
 PREARM_CHECK = mavutil.mavlink.MAV_SYS_STATUS_PREARM_CHECK
 
@@ -180,13 +180,9 @@ def test_sensor_messages_stream_up_to_the_sensor_rate(vehicle):
     assert len(stamps) >= 0.99 * counts["HIGHRES_IMU"], "a sample sent twice"
     gcs.mav.command_long_send(1, 1, ML.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
                               ML.MAVLINK_MSG_ID_HIGHRES_IMU, 1000, 0, 0, 0, 0, 0)
-    result, why, end = None, None, time.monotonic() + 3
-    while (result is None or why is None) and time.monotonic() < end:
-        m = gcs.recv_match(type=["COMMAND_ACK", "STATUSTEXT"], blocking=True, timeout=0.1)
-        if m is not None and m.get_type() == "COMMAND_ACK":
-            result = m.result if m.command == ML.MAV_CMD_SET_MESSAGE_INTERVAL else result
-        elif m is not None and "HIGHRES_IMU" in m.text:
-            why = m.text
+    result, said = ack_and_said(gcs, ML.MAV_CMD_SET_MESSAGE_INTERVAL,
+                                wanted=lambda t: "HIGHRES_IMU" in t)
+    why = next((t for t in said if "HIGHRES_IMU" in t), None)
     print(why)
     assert result == ML.MAV_RESULT_DENIED and why == "HIGHRES_IMU: at most 250 Hz (sensor rate)", why
     gcs.mav.command_long_send(1, 1, ML.MAV_CMD_GET_MESSAGE_INTERVAL, 0,

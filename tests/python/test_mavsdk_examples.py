@@ -14,7 +14,7 @@ from mavsdk_grpc.action import OrbitYawBehavior
 from mavsdk_grpc.telemetry import FlightMode
 from pymavlink import mavutil
 
-from conftest import Daemon, first, free_tcp_port, free_udp_port
+from conftest import Daemon, ack_and_said, first, free_tcp_port, free_udp_port
 
 ML = mavutil.mavlink
 EARTH_RADIUS_M = 6378137.0
@@ -215,19 +215,8 @@ def test_orbits_and_follow_targets_that_cannot_be_flown_are_refused_with_the_rea
         ]
         for params, why in cases:
             gcs.mav.command_long_send(1, 1, ML.MAV_CMD_DO_ORBIT, 0, *params)
-            result, said, end = None, [], time.monotonic() + 5
-            while result is None and time.monotonic() < end:
-                m = gcs.recv_match(type=["COMMAND_ACK", "STATUSTEXT"], blocking=True, timeout=0.2)
-                if m is None:
-                    continue
-                if m.get_type() == "STATUSTEXT":
-                    said.append(m.text)
-                elif m.command == ML.MAV_CMD_DO_ORBIT:
-                    result = m.result
-            end = time.monotonic() + 1
-            while why and not any(why in t for t in said) and time.monotonic() < end:
-                m = gcs.recv_match(type="STATUSTEXT", blocking=True, timeout=0.2)
-                said += [m.text] if m else []
+            result, said = ack_and_said(gcs, ML.MAV_CMD_DO_ORBIT,
+                                        wanted=lambda t: why is None or why in t)
             assert result == ML.MAV_RESULT_DENIED, (params, result)
             assert why is None or any(why in t for t in said), (params, said)
         # A follow target 10 km away, one at NaN: the first refused and said, the second

@@ -61,16 +61,11 @@ impl GroundStation {
                 );
             }
             MavCmd::MAV_CMD_DO_REPOSITION => {
-                // COMMAND_LONG: latitude and longitude in degrees (NaN: keep), altitude AMSL.
-                let global =
-                    (!p[4].is_nan() || !p[5].is_nan()).then_some((p[4] as f64, p[5] as f64));
-                self.reposition(c, global, MavFrame::MAV_FRAME_GLOBAL, to, out);
+                // COMMAND_LONG: altitude AMSL.
+                self.reposition(c, long_lat_lon(&p), MavFrame::MAV_FRAME_GLOBAL, to, out);
             }
             MavCmd::MAV_CMD_DO_ORBIT => {
-                // COMMAND_LONG: latitude and longitude in degrees (NaN: keep).
-                let global =
-                    (!p[4].is_nan() || !p[5].is_nan()).then_some((p[4] as f64, p[5] as f64));
-                self.orbit(c, global, to, out);
+                self.orbit(c, long_lat_lon(&p), to, out);
             }
             MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH => {
                 vehicle(out, to, AutopilotCommand::SetMode(FlightMode::Rtl));
@@ -174,4 +169,10 @@ impl GroundStation {
         };
         vehicle(out, to, cmd);
     }
+}
+
+/// A `COMMAND_LONG`'s latitude and longitude (param5, param6, degrees); both NaN: keep the
+/// current ones.
+fn long_lat_lon(p: &[f32; 7]) -> Option<(f64, f64)> {
+    (!p[4].is_nan() || !p[5].is_nan()).then_some((p[4] as f64, p[5] as f64))
 }
