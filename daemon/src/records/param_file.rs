@@ -311,7 +311,9 @@ mod tests {
 
     /// The child of [`a_store_killed_at_random_points_during_1000_saves_is_always_valid`]:
     /// loads the store (as the daemon does at start), then saves numbered versions, printing
-    /// `saved N` after each save returns, until it is killed. Does nothing unless started so.
+    /// `saved N` on standard error after each save returns, until it is killed (standard
+    /// output is the test harness's: its `test NAME ... ` stands before the first line there).
+    /// Does nothing unless started so.
     #[test]
     #[ignore = "started by the SIGKILL test in a child process"]
     fn save_until_killed() {
@@ -327,7 +329,7 @@ mod tests {
             store.record("MIS_TAKEOFF_ALT", 0.5 + k as f64 / 100.0);
             store.record("ATT_ALIGN_N", (1 + k) as f64);
             save(&store).unwrap();
-            println!("saved {k}");
+            eprintln!("saved {k}");
             n += 1;
         }
     }
@@ -352,11 +354,11 @@ mod tests {
                 .args(["records::param_file::tests::save_until_killed", "--exact"])
                 .args(["--ignored", "--nocapture", "--test-threads=1"])
                 .env(CHILD_DIR, dir.path())
-                .stdout(std::process::Stdio::piped())
-                .stderr(std::process::Stdio::null())
+                .stdout(std::process::Stdio::null())
+                .stderr(std::process::Stdio::piped())
                 .spawn()
                 .unwrap();
-            let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
+            let mut lines = BufReader::new(child.stderr.take().unwrap()).lines();
             let saved = |line: std::io::Result<String>| {
                 let line = line.unwrap();
                 line.strip_prefix("saved ")
