@@ -33,4 +33,4 @@ fi
 "$venv/bin/python" -m pytest -q tests/python
 
 echo "== fuzz (coverage-guided, a short run of each target)"
-tools/fuzz.sh 20
+tools/fuzz.sh 12

@@ -360,9 +360,10 @@ async def mavsdk_autopilot(gcs_port):
 
 def run_mavsdk_flight(tmp_path, flight, airframe="quad_x"):
     """Runs the coroutine `flight(gcs_port)` against a fresh sitl + autopilot of `airframe` whose
-    ground-station endpoint sends to `gcs_port` (where MAVSDK listens), and stops them after."""
+    ground-station endpoint sends to `gcs_port` (where MAVSDK listens), in lockstep at up to six
+    times real time (the flights' times are the simulator's), and stops them after."""
     daemon = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0", connect=False,
-                    airframe=airframe)
+                    airframe=airframe, lockstep=True, speed=6)
     try:
         asyncio.run(flight(daemon.gcs_port))
     finally:

@@ -35,6 +35,18 @@ def vehicle(daemon):
     return daemon.gcs
 
 
+@pytest.fixture
+def fast_vehicle(tmp_path):
+    """As `vehicle`, the simulator in lockstep at up to six times real time: for flights whose
+    times are the simulator's (what the vehicle does, not how fast the link answers)."""
+    d = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0", lockstep=True, speed=6)
+    try:
+        assert d.gcs.wait_heartbeat(timeout=30), "no heartbeat"
+        yield d.gcs
+    finally:
+        d.close()
+
+
 def wait(gcs, what, condition, timeout=30):
     """The first message of type `what` for which condition(msg) holds, within `timeout` s."""
     end = time.monotonic() + timeout

@@ -62,7 +62,9 @@ async def fly(gcs_port):
         landed = await first(drone.telemetry.landed_state(), lambda s: True, 5)
         assert landed == LandedState.ON_GROUND
 
-        # Arm, take off again, land where it is.
+        # Arm (once ready again: at rest on the ground long enough for the gyro check), take
+        # off again, land where it is.
+        await first(drone.telemetry.health(), lambda h: h.is_armable, 30)
         await drone.action.arm()
         await drone.action.takeoff()
         await first(drone.telemetry.position(), lambda p: p.relative_altitude_m > 2.0, 30)

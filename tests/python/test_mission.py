@@ -1,6 +1,7 @@
 """Missions end to end (and MAVSDK's goto_location): uploaded, downloaded and flown, by MAVSDK's native binding (its Mission
 plugin, as a user script would) and by hand with pymavlink (the protocol message by message).
-sitl + autopilot over UDP at 3x real time; every wait is on the vehicle's state with a time-out."""
+sitl + autopilot over UDP in lockstep at up to 6x real time (the flights' times are the
+simulator's); every wait is on the vehicle's state with a time-out."""
 
 import asyncio
 import math
@@ -16,7 +17,8 @@ from mavsdk.plugins.telemetry import FlightMode
 from pymavlink import mavutil
 
 from conftest import Daemon, first, land_and_disarm, mavsdk_autopilot, run_mavsdk_flight
-from test_ground_station import ack, daemon, ready_to_arm, vehicle, wait  # noqa: F401
+from test_ground_station import (  # noqa: F401 (the fixtures)
+    ack, daemon, fast_vehicle, ready_to_arm, vehicle, wait)
 
 ML = mavutil.mavlink
 HOME = (47.397742, 8.545594)
@@ -123,7 +125,8 @@ def _note(progress, latest, reached):
 
 
 def test_mavsdk_uploads_downloads_and_flies_a_square_mission_home(tmp_path):
-    daemon = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0", connect=False)
+    daemon = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0", connect=False, lockstep=True,
+                    speed=6)
     try:
         start = time.monotonic()
         asyncio.run(fly_square(daemon.gcs_port))
@@ -138,7 +141,8 @@ def item_int(seq, command, frame, params=(0, 0, 0, float("nan")), lat_lon=(0.0, 
         int(round(lat_lon[0] * 1e7)), int(round(lat_lon[1] * 1e7)), alt)
 
 
-def test_pymavlink_uploads_a_mission_by_hand_and_gets_each_item_reached(vehicle):
+def test_pymavlink_uploads_a_mission_by_hand_and_gets_each_item_reached(fast_vehicle):
+    vehicle = fast_vehicle
     gcs = vehicle
     rel = ML.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
     plan = [

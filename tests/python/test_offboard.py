@@ -2,7 +2,7 @@
 streamed at 20 Hz, SET_POSITION_TARGET_LOCAL_NED and SET_ATTITUDE_TARGET; OFFBOARD refused without
 them) and with MAVSDK's native Offboard plugin (which streams at 20 Hz itself): position, velocity
 and attitude set-points flown, and the failsafe when the stream stops. sitl + autopilot over UDP
-at 3x real time; every wait is on the vehicle's state with a time-out."""
+in lockstep at up to 6x real time; every wait is on the vehicle's state with a time-out."""
 
 import json
 import math
@@ -19,7 +19,8 @@ from mavsdk.plugins.telemetry import FlightMode
 from pymavlink import mavutil
 
 from conftest import first, land_and_disarm, mavsdk_autopilot, run_mavsdk_flight
-from test_ground_station import ack, armed, daemon, ready_to_arm, vehicle, wait  # noqa: F401
+from test_ground_station import (  # noqa: F401 (the fixtures)
+    ack, armed, daemon, fast_vehicle, ready_to_arm, vehicle, wait)
 
 ML = mavutil.mavlink
 POSITION_ONLY = 0x09F8  # x, y, z and yaw used (MAVSDK's set_position_ned)
@@ -75,7 +76,9 @@ def near(m, n, e, d, tol):
     return math.dist((m.x, m.y, m.z), (n, e, d)) < tol
 
 
-def test_offboard_flies_position_velocity_and_attitude_set_points_and_fails_safe(vehicle):
+def test_offboard_flies_position_velocity_and_attitude_set_points_and_fails_safe(
+        fast_vehicle):
+    vehicle = fast_vehicle
     gcs = vehicle
     ready_to_arm(gcs)
     offboard = (ML.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 6, 0)  # PX4 main mode 6

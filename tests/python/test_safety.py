@@ -1,6 +1,6 @@
-"""Failsafes end to end (issue 7), one scenario per failsafe as they land: sitl + autopilot over
-UDP at 3x real time, driven with pymavlink; every wait is on the vehicle's state with a
-time-out. The state machine itself is table-tested in daemon/core/src/safety/tests.rs."""
+"""Failsafes end to end, one scenario per failsafe as they land: sitl + autopilot over UDP at 3x
+real time (the flights that only fly: in lockstep at up to 6x), driven with pymavlink; every wait
+is on the vehicle's state with a time-out. The state machine itself is table-tested in daemon/core/src/safety/tests.rs."""
 
 import math
 import threading
@@ -11,7 +11,8 @@ from pymavlink import mavutil
 
 from conftest import Daemon, sim_control, sim_param
 from test_ground_station import (  # noqa: F401
-    INT32, PREARM_CHECK, ack, armed, daemon, int_bits, ready_to_arm, set_param, vehicle, wait)
+    INT32, PREARM_CHECK, ack, armed, daemon, fast_vehicle, int_bits, ready_to_arm, set_param,
+    vehicle, wait)
 
 ML = mavutil.mavlink
 
@@ -52,7 +53,8 @@ def reposition_north(gcs, home, metres):
     assert ack(gcs, ML.MAV_CMD_DO_REPOSITION) == 0
 
 
-def test_gcs_link_loss_holds_then_returns_and_lands_at_home(vehicle):
+def test_gcs_link_loss_holds_then_returns_and_lands_at_home(fast_vehicle):
+    vehicle = fast_vehicle
     """NAV_DLL_ACT 2 (Return) after COM_DL_LOSS_T of wall time without a GCS heartbeat, Hold
     for COM_FAIL_ACT_T first; the return lands at home and disarms."""
     gcs = vehicle
@@ -199,7 +201,8 @@ def fence_item(seq, command, p1, lat, lon):
         lat, lon, 0, mission_type=ML.MAV_MISSION_TYPE_FENCE)
 
 
-def test_uploaded_geofence_refuses_arming_outside_and_holds_at_the_breach(vehicle):
+def test_uploaded_geofence_refuses_arming_outside_and_holds_at_the_breach(fast_vehicle):
+    vehicle = fast_vehicle
     """A fence plan (MAV_MISSION_TYPE_FENCE): an exclusion circle around home refuses arming
     ("outside the geofence"); replaced by an inclusion square of ±12 m, the vehicle arms, is sent
     25 m north, is stopped at the square's edge by GF_ACTION 2 (Hold) — the breach predicted from
@@ -287,7 +290,8 @@ def test_magnet_under_the_board_refuses_arming_until_it_is_gone(tmp_path, scenar
     path = scenario('airframe = "quad_x"\nduration_s = 100000.0\n'
                     '[[events]]\nkind = "mag_disturbance"\nt_s = 0.0\n'
                     'field_ned_gauss = [0.0, 0.0, -0.35]\nduration_s = 40.0\n')
-    d = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0", scenario=path)
+    d = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0", scenario=path, lockstep=True,
+               speed=6)
     try:
         gcs = d.gcs
         assert gcs.wait_heartbeat(timeout=30), "no heartbeat"
