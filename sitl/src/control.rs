@@ -1,8 +1,9 @@
 //! The simulator's own MAVLink endpoint (`sitl --control ADDR`): the weather, changed while it
 //! flies. ArduPilot's SITL names where it has them — `SIM_WIND_SPD`, `SIM_WIND_DIR` (where the
 //! wind comes from), `SIM_WIND_TURB` (here the Dryden intensity W20) — and `1 − cos` gusts
-//! (`SIM_GUST_*`); and a hand that picks the vehicle up and turns it through every orientation
-//! for a magnetometer calibration (`SIM_TUMBLE_S`). Any ground station or script speaks to it with the parameter protocol
+//! (`SIM_GUST_*`); a hand that picks the vehicle up and turns it through every orientation
+//! for a magnetometer calibration (`SIM_TUMBLE_S`), and whether a hand does what the autopilot's
+//! calibrations ask (`SIM_CAL_HAND`). Any ground station or script speaks to it with the parameter protocol
 //! (`PARAM_REQUEST_LIST`, `PARAM_REQUEST_READ`, `PARAM_SET`, each answered with `PARAM_VALUE`);
 //! a value out of range or not finite keeps the old one and says why in `STATUSTEXT`. It
 //! speaks as system 1, component 25 (the simulator's ids on the HIL link) and sends a heartbeat
@@ -31,7 +32,7 @@ struct Meta {
     description: &'static str,
 }
 
-const META: [Meta; 8] = [
+const META: [Meta; 9] = [
     Meta {
         name: "SIM_WIND_SPD",
         unit: "m/s",
@@ -88,6 +89,13 @@ const META: [Meta; 8] = [
         max: 600.0,
         description: "Setting it picks the vehicle up and turns it by hand through every orientation for this long (a magnetometer calibration), then sets it down level; 0 sets it down now",
     },
+    Meta {
+        name: "SIM_CAL_HAND",
+        unit: "",
+        min: 0.0,
+        max: 1.0,
+        description: "1: a hand does what the autopilot's calibrations ask (holds the vehicle on each face, turns it); 0: nobody does",
+    },
 ];
 
 /// The weather parameters and the gusts they schedule: pure, stepped with simulation time.
@@ -106,8 +114,9 @@ fn from_direction(speed: f64, from_deg: f64) -> Vector3<f64> {
 }
 
 impl Weather {
-    /// The parameters that describe `wind` (a scenario's).
-    pub fn new(wind: &WindConfig) -> Self {
+    /// The parameters that describe `wind` (a scenario's) and whether the calibration hand
+    /// is on.
+    pub fn new(wind: &WindConfig, calibration_hand: bool) -> Self {
         let [n, e, d] = wind.mean_ned_m_s;
         let speed = n.hypot(e);
         let from = if speed > 0.0 {
@@ -125,6 +134,7 @@ impl Weather {
                 2.0,
                 0.0,
                 0.0,
+                f64::from(u8::from(calibration_hand)),
             ],
             vertical_m_s: d,
             next_gust_s: None,
@@ -164,6 +174,7 @@ impl Weather {
                 Vec::new()
             }
             "SIM_TUMBLE_S" => vec![SimAction::Tumble { duration_s: value }],
+            "SIM_CAL_HAND" => vec![SimAction::CalibrationHand(value >= 0.5)],
             _ => Vec::new(),
         })
     }
@@ -212,8 +223,8 @@ pub struct Control {
 }
 
 impl Control {
-    /// Binds `addr` (non-blocking) with the scenario's `wind`.
-    pub fn bind(addr: SocketAddr, wind: &WindConfig) -> Result<Self> {
+    /// Binds `addr` (non-blocking) with the scenario's `wind` and calibration hand.
+    pub fn bind(addr: SocketAddr, wind: &WindConfig, calibration_hand: bool) -> Result<Self> {
         let socket = UdpSocket::bind(addr).with_context(|| format!("binding --control {addr}"))?;
         socket
             .set_nonblocking(true)
@@ -232,7 +243,7 @@ impl Control {
             socket,
             peer: None,
             encoder: Encoder::default(),
-            weather: Weather::new(wind),
+            weather: Weather::new(wind, calibration_hand),
             rx: vec![0; 65_536],
             decoded: Decoded::default(),
             last_heartbeat: None,
@@ -375,10 +386,13 @@ mod tests {
 
     #[test]
     fn wind_parameters_read_the_scenario_and_set_where_the_wind_comes_from() {
-        let w = Weather::new(&WindConfig {
-            mean_ned_m_s: [0.0, -5.0, 0.5],
-            turbulence_w20_m_s: 7.7,
-        });
+        let w = Weather::new(
+            &WindConfig {
+                mean_ned_m_s: [0.0, -5.0, 0.5],
+                turbulence_w20_m_s: 7.7,
+            },
+            true,
+        );
         // Air moving west comes from the east.
         assert!((w.get("SIM_WIND_SPD").unwrap() - 5.0).abs() < 1e-12);
         assert!((w.get("SIM_WIND_DIR").unwrap() - 90.0).abs() < 1e-9);
@@ -398,7 +412,7 @@ mod tests {
 
     #[test]
     fn bad_values_keep_the_old_one() {
-        let mut w = Weather::new(&WindConfig::default());
+        let mut w = Weather::new(&WindConfig::default(), true);
         for (name, v) in [
             ("SIM_WIND_SPD", -1.0),
             ("SIM_WIND_SPD", f64::NAN),
@@ -409,12 +423,12 @@ mod tests {
             assert!(e.starts_with(name) && e.contains("must be within"), "{e}");
         }
         assert!(w.set("SIM_NOPE", 1.0, 0.0).is_err());
-        assert_eq!(w, Weather::new(&WindConfig::default()));
+        assert_eq!(w, Weather::new(&WindConfig::default(), true));
     }
 
     #[test]
     fn a_gust_starts_when_set_and_repeats_with_a_period() {
-        let mut w = Weather::new(&WindConfig::default());
+        let mut w = Weather::new(&WindConfig::default(), true);
         w.set("SIM_GUST_DIR", 270.0, 0.0).unwrap();
         w.set("SIM_GUST_T", 3.0, 0.0).unwrap();
         let a = w.set("SIM_GUST_SPD", 6.0, 10.0).unwrap();

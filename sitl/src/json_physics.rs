@@ -127,6 +127,7 @@ pub fn run(
             time_usec: end.frame().time_usec,
             controls,
             armed: true,
+            hand: hil::HandRequest::None,
         });
         pacer.wait_until(end.sim().time_s());
         let record = |sim: &Simulator| -> Result<()> {

@@ -116,7 +116,7 @@ pub struct SitlCli {
     /// Seed of every random process (overrides the scenario).
     #[arg(long)]
     pub seed: Option<u64>,
-    /// Sensor preset: ideal, typical, noisy or realistic (overrides the scenario).
+    /// Sensor preset: ideal, typical, noisy, realistic or uncalibrated (overrides the scenario).
     #[arg(long, value_name = "PRESET")]
     pub sensors: Option<String>,
     /// Who moves the rigid body: the built-in physics or JSBSim (its rate is the physics rate).
@@ -174,7 +174,7 @@ fn load_scenario(cli: &SitlCli) -> Result<Scenario> {
     scenario.sim.home = sitl_core::geo::home_for_instance(&scenario.sim.home, cli.instance);
     if let Some(p) = &cli.sensors {
         let preset = SensorPreset::from_name(p).with_context(|| {
-            format!("--sensors must be ideal, typical, noisy or realistic, got {p:?}")
+            format!("--sensors must be ideal, typical, noisy, realistic or uncalibrated, got {p:?}")
         })?;
         scenario.sim.sensors = SensorConfig::preset(preset);
     }

@@ -368,7 +368,11 @@ pub fn hil(
                     .checked_add(cli.instance)
                     .context("--instance pushes the --control port past 65535")?,
             );
-            let c = crate::control::Control::bind(addr, &scenario.sim.wind)?;
+            let c = crate::control::Control::bind(
+                addr,
+                &scenario.sim.wind,
+                scenario.sim.calibration_hand,
+            )?;
             tracing::info!(control = %c.local_addr()?, "weather control listening");
             Some(c)
         }

@@ -118,6 +118,8 @@ pub(crate) struct Link {
     transport: Box<dyn Transport>,
     pub(crate) out: Vec<u8>,
     decoded: Decoded,
+    /// A calibration's request to the hand, for the command that follows it.
+    hand: Option<hil::HandRequest>,
 }
 
 impl Link {
@@ -126,6 +128,7 @@ impl Link {
             transport,
             out: Vec::with_capacity(1024),
             decoded: Decoded::default(),
+            hand: None,
         }
     }
 
@@ -147,7 +150,8 @@ impl Link {
             match msg {
                 MavMessage::HIL_ACTUATOR_CONTROLS(m) => {
                     s.actuator_messages += 1;
-                    let cmd = hil::actuator_command(&m);
+                    let hand = self.hand.take().unwrap_or_default();
+                    let cmd = hil::actuator_command(&m).with_hand(hand);
                     match time_usec {
                         Some(t) if cmd.time_usec != t => s.stale += 1,
                         _ => {
@@ -156,7 +160,10 @@ impl Link {
                         }
                     }
                 }
-                _ => s.other_messages += 1,
+                m => match hil::HandRequest::from_message(&m) {
+                    Some(hand) => self.hand = Some(hand),
+                    None => s.other_messages += 1,
+                },
             }
         }
         self.decoded.malformed = 0;

@@ -7,7 +7,8 @@
 //! duration_s = 20.0
 //! rate_hz = 1000.0             # physics rate
 //! integrator = "rk4"           # rk4 | exp_map | hypersphere | euler_cromer | second_derivative
-//! sensors = "typical"          # ideal | typical | noisy
+//! sensors = "typical"          # ideal | typical | noisy | realistic | uncalibrated
+//! calibration_hand = true      # a hand does what the autopilot's calibrations ask
 //! [initial]
 //! position_ned_m = [0.0, 0.0, 0.0]
 //! attitude_euler_deg = [0.0, 0.0, 90.0]   # roll, pitch, yaw
@@ -145,6 +146,8 @@ struct ScenarioFile {
     integrator: Integrator,
     #[serde(default)]
     sensors: SensorPreset,
+    #[serde(default = "default_calibration_hand")]
+    calibration_hand: bool,
     #[serde(default)]
     home: Option<LatLonAlt>,
     #[serde(default)]
@@ -163,6 +166,10 @@ struct ScenarioFile {
 
 fn default_seed() -> u64 {
     1
+}
+
+fn default_calibration_hand() -> bool {
+    true
 }
 
 fn default_rate() -> f64 {
@@ -365,6 +372,7 @@ impl Scenario {
                 home,
                 wind: raw.wind,
                 battery_charge: raw.battery.charge.unwrap_or(1.0),
+                calibration_hand: raw.calibration_hand,
             },
             initial,
             rotors_at_hover: ini.rotors_at_hover,

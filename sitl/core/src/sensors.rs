@@ -184,6 +184,8 @@ pub struct SensorSuite {
     rpm_rng: Rng,
     accel_bias: Vector3<f64>,
     accel_scale: Vector3<f64>,
+    /// The board's attitude in the body (a small roll and pitch): the IMU reads `R⁻¹ v`.
+    board: UnitQuaternion<f64>,
     gyro_bias: Vector3<f64>,
     baro_drift_pa: f64,
     gps_error_ned: Vector3<f64>,
@@ -258,6 +260,14 @@ impl SensorSuite {
         let accel_bias = accel_rng.normal3(cfg.accel_bias_sigma);
         let accel_scale = accel_rng.normal3(cfg.accel_scale_sigma);
         let gyro_bias = gyro_rng.normal3(cfg.gyro_bias_sigma);
+        // Its own stream: a tilt added to a preset leaves every other draw as it was.
+        let mut board_rng = Rng::stream(seed, 9);
+        let tilt = cfg.board_tilt_sigma_deg.to_radians();
+        let board = UnitQuaternion::from_euler_angles(
+            tilt * board_rng.normal(),
+            tilt * board_rng.normal(),
+            0.0,
+        );
         let mut vibration_axis = [Vector3::zeros(); MAX_ROTORS];
         let mut vibration_phase = [0.0; MAX_ROTORS];
         for i in 0..MAX_ROTORS {
@@ -284,6 +294,7 @@ impl SensorSuite {
             rpm_rng: Rng::stream(seed, 6),
             accel_bias,
             accel_scale,
+            board,
             gyro_bias,
             baro_drift_pa: 0.0,
             gps_error_ned: Vector3::zeros(),
@@ -331,9 +342,20 @@ impl SensorSuite {
         self.gps_error_ned
     }
 
-    /// The true accelerometer bias (m/s²).
+    /// The true accelerometer bias (m/s², in the board's axes).
     pub fn accel_bias(&self) -> Vector3<f64> {
         self.accel_bias
+    }
+
+    /// The true accelerometer scale errors (fractions, in the board's axes).
+    pub fn accel_scale_error(&self) -> Vector3<f64> {
+        self.accel_scale
+    }
+
+    /// The board's mounting error: its roll and pitch in the body (rad).
+    pub fn board_tilt_rad(&self) -> (f64, f64) {
+        let (roll, pitch, _) = self.board.euler_angles();
+        (roll, pitch)
     }
 
     /// Samples every sensor at the truth `t`. Call once per physics step.
@@ -375,12 +397,15 @@ impl SensorSuite {
         self.gyro_bias += self.gyro_rng.normal3(c.gyro_bias_walk * dt.sqrt());
         match self.health[0] {
             SensorHealth::Ok => {
+                // In the board's axes, which the mounting error tilts from the body's.
+                let specific = self.board.inverse_transform_vector(&specific);
                 let accel = specific.component_mul(&(Vector3::repeat(1.0) + self.accel_scale))
                     + self.accel_bias
-                    + vib
+                    + self.board.inverse_transform_vector(&vib)
                     + self.accel_rng.normal3(c.accel_noise_density * rate_noise);
-                let gyro =
-                    w + self.gyro_bias + self.gyro_rng.normal3(c.gyro_noise_density * rate_noise);
+                let gyro = self.board.inverse_transform_vector(&w)
+                    + self.gyro_bias
+                    + self.gyro_rng.normal3(c.gyro_noise_density * rate_noise);
                 self.last.accel_frd_m_s2 = accel.map(|x| x.clamp(-c.accel_range, c.accel_range));
                 self.last.gyro_frd_rad_s = gyro.map(|x| x.clamp(-c.gyro_range, c.gyro_range));
                 updated |= fields::ACCEL | fields::GYRO;

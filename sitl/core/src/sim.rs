@@ -14,8 +14,10 @@ use crate::sensors::{EarthField, SensorConfig, SensorFrame, SensorSuite, Truth};
 use nalgebra::{DVector, UnitQuaternion, Vector3};
 use navmath::geo::{LatLonAlt, LocalFrame};
 
-pub use events::{Event, SET_DOWN_S, SimAction, TUMBLE_RAMP_S, tumble_attitude};
-use events::{Pulse, Tumble};
+use events::Pulse;
+pub use events::{Event, SimAction};
+use hand::Hand;
+pub use hand::{Face, PLACE_S, SET_DOWN_S, TUMBLE_RAMP_S, tumble_attitude};
 
 /// How the simulation is set up.
 #[derive(Debug, Clone, PartialEq)]
@@ -36,6 +38,9 @@ pub struct SimConfig {
     pub wind: WindConfig,
     /// The battery's charge at the start (0–1).
     pub battery_charge: f64,
+    /// A hand does what the autopilot's calibrations ask of the person holding the vehicle
+    /// (`SIM_CAL_HAND`): turns it, places it on its faces, holds it still.
+    pub calibration_hand: bool,
 }
 
 impl Default for SimConfig {
@@ -49,6 +54,7 @@ impl Default for SimConfig {
             home: LatLonAlt::default(),
             wind: WindConfig::default(),
             battery_charge: 1.0,
+            calibration_hand: true,
         }
     }
 }
@@ -159,7 +165,8 @@ pub struct Simulator {
     home: LocalFrame,
     wind_ned: Vector3<f64>,
     pulses: Vec<Pulse>,
-    tumble: Option<Tumble>,
+    hand: Option<Hand>,
+    calibration_hand: bool,
     events: Vec<Event>,
     max_speeds: [f64; MAX_ROTORS],
     stats: SimStats,
@@ -236,7 +243,8 @@ impl Simulator {
             home: LocalFrame::new(cfg.home),
             wind_ned: Vector3::from(cfg.wind.mean_ned_m_s),
             pulses: Vec::new(),
-            tumble: None,
+            hand: None,
+            calibration_hand: cfg.calibration_hand,
             events: Vec::new(),
             max_speeds,
             stats: SimStats::default(),
@@ -248,6 +256,11 @@ impl Simulator {
             sim.rest_on_ground();
         }
         Ok(sim)
+    }
+
+    /// Whether the hand does what the autopilot's calibrations ask ([`SimConfig::calibration_hand`]).
+    pub fn calibration_hand(&self) -> bool {
+        self.calibration_hand
     }
 
     /// Simulation time (s).
@@ -406,8 +419,8 @@ impl Simulator {
         let dt = self.cfg.dt_s;
         let loads = self.begin_step(controls);
         let before = self.body;
-        if let Some(tb) = self.tumble {
-            self.turn_by_hand(&tb, dt);
+        if let Some(hand) = self.hand {
+            self.turn_by_hand(hand, dt);
         } else {
             let forces = Forces {
                 loads: &loads,
@@ -435,29 +448,6 @@ impl Simulator {
         self.accel_ned = (self.body.vel_ned_m_s - before.vel_ned_m_s) / dt;
         self.ang_accel_frd = (self.body.rate_frd_rad_s - before.rate_frd_rad_s) / dt;
         self.end_step(&loads.rotor);
-    }
-
-    /// A step of a tumble: the body held where it is, turned to the dance's attitude (its rate
-    /// the turn over the step), then turned back level (heading kept) and set down.
-    fn turn_by_hand(&mut self, tb: &Tumble, dt: f64) {
-        let t = self.time_s() + dt - tb.start_s;
-        let q = if t < tb.duration_s {
-            tb.q0 * tumble_attitude(t, tb.duration_s)
-        } else if t < tb.duration_s + SET_DOWN_S {
-            let from = tb.q0 * tumble_attitude(tb.duration_s, tb.duration_s);
-            let level = UnitQuaternion::from_euler_angles(0.0, 0.0, from.euler_angles().2);
-            let x = (t - tb.duration_s) / SET_DOWN_S;
-            let turn = (from.inverse() * level).scaled_axis() * (x * x * (3.0 - 2.0 * x));
-            from * UnitQuaternion::from_scaled_axis(turn)
-        } else {
-            self.tumble = None;
-            self.rest_on_ground();
-            return;
-        };
-        self.body.rate_frd_rad_s = (self.body.q_ned_from_frd.inverse() * q).scaled_axis() / dt;
-        self.body.q_ned_from_frd = q;
-        self.body.vel_ned_m_s = Vector3::zeros();
-        self.landed = true;
     }
 
     /// Advances the world by one step as [`Simulator::step`] does, but the rigid body, gravity
@@ -575,5 +565,6 @@ impl Forces<'_> {
 }
 
 mod events;
+mod hand;
 #[cfg(test)]
 mod tests;

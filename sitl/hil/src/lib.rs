@@ -6,10 +6,12 @@
 //! [`json`] is the other protocol a physics may speak: ArduPilot's JSON interface. With the
 //! feature `transport`, `transport` carries the bytes over UDP or a serial line for both ends.
 
+pub mod hand;
 pub mod json;
 mod simulator_end;
 #[cfg(feature = "transport")]
 pub mod transport;
+pub use hand::HandRequest;
 pub use simulator_end::{STATE_INTERVAL_USEC, SimulatorEnd};
 mod wire;
 pub use wire::{
@@ -155,6 +157,9 @@ pub struct ActuatorCommand {
     pub controls: [f64; 16],
     /// `mode` has MAV_MODE_FLAG_SAFETY_ARMED.
     pub armed: bool,
+    /// What a calibration asks of the person holding the vehicle (a `CAL_POSE` before the
+    /// `HIL_ACTUATOR_CONTROLS`; none: [`HandRequest::None`]).
+    pub hand: HandRequest,
 }
 
 /// An actuator command from `HIL_ACTUATOR_CONTROLS`.
@@ -167,6 +172,7 @@ pub fn actuator_command(m: &HIL_ACTUATOR_CONTROLS_DATA) -> ActuatorCommand {
         time_usec: m.time_usec,
         controls,
         armed: m.mode.contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED),
+        hand: HandRequest::None,
     }
 }
 
@@ -175,6 +181,21 @@ impl ActuatorCommand {
     /// `controls` (quantised to the message's f32), without the bytes in between.
     pub fn as_sent(time_usec: u64, controls: &[f64], armed: bool) -> Self {
         actuator_command(&actuator_controls_data(time_usec, controls, armed))
+    }
+
+    /// The same command with a calibration's request to the hand.
+    pub fn with_hand(self, hand: HandRequest) -> Self {
+        Self { hand, ..self }
+    }
+
+    /// The messages that carry it: the hand's request if there is one, then
+    /// `HIL_ACTUATOR_CONTROLS` (last: it closes the answer).
+    pub fn messages(&self) -> impl Iterator<Item = MavMessage> {
+        let controls = actuator_controls(self.time_usec, &self.controls, self.armed);
+        self.hand
+            .message()
+            .into_iter()
+            .chain(std::iter::once(controls))
     }
 }
 

@@ -3,14 +3,23 @@
 //! straight into a frame in-process), and the same flight, on either.
 
 use crate::{
-    Accumulator, ActuatorCommand, Encoder, SensorUpdate, encode_exchange, exchange_messages,
+    Accumulator, ActuatorCommand, Encoder, HandRequest, SensorUpdate, encode_exchange,
+    exchange_messages,
 };
 use sitl_core::airframe::MAX_ROTORS;
 use sitl_core::sensors::SensorFrame;
+use sitl_core::sim::SimAction;
 use sitl_core::sim::Simulator;
 
 /// Interval of the ground truth (`HIL_STATE_QUATERNION`, 50 Hz).
 pub const STATE_INTERVAL_USEC: u64 = 20_000;
+
+/// How long the hand keeps doing what it was asked after the requests stop (s): a lost
+/// datagram in real time is not an end.
+const HAND_PATIENCE_S: f64 = 0.5;
+
+/// Longest turning through every orientation, if the request never stops (s).
+const TUMBLE_MAX_S: f64 = 600.0;
 
 /// One exchange after another: the sensor frame of time k goes out, the answer to it comes in,
 /// then physics steps over the exchange interval with that answer (ARCHITECTURE.md lockstep).
@@ -21,6 +30,9 @@ pub struct SimulatorEnd {
     steps_per_exchange: usize,
     next_state_usec: u64,
     controls: [f64; MAX_ROTORS],
+    /// What the hand is doing on request, and when a request last came (s).
+    hand: HandRequest,
+    hand_heard_s: f64,
 }
 
 impl SimulatorEnd {
@@ -36,6 +48,8 @@ impl SimulatorEnd {
             steps_per_exchange: steps,
             next_state_usec: 0,
             controls: [0.0; MAX_ROTORS],
+            hand: HandRequest::None,
+            hand_heard_s: f64::NEG_INFINITY,
         }
     }
 
@@ -73,13 +87,42 @@ impl SimulatorEnd {
         due
     }
 
-    /// Takes an answer: an armed command's controls, all rotors off otherwise.
+    /// Takes an answer: an armed command's controls, all rotors off otherwise; and, when the
+    /// simulator plays the person holding the vehicle, what a calibration asks of that person.
     pub fn apply(&mut self, cmd: &ActuatorCommand) {
         self.controls = if cmd.armed {
             cmd.controls
         } else {
             [0.0; MAX_ROTORS]
         };
+        self.ask_hand(cmd.hand);
+    }
+
+    /// The hand acts on a change of request; no request for [`HAND_PATIENCE_S`] — none in the
+    /// answers, or no answers — is the end of one (it sets the vehicle down and lets go).
+    fn ask_hand(&mut self, request: HandRequest) {
+        let now = self.sim.time_s();
+        if request != HandRequest::None {
+            self.hand_heard_s = now;
+        } else if now - self.hand_heard_s < HAND_PATIENCE_S {
+            return;
+        }
+        if !self.sim.calibration_hand() {
+            // Nobody's hand: a request finds it idle when it is back.
+            self.hand = HandRequest::None;
+            return;
+        }
+        if request == self.hand {
+            return;
+        }
+        self.hand = request;
+        self.sim.apply(match request {
+            HandRequest::None => SimAction::SetDown,
+            HandRequest::Place(face) => SimAction::Place { face },
+            HandRequest::Tumble => SimAction::Tumble {
+                duration_s: TUMBLE_MAX_S,
+            },
+        });
     }
 
     /// Steps physics over one exchange interval with the current controls and starts the next
@@ -105,6 +148,8 @@ impl SimulatorEnd {
         mut each_step: impl FnMut(&Simulator) -> Result<(), E>,
     ) -> Result<(), E> {
         let n = self.sim.airframe().rotors.len();
+        // Answers that stopped coming stop the requests too.
+        self.ask_hand(HandRequest::None);
         self.acc.start();
         for _ in 0..self.steps_per_exchange {
             step(&mut self.sim, &self.controls[..n])?;
@@ -126,6 +171,7 @@ impl SimulatorEnd {
         mut each_step: impl FnMut(&Simulator) -> Result<(), E>,
     ) -> Result<(), E> {
         let n = self.sim.airframe().rotors.len();
+        self.ask_hand(HandRequest::None);
         self.acc.start();
         for _ in 0..self.steps_per_exchange {
             if let Some(cmd) = before_step(self.sim.time_s())? {

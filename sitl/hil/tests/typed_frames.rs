@@ -75,3 +75,55 @@ fn typed_frames_equal_decoded_bytes() {
         assert!(typed.sim().truth().body.pos_ned_m.z < -1.0, "it climbed");
     }
 }
+
+/// A calibration's request to the hand, sent as the autopilot sends it (`CAL_POSE` then
+/// `HIL_ACTUATOR_CONTROLS`): the simulator places the vehicle, keeps it there through a short
+/// gap in the requests, sets it down once they have stopped; with `SIM_CAL_HAND` off nothing.
+#[test]
+fn the_hand_does_what_the_requests_on_the_wire_ask() {
+    use hil::HandRequest;
+    use sitl_core::sim::{Face, SimAction};
+    let answer = |end: &SimulatorEnd, hand: HandRequest| {
+        let mut bytes = Vec::new();
+        let mut encoder = hil::Encoder::default();
+        let cmd = ActuatorCommand::as_sent(end.frame().time_usec, &[0.0; 4], false).with_hand(hand);
+        for m in cmd.messages() {
+            encoder.push(&mut bytes, &m);
+        }
+        // What the simulator reads back: the request, then the command it goes with.
+        let msgs: Vec<MavMessage> = hil::decode(&bytes)
+            .messages
+            .into_iter()
+            .map(|(_, m)| m)
+            .collect();
+        let hand = msgs
+            .iter()
+            .find_map(HandRequest::from_message)
+            .unwrap_or_default();
+        match msgs.last() {
+            Some(MavMessage::HIL_ACTUATOR_CONTROLS(m)) => actuator_command(m).with_hand(hand),
+            other => panic!("{other:?}"),
+        }
+    };
+    let nose_down = |end: &SimulatorEnd| {
+        let q = end.sim().truth().body.q_ned_from_frd;
+        q.transform_vector(&nalgebra::Vector3::x()).z > 0.99
+    };
+    let mut e = end("quad_x", 1);
+    let fly = |e: &mut SimulatorEnd, hand: HandRequest, exchanges: usize| {
+        for _ in 0..exchanges {
+            let cmd = answer(e, hand);
+            e.apply(&cmd);
+            e.advance(|_| Ok::<(), ()>(())).unwrap();
+        }
+    };
+    fly(&mut e, HandRequest::Place(Face::Front), 750);
+    assert!(nose_down(&e), "placed on its nose within 3 s");
+    fly(&mut e, HandRequest::None, 50);
+    assert!(nose_down(&e), "0.2 s without a request: still held");
+    fly(&mut e, HandRequest::None, 1000);
+    assert!(!nose_down(&e), "the requests stopped: set down");
+    e.sim_mut().apply(SimAction::CalibrationHand(false));
+    fly(&mut e, HandRequest::Place(Face::Front), 750);
+    assert!(!nose_down(&e), "nobody's hand");
+}

@@ -36,16 +36,21 @@ pub enum SensorPreset {
     /// What real recordings show and the typical preset spares: a turn-on gyro bias of about
     /// 1°/s that drifts, rotor-frequency vibration, and a magnetic field from the motor currents.
     Realistic,
+    /// The typical board before its owner calibrates it: what the gyro, accelerometer and
+    /// level-horizon calibrations correct — accelerometer offsets of about 35 mg and scale
+    /// errors of 1.5 %, a gyro turn-on bias of about 1°/s, a board mounted 1.5° off level.
+    Uncalibrated,
 }
 
 impl SensorPreset {
-    /// Parses `ideal`, `typical`, `noisy` or `realistic`.
+    /// Parses `ideal`, `typical`, `noisy`, `realistic` or `uncalibrated`.
     pub fn from_name(s: &str) -> Option<Self> {
         match s {
             "ideal" => Some(Self::Ideal),
             "typical" => Some(Self::Typical),
             "noisy" => Some(Self::Noisy),
             "realistic" => Some(Self::Realistic),
+            "uncalibrated" => Some(Self::Uncalibrated),
             _ => None,
         }
     }
@@ -66,6 +71,10 @@ pub struct SensorConfig {
     pub accel_vibration: f64,
     /// Accelerometer full scale (m/s²).
     pub accel_range: f64,
+    /// Standard deviation of the flight board's mounting error in roll and in pitch (deg): the
+    /// IMU measures in the board's axes, tilted so from the body's (what PX4's
+    /// `SENS_BOARD_X_OFF`/`Y_OFF` correct).
+    pub board_tilt_sigma_deg: f64,
     /// Gyroscope white-noise density (rad/s/√Hz).
     pub gyro_noise_density: f64,
     /// Standard deviation of the gyroscope's turn-on bias per axis (rad/s).
@@ -124,6 +133,7 @@ impl SensorConfig {
             accel_scale_sigma: 0.003,
             accel_vibration: 0.3,
             accel_range: 16.0 * GRAVITY_M_S2,
+            board_tilt_sigma_deg: 0.0,
             gyro_noise_density: 1.7e-4,
             gyro_bias_sigma: 0.3f64.to_radians(),
             gyro_bias_walk: 2.0e-5,
@@ -200,6 +210,15 @@ impl SensorConfig {
                 // A battery lead under the board: 0.08 gauss at full thrust, about 0.03 (7 % of
                 // the Earth's field) at hover.
                 mag_motor_field: Vector3::new(0.03, -0.02, 0.07),
+                ..typical
+            },
+            SensorPreset::Uncalibrated => Self {
+                // An MPU-6000-class part as delivered: zero-g offset ±35 mg 1σ (datasheet
+                // ±50 mg), sensitivity ±1.5 %, zero-rate offset ±1°/s at turn-on.
+                accel_bias_sigma: 0.35,
+                accel_scale_sigma: 0.015,
+                gyro_bias_sigma: 1.0f64.to_radians(),
+                board_tilt_sigma_deg: 1.5,
                 ..typical
             },
         }

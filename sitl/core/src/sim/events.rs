@@ -1,10 +1,11 @@
 //! What happens to the simulated vehicle at scheduled times: faults, disturbances, a hand that
 //! tumbles it (scenario events and fault injection).
 
+use super::hand::{Face, Hand};
 use super::{SimError, Simulator};
 use crate::environment::Gust;
 use crate::sensors::{SensorHealth, SensorKind};
-use nalgebra::{UnitQuaternion, Vector3};
+use nalgebra::Vector3;
 
 /// Something that happens at a scheduled simulation time (scenario events, fault injection).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -68,45 +69,23 @@ pub enum SimAction {
     /// The vehicle is picked up and turned by hand through every orientation for `duration_s`
     /// (a magnetometer calibration's dance), then set down level over [`SET_DOWN_S`]; a new
     /// tumble replaces one under way (0: set it down now). The built-in rigid body only (an
-    /// external one, such as JSBSim's, keeps its own motion).
+    /// external one, such as JSBSim's, keeps its own motion), as for the other moves of the hand.
     Tumble {
         /// Length (s).
         duration_s: f64,
     },
-}
-
-/// How long a tumble's hand takes to speed up and to slow down (s).
-pub const TUMBLE_RAMP_S: f64 = 2.0;
-/// How long setting the vehicle down level after a tumble takes (s).
-pub const SET_DOWN_S: f64 = 2.0;
-
-/// The hand's turns during an [`SimAction::Tumble`] of `duration_s`, `t` seconds in, from the
-/// attitude it was picked up in: Euler angles growing at incommensurate rates (0.9, 0.37,
-/// 0.23 rad/s of roll, pitch and yaw), so that the body sweeps every orientation within about
-/// a minute, no faster than a person turns it; the rates rise from and fall to rest smoothly
-/// over [`TUMBLE_RAMP_S`] (a hand, not a step: the IMU's lever arm feels no jolt).
-pub fn tumble_attitude(t: f64, duration_s: f64) -> UnitQuaternion<f64> {
-    let ramp = TUMBLE_RAMP_S.min(duration_s / 2.0).max(1e-9);
-    // ∫ of the speed profile smoothstep(t/ramp)·smoothstep((D − t)/ramp), as a time.
-    let up = |x: f64| ramp * (x.powi(3) - x.powi(4) / 2.0);
-    let t = t.clamp(0.0, duration_s);
-    let progress = if t < ramp {
-        up(t / ramp)
-    } else if t <= duration_s - ramp {
-        ramp / 2.0 + (t - ramp)
-    } else {
-        (duration_s - ramp) - up((duration_s - t) / ramp)
-    };
-    UnitQuaternion::from_euler_angles(0.9 * progress, 0.37 * progress, 0.23 * progress)
-}
-
-/// A tumble under way.
-#[derive(Debug, Clone, Copy)]
-pub(super) struct Tumble {
-    pub(super) start_s: f64,
-    pub(super) duration_s: f64,
-    /// The attitude when picked up (the dance starts from it).
-    pub(super) q0: UnitQuaternion<f64>,
+    /// The hand places the vehicle with `face` down (heading kept) and holds it there still
+    /// (an accelerometer calibration's sides).
+    Place {
+        /// The face put on the ground.
+        face: Face,
+    },
+    /// The hand sets the vehicle down level where it is and lets go (nothing if it holds
+    /// nothing).
+    SetDown,
+    /// Whether the hand does what the autopilot's calibrations ask (`SIM_CAL_HAND`); off, it
+    /// sets down what it holds.
+    CalibrationHand(bool),
 }
 
 /// A scheduled action.
@@ -205,11 +184,20 @@ impl Simulator {
                 self.wind.set_turbulence(turbulence_w20_m_s);
             }
             SimAction::Tumble { duration_s } => {
-                self.tumble = Some(Tumble {
+                self.hand = Some(Hand::Tumble {
                     start_s: t,
                     duration_s: duration_s.max(0.0),
                     q0: self.body.q_ned_from_frd,
                 });
+            }
+            SimAction::Place { face } => self.place(face),
+            SimAction::SetDown => self.set_down(),
+            SimAction::CalibrationHand(on) => {
+                self.calibration_hand = on;
+                if !on {
+                    // Off with the vehicle in hand: set down, not held for ever.
+                    self.set_down();
+                }
             }
         }
     }

@@ -617,3 +617,29 @@ fn an_external_body_fed_the_step_loads_flies_like_the_built_in_physics() {
         assert!((b.battery_remaining - e.battery_remaining).abs() < 1e-6);
     }
 }
+
+/// The hand puts the vehicle on each face in turn and holds it still there — the accelerometer
+/// reads g on that face's axis, the gyro nothing — then sets it down upright and lets go.
+#[test]
+fn the_hand_places_the_vehicle_on_each_face_and_sets_it_down() {
+    let a = shipped("quad_x");
+    let mut sim = Simulator::new(&a, config(SensorPreset::Ideal), BodyState::default()).unwrap();
+    for face in Face::ALL {
+        sim.apply(SimAction::Place { face });
+        run(&mut sim, &[0.0; 4], ((PLACE_S + 0.5) * 1000.0) as usize);
+        let f = sim.sample_sensors();
+        let expected = -face.down_axis() * GRAVITY_M_S2;
+        assert!(
+            (f.accel_frd_m_s2 - expected).norm() < 1e-6,
+            "{face:?}: {}",
+            f.accel_frd_m_s2
+        );
+        assert!(f.gyro_frd_rad_s.norm() < 1e-9, "held still");
+        assert!(sim.truth().landed);
+    }
+    sim.apply(SimAction::SetDown);
+    run(&mut sim, &[0.0; 4], 3000);
+    let (roll, pitch, _) = sim.truth().body.q_ned_from_frd.euler_angles();
+    assert!(roll.abs() < 1e-9 && pitch.abs() < 1e-9);
+    assert!(sim.hand.is_none(), "let go");
+}
