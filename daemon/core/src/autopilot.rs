@@ -13,6 +13,7 @@
 //! comes with the sample; the ground-station link's age with [`StepInputs`]: no clock is read.
 
 mod blind;
+mod calibration;
 pub mod command;
 
 use crate::commander::{Commander, CommanderInput, CommanderStatus, Health, LandedState};
@@ -27,7 +28,9 @@ use crate::safety::blind_descent::{BlindDescent, HoverCommands};
 use crate::safety::failure_injection::FailureInjector;
 use crate::safety::geofence::{FenceMonitor, GeoZone, Geofence};
 use crate::sensors::battery::{BatteryConfig, BatteryEstimator, BatteryState};
-use crate::sensors::mag_calibrator::{MagCalStatus, MagCalibrator};
+use crate::sensors::imu_calibrator::ImuCalibrator;
+use crate::sensors::imu_correction::ImuCorrection;
+use crate::sensors::mag_calibrator::MagCalibrator;
 use crate::sensors::mag_check::MagFieldMonitor;
 use crate::sensors::monitor::SensorMonitor;
 use airframe::{Airframe, MAX_ROTORS};
@@ -144,6 +147,10 @@ pub struct Autopilot {
     mag_field: MagFieldMonitor,
     /// The last magnetometer calibration (under way or ended).
     mag_cal: Option<MagCalibrator>,
+    /// The last gyro, accelerometer or level-horizon calibration (under way or ended).
+    imu_cal: Option<ImuCalibrator>,
+    /// The IMU's calibration, applied to every sample before the estimators.
+    imu_correction: ImuCorrection,
     /// The recent hover commands, and the open-loop descent flown on them without the IMU.
     hover: HoverCommands,
     blind: Option<BlindDescent>,
@@ -195,6 +202,8 @@ impl Autopilot {
             monitor: SensorMonitor::new(),
             mag_field: MagFieldMonitor::default(),
             mag_cal: None,
+            imu_cal: None,
+            imu_correction: ImuCorrection::new(&params.imu),
             hover: HoverCommands::new(2.0),
             blind: None,
             imu_frozen_since_usec: None,
@@ -210,6 +219,7 @@ impl Autopilot {
         self.commander.set_params(params.commander);
         self.commander.set_safety_params(params.safety);
         self.injection_enabled = params.safety.failure_injection != 0;
+        self.imu_correction = ImuCorrection::new(&params.imu);
         self.battery.set_config(BatteryConfig::from_params(
             &params.battery,
             &self.airframe.battery,
@@ -269,11 +279,6 @@ impl Autopilot {
     /// The battery as estimated from the board's (or simulator's) reports.
     pub fn battery(&self) -> BatteryState {
         self.battery.state()
-    }
-
-    /// The magnetometer calibration under way, or the last one.
-    pub fn mag_calibration(&self) -> Option<MagCalStatus> {
-        self.mag_cal.as_ref().map(MagCalibrator::status)
     }
 
     /// Whether the run is over: the auto flight has landed and disarmed, or an operator asked
@@ -360,15 +365,15 @@ impl Autopilot {
         if let Some(commands) = self.imu_frozen(t_usec) {
             return self.blind_output(t_usec, commands, &sample, restarted);
         }
+        let t_s = t_usec as f64 * 1e-6;
+        // The calibrations take the raw readings, the estimators the calibrated ones; the logs
+        // keep the raw.
+        self.step_calibrations(t_s, &sample);
+        let flown = self.imu_correction.apply(&sample);
         if self.last_answer.is_some() {
             let dt = self.dt_since_last(t_usec);
             let p = &self.core.config().attitude;
-            self.mag_field.update(sample.mag, &sample.accel, p, dt);
-        }
-        let t_s = t_usec as f64 * 1e-6;
-        if let Some(cal) = self.mag_cal.as_mut().filter(|c| c.collecting()) {
-            cal.step(t_s, sample.mag);
-            command::log_calibration_end(&cal.status());
+            self.mag_field.update(flown.mag, &flown.accel, p, dt);
         }
         let (setpoint, armed) = self.command_setpoint(t_s, inputs);
         let status = self.commander.status();
@@ -380,7 +385,7 @@ impl Autopilot {
             status.landed,
             LandedState::InAir | LandedState::Landing
         ));
-        let output = self.core.step(&sample, &setpoint, armed);
+        let output = self.core.step(&flown, &setpoint, armed);
         if let Some(f) = output.motor_failure {
             tracing::error!(
                 motor = f.rotor + 1,
@@ -393,9 +398,9 @@ impl Autopilot {
         // Magnetometer and barometer as last seen (a sample carries them only when fresh).
         let prev = self.last_sample;
         self.last_sample = Some(SensorSample {
-            mag: sample.mag.or(prev.and_then(|p| p.mag)),
-            baro_alt_m: sample.baro_alt_m.or(prev.and_then(|p| p.baro_alt_m)),
-            ..sample
+            mag: flown.mag.or(prev.and_then(|p| p.mag)),
+            baro_alt_m: flown.baro_alt_m.or(prev.and_then(|p| p.baro_alt_m)),
+            ..flown
         });
         self.last_setpoint = armed.then_some(setpoint);
         if armed && !self.monitor.imu_repeating() {
@@ -565,10 +570,9 @@ impl Autopilot {
             fresh.monitor.noise_free();
         }
         // A calibration under way cannot go on in a clock that went back: ended, and said so.
-        fresh.mag_cal = self.mag_cal.take().map(|mut c| {
-            c.cancel();
-            c
-        });
+        self.end_calibrations();
+        fresh.mag_cal = self.mag_cal.take();
+        fresh.imu_cal = self.imu_cal.take();
         *self = fresh;
     }
 }

@@ -152,9 +152,10 @@ pub use crate::estimator::attitude::{ATTITUDE_META, AttitudeParams};
 pub use crate::estimator::translation::{TRANSLATION_META, TranslationGroup};
 pub use crate::safety::failsafe::{SAFETY_META, SafetyParams};
 pub use crate::sensors::battery::{BATTERY_META, BatteryGroup};
+pub use crate::sensors::imu_correction::{IMU_META, ImuCalParams};
 
 /// Each group's title in the parameter reference, in [`FlightParams::metadata`]'s order.
-const GROUP_TITLES: [(&str, &str); 9] = [
+const GROUP_TITLES: [(&str, &str); 10] = [
     ("attitude", "Attitude estimator"),
     ("translation", "Position and velocity estimator"),
     ("position", "Position loops"),
@@ -164,6 +165,7 @@ const GROUP_TITLES: [(&str, &str); 9] = [
     ("commander", "Commander: take-off, landing, return"),
     ("safety", "Failsafes and arming checks"),
     ("battery", "Flight battery"),
+    ("imu", "IMU calibration and board mounting"),
 ];
 
 /// Every flight-core parameter, as in `params/flight.toml`.
@@ -188,6 +190,8 @@ pub struct FlightParams {
     pub safety: SafetyParams,
     /// The flight battery.
     pub battery: BatteryGroup,
+    /// The gyro and accelerometer calibrations and the board's mounting angles.
+    pub imu: ImuCalParams,
 }
 
 /// Why a parameter value was refused (for the operator, `STATUSTEXT`).
@@ -221,6 +225,7 @@ impl FlightParams {
         v.extend(self.commander.validate());
         v.extend(self.safety.validate());
         v.extend(self.battery.validate());
+        v.extend(self.imu.validate());
         v.extend(
             self.battery
                 .inconsistencies()
@@ -268,6 +273,7 @@ impl FlightParams {
             "commander" => self.commander.get(key),
             "safety" => self.safety.get(key),
             "battery" => self.battery.get(key),
+            "imu" => self.imu.get(key),
             _ => None,
         }
     }
@@ -283,6 +289,7 @@ impl FlightParams {
             "commander" => self.commander.set(key, value),
             "safety" => self.safety.set(key, value),
             "battery" => self.battery.set(key, value),
+            "imu" => self.imu.set(key, value),
             _ => false,
         }
     }
@@ -354,6 +361,7 @@ impl FlightParams {
             ("commander", COMMANDER_META),
             ("safety", SAFETY_META),
             ("battery", BATTERY_META),
+            ("imu", IMU_META),
         ]
         .into_iter()
         .flat_map(|(g, m)| m.iter().map(move |p| (g, p)))
@@ -490,7 +498,9 @@ mod tests {
                 "CA_FAILURE_MODE",
                 "COM_ACT_FAIL_ACT",
                 "SYS_FAILURE_EN",
-                "BAT1_N_CELLS"
+                "BAT1_N_CELLS",
+                "CAL_GYRO0_ID",
+                "CAL_ACC0_ID"
             ]
         );
         assert!(FlightParams::default().validate().is_empty());

@@ -23,6 +23,9 @@ impl Autopilot {
     /// motors stop; in the air an open-loop descent begins on the recent hover commands.
     /// Returns whether the vehicle is in the air.
     pub fn sensors_stopped(&mut self) -> bool {
+        if let Some(c) = self.imu_cal.as_mut() {
+            c.sensors_stopped();
+        }
         self.blind_descent("sensor frames stopped")
     }
 

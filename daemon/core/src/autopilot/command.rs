@@ -10,13 +10,8 @@ use crate::mission::{MissionItem, MissionPoint, SpeedChange};
 use crate::safety::failure_injection::{Injection, Refusal};
 use crate::safety::geofence::{FenceMonitor, GeoZone, Geofence};
 use crate::safety::targets::{check_point, global_to_ned};
-use crate::sensors::mag_calibrator::{MagCalState, MagCalStatus, MagCalibrator};
+use crate::sensors::imu_calibrator::ImuCalKind;
 use nalgebra::Vector3;
-
-/// Magnetometer calibrations started in this process: each run's number, unique across the
-/// autopilots a reboot or a restarted source makes, so the ground-station side never takes a
-/// new run for one it has reported.
-static MAG_CAL_RUNS: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
 
 /// What a ground station (or the operator) asks of the autopilot.
 #[derive(Debug, Clone, PartialEq)]
@@ -104,30 +99,14 @@ pub enum AutopilotCommand {
     InjectFailure(Injection),
     /// Start an onboard magnetometer calibration (`MAV_CMD_PREFLIGHT_CALIBRATION`, param2 1).
     CalibrateMag,
+    /// Start an onboard gyro, accelerometer or level-horizon calibration
+    /// (`MAV_CMD_PREFLIGHT_CALIBRATION` param1 1, param5 1 or 2).
+    CalibrateImu(ImuCalKind),
     /// Cancel a calibration under way (`MAV_CMD_PREFLIGHT_CALIBRATION`, every param 0).
     CancelCalibration,
 }
 
-/// Logs how a magnetometer calibration ended, if it has.
-pub(super) fn log_calibration_end(s: &MagCalStatus) {
-    match s.state {
-        MagCalState::Collecting | MagCalState::Cancelled => {}
-        MagCalState::Succeeded(r) => tracing::info!(
-            samples = r.samples,
-            coverage = r.coverage,
-            residual = format!("{:.2} %", 100.0 * r.residual_rms),
-            offset = ?r.offset.as_slice(),
-            "magnetometer calibration done"
-        ),
-        MagCalState::Failed(f) => tracing::warn!("magnetometer calibration failed: {f}"),
-    }
-}
-
 impl Autopilot {
-    fn calibrating(&self) -> bool {
-        self.mag_cal.as_ref().is_some_and(MagCalibrator::collecting)
-    }
-
     /// Carries out a command, or says why not.
     pub fn command(&mut self, c: AutopilotCommand) -> Result<(), Denial> {
         let arming = matches!(
@@ -137,34 +116,17 @@ impl Autopilot {
                 | AutopilotCommand::TakeoffAmsl(_)
                 | AutopilotCommand::StartMission(_)
         );
-        if arming && self.calibrating() {
-            return Err("arming refused: calibrating the magnetometer".into());
+        if arming && let Some(kind) = self.calibrating() {
+            return Err(format!("arming refused: calibrating the {kind}").into());
         }
         let last = self.estimate();
         let origin = last.and_then(|o| o.translation.origin);
         let c_ = &mut self.commander;
         match c {
-            AutopilotCommand::CalibrateMag => {
-                if c_.status().armed {
-                    return Err("calibration refused: disarm first".into());
-                }
-                if self.calibrating() {
-                    return Err("a magnetometer calibration is already running".into());
-                }
-                let run = MAG_CAL_RUNS.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-                let strength = self.params.attitude.mag_intensity_gauss;
-                self.mag_cal = Some(MagCalibrator::new(run, strength));
-                tracing::info!(
-                    run,
-                    "magnetometer calibration started: turn the vehicle through every orientation"
-                );
-                Ok(())
-            }
+            AutopilotCommand::CalibrateMag => self.start_mag_calibration(),
+            AutopilotCommand::CalibrateImu(kind) => self.start_imu_calibration(kind),
             AutopilotCommand::CancelCalibration => {
-                if let Some(cal) = self.mag_cal.as_mut().filter(|c| c.collecting()) {
-                    cal.cancel();
-                    tracing::warn!("magnetometer calibration cancelled");
-                }
+                self.cancel_calibration();
                 Ok(())
             }
             AutopilotCommand::Arm { force } => c_.arm(force),

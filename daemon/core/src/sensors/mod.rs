@@ -1,7 +1,9 @@
 //! The sensors before the estimators: which are lost or frozen, the battery's state of charge,
-//! and the magnetometer's checks and calibration.
+//! the IMU's calibrations and their correction, and the magnetometer's checks and calibration.
 
 pub mod battery;
+pub mod imu_calibrator;
+pub mod imu_correction;
 pub mod mag_calibrator;
 pub mod mag_check;
 pub mod mag_fit;
