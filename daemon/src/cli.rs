@@ -79,7 +79,7 @@ pub struct FlightArgs {
     /// Embedded simulator: seed of the simulated sensors [default: 1].
     #[arg(long)]
     pub seed: Option<u64>,
-    /// Embedded simulator: sensor quality, ideal, typical, noisy or realistic (as `sitl --sensors`)
+    /// Embedded simulator: sensor quality, ideal, typical, noisy, realistic or uncalibrated (as `sitl --sensors`)
     /// [default: typical].
     #[arg(long, value_name = "PRESET")]
     pub sensors: Option<String>,
@@ -244,7 +244,7 @@ pub struct BatchArgs {
         default_value = "none,motor,gps,mag,baro,gust"
     )]
     pub faults: Vec<String>,
-    /// Sensor quality: ideal, typical, noisy or realistic.
+    /// Sensor quality: ideal, typical, noisy, realistic or uncalibrated.
     #[arg(long, default_value = "typical")]
     pub sensors: String,
     /// The CSV written [default: batch-SEED.csv].

@@ -102,7 +102,11 @@ impl FuzzedVehicle {
     fn on_message(&mut self, m: &MavMessage) -> Option<hil::ActuatorCommand> {
         let frame = self.frames.absorb(m)?;
         let out = self.autopilot.step(&frame.sample, &StepInputs::default())?;
-        Some(answer(&out, self.autopilot.rotors()))
+        Some(answer(
+            &out,
+            self.autopilot.rotors(),
+            self.autopilot.pose_request(),
+        ))
     }
 
     fn command(&mut self, c: AutopilotCommand) -> Result<(), flight_core::commander::Denial> {

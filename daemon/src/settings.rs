@@ -15,7 +15,9 @@ use std::path::{Path, PathBuf};
 /// The embedded simulator's sensor preset named `name` (`--sensors`).
 pub fn sensor_preset(name: &str) -> Result<sitl_core::sensors::SensorPreset> {
     sitl_core::sensors::SensorPreset::from_name(name).ok_or_else(|| {
-        anyhow::anyhow!("--sensors must be ideal, typical, noisy or realistic, got {name:?}")
+        anyhow::anyhow!(
+            "--sensors must be ideal, typical, noisy, realistic or uncalibrated, got {name:?}"
+        )
     })
 }
 /// `speed`: a real-time factor, or "max".
@@ -222,7 +224,7 @@ impl Settings {
             let s = &self.sensors;
             bad(
                 "sensors",
-                format!("{s:?} is not ideal, typical, noisy or realistic"),
+                format!("{s:?} is not ideal, typical, noisy, realistic or uncalibrated"),
             );
         }
         if violations.is_empty() {

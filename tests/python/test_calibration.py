@@ -1,8 +1,9 @@
-"""Onboard magnetometer calibration end to end (issue 10): sitl's noisy magnetometer (hard and
-soft iron, noise) at 3x real time, the vehicle turned through every orientation by the
-simulator's hand (`SIM_TUMBLE_S` on `sitl --control`), the calibration asked for as a ground
-station does (`MAV_CMD_PREFLIGHT_CALIBRATION`, param2 = 1) with pymavlink and with MAVSDK's
-calibration plugin, which reads PX4's `[cal]` texts. Every wait is on a message with a time-out.
+"""Onboard magnetometer calibration end to end: sitl's noisy magnetometer (hard and soft iron,
+noise) in lockstep at up to 8x real time, the vehicle turned through every orientation by the simulator's hand —
+set going by hand (`SIM_TUMBLE_S` on `sitl --control`, the calibration hand `SIM_CAL_HAND`
+off), or by the calibration itself —, the calibration asked for as a ground station does
+(`MAV_CMD_PREFLIGHT_CALIBRATION`, param2 = 1) with pymavlink and with MAVSDK's calibration
+plugin, which reads PX4's `[cal]` texts. Every wait is on a message with a time-out.
 The calibrator itself is tested in daemon/core/src/mag_calibrator.rs."""
 
 import asyncio
@@ -44,9 +45,9 @@ def test_the_magnetometer_is_calibrated_onboard_while_turned_by_hand(tmp_path):
     rising to 100, `[cal] calibration done: mag`, `MAG_CAL_REPORT` with the simulator's hard
     iron within 1 % of the field and its soft iron undone within 2 %; the `CAL_MAG0_*`
     parameters hold the result (announced, and read back after a restart: saved); set down,
-    the vehicle is ready to arm. The gyro calibration is refused as unsupported."""
+    the vehicle is ready to arm. The barometer's calibration is refused as unsupported."""
     d = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0", control=True,
-               sim_args=["--sensors", "noisy"])
+               sim_args=["--sensors", "noisy"], lockstep=True, speed=8)
     try:
         gcs = d.gcs
         assert gcs.wait_heartbeat(timeout=30), "no heartbeat"
@@ -61,8 +62,10 @@ def test_the_magnetometer_is_calibrated_onboard_while_turned_by_hand(tmp_path):
             wait(gcs, "SYS_STATUS", lambda m: True)  # a second on, try again
         assert "mag field" in reason, reason
 
-        calibrate(gcs, (1, 0, 0, 0, 0, 0, 0))
+        calibrate(gcs, (0, 0, 1, 0, 0, 0, 0))
         assert ack(gcs, ML.MAV_CMD_PREFLIGHT_CALIBRATION) == ML.MAV_RESULT_UNSUPPORTED
+        # A person turns it, not the calibration's hand.
+        assert sim_param(sim, "SIM_CAL_HAND", 0.0) == 0.0
         calibrate(gcs)
         assert ack(gcs, ML.MAV_CMD_PREFLIGHT_CALIBRATION) == ML.MAV_RESULT_ACCEPTED
         assert "calibrating the magnetometer" in arm_denial(gcs)
@@ -116,18 +119,16 @@ def test_the_magnetometer_is_calibrated_onboard_while_turned_by_hand(tmp_path):
 
 def test_mavsdk_calibrates_the_magnetometer_with_its_calibration_plugin(tmp_path):
     """MAVSDK's `calibrate_magnetometer()` (native binding): progress from 0 to 100 %, and the
-    stream ends in success."""
+    stream ends in success; the calibration's own request turns the vehicle."""
     from mavsdk.asyncio.plugins.calibration import CalibrationAsync
     from mavsdk.plugins.calibration import CalibrationResult
 
-    d = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0", connect=False, control=True,
-               sim_args=["--sensors", "noisy"])
+    d = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0", connect=False,
+               sim_args=["--sensors", "noisy"], lockstep=True, speed=8)
 
     async def run():
         async with mavsdk_autopilot(d.gcs_port) as system:
             calibration = CalibrationAsync(system)
-            sim = sim_control(d.control_port)
-            assert sim_param(sim, "SIM_TUMBLE_S", 90.0) == 90.0
             progress, results = [], []
 
             async def stream():

@@ -453,3 +453,80 @@ def test_follow_me_keeps_its_distance_from_a_target_walking_a_square(tmp_path):
         await first(drone.telemetry.armed(), lambda a: not a, 90)
 
     with_watcher(tmp_path, flight, ["HIL_STATE_QUATERNION", "STATUSTEXT"])
+
+
+UNCALIBRATED = """
+airframe = "quad_x"
+duration_s = 100000.0
+sensors = "uncalibrated"
+"""
+
+
+def test_calibration_runs_gyro_accelerometer_level_and_magnetometer_with_the_simulators_hand(
+        tmp_path, scenario):
+    """`calibration.py`: the gyro, the accelerometer, the level horizon and the magnetometer, in
+    turn, through MAVSDK's calibration plugin, on the simulator's uncalibrated board; the
+    simulator's hand does what each asks (holds still, puts the vehicle on each side, turns it
+    over). Each ends in success with its progress rising to 100 %; the accelerometer's
+    instructions name all six sides; the results are in the parameters. The pymavlink watcher
+    sees the same from the side: a calibration asked in flight is refused with the reason.
+    (Each result against the simulator's own errors, and a hover before and after:
+    daemon/core/tests/imu_calibration.rs.)"""
+
+    async def calibrate(name, run):
+        progress, texts = [], []
+        async for p in run():
+            if p.has_progress:
+                progress.append(p.progress)
+            if p.has_status_text:
+                texts.append(p.status_text)
+        print(f"{name}: progress {[round(x, 2) for x in progress]}; {len(texts)} instructions")
+        assert progress == sorted(progress) and progress[-1] == 1.0, progress
+        return texts
+
+    async def flight(drone, watcher):
+        c = drone.calibration
+        assert await drone.param.get_param_int("CAL_ACC0_ID") == 0
+        await asyncio.wait_for(calibrate("gyro", c.calibrate_gyro), 30)
+        texts = await asyncio.wait_for(calibrate("accel", c.calibrate_accelerometer), 120)
+        for side in ["back", "front", "left", "right", "up", "down"]:
+            assert f"{side} side done, rotate to a different side" in texts, texts
+        await asyncio.wait_for(calibrate("level", c.calibrate_level_horizon), 30)
+        await asyncio.wait_for(calibrate("mag", c.calibrate_magnetometer), 150)
+        gyro = [await drone.param.get_param_float(f"CAL_GYRO0_{a}OFF") for a in "XYZ"]
+        offsets = [await drone.param.get_param_float(f"CAL_ACC0_{a}OFF") for a in "XYZ"]
+        scales = [await drone.param.get_param_float(f"CAL_ACC0_{a}SCALE") for a in "XYZ"]
+        board = [await drone.param.get_param_float(f"SENS_BOARD_{a}_OFF") for a in "XY"]
+        print(f"gyro offsets {gyro} rad/s, accelerometer offsets {offsets} m/s² and scales "
+              f"{scales}, board {board}°")
+        assert await drone.param.get_param_int("CAL_ACC0_ID") == 1
+        assert await drone.param.get_param_int("CAL_GYRO0_ID") == 1
+        # The uncalibrated board's errors are seeded, none of them zero.
+        assert all(g != 0.0 for g in gyro) and all(o != 0.0 for o in offsets)
+        assert all(s != 1.0 and 0.9 < s < 1.1 for s in scales) and all(b != 0.0 for b in board)
+
+        # Calibrated and set down: once it is ready (the gyro bias settled again after the
+        # turns) it flies; a calibration asked in flight is refused.
+        await first(drone.telemetry.health(), lambda h: h.is_armable, 30)
+        await drone.action.arm()
+        await drone.action.takeoff()
+        await first(drone.telemetry.in_air(), lambda a: a, 30)
+        since = time.monotonic()
+        watcher.conn.mav.command_long_send(1, 1, ML.MAV_CMD_PREFLIGHT_CALIBRATION, 0,
+                                           1, 0, 0, 0, 0, 0, 0)
+        acks = []
+        for _ in range(50):
+            acks = [m for m in watcher.messages("COMMAND_ACK", since)
+                    if m.command == ML.MAV_CMD_PREFLIGHT_CALIBRATION]
+            if acks:
+                break
+            await asyncio.sleep(0.1)
+        await asyncio.sleep(0.5)
+        said = [m.text for m in watcher.messages("STATUSTEXT", since)]
+        assert acks and acks[0].result == ML.MAV_RESULT_DENIED, acks
+        assert any("disarm first" in t for t in said), said
+        await drone.action.land()
+        await first(drone.telemetry.armed(), lambda a: not a, 60)
+
+    with_watcher(tmp_path, flight, ["COMMAND_ACK", "STATUSTEXT", "HEARTBEAT"],
+                 scenario=scenario(UNCALIBRATED))

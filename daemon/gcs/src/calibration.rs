@@ -1,12 +1,13 @@
-//! Onboard calibration on MAVLink, as PX4 speaks it: `MAV_CMD_PREFLIGHT_CALIBRATION` with
-//! param2 = 1 starts a magnetometer calibration (every param 0 cancels one), acknowledged when
-//! the control loop has started it; progress and the end are `STATUSTEXT`s in the `[cal]`
-//! words QGroundControl and MAVSDK's calibration plugin parse (`[cal] calibration started: 2
-//! mag`, `[cal] progress <N>`, `[cal] calibration done: mag`, `[cal] calibration failed: …`,
-//! `[cal] calibration cancelled`); the result is also a `MAG_CAL_REPORT`. A calibration that
-//! succeeds becomes the parameters `CAL_MAG0_XOFF`…`ZOFF`, `CAL_MAG0_XSCALE`…,
-//! `CAL_MAG0_XODIAG`… and `CAL_MAG0_ID` (all together, each announced in `PARAM_VALUE`),
-//! flown at once and saved to the parameter store.
+//! Onboard calibration on MAVLink, as PX4 speaks it: `MAV_CMD_PREFLIGHT_CALIBRATION` starts
+//! one (`commands/preflight.rs`; every param 0 cancels one), acknowledged when the control loop
+//! has started it; progress and the end are `STATUSTEXT`s in the `[cal]` words QGroundControl
+//! and MAVSDK's calibration plugin parse (`[cal] calibration started: 2 mag`, `[cal] progress
+//! <N>`, `[cal] calibration done: mag`, `[cal] calibration failed: …`, `[cal] calibration
+//! cancelled`; any other `[cal]` text is an instruction). This file says the magnetometer's,
+//! whose result is also a `MAG_CAL_REPORT`; [`imu`] the gyro's, the accelerometer's and the
+//! level horizon's. A calibration that succeeds becomes its parameters — here
+//! `CAL_MAG0_XOFF`…`ZOFF`, `CAL_MAG0_XSCALE`…, `CAL_MAG0_XODIAG`… and `CAL_MAG0_ID` — all
+//! together, each announced in `PARAM_VALUE`, flown at once and saved to the parameter store.
 
 use super::{GroundStation, HostAction, Outbox};
 use crate::telemetry::Telemetry;
@@ -16,6 +17,8 @@ use mavlink::dialects::common::*;
 /// The calibration protocol's version in its start message (QGroundControl checks it).
 const STARTED: &str = "[cal] calibration started: 2 mag";
 
+mod imu;
+
 /// What has been said of a calibration run: its number, the progress shown, whether its end was.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub(super) struct Shown {
@@ -24,26 +27,39 @@ pub(super) struct Shown {
     ended: bool,
 }
 
+/// What has been said of the calibrations.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(super) struct Said {
+    mag: Shown,
+    imu: imu::Said,
+}
+
 impl GroundStation {
-    /// Says what changed in the calibration `t` shows since the last call.
+    /// Says what changed in the calibrations `t` shows since the last call.
     pub(super) fn report_calibration(&mut self, t: &Telemetry, out: &mut Outbox) {
+        self.report_mag_calibration(t, out);
+        self.report_imu_calibration(t, out);
+    }
+
+    /// Says what changed in the magnetometer calibration.
+    fn report_mag_calibration(&mut self, t: &Telemetry, out: &mut Outbox) {
         let Some(s) = t.mag_cal else {
             return;
         };
         let info = MavSeverity::MAV_SEVERITY_INFO;
-        if s.run != self.mag_cal_shown.run {
-            self.mag_cal_shown = Shown {
+        if s.run != self.cal_said.mag.run {
+            self.cal_said.mag = Shown {
                 run: s.run,
                 ..Shown::default()
             };
             out.say(info, STARTED);
             out.say(info, "[cal] Rotate the vehicle through every orientation");
         }
-        if self.mag_cal_shown.ended {
+        if self.cal_said.mag.ended {
             return;
         }
-        if s.percent > self.mag_cal_shown.percent && s.state == MagCalState::Collecting {
-            self.mag_cal_shown.percent = s.percent;
+        if s.percent > self.cal_said.mag.percent && s.state == MagCalState::Collecting {
+            self.cal_said.mag.percent = s.percent;
             out.say(info, &format!("[cal] progress <{}>", s.percent));
         }
         match s.state {
@@ -58,7 +74,39 @@ impl GroundStation {
             }
             MagCalState::Cancelled => out.say(info, "[cal] calibration cancelled"),
         }
-        self.mag_cal_shown.ended = true;
+        self.cal_said.mag.ended = true;
+    }
+
+    /// A calibration's result `values` become their parameters, all or none — each as a float
+    /// parameter travels (what a ground station reads back is what is flown), the `_ID`s as
+    /// integers — flown, saved, and the end said (`[cal] progress <100>`, `[cal] calibration
+    /// done: <kind>`); a refusal is the caller's to say.
+    fn set_calibration(
+        &mut self,
+        kind: &str,
+        values: &[(&str, f64)],
+        out: &mut Outbox,
+    ) -> Result<(), flight_core::params::ParamRejection> {
+        let values: Vec<(&str, f64)> = values
+            .iter()
+            .map(|&(n, v)| {
+                (
+                    n,
+                    if n.ends_with("_ID") {
+                        v
+                    } else {
+                        v as f32 as f64
+                    },
+                )
+            })
+            .collect();
+        self.params.set_many(&values, out)?;
+        out.actions.push(HostAction::ParamsChanged);
+        out.actions.push(HostAction::SaveParams);
+        out.say(MavSeverity::MAV_SEVERITY_INFO, "[cal] progress <100>");
+        let done = format!("[cal] calibration done: {kind}");
+        out.say(MavSeverity::MAV_SEVERITY_INFO, &done);
+        Ok(())
     }
 
     /// A calibration's result becomes the parameters, flown and saved.
@@ -82,29 +130,8 @@ impl GroundStation {
             ("CAL_MAG0_ZODIAG", c[(1, 2)]),
             ("CAL_MAG0_ID", id),
         ];
-        // As a float parameter travels (what a ground station reads back is what is flown).
-        let values: Vec<(&str, f64)> = names
-            .iter()
-            .map(|&(n, v)| {
-                (
-                    n,
-                    if n == "CAL_MAG0_ID" {
-                        v
-                    } else {
-                        v as f32 as f64
-                    },
-                )
-            })
-            .collect();
-        match self.params.set_many(&values, out) {
+        match self.set_calibration("mag", &names, out) {
             Ok(()) => {
-                out.actions.push(HostAction::ParamsChanged);
-                out.actions.push(HostAction::SaveParams);
-                out.say(MavSeverity::MAV_SEVERITY_INFO, "[cal] progress <100>");
-                out.say(
-                    MavSeverity::MAV_SEVERITY_INFO,
-                    "[cal] calibration done: mag",
-                );
                 let fitness_mg = r.residual_rms * strength * 1000.0;
                 out.send(report(Some(r), MagCalStatus::MAG_CAL_SUCCESS, fitness_mg));
             }
@@ -164,6 +191,7 @@ mod tests {
     use super::super::{AutopilotCommand, Outgoing};
     use super::*;
     use flight_core::commander::FlightMode;
+    use flight_core::sensors::imu_calibrator::ImuCalKind;
     use flight_core::sensors::mag_calibrator::MagCalStatus as Progress;
     use nalgebra::{Matrix3, Vector3};
 
@@ -176,7 +204,7 @@ mod tests {
     }
 
     #[test]
-    fn the_magnetometer_is_calibrated_on_command_and_all_zeros_cancel() {
+    fn each_calibration_is_started_on_command_and_all_zeros_cancel() {
         let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
         let out = command(&mut g, [0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
         assert_eq!(out.vehicle[0].0, AutopilotCommand::CalibrateMag);
@@ -189,16 +217,40 @@ mod tests {
         );
         let out = command(&mut g, [0.0; 7]);
         assert_eq!(out.vehicle[0].0, AutopilotCommand::CancelCalibration);
-        // The gyro, the accelerometer, or the magnetometer with another: unsupported, said why.
-        for p in [
-            [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-            [0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.0],
+        // As MAVSDK asks for the others: gyro param1 1, accelerometer param5 1, level param5 2.
+        for (p, kind) in [
+            (
+                [1.0, 0.0, 0.0, 0.0, 0.0, f32::NAN, f32::NAN],
+                ImuCalKind::Gyro,
+            ),
+            (
+                [0.0, 0.0, 0.0, 0.0, 1.0, f32::NAN, f32::NAN],
+                ImuCalKind::Accel,
+            ),
+            (
+                [0.0, 0.0, 0.0, 0.0, 2.0, f32::NAN, f32::NAN],
+                ImuCalKind::Level,
+            ),
+        ] {
+            let out = command(&mut g, p);
+            assert_eq!(out.vehicle[0].0, AutopilotCommand::CalibrateImu(kind));
+        }
+        // Two at once, the barometer, a quick accelerometer: refused, said why.
+        for (p, why) in [
+            ([0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.0], "one at a time"),
+            (
+                [0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0],
+                "param3 = 1 is not calibrated onboard",
+            ),
+            (
+                [0.0, 0.0, 0.0, 0.0, 4.0, 0.0, 0.0],
+                "param5 = 4 is not calibrated onboard",
+            ),
         ] {
             let out = command(&mut g, p);
             assert!(out.vehicle.is_empty());
             assert_eq!(acks(&out)[0].result, MavResult::MAV_RESULT_UNSUPPORTED);
-            assert!(statustexts(&out)[0].contains("only the magnetometer"));
+            assert!(statustexts(&out).concat().contains(why), "{why}");
         }
     }
 

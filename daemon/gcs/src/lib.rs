@@ -262,8 +262,8 @@ pub struct GroundStation {
     reached_shown: u32,
     /// When MISSION_CURRENT is next due (s).
     mission_current_next_s: f64,
-    /// What has been said of the magnetometer calibration.
-    mag_cal_shown: calibration::Shown,
+    /// What has been said of the calibrations.
+    cal_said: calibration::Said,
     /// A reboot restarts the process: refused for one of several vehicles in it (`--count`).
     reboot_allowed: bool,
 }
@@ -302,7 +302,7 @@ impl GroundStation {
             mission_shown: None,
             reached_shown: 0,
             mission_current_next_s: 0.0,
-            mag_cal_shown: Default::default(),
+            cal_said: Default::default(),
             reboot_allowed: true,
         }
     }

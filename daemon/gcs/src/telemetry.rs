@@ -5,6 +5,7 @@ use flight_core::control::Setpoint;
 use flight_core::core::{SensorSample, StepOutput};
 use flight_core::estimator::translation::GpsMeasurement;
 use flight_core::sensors::battery::BatteryState;
+use flight_core::sensors::imu_calibrator::ImuCalStatus;
 use flight_core::sensors::mag_calibrator::MagCalStatus;
 
 /// What the control loop publishes after every step, the latest value: what the streams say
@@ -43,6 +44,8 @@ pub struct Telemetry {
     pub source_restarts: u32,
     /// The magnetometer calibration under way, or the last one.
     pub mag_cal: Option<MagCalStatus>,
+    /// The gyro, accelerometer or level-horizon calibration under way, or the last one.
+    pub imu_cal: Option<ImuCalStatus>,
 }
 
 /// The deadline loop's timing over an interval (a flight board in real time).

@@ -21,6 +21,7 @@ use flight_core::autopilot::command::AutopilotCommand;
 use flight_core::autopilot::{Autopilot, StepInputs};
 use flight_core::commander::Denial;
 use flight_core::params::FlightParams;
+use flight_core::sensors::imu_calibrator::PoseRequest;
 use gcs::telemetry::{LoopSummary, Telemetry};
 use hil::ActuatorCommand;
 use std::time::{Duration, Instant};
@@ -220,7 +221,13 @@ struct ControlLoop<'a> {
     published: Instant,
     /// When the last ground-station heartbeat arrived (wall clock).
     gcs_heartbeat: Option<Instant>,
+    /// A calibration's last request to the simulator's hand, and when it went (sensor time).
+    pose_sent: (PoseRequest, f64),
 }
+
+/// How often a calibration's unchanged request to the hand is sent again (s): a few times
+/// within the simulator's half second of patience, not on every frame of a slow serial line.
+const POSE_REPEAT_S: f64 = 0.2;
 
 impl<'a> ControlLoop<'a> {
     fn new(member: Onboard<'a>) -> Self {
@@ -248,6 +255,7 @@ impl<'a> ControlLoop<'a> {
             last_frame_clock: None,
             silent: false,
             silent_done_at: None,
+            pose_sent: (PoseRequest::None, f64::NEG_INFINITY),
             loop_stats: None,
             published: Instant::now(),
             gcs_heartbeat: None,
@@ -329,6 +337,21 @@ impl<'a> ControlLoop<'a> {
         Ok(arrived)
     }
 
+    /// The calibration's request to the hand for this answer: when it changes, and again every
+    /// [`POSE_REPEAT_S`].
+    fn pose_to_send(&mut self) -> PoseRequest {
+        let pose = self.autopilot.pose_request();
+        let (last, at) = self.pose_sent;
+        if pose != PoseRequest::None && (pose != last || self.t_s - at >= POSE_REPEAT_S) {
+            self.pose_sent = (pose, self.t_s);
+            return pose;
+        }
+        if pose == PoseRequest::None {
+            self.pose_sent.0 = pose;
+        }
+        PoseRequest::None
+    }
+
     /// The sensor watchdog: on the link's clock, frames silent for [`SENSOR_TIMEOUT_S`] make
     /// the estimate invalid and the vehicle react; its commands keep going out meanwhile.
     fn watchdog(&mut self) -> Result<Flow> {
@@ -394,7 +417,8 @@ impl<'a> ControlLoop<'a> {
             }
             self.report.frames += 1;
             self.t_s = step.t_usec as f64 * 1e-6;
-            self.send(&frames::answer(&step, self.rotors))?;
+            let pose = self.pose_to_send();
+            self.send(&frames::answer(&step, self.rotors, pose))?;
             let changed = self.autopilot.take_changed();
             let now = self.last_frame;
             if now >= self.published + TELEMETRY_INTERVAL || changed {
@@ -417,6 +441,7 @@ impl<'a> ControlLoop<'a> {
                     sensors_silent: false,
                     source_restarts: a.source_restarts(),
                     mag_cal: a.mag_calibration(),
+                    imu_cal: a.imu_calibration(),
                 });
             }
             if self.autopilot.awaiting_takeoff() && self.t_s > READY_TIMEOUT_S {

@@ -7,8 +7,10 @@ use flight_core::autopilot::AutopilotOutput;
 use flight_core::core::SensorSample;
 use flight_core::estimator::translation::GpsMeasurement;
 use flight_core::math::geo::LatLonAlt;
-use hil::{ActuatorCommand, Decoded, SensorUpdate, TruthReport};
+use flight_core::sensors::imu_calibrator::{PoseRequest, Side};
+use hil::{ActuatorCommand, Decoded, HandRequest, SensorUpdate, TruthReport};
 use mavlink::dialects::common::MavMessage;
+use sitl_core::sim::Face;
 
 /// One sensor frame: the autopilot's sample and, from a simulator, its ground truth.
 #[derive(Debug, Clone, PartialEq)]
@@ -99,7 +101,23 @@ pub fn close(u: &mut SensorUpdate) -> Option<LinkFrame> {
 }
 
 /// The answer to a step: the first `rotors` commands of `out`, quantised as
-/// `HIL_ACTUATOR_CONTROLS` carries them.
-pub fn answer(out: &AutopilotOutput, rotors: usize) -> ActuatorCommand {
-    ActuatorCommand::as_sent(out.t_usec, &out.commands[..rotors], out.armed)
+/// `HIL_ACTUATOR_CONTROLS` carries them, with what a calibration asks of the hand.
+pub fn answer(out: &AutopilotOutput, rotors: usize, pose: PoseRequest) -> ActuatorCommand {
+    ActuatorCommand::as_sent(out.t_usec, &out.commands[..rotors], out.armed).with_hand(hand(pose))
+}
+
+/// A calibration's request as the simulator's hand takes it.
+fn hand(pose: PoseRequest) -> HandRequest {
+    match pose {
+        PoseRequest::None => HandRequest::None,
+        PoseRequest::Tumble => HandRequest::Tumble,
+        PoseRequest::Place(side) => HandRequest::Place(match side {
+            Side::Back => Face::Back,
+            Side::Front => Face::Front,
+            Side::Left => Face::Left,
+            Side::Right => Face::Right,
+            Side::Up => Face::Up,
+            Side::Down => Face::Down,
+        }),
+    }
 }

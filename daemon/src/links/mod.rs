@@ -462,11 +462,13 @@ impl SensorLink for SerialLink {
     }
 }
 
-/// `command` as `HIL_ACTUATOR_CONTROLS` bytes in `tx`.
+/// `command` as bytes in `tx`: a calibration's `CAL_POSE` if it has one, then
+/// `HIL_ACTUATOR_CONTROLS`.
 fn encode(encoder: &mut Encoder, tx: &mut Vec<u8>, command: &ActuatorCommand) {
     tx.clear();
-    let msg = hil::actuator_controls(command.time_usec, &command.controls, command.armed);
-    encoder.push(tx, &msg);
+    for msg in command.messages() {
+        encoder.push(tx, &msg);
+    }
 }
 
 #[cfg(test)]

@@ -6,6 +6,7 @@ use super::vehicle;
 use crate::HostAction;
 use crate::{GroundStation, Outbox};
 use flight_core::autopilot::command::AutopilotCommand;
+use flight_core::sensors::imu_calibrator::ImuCalKind;
 use mavlink::dialects::common::*;
 
 impl GroundStation {
@@ -70,25 +71,39 @@ impl GroundStation {
                     out.say(MavSeverity::MAV_SEVERITY_NOTICE, what);
                 }
             }
-            MavCmd::MAV_CMD_PREFLIGHT_CALIBRATION => {
-                // Params 1–7: gyro, magnetometer, ground pressure, radio, accelerometer,
-                // airspeed/compass-motor, ESC/baro; all 0 cancels (PX4, MAVSDK). NaN is a
-                // reserved param left unset (MAVSDK leaves 6 and 7 so): 0.
-                let off = |x: f32| x == 0.0 || x.is_nan();
-                if p.iter().all(|&x| off(x)) {
-                    vehicle(out, to, AutopilotCommand::CancelCalibration);
-                } else if p[1] == 1.0 && p.iter().enumerate().all(|(i, &x)| i == 1 || off(x)) {
-                    vehicle(out, to, AutopilotCommand::CalibrateMag);
-                } else {
+            MavCmd::MAV_CMD_PREFLIGHT_CALIBRATION => match calibration(&p) {
+                Ok(c) => vehicle(out, to, c),
+                Err(why) => {
                     out.send(self.ack(to, MavResult::MAV_RESULT_UNSUPPORTED));
-                    out.say(
-                        MavSeverity::MAV_SEVERITY_WARNING,
-                        "calibration: only the magnetometer (param2 = 1) is calibrated onboard; \
-                         the gyro and accelerometer biases are estimated in flight",
-                    );
+                    out.say(MavSeverity::MAV_SEVERITY_WARNING, &why);
                 }
-            }
+            },
             _ => out.send(self.ack(to, MavResult::MAV_RESULT_UNSUPPORTED)),
         }
+    }
+}
+
+/// The calibration `MAV_CMD_PREFLIGHT_CALIBRATION`'s params ask for, as PX4 reads them: param1
+/// 1 the gyro, param2 1 the magnetometer, param5 1 the accelerometer, param5 2 the level
+/// horizon; every param 0 cancels. One at a time. NaN is a reserved param left unset (MAVSDK
+/// leaves 6 and 7 so): 0.
+fn calibration(p: &[f32; 7]) -> Result<AutopilotCommand, String> {
+    let set: Vec<(usize, f32)> = p
+        .iter()
+        .enumerate()
+        .filter(|(_, x)| **x != 0.0 && !x.is_nan())
+        .map(|(i, &x)| (i + 1, x))
+        .collect();
+    match set.as_slice() {
+        [] => Ok(AutopilotCommand::CancelCalibration),
+        [(1, 1.0)] => Ok(AutopilotCommand::CalibrateImu(ImuCalKind::Gyro)),
+        [(2, 1.0)] => Ok(AutopilotCommand::CalibrateMag),
+        [(5, 1.0)] => Ok(AutopilotCommand::CalibrateImu(ImuCalKind::Accel)),
+        [(5, 2.0)] => Ok(AutopilotCommand::CalibrateImu(ImuCalKind::Level)),
+        [(i, x)] => Err(format!(
+            "calibration: param{i} = {x} is not calibrated onboard (gyro: param1 1, \
+             magnetometer: param2 1, accelerometer: param5 1, level horizon: param5 2)"
+        )),
+        _ => Err("calibration: one at a time (more than one param set)".into()),
     }
 }
