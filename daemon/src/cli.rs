@@ -194,12 +194,16 @@ pub enum Command {
     /// batch's seed, on every core, with a progress bar; one CSV row of flight-quality figures
     /// per run (landed, failsafe, height, hover errors, attitude-estimate error, tilt, distance,
     /// touchdown and impact speeds) and a summary per fault.
-    Batch(BatchArgs),
+    Batch(Box<BatchArgs>),
 }
 
 /// `autopilot batch`'s flags.
 #[derive(Debug, Args)]
+#[command(args_conflicts_with_subcommands = true)]
 pub struct BatchArgs {
+    /// What else than flying a batch.
+    #[command(subcommand)]
+    pub action: Option<BatchAction>,
     /// Runs to fly.
     #[arg(long, default_value_t = 100)]
     pub runs: u32,
@@ -247,7 +251,35 @@ pub struct BatchArgs {
     /// Sensor quality: ideal, typical, noisy, realistic or uncalibrated.
     #[arg(long, default_value = "typical")]
     pub sensors: String,
-    /// The CSV written [default: batch-SEED.csv].
+    /// Fly only shard K of N of the campaign (K from 0): the runs whose number, counted from
+    /// --first, is K modulo N. Its CSV and manifest are merged with the others' by `batch
+    /// merge`.
+    #[arg(long, value_name = "K/N", conflicts_with = "shard_count")]
+    pub shard: Option<String>,
+    /// Fly one shard of N, its index K given by the cluster: JOB_COMPLETION_INDEX (a
+    /// Kubernetes Indexed Job) or AWS_BATCH_JOB_ARRAY_INDEX (an AWS Batch array job).
+    #[arg(long, value_name = "N")]
+    pub shard_count: Option<u32>,
+    /// The CSV written, its manifest beside it as .json [default: batch-SEED.csv, a shard's
+    /// batch-SEED-shard-K-of-N.csv]; an existing directory (or a path ending in /) holds the
+    /// default name.
     #[arg(long, short)]
     pub output: Option<PathBuf>,
+}
+
+/// `autopilot batch`'s subcommands.
+#[derive(Debug, Subcommand)]
+pub enum BatchAction {
+    /// Join the shards of a campaign into the CSV and manifest the campaign flown whole
+    /// writes (the same rows, byte for byte, in run order); refuses shards of two campaigns
+    /// or builds, a CSV that is not what its manifest says, and runs found twice or not at
+    /// all.
+    Merge {
+        /// Shard manifests (.json), their CSVs, or directories holding them.
+        #[arg(required = true)]
+        shards: Vec<PathBuf>,
+        /// The merged CSV, its manifest beside it as .json [default: batch-SEED.csv].
+        #[arg(long, short)]
+        output: Option<PathBuf>,
+    },
 }

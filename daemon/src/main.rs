@@ -24,7 +24,8 @@ fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     // A batch flies hundreds of vehicles: their own warnings (failsafes, faults) are in its CSV,
     // not the log, unless RUST_LOG asks for them.
-    let quiet = "info,autopilot::vehicle=off,autopilot::flight=off";
+    let quiet =
+        "info,flight_core=off,autopilot::control_loop=off,autopilot::links=off,sitl_core=off";
     let default = match cli.command {
         Some(Command::Batch { .. }) => quiet,
         _ => "info",

@@ -13,18 +13,27 @@ use crate::records::FlightRecords;
 use anyhow::{Context, Result, bail};
 use flight_core::autopilot::{AutoFlight, Autopilot};
 use flight_core::params::FlightParams;
-use indicatif::{ProgressBar, ProgressStyle};
 use nalgebra::Vector3;
 use sitl_core::Airframe;
 use sitl_core::environment::WindConfig;
 use sitl_core::rng::Rng;
 use sitl_core::sensors::{SensorConfig, SensorHealth, SensorKind, SensorPreset};
 use sitl_core::sim::{Event, SimAction, SimConfig};
-use std::io::IsTerminal;
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU32, Ordering};
+use std::path::Path;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 use tokio::sync::mpsc;
+
+pub mod manifest;
+pub mod merge;
+mod progress;
+pub mod shard;
+pub mod summary;
+
+use manifest::{Campaign, Manifest, Version};
+use progress::Progress;
+use shard::Shard;
+use summary::BatchSummary;
 
 /// What a batch varies and over what ranges.
 #[derive(Debug, Clone)]
@@ -442,66 +451,13 @@ pub fn csv_row(r: &RunResult) -> Vec<String> {
     cells
 }
 
-/// The progress of a batch on standard error: an `indicatif` bar on a terminal, otherwise (a
-/// CI log) a line at every tenth of the runs.
-struct Progress {
-    bar: Option<ProgressBar>,
-    total: u32,
-    done: u32,
-    landed: u32,
-    started: Instant,
-    shown_tenths: u32,
-}
-
-impl Progress {
-    fn new(total: u32) -> Self {
-        let bar = std::io::stderr().is_terminal().then(|| {
-            let style = ProgressStyle::with_template(
-                "[{bar:30}] {pos}/{len} runs, {msg}, {per_sec}, {eta} left",
-            )
-            .unwrap_or_else(|_| ProgressStyle::default_bar())
-            .progress_chars("#-");
-            ProgressBar::new(u64::from(total)).with_style(style)
-        });
-        Self {
-            bar,
-            total,
-            done: 0,
-            landed: 0,
-            started: Instant::now(),
-            shown_tenths: 0,
-        }
-    }
-
-    fn add(&mut self, landed: bool) {
-        self.done += 1;
-        self.landed += u32::from(landed);
-        if let Some(bar) = &self.bar {
-            bar.set_message(format!("{} landed", self.landed));
-            bar.inc(1);
-            if self.done == self.total {
-                bar.finish();
-            }
-            return;
-        }
-        let tenths = 10 * self.done / self.total.max(1);
-        if tenths <= self.shown_tenths {
-            return;
-        }
-        self.shown_tenths = tenths;
-        let rate = f64::from(self.done) / self.started.elapsed().as_secs_f64().max(1e-9);
-        let eta = f64::from(self.total - self.done) / rate.max(1e-9);
-        eprintln!(
-            "{}/{} runs, {} landed, {rate:.1} runs/s, {eta:.0} s left",
-            self.done, self.total, self.landed
-        );
-    }
-}
-
-/// Runs the batch on `jobs` threads, each row written to `output` as its run ends (so an
-/// interrupted batch keeps the runs done); prints a summary. Fails if a run could not be flown.
+/// Runs `shard` of the batch on `jobs` threads into the CSV `output`, each row written as soon
+/// as the runs before it are (rows in run order whatever the workers, so an interrupted batch
+/// keeps the runs done); then the manifest beside it ([`Manifest::path_of`]) and a summary.
+/// Fails if a run could not be flown.
 pub fn run(
     cfg: &BatchConfig,
+    shard: Shard,
     airframe_path: &Path,
     params_path: &Path,
     jobs: usize,
@@ -518,7 +474,14 @@ pub fn run(
             bail!("{name} must be within [0, {max}] m/s, got {x}");
         }
     }
+    if output.extension().is_some_and(|e| e == "json") {
+        bail!(
+            "{}: the CSV's name; its manifest is written beside it as .json",
+            output.display()
+        );
+    }
     let airframe = Airframe::load(airframe_path)?;
+    let campaign = Campaign::new(cfg, &airframe.name, airframe_path, params_path)?;
     let mut params = FlightParams::load(params_path)?;
     Source::Embedded.preset_params(&mut params);
     params.commander.takeoff_alt_m = cfg.takeoff_m;
@@ -526,109 +489,105 @@ pub fn run(
         std::fs::File::create(output).with_context(|| format!("creating {}", output.display()))?;
     let mut csv = csv::Writer::from_writer(std::io::BufWriter::new(file));
     csv.write_record(CSV_HEADER.split(','))?;
-    let jobs = jobs.clamp(1, cfg.runs as usize);
+    csv.flush()?;
+    let runs: Vec<u32> = shard.runs(cfg.first, cfg.runs).collect();
+    let jobs = jobs.clamp(1, runs.len().max(1));
     tracing::info!(
-        runs = cfg.runs,
+        runs = runs.len(),
+        %shard,
         jobs,
         airframe = %airframe.name,
         output = %output.display(),
         "batch"
     );
-    let next = AtomicU32::new(0);
-    let (tx, rx) = std::sync::mpsc::channel::<RunResult>();
+    let next = AtomicUsize::new(0);
+    let (tx, rx) = std::sync::mpsc::channel::<(usize, RunResult)>();
     let started = Instant::now();
-    let mut progress = Progress::new(cfg.runs);
-    let mut total = Tally::default();
-    let mut by_fault: Vec<(FaultKind, Tally)> = Vec::new();
+    let mut progress = Progress::new(runs.len() as u32);
+    let mut rows: Vec<csv::StringRecord> = Vec::with_capacity(runs.len());
+    // Rows that finished before one with a smaller number, by their place in `runs`.
+    let mut waiting = std::collections::BTreeMap::new();
     std::thread::scope(|scope| -> Result<()> {
         for _ in 0..jobs {
             let tx = tx.clone();
-            let (next, airframe, params) = (&next, &airframe, &params);
+            let (next, runs, airframe, params) = (&next, &runs, &airframe, &params);
             scope.spawn(move || {
                 loop {
                     let i = next.fetch_add(1, Ordering::Relaxed);
-                    if i >= cfg.runs {
+                    let Some(&run) = runs.get(i) else {
                         break;
-                    }
-                    let plan = RunPlan::draw(cfg, cfg.first + i, airframe.rotors.len());
-                    if tx.send(fly_run(cfg, airframe, params, plan)).is_err() {
+                    };
+                    let plan = RunPlan::draw(cfg, run, airframe.rotors.len());
+                    if tx.send((i, fly_run(cfg, airframe, params, plan))).is_err() {
                         break;
                     }
                 }
             });
         }
         drop(tx);
-        for result in rx.iter() {
-            csv.write_record(csv_row(&result))?;
-            csv.flush()?;
+        for (i, result) in rx.iter() {
             if let Err(e) = &result.flight {
                 tracing::error!(run = result.plan.run, "run failed: {e:#}");
             }
-            total.add(&result);
-            match by_fault.iter_mut().find(|f| f.0 == result.plan.fault) {
-                Some((_, t)) => t.add(&result),
-                None => {
-                    let mut t = Tally::default();
-                    t.add(&result);
-                    by_fault.push((result.plan.fault, t));
-                }
-            }
             progress.add(Outcome::of(&result.flight) == Outcome::Landed);
+            waiting.insert(i, csv::StringRecord::from(csv_row(&result)));
+            while let Some(row) = waiting.remove(&rows.len()) {
+                csv.write_record(&row)?;
+                csv.flush()?;
+                rows.push(row);
+            }
         }
         Ok(())
     })?;
+    drop(csv);
     let wall = started.elapsed().as_secs_f64();
-    by_fault.sort_by_key(|f| FaultKind::ALL.iter().position(|(_, k)| *k == f.0));
-    for (fault, t) in &by_fault {
-        println!("batch fault={} {t}", fault.name());
-    }
+    let summary = BatchSummary::of(&rows);
+    let manifest = Manifest {
+        format: manifest::FORMAT.into(),
+        campaign,
+        version: Version::this(),
+        shard,
+        runs_done: rows.len() as u32,
+        csv: output
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default(),
+        csv_sha256: manifest::sha256_hex(
+            &std::fs::read(output).with_context(|| format!("reading {}", output.display()))?,
+        ),
+        jobs,
+        wall_time_s: wall,
+        merged_shards: None,
+        summary,
+    };
+    let manifest_path = Manifest::path_of(output);
+    manifest.write(&manifest_path)?;
+    manifest.summary.print_faults();
     println!(
-        "batch summary: {total} jobs={jobs} wall_time_s={wall:.2} runs_per_s={:.2} csv={}",
-        f64::from(cfg.runs) / wall.max(1e-9),
-        output.display()
+        "batch summary: {} shard={shard} jobs={jobs} wall_time_s={wall:.2} runs_per_s={:.2} csv={} manifest={}",
+        manifest.summary.total,
+        rows.len() as f64 / wall.max(1e-9),
+        output.display(),
+        manifest_path.display()
     );
-    let errors = total.outcomes[Outcome::Error as usize];
+    let errors = manifest.summary.total.errors;
     if errors > 0 {
-        bail!("{errors} of {} runs could not be flown", cfg.runs);
+        bail!("{errors} of {} runs could not be flown", rows.len());
     }
     Ok(())
 }
 
-/// Runs counted by outcome, with their failsafes and the hardest impact.
-#[derive(Debug, Default)]
-struct Tally {
-    runs: u32,
-    /// By [`Outcome`], in its order.
-    outcomes: [u32; 4],
-    failsafes: u32,
-    max_impact_m_s: f64,
-}
-
-impl Tally {
-    fn add(&mut self, r: &RunResult) {
-        self.runs += 1;
-        self.outcomes[Outcome::of(&r.flight) as usize] += 1;
-        if let Ok(f) = &r.flight {
-            self.failsafes += u32::from(f.score().failsafe);
-            self.max_impact_m_s = self.max_impact_m_s.max(f.score().impact_m_s);
-        }
+/// The CSV's name of `shard` of a batch with `seed`: `batch-SEED.csv` whole, else
+/// `batch-SEED-shard-K-of-N.csv` (K as wide as N, so the names sort in order).
+pub fn default_name(seed: u64, shard: Shard) -> String {
+    if shard == Shard::WHOLE {
+        return format!("batch-{seed}.csv");
     }
-}
-
-impl std::fmt::Display for Tally {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let [landed, crashed, not_landed, errors] = self.outcomes;
-        write!(
-            f,
-            "runs={} landed={landed} crashed={crashed} not_landed={not_landed} errors={errors} failsafes={} max_impact_m_s={:.2}",
-            self.runs, self.failsafes, self.max_impact_m_s
-        )
-    }
-}
-
-/// The default output file of a batch with `seed`.
-pub fn default_output(seed: u64) -> PathBuf {
-    PathBuf::from(format!("batch-{seed}.csv"))
+    let width = shard.count.to_string().len();
+    format!(
+        "batch-{seed}-shard-{:0width$}-of-{}.csv",
+        shard.index, shard.count
+    )
 }
 
 /// The default number of workers: every CPU this process may run on.

@@ -1,6 +1,7 @@
 //! The batch's draws, its rows whatever the workers, and its fault names.
 #![allow(clippy::unwrap_used)]
 use super::*;
+use std::path::PathBuf;
 
 fn config(faults: &[FaultKind]) -> BatchConfig {
     BatchConfig {
@@ -46,7 +47,7 @@ fn a_run_is_drawn_from_its_own_stream_alone() {
 }
 
 /// A batch's rows are the same whatever the number of workers (each run draws from its own
-/// stream; rows arrive in any order), a quad with no fault lands, and one that loses a
+/// stream; rows are written in run order whichever ends first), a quad with no fault lands, and one that loses a
 /// motor crashes (it cannot fly on three) and is counted so.
 #[test]
 fn a_batch_gives_the_same_rows_whatever_the_workers_and_tells_crashes_from_landings() {
@@ -58,6 +59,7 @@ fn a_batch_gives_the_same_rows_whatever_the_workers_and_tells_crashes_from_landi
         let out = tmp.path().join(name);
         run(
             &cfg,
+            Shard::WHOLE,
             &dir.join("airframes/quad_x.toml"),
             &dir.join("flight.toml"),
             jobs,
@@ -65,9 +67,10 @@ fn a_batch_gives_the_same_rows_whatever_the_workers_and_tells_crashes_from_landi
         )
         .unwrap();
         let text = std::fs::read_to_string(&out).unwrap();
-        let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+        let lines: Vec<String> = text.lines().map(str::to_owned).collect();
         assert_eq!(lines[0], CSV_HEADER);
-        lines[1..].sort_by_key(|l| l.split(',').next().unwrap().parse::<u32>().unwrap());
+        let numbers: Vec<&str> = lines[1..].iter().map(|l| &l[..1]).collect();
+        assert_eq!(numbers, ["0", "1", "2", "3", "4", "5"], "rows in run order");
         lines
     };
     let one = rows(1, "one.csv");
@@ -105,4 +108,67 @@ fn fault_names_go_both_ways() {
         assert_eq!(f.name(), name);
     }
     assert!(FaultKind::from_name("meteor").is_err());
+}
+
+/// A campaign flown in shards and merged is the campaign flown whole, byte for byte, manifest
+/// summary included; merging refuses what does not make that campaign, naming the problem.
+#[test]
+fn shards_merged_are_the_campaign_flown_whole_and_bad_sets_are_refused() {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../params");
+    let (airframe, params) = (dir.join("airframes/quad_x.toml"), dir.join("flight.toml"));
+    let tmp = tempfile::tempdir().unwrap();
+    let mut cfg = config(&[FaultKind::None, FaultKind::Gps]);
+    cfg.runs = 7;
+    cfg.first = 5;
+    let fly = |cfg: &BatchConfig, shard: Shard, name: &str| {
+        let out = tmp.path().join(name);
+        run(cfg, shard, &airframe, &params, 2, &out).unwrap();
+        out
+    };
+    let whole = fly(&cfg, Shard::WHOLE, "whole.csv");
+    let shards: Vec<PathBuf> = (0..3)
+        .map(|k| fly(&cfg, Shard::new(k, 3).unwrap(), &format!("s{k}.csv")))
+        .collect();
+    let merged = tmp.path().join("merged.csv");
+    merge::merge(&shards, &merged).unwrap();
+    assert_eq!(
+        std::fs::read(&merged).unwrap(),
+        std::fs::read(&whole).unwrap()
+    );
+    let manifest = |p: &Path| Manifest::read(&Manifest::path_of(p)).unwrap();
+    let (m, w) = (manifest(&merged), manifest(&whole));
+    assert_eq!(
+        (m.summary, m.campaign, m.csv_sha256),
+        (w.summary, w.campaign, w.csv_sha256)
+    );
+    assert_eq!((m.runs_done, m.merged_shards), (7, Some(3)));
+    assert_eq!(manifest(&shards[1]).runs_done, 2, "runs 6 and 9");
+
+    let refused = |inputs: &[PathBuf]| {
+        let e = merge::merge(inputs, &tmp.path().join("refused.csv")).unwrap_err();
+        format!("{e:#}")
+    };
+    let e = refused(&shards[..2]);
+    assert!(
+        e.contains("missing: 7, 10") && e.contains("shard 2/3 not given"),
+        "{e}"
+    );
+    let e = refused(&[shards[0].clone(), shards[0].clone(), shards[1].clone()]);
+    assert!(e.contains("runs given twice: run 5 is in"), "{e}");
+    let mut other = cfg.clone();
+    other.wind_max_m_s = 4.0;
+    let stranger = fly(&other, Shard::new(2, 3).unwrap(), "other.csv");
+    let e = refused(&[shards[0].clone(), shards[1].clone(), stranger]);
+    assert!(e.contains("two campaigns: wind_max_m_s 5.0 vs 4.0"), "{e}");
+    // A CSV cut short (a copy that stopped midway).
+    let text = std::fs::read_to_string(&shards[2]).unwrap();
+    std::fs::write(&shards[2], &text[..text.len() - 20]).unwrap();
+    let e = refused(&shards);
+    assert!(
+        e.contains("s2.csv: 2 rows where its manifest") && e.contains("cut short"),
+        "{e}"
+    );
+    std::fs::remove_file(Manifest::path_of(&shards[2])).unwrap();
+    let e = refused(&shards);
+    assert!(e.contains("did not finish"), "{e}");
 }
