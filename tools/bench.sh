@@ -127,13 +127,31 @@ for n in 50 100; do
 done
 rm -rf "$logs" "$out"
 # Monte-Carlo batch: flights a second over every CPU, every fault drawn.
-out=$(mktemp)
+out=$(mktemp -d)
 b=$("$bin/autopilot" batch --runs 200 --seed 1 --params-dir params \
-    --faults none,motor,motor_off,gps,mag,baro,gust,imu -o "$out" 2>/dev/null | grep 'batch summary')
+    --faults none,motor,motor_off,gps,mag,baro,gust,imu -o "$out/" 2>/dev/null | grep 'batch summary')
 printf '%-50s %s runs/s on %s workers (%s landed, %s crashed of %s)\n' "batch: 200 runs, 5 m, 20 s hover, every fault" \
     "$(echo "$b" | field runs_per_s)" "$(echo "$b" | field jobs)" "$(echo "$b" | field landed)" \
     "$(echo "$b" | field crashed)" "$(echo "$b" | field runs)"
-rm -f "$out"
+# The same campaign of 1000 runs on both CPUs: a plain batch, then the Dask runner with a
+# LocalCluster of two workers (eight shards), timed from the shards' submission to the last
+# one in (the cluster's start is its own figure); the engine's cost per task.
+if .venv/bin/python -c "import distributed" 2>/dev/null; then
+    campaign=(--runs 1000 --seed 1 --params-dir params)
+    plain=$("$bin/autopilot" batch "${campaign[@]}" -o "$out/" 2>/dev/null | grep 'batch summary')
+    start=$(date +%s.%N)
+    dask=$(.venv/bin/python tools/campaign_dask.py --workers 2 --shards 8 --autopilot "$bin/autopilot" \
+        --out "$out/dask" -- "${campaign[@]}" 2>/dev/null)
+    total=$(python3 -c "print(f'{$(date +%s.%N) - $start:.1f}')")
+    d=$(echo "$dask" | grep 'campaign summary')
+    cmp -s "$out/dask/campaign.csv" "$out/batch-1.csv" && same="the same CSV" || same="CSVs DIFFER"
+    printf '%-50s %s runs/s\n' "campaign: 1000 runs, plain batch, 2 jobs" "$(echo "$plain" | field runs_per_s)"
+    printf '%-50s %s runs/s (%s %% of plain), per task %s s in the process and %s s idle, %s s with the cluster'"'"'s start; %s\n' \
+        "campaign: 1000 runs, Dask, 2 workers, 8 shards" "$(echo "$d" | field runs_per_s)" \
+        "$(python3 -c "print(round(100 * $(echo "$d" | field runs_per_s) / $(echo "$plain" | field runs_per_s)))")" \
+        "$(echo "$d" | field task_overhead_s)" "$(echo "$d" | field idle_per_task_s)" "$total" "$same"
+fi
+rm -rf "$out"
 
 # JSBSim's lockstep speed, when the test command's venv is there to supply it.
 if .venv/bin/python -c "import jsbsim" 2>/dev/null; then
