@@ -30,7 +30,7 @@ if ! cat tests/requirements.txt tests/requirements-nodeps.txt | cmp -s - "$stamp
     "${pip[@]}" --no-deps -r tests/requirements-nodeps.txt
     cat tests/requirements.txt tests/requirements-nodeps.txt > "$stamp"
 fi
-"$venv/bin/python" -m pytest -q tests/python
+"$venv/bin/python" -m pytest -q --durations=20 tests/python
 
 echo "== fuzz (coverage-guided, a short run of each target)"
 tools/fuzz.sh 12
