@@ -1,6 +1,6 @@
-//! Records the git commit the autopilot is built from (`AUTOPILOT_GIT_HASH`, given by the
-//! environment of the build when there is no git checkout, as in a container build), for the
-//! manifests of `autopilot batch`.
+//! Records the git commit the autopilot is built from, `-dirty` after it when tracked files
+//! have changes (`AUTOPILOT_GIT_HASH` from the build's environment instead, when there is no
+//! git checkout, as in a container build), for the manifests of `autopilot batch`.
 
 use std::process::Command;
 
@@ -9,7 +9,6 @@ fn git(args: &[&str]) -> Option<String> {
     out.status
         .success()
         .then(|| String::from_utf8_lossy(&out.stdout).trim().to_owned())
-        .filter(|s| !s.is_empty())
 }
 
 fn main() {
@@ -17,13 +16,23 @@ fn main() {
     let given = std::env::var("AUTOPILOT_GIT_HASH")
         .ok()
         .filter(|s| !s.is_empty());
-    let hash = given
-        .or_else(|| git(&["rev-parse", "HEAD"]))
-        .unwrap_or_else(|| "unknown".into());
-    // Built again when HEAD moves: HEAD itself, and the branch it names.
-    for path in [git(&["rev-parse", "--git-path", "HEAD"]), branch_file()]
+    let from_git = || {
+        let hash = git(&["rev-parse", "HEAD"]).filter(|h| !h.is_empty())?;
+        let changed = git(&["status", "--porcelain", "--untracked-files=no"])?;
+        Some(if changed.is_empty() {
+            hash
+        } else {
+            format!("{hash}-dirty")
+        })
+    };
+    let hash = given.or_else(from_git).unwrap_or_else(|| "unknown".into());
+    // Run again when HEAD moves (HEAD itself, the branch it names) or a source changes (the
+    // workspace's crates, from this package's directory).
+    let watched = [git(&["rev-parse", "--git-path", "HEAD"]), branch_file()];
+    for path in watched
         .into_iter()
         .flatten()
+        .chain([".", "../airframe", "../navmath", "../sitl", "../Cargo.lock"].map(String::from))
     {
         if std::path::Path::new(&path).exists() {
             println!("cargo:rerun-if-changed={path}");
@@ -34,7 +43,7 @@ fn main() {
 
 /// The file of the branch HEAD names (absent once packed; then packed-refs).
 fn branch_file() -> Option<String> {
-    let branch = git(&["symbolic-ref", "-q", "HEAD"])?;
+    let branch = git(&["symbolic-ref", "-q", "HEAD"]).filter(|b| !b.is_empty())?;
     let loose = git(&["rev-parse", "--git-path", &branch])?;
     if std::path::Path::new(&loose).exists() {
         Some(loose)

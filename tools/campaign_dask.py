@@ -28,12 +28,12 @@ import argparse
 import ctypes
 import json
 import os
-import shlex
 import signal
 import subprocess
 import sys
 import tempfile
 import time
+import uuid
 from pathlib import Path
 
 import dask
@@ -45,12 +45,21 @@ Launcher = dict
 TOPIC = "autopilot-shard-begins"
 
 
-def _die_with_parent() -> None:
-    """In the shard's process, before it runs: die when the worker that started it dies
-    (Linux's PR_SET_PDEATHSIG), so a killed worker leaves no orphan flying on."""
-    if sys.platform.startswith("linux"):
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+def die_with(parent: int):
+    """What the shard's process runs before it starts (`preexec_fn`): die when the worker that
+    started it dies (Linux's PR_SET_PDEATHSIG), so a killed worker leaves no orphan flying on;
+    at once if it already has. `prctl` is looked up here, before the fork: nothing that may
+    take a lock runs between fork and exec."""
+    if not sys.platform.startswith("linux"):
+        return None
+    prctl = ctypes.CDLL(None, use_errno=True).prctl
+
+    def preexec() -> None:
+        prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+        if os.getppid() != parent:
+            os._exit(1)
+
+    return preexec
 
 
 def command(launcher: Launcher, workdir: str) -> tuple[list[str], str]:
@@ -82,7 +91,7 @@ def run_shard(launcher: Launcher, batch_args: list[str], index: int, count: int,
         argv = prefix + ["batch", *batch_args, "--shard", f"{index}/{count}",
                          "--jobs", str(jobs), "-o", inside + "/"]
         proc = subprocess.run(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                              preexec_fn=_die_with_parent)
+                              preexec_fn=die_with(os.getpid()))
         if proc.returncode != 0:
             words = proc.stderr.decode(errors="replace").strip().splitlines()[-3:]
             raise RuntimeError(f"exit {proc.returncode}: {' | '.join(words)}")
@@ -158,9 +167,9 @@ def main(argv: list[str]) -> int:
               "or give --autopilot or --image)", file=sys.stderr)
         return 2
     if args.scheduler:
-        client = Client(args.scheduler)
-        cluster = None
-        workers = len(client.scheduler_info().get("workers", {})) or 1
+        client, cluster = Client(args.scheduler), None
+        threads = sum(w.get("nthreads", 1)
+                      for w in client.scheduler_info().get("workers", {}).values()) or 1
     else:
         # A worker's death costs the shard it flew (and any waiting there) a new start
         # elsewhere, at most --retries times.
@@ -168,8 +177,18 @@ def main(argv: list[str]) -> int:
         cluster = LocalCluster(n_workers=args.workers, threads_per_worker=1, processes=True,
                                host="127.0.0.1", dashboard_address=None)
         client = Client(cluster)
-        workers = args.workers
-    count = args.shards or 4 * workers
+        threads = args.workers
+    try:
+        return fly(args, batch_args, launcher, client, threads)
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def fly(args, batch_args, launcher, client, threads) -> int:
+    """Flies the campaign's shards on `client`'s cluster, then merges them."""
+    count = args.shards or 4 * threads
     wanted = range(count)
     if args.only:
         try:
@@ -183,8 +202,8 @@ def main(argv: list[str]) -> int:
             return 2
     shards_dir = args.out / "shards"
     shards_dir.mkdir(parents=True, exist_ok=True)
-    print(f"campaign: {len(wanted)} of {count} shards on {workers} workers "
-          f"({client.scheduler.address}), {args.retries} retries each", flush=True)
+    print(f"campaign: {len(wanted)} of {count} shards on {threads} worker threads "
+          f"({client.scheduler.address})", flush=True)
 
     started = time.monotonic()
     begun: dict[int, int] = {}
@@ -197,10 +216,13 @@ def main(argv: list[str]) -> int:
                   "failed or its worker was lost", flush=True)
 
     client.subscribe_topic(TOPIC, on_begin)
+    # Keys unique to this runner: two campaigns may share a scheduler.
+    token = uuid.uuid4().hex[:8]
     futures = {client.submit(run_shard, launcher, batch_args, k, count, args.jobs_per_shard,
-                             key=f"shard-{k}-of-{count}", pure=False, retries=args.retries): k
+                             key=f"shard-{k}-of-{count}-{token}", pure=False,
+                             retries=args.retries): k
                for k in wanted}
-    done, runs, failed = 0, 0, {}
+    done, runs, failed, written = 0, 0, {}, []
     task_seconds = batch_seconds = 0.0
     for future in as_completed(futures):
         k = futures[future]
@@ -217,6 +239,7 @@ def main(argv: list[str]) -> int:
             tmp = shards_dir / f".{name}.tmp"
             tmp.write_bytes(data)
             os.replace(tmp, shards_dir / name)
+        written.append(shards_dir / shard["manifest_name"])
         done += 1
         runs += shard["runs"]
         task_seconds += shard["seconds"]
@@ -226,30 +249,30 @@ def main(argv: list[str]) -> int:
               f"{runs / max(wall, 1e-9):.1f} runs/s, {wall:.1f} s", flush=True)
     wall = time.monotonic() - started
     retries = sum(n - 1 for n in begun.values())
-    client.close()
-    if cluster is not None:
-        cluster.close()
     if failed:
-        print(f"campaign: {len(failed)} shards failed, {args.retries} retries each: "
+        print(f"campaign: {len(failed)} shards failed after their retries: "
               + "; ".join(f"{k}/{count}: {why}" for k, why in sorted(failed.items()))
-              + f". The shards done are in {shards_dir}; fly the rest with --only "
-              + ",".join(str(k) for k in sorted(failed)), file=sys.stderr)
+              + f". The shards done are in {shards_dir}; fly the rest with --shards {count} "
+              + "--only " + ",".join(str(k) for k in sorted(failed)), file=sys.stderr)
         return 1
     # The engine's cost per task: the Dask task's time beyond the batch's own (process start,
-    # the shard's files), and the workers' time not spent in tasks (scheduling, the tail).
+    # the shard's files), and the worker threads' time not spent in tasks (scheduling, the
+    # tail).
     process = (task_seconds - batch_seconds) / max(done, 1)
-    idle = (workers * wall - task_seconds) / max(done, 1)
-    print(f"campaign summary: shards={done} runs={runs} workers={workers} retries={retries} "
+    idle = (threads * wall - task_seconds) / max(done, 1)
+    print(f"campaign summary: shards={done} runs={runs} workers={threads} retries={retries} "
           f"wall_time_s={wall:.2f} runs_per_s={runs / max(wall, 1e-9):.2f} "
           f"task_overhead_s={process:.3f} idle_per_task_s={idle:.3f}", flush=True)
     if args.only:
         print(f"campaign: merge once every shard is in: autopilot batch merge {shards_dir}",
               flush=True)
         return 0
+    # This run's shards by name: whatever else the directory holds stays out.
     out = args.out / "campaign.csv"
     prefix, inside = command(launcher, str(args.out.resolve()))
-    merge = prefix + ["batch", "merge", f"{inside}/shards", "-o", f"{inside}/campaign.csv"]
-    print("campaign: " + shlex.join(merge), flush=True)
+    merge = prefix + ["batch", "merge", *(f"{inside}/shards/{m.name}" for m in written),
+                      "-o", f"{inside}/campaign.csv"]
+    print(f"campaign: merging {len(written)} shards into {out}", flush=True)
     status = subprocess.run(merge).returncode
     if status == 0:
         print(f"campaign: {out}", flush=True)

@@ -19,7 +19,7 @@ use sitl_core::environment::WindConfig;
 use sitl_core::rng::Rng;
 use sitl_core::sensors::{SensorConfig, SensorHealth, SensorKind, SensorPreset};
 use sitl_core::sim::{Event, SimAction, SimConfig};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 use tokio::sync::mpsc;
@@ -474,17 +474,28 @@ pub fn run(
             bail!("{name} must be within [0, {max}] m/s, got {x}");
         }
     }
-    if output.extension().is_some_and(|e| e == "json") {
+    if cfg.first.checked_add(cfg.runs).is_none() {
         bail!(
-            "{}: the CSV's name; its manifest is written beside it as .json",
-            output.display()
+            "--first {} and --runs {}: run numbers end at {}",
+            cfg.first,
+            cfg.runs,
+            u32::MAX - 1
         );
     }
+    refuse_json(output)?;
     let airframe = Airframe::load(airframe_path)?;
     let campaign = Campaign::new(cfg, &airframe.name, airframe_path, params_path)?;
     let mut params = FlightParams::load(params_path)?;
     Source::Embedded.preset_params(&mut params);
     params.commander.takeoff_alt_m = cfg.takeoff_m;
+    // A manifest left from a batch before would vouch for the CSV being written: gone first.
+    let manifest_path = Manifest::path_of(output);
+    match std::fs::remove_file(&manifest_path) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+            Err(e).with_context(|| format!("removing {}", manifest_path.display()))?
+        }
+        _ => {}
+    }
     let file =
         std::fs::File::create(output).with_context(|| format!("creating {}", output.display()))?;
     let mut csv = csv::Writer::from_writer(std::io::BufWriter::new(file));
@@ -525,6 +536,8 @@ pub fn run(
             });
         }
         drop(tx);
+        // Owned here, so that an error below drops it and the workers stop at their next run.
+        let rx = rx;
         for (i, result) in rx.iter() {
             if let Err(e) = &result.flight {
                 tracing::error!(run = result.plan.run, "run failed: {e:#}");
@@ -548,10 +561,7 @@ pub fn run(
         version: Version::this(),
         shard,
         runs_done: rows.len() as u32,
-        csv: output
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default(),
+        csv: manifest::file_name(output),
         csv_sha256: manifest::sha256_hex(
             &std::fs::read(output).with_context(|| format!("reading {}", output.display()))?,
         ),
@@ -560,7 +570,6 @@ pub fn run(
         merged_shards: None,
         summary,
     };
-    let manifest_path = Manifest::path_of(output);
     manifest.write(&manifest_path)?;
     manifest.summary.print_faults();
     println!(
@@ -573,6 +582,43 @@ pub fn run(
     let errors = manifest.summary.total.errors;
     if errors > 0 {
         bail!("{errors} of {} runs could not be flown", rows.len());
+    }
+    Ok(())
+}
+
+/// The CSV to write: `given`, or `name` in it when it is a directory (made when it ends in /),
+/// or `name` here; never a `.json`.
+pub fn output_path(given: Option<&Path>, name: &str) -> Result<PathBuf> {
+    let Some(given) = given else {
+        return Ok(PathBuf::from(name));
+    };
+    if given.as_os_str().to_string_lossy().ends_with('/') {
+        std::fs::create_dir_all(given).with_context(|| format!("creating {}", given.display()))?;
+    }
+    let path = if given.is_dir() {
+        given.join(name)
+    } else {
+        given.to_path_buf()
+    };
+    refuse_json(&path)?;
+    Ok(path)
+}
+
+/// The CSV's column `name` (its position in [`CSV_HEADER`]).
+pub fn column(name: &str) -> usize {
+    CSV_HEADER
+        .split(',')
+        .position(|c| c == name)
+        .unwrap_or(usize::MAX)
+}
+
+/// Refuses a CSV named `.json`: its manifest is written beside it under that name.
+pub fn refuse_json(output: &Path) -> Result<()> {
+    if output.extension().is_some_and(|e| e == "json") {
+        bail!(
+            "{}: the CSV's name; its manifest is written beside it as .json",
+            output.display()
+        );
     }
     Ok(())
 }

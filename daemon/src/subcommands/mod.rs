@@ -10,24 +10,19 @@ use crate::cli::{BatchAction, BatchArgs};
 use crate::settings::{self, HOVER_RANGE_S, TAKEOFF_RANGE_M, in_range};
 use anyhow::{Context, Result};
 use batch::shard::Shard;
-use std::path::{Path, PathBuf};
 
 /// `autopilot batch`: its flags checked, then the batch (or the shard of it) flown; or the
 /// shards merged.
 pub fn run_batch(args: &BatchArgs) -> Result<()> {
     if let Some(BatchAction::Merge { shards, output }) = &args.action {
-        let output = match output {
-            Some(o) => o.clone(),
-            None => PathBuf::from(batch::default_name(seed_of(shards)?, Shard::WHOLE)),
-        };
-        return batch::merge::merge(shards, &output);
+        return batch::merge::merge(shards, output.as_deref());
     }
     let shard = match (&args.shard, args.shard_count) {
         (Some(s), _) => Shard::parse(s).context("--shard")?,
         (None, Some(n)) => Shard::from_cluster(n, |v| std::env::var(v).ok())?,
         (None, None) => Shard::WHOLE,
     };
-    let output = output_path(
+    let output = batch::output_path(
         args.output.as_deref(),
         &batch::default_name(args.seed, shard),
     )?;
@@ -59,35 +54,4 @@ pub fn run_batch(args: &BatchArgs) -> Result<()> {
         args.jobs.unwrap_or_else(batch::default_jobs),
         &output,
     )
-}
-
-/// The CSV to write: `given`, or `name` in it when it is a directory (made when it ends in /),
-/// or `name` here.
-fn output_path(given: Option<&Path>, name: &str) -> Result<PathBuf> {
-    let Some(given) = given else {
-        return Ok(PathBuf::from(name));
-    };
-    if given.as_os_str().to_string_lossy().ends_with('/') {
-        std::fs::create_dir_all(given).with_context(|| format!("creating {}", given.display()))?;
-    }
-    Ok(if given.is_dir() {
-        given.join(name)
-    } else {
-        given.to_path_buf()
-    })
-}
-
-/// The seed of the campaign of the first shard named (for the merged CSV's default name).
-fn seed_of(shards: &[PathBuf]) -> Result<u64> {
-    let first = shards.first().context("no shards given")?;
-    let manifest = if first.is_dir() {
-        std::fs::read_dir(first)
-            .with_context(|| format!("reading {}", first.display()))?
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .find(|p| p.extension().is_some_and(|e| e == "json"))
-            .with_context(|| format!("{}: no shard manifests (*.json) in it", first.display()))?
-    } else {
-        batch::manifest::Manifest::path_of(first)
-    };
-    Ok(batch::manifest::Manifest::read(&manifest)?.campaign.seed)
 }

@@ -100,8 +100,9 @@ impl Campaign {
 pub struct Version {
     /// The autopilot's version.
     pub autopilot: String,
-    /// The git commit it was built from (`unknown` outside a git checkout, unless the build
-    /// was given `AUTOPILOT_GIT_HASH`).
+    /// The git commit it was built from, `-dirty` after it when the tracked files had
+    /// changes (`unknown` outside a git checkout, unless the build was given
+    /// `AUTOPILOT_GIT_HASH`).
     pub git: String,
 }
 
@@ -112,6 +113,14 @@ impl Version {
             autopilot: env!("CARGO_PKG_VERSION").into(),
             git: env!("AUTOPILOT_GIT_HASH").into(),
         }
+    }
+}
+
+impl Version {
+    /// Whether two builds of this version could differ unseen: built from changes not
+    /// committed, or from no known commit.
+    pub fn is_vague(&self) -> bool {
+        self.git == "unknown" || self.git.ends_with("-dirty")
     }
 }
 
@@ -176,6 +185,13 @@ impl Manifest {
         }
         Ok(m)
     }
+}
+
+/// The file name of `path`, as a manifest names its CSV.
+pub fn file_name(path: &Path) -> String {
+    path.file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default()
 }
 
 /// SHA-256 of `bytes` in lower-case hex.

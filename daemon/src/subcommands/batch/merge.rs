@@ -18,37 +18,65 @@ struct ShardFile {
     rows: Vec<csv::StringRecord>,
 }
 
-/// The manifests named by `inputs`: a manifest, a CSV (its manifest beside it), or a directory
-/// (every manifest in it but `output`'s).
-fn manifests(inputs: &[PathBuf], output: &Path) -> Result<Vec<PathBuf>> {
-    let own = Manifest::path_of(output);
-    let mut found = Vec::new();
+/// A manifest to read, and whether it was found in a directory (where a merged campaign's
+/// manifest is passed over rather than taken as a shard).
+struct Named {
+    path: PathBuf,
+    in_directory: bool,
+}
+
+/// The manifests named by `inputs`, each once: a manifest, a CSV (its manifest beside it), or a
+/// directory (every manifest in it but `output`'s). A CSV without its manifest is a shard that
+/// did not finish: refused, by name.
+fn manifests(inputs: &[PathBuf], output: Option<&Path>) -> Result<Vec<Named>> {
+    let own = output.map(Manifest::path_of);
+    let unfinished = |csv: &Path| {
+        anyhow::anyhow!(
+            "{}: no manifest {} beside it (a shard writes its manifest when it ends: this one \
+             did not finish)",
+            csv.display(),
+            Manifest::path_of(csv).display()
+        )
+    };
+    let mut found: Vec<Named> = Vec::new();
+    let mut add = |path: PathBuf, in_directory: bool| {
+        let real = path.canonicalize().unwrap_or_else(|_| path.clone());
+        if !found
+            .iter()
+            .any(|n| n.path.canonicalize().is_ok_and(|p| p == real))
+        {
+            found.push(Named { path, in_directory });
+        }
+    };
     for input in inputs {
         if input.is_dir() {
             let mut inside: Vec<PathBuf> = std::fs::read_dir(input)
                 .with_context(|| format!("reading {}", input.display()))?
                 .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.extension().is_some_and(|e| e == "json"))
-                .filter(|p| !same_file(p, &own))
                 .collect();
             inside.sort();
-            if inside.is_empty() {
+            let is = |p: &Path, ext: &str| p.extension().is_some_and(|e| e == ext);
+            if let Some(csv) = inside
+                .iter()
+                .find(|p| is(p, "csv") && !Manifest::path_of(p).exists())
+            {
+                return Err(unfinished(csv));
+            }
+            let before = inside.len();
+            for m in inside.into_iter().filter(|p| is(p, "json")) {
+                if !own.as_deref().is_some_and(|own| same_file(&m, own)) {
+                    add(m, true);
+                }
+            }
+            if before == 0 {
                 bail!("{}: no shard manifests (*.json) in it", input.display());
             }
-            found.extend(inside);
         } else if input.extension().is_some_and(|e| e == "json") {
-            found.push(input.clone());
+            add(input.clone(), false);
+        } else if Manifest::path_of(input).exists() {
+            add(Manifest::path_of(input), false);
         } else {
-            let m = Manifest::path_of(input);
-            if !m.exists() {
-                bail!(
-                    "{}: no manifest {} beside it (a shard writes its manifest when it ends: \
-                     this one did not finish)",
-                    input.display(),
-                    m.display()
-                );
-            }
-            found.push(m);
+            return Err(unfinished(input));
         }
     }
     if found.is_empty() {
@@ -71,20 +99,24 @@ fn read_shard(path: &Path) -> Result<ShardFile> {
     let bytes =
         std::fs::read(&csv_path).with_context(|| format!("reading {}", csv_path.display()))?;
     if manifest::sha256_hex(&bytes) != manifest.csv_sha256 {
-        // Lines after the header, the last one counted though it may be cut.
-        let rows = bytes
-            .split(|&b| b == b'\n')
-            .filter(|l| !l.is_empty())
-            .count();
-        let rows = rows.saturating_sub(1);
-        let cut = rows < manifest.runs_done as usize || !bytes.ends_with(b"\n");
+        let complete = bytes
+            .iter()
+            .filter(|&&b| b == b'\n')
+            .count()
+            .saturating_sub(1);
+        let what = if !bytes.ends_with(b"\n") {
+            "cut short: its last line is not whole"
+        } else if complete < manifest.runs_done as usize {
+            "cut short: rows are missing at its end"
+        } else {
+            "changed since the shard wrote it (its checksum differs)"
+        };
         bail!(
-            "{}: {} rows where its manifest {} says {}: {} since the shard wrote it",
+            "{}: {complete} whole rows, {} bytes, where its manifest {} says {} rows: {what}",
             csv_path.display(),
-            rows,
+            bytes.len(),
             path.display(),
             manifest.runs_done,
-            if cut { "cut short" } else { "changed" }
         );
     }
     let mut reader = csv::ReaderBuilder::new()
@@ -133,14 +165,22 @@ fn ranges(runs: &[u32], max: usize) -> String {
     parts.join(", ")
 }
 
-/// Merges the shards named by `inputs` into the CSV `output` and its manifest, and prints the
-/// summary a batch prints.
-pub fn merge(inputs: &[PathBuf], output: &Path) -> Result<()> {
-    let shards = manifests(inputs, output)?
-        .iter()
-        .map(|p| read_shard(p))
-        .collect::<Result<Vec<_>>>()?;
-    let first = &shards[0];
+/// Merges the shards named by `inputs` into the CSV `output` (a file, or a directory for
+/// `batch-SEED.csv`; that name here by default) and its manifest, and prints the summary a
+/// batch prints.
+pub fn merge(inputs: &[PathBuf], output: Option<&Path>) -> Result<()> {
+    let mut shards = Vec::new();
+    for named in manifests(inputs, output)? {
+        let shard = read_shard(&named.path)?;
+        if named.in_directory && shard.manifest.merged_shards.is_some() {
+            tracing::info!(manifest = %named.path.display(), "passed over: a merged campaign");
+            continue;
+        }
+        shards.push(shard);
+    }
+    let Some(first) = shards.first() else {
+        bail!("nothing to merge: the directories given hold merged campaigns only");
+    };
     for s in &shards[1..] {
         let differ = first.manifest.campaign.differences(&s.manifest.campaign);
         if !differ.is_empty() {
@@ -162,7 +202,16 @@ pub fn merge(inputs: &[PathBuf], output: &Path) -> Result<()> {
         }
     }
     let campaign = &first.manifest.campaign;
-    let run_column = CSV_HEADER.split(',').position(|c| c == "run").unwrap_or(0);
+    let Some(end) = campaign.first.checked_add(campaign.runs) else {
+        bail!(
+            "{}: its runs pass run number {}",
+            first.path.display(),
+            u32::MAX
+        );
+    };
+    let output = super::output_path(output, &super::default_name(campaign.seed, Shard::WHOLE))?;
+    let output = output.as_path();
+    let run_column = super::column("run");
     let mut by_run: BTreeMap<u32, (usize, &csv::StringRecord)> = BTreeMap::new();
     let mut twice = Vec::new();
     for (f, s) in shards.iter().enumerate() {
@@ -171,9 +220,7 @@ pub fn merge(inputs: &[PathBuf], output: &Path) -> Result<()> {
                 .get(run_column)
                 .and_then(|r| r.parse().ok())
                 .with_context(|| format!("{}: a row without a run number", s.path.display()))?;
-            if !s.manifest.shard.holds(campaign.first, run)
-                || run >= campaign.first.saturating_add(campaign.runs)
-            {
+            if !s.manifest.shard.holds(campaign.first, run) || run >= end {
                 bail!(
                     "{}: run {run} is not one of shard {}'s",
                     s.path.display(),
@@ -198,7 +245,8 @@ pub fn merge(inputs: &[PathBuf], output: &Path) -> Result<()> {
             if n > 3 { "; …" } else { "" }
         );
     }
-    let missing: Vec<u32> = (campaign.first..campaign.first.saturating_add(campaign.runs))
+    let missing: Vec<u32> = Shard::WHOLE
+        .runs(campaign.first, campaign.runs)
         .filter(|r| !by_run.contains_key(r))
         .collect();
     if !missing.is_empty() {
@@ -227,10 +275,7 @@ pub fn merge(inputs: &[PathBuf], output: &Path) -> Result<()> {
         version: first.manifest.version.clone(),
         shard: Shard::WHOLE,
         runs_done: rows.len() as u32,
-        csv: output
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default(),
+        csv: manifest::file_name(output),
         csv_sha256: manifest::sha256_hex(text.as_bytes()),
         jobs: shards.iter().map(|s| s.manifest.jobs).sum(),
         wall_time_s: shards.iter().map(|s| s.manifest.wall_time_s).sum(),
@@ -239,6 +284,13 @@ pub fn merge(inputs: &[PathBuf], output: &Path) -> Result<()> {
     };
     let manifest_path = Manifest::path_of(output);
     merged.write(&manifest_path)?;
+    if merged.version.is_vague() {
+        tracing::warn!(
+            "the shards were flown by autopilot {}: built from changes not committed (or no \
+             known commit), so two different builds would not be told apart",
+            merged.version
+        );
+    }
     merged.summary.print_faults();
     println!(
         "batch merged: {} shards={} csv={} manifest={}",

@@ -5,8 +5,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
 use std::time::Instant;
 
-/// The progress of a batch on standard error: an `indicatif` bar on a terminal, otherwise (a
-/// CI log) a line at every tenth of the runs.
+/// The bar, or the lines, and the counts behind them.
 pub struct Progress {
     bar: Option<ProgressBar>,
     total: u32,

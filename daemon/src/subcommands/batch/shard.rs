@@ -8,13 +8,29 @@ use anyhow::{Context, Result, bail};
 /// Kubernetes' Indexed Jobs and AWS Batch's array jobs.
 pub const INDEX_VARIABLES: [&str; 2] = ["JOB_COMPLETION_INDEX", "AWS_BATCH_JOB_ARRAY_INDEX"];
 
-/// Shard `index` of `count`.
+/// Shard `index` of `count` (read from a manifest only through [`Shard::new`]'s checks).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(try_from = "ShardFields")]
 pub struct Shard {
     /// This shard's number, from 0.
     pub index: u32,
     /// How many shards the campaign is cut into.
     pub count: u32,
+}
+
+/// A shard's fields as a manifest has them, before they are checked.
+#[derive(serde::Deserialize)]
+struct ShardFields {
+    index: u32,
+    count: u32,
+}
+
+impl TryFrom<ShardFields> for Shard {
+    type Error = String;
+
+    fn try_from(f: ShardFields) -> Result<Self, String> {
+        Shard::new(f.index, f.count).map_err(|e| format!("shard {e}"))
+    }
 }
 
 impl Shard {

@@ -1,7 +1,7 @@
 //! A batch's summary, counted from its CSV rows alone, so that a campaign flown on one machine
 //! and one merged from shards say the same.
 
-use super::{CSV_HEADER, FaultKind};
+use super::FaultKind;
 use serde::{Deserialize, Serialize};
 
 /// Runs counted by outcome, with their failsafes and the hardest impact.
@@ -32,12 +32,7 @@ struct Columns {
 }
 
 fn columns() -> Columns {
-    let at = |name: &str| {
-        CSV_HEADER
-            .split(',')
-            .position(|c| c == name)
-            .unwrap_or(usize::MAX)
-    };
+    let at = super::column;
     Columns {
         fault: at("fault"),
         outcome: at("outcome"),

@@ -117,20 +117,28 @@ fn shards_merged_are_the_campaign_flown_whole_and_bad_sets_are_refused() {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../params");
     let (airframe, params) = (dir.join("airframes/quad_x.toml"), dir.join("flight.toml"));
     let tmp = tempfile::tempdir().unwrap();
+    let in_dir = tmp.path().join("shards");
+    std::fs::create_dir(&in_dir).unwrap();
     let mut cfg = config(&[FaultKind::None, FaultKind::Gps]);
     cfg.runs = 7;
     cfg.first = 5;
-    let fly = |cfg: &BatchConfig, shard: Shard, name: &str| {
-        let out = tmp.path().join(name);
+    let fly = |cfg: &BatchConfig, shard: Shard, out: PathBuf| {
         run(cfg, shard, &airframe, &params, 2, &out).unwrap();
         out
     };
-    let whole = fly(&cfg, Shard::WHOLE, "whole.csv");
+    let whole = fly(&cfg, Shard::WHOLE, tmp.path().join("whole.csv"));
     let shards: Vec<PathBuf> = (0..3)
-        .map(|k| fly(&cfg, Shard::new(k, 3).unwrap(), &format!("s{k}.csv")))
+        .map(|k| {
+            fly(
+                &cfg,
+                Shard::new(k, 3).unwrap(),
+                in_dir.join(format!("s{k}.csv")),
+            )
+        })
         .collect();
-    let merged = tmp.path().join("merged.csv");
-    merge::merge(&shards, &merged).unwrap();
+    // Given as a directory, and one of its shards again by name: each shard read once.
+    let merged = in_dir.join("merged.csv");
+    merge::merge(&[in_dir.clone(), shards[1].clone()], Some(&merged)).unwrap();
     assert_eq!(
         std::fs::read(&merged).unwrap(),
         std::fs::read(&whole).unwrap()
@@ -143,9 +151,20 @@ fn shards_merged_are_the_campaign_flown_whole_and_bad_sets_are_refused() {
     );
     assert_eq!((m.runs_done, m.merged_shards), (7, Some(3)));
     assert_eq!(manifest(&shards[1]).runs_done, 2, "runs 6 and 9");
+    // Merged again into a directory: the merged campaign there is passed over.
+    let again = tmp.path().join("again");
+    merge::merge(
+        std::slice::from_ref(&in_dir),
+        Some(&PathBuf::from(format!("{}/", again.display()))),
+    )
+    .unwrap();
+    assert_eq!(
+        std::fs::read(again.join("batch-9.csv")).unwrap(),
+        std::fs::read(&whole).unwrap()
+    );
 
     let refused = |inputs: &[PathBuf]| {
-        let e = merge::merge(inputs, &tmp.path().join("refused.csv")).unwrap_err();
+        let e = merge::merge(inputs, Some(&tmp.path().join("refused.csv"))).unwrap_err();
         format!("{e:#}")
     };
     let e = refused(&shards[..2]);
@@ -153,22 +172,45 @@ fn shards_merged_are_the_campaign_flown_whole_and_bad_sets_are_refused() {
         e.contains("missing: 7, 10") && e.contains("shard 2/3 not given"),
         "{e}"
     );
-    let e = refused(&[shards[0].clone(), shards[0].clone(), shards[1].clone()]);
+    let copy = in_dir.join("copy-of-s0.json");
+    std::fs::copy(Manifest::path_of(&shards[0]), &copy).unwrap();
+    let e = refused(std::slice::from_ref(&in_dir));
     assert!(e.contains("runs given twice: run 5 is in"), "{e}");
+    std::fs::remove_file(&copy).unwrap();
     let mut other = cfg.clone();
     other.wind_max_m_s = 4.0;
-    let stranger = fly(&other, Shard::new(2, 3).unwrap(), "other.csv");
+    let stranger = fly(
+        &other,
+        Shard::new(2, 3).unwrap(),
+        tmp.path().join("other.csv"),
+    );
     let e = refused(&[shards[0].clone(), shards[1].clone(), stranger]);
     assert!(e.contains("two campaigns: wind_max_m_s 5.0 vs 4.0"), "{e}");
-    // A CSV cut short (a copy that stopped midway).
+    // A CSV cut short (a copy that stopped midway), then one whose manifest is gone.
     let text = std::fs::read_to_string(&shards[2]).unwrap();
     std::fs::write(&shards[2], &text[..text.len() - 20]).unwrap();
     let e = refused(&shards);
     assert!(
-        e.contains("s2.csv: 2 rows where its manifest") && e.contains("cut short"),
+        e.contains("s2.csv: 1 whole rows") && e.contains("last line is not whole"),
         "{e}"
     );
     std::fs::remove_file(Manifest::path_of(&shards[2])).unwrap();
-    let e = refused(&shards);
-    assert!(e.contains("did not finish"), "{e}");
+    for inputs in [shards.clone(), vec![in_dir.clone()]] {
+        let e = refused(&inputs);
+        assert!(
+            e.contains("s2.csv: no manifest") && e.contains("did not finish"),
+            "{e}"
+        );
+    }
+    let mut past_the_end = cfg.clone();
+    past_the_end.first = u32::MAX - 3;
+    let e = run(
+        &past_the_end,
+        Shard::WHOLE,
+        &airframe,
+        &params,
+        1,
+        &tmp.path().join("x.csv"),
+    );
+    assert!(format!("{:#}", e.unwrap_err()).contains("run numbers end at"));
 }
