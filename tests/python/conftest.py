@@ -104,6 +104,21 @@ def request_message(gcs, msg_id, what, param2=0, condition=lambda m: True, withi
     return m
 
 
+def mavftp(gcs):
+    """pymavlink's MAVFTP client with its own settings but one: an operation ends after 1.5 s of
+    silence instead of 3.7 (`idle_detection_time`, a setting MAVProxy's `ftp set` also
+    offers), as suits a loopback link where a reply comes within milliseconds."""
+    from pymavlink.mavftp import MAVFTP, MAVFTPSettings
+
+    settings = MAVFTPSettings([
+        ("debug", int, 0), ("pkt_loss_tx", int, 0), ("pkt_loss_rx", int, 0),
+        ("max_backlog", int, 5), ("burst_read_size", int, 80), ("write_size", int, 80),
+        ("write_qsize", int, 5), ("idle_detection_time", float, 1.5),
+        ("read_retry_time", float, 1.0), ("retry_time", float, 0.5),
+    ])
+    return MAVFTP(gcs, 1, 1, settings=settings)
+
+
 def ftp_crc32(data):
     """CRC-32 as MAVLink FTP computes it (from 0, no final inversion)."""
     return zlib.crc32(data, 0xFFFFFFFF) ^ 0xFFFFFFFF

@@ -13,9 +13,9 @@ import jsonschema
 import mavsdk_grpc as mavsdk
 from mavsdk_grpc.component_metadata import MetadataType
 from pymavlink import mavutil
-from pymavlink.mavftp import MAVFTP, FtpError
+from pymavlink.mavftp import FtpError
 
-from conftest import ROOT, first, ftp_crc32, request_message
+from conftest import ROOT, first, ftp_crc32, request_message, mavftp
 from test_ground_station import ack, daemon, wait  # noqa: F401 (the fixture)
 from conftest import free_tcp_port
 from test_ulog import fetch_params
@@ -49,7 +49,7 @@ def test_component_metadata_over_ftp_matches_the_schemas_and_the_parameters(daem
 
     # The general file, and the parameters' file it names with its CRC, over pymavlink's FTP.
     gcs = daemon.gcs
-    ftp = MAVFTP(gcs, 1, 1)
+    ftp = mavftp(gcs)
     general = json.loads(ftp_get(ftp, "@META/general.json", tmp_path))
     jsonschema.validate(general, json.loads((SCHEMAS / "general.schema.json").read_text()))
     [entry] = [t for t in general["metadataTypes"] if t["type"] == 1]  # PARAMETER

@@ -12,9 +12,9 @@ import time
 import mavsdk_grpc as mavsdk
 import pytest
 from mavsdk_grpc.ftp import FtpError as MavsdkFtpError
-from pymavlink.mavftp import MAVFTP, FtpError
+from pymavlink.mavftp import FtpError
 
-from conftest import Daemon, first
+from conftest import Daemon, first, mavftp
 from conftest import free_tcp_port
 from test_robustness import LoopTiming
 
@@ -42,7 +42,7 @@ def blob(path, size, seed):
 def test_pymavlink_ftp_lists_gets_puts_and_refuses_escapes(daemon, tmp_path):
     gcs = daemon.gcs
     want = blob(daemon.logs / "big.bin", 10 * 1000 * 1000, "big")
-    ftp = MAVFTP(gcs, 1, 1)
+    ftp = mavftp(gcs)
     listing = ftp.cmd_list(["/"])
     assert listing.error_code == FtpError.Success
     names = {e.name: e for e in listing.directory_listing}

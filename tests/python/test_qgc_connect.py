@@ -8,9 +8,9 @@ import struct
 import zlib
 
 from pymavlink import mavutil
-from pymavlink.mavftp import MAVFTP, FtpError
+from pymavlink.mavftp import FtpError
 
-from conftest import ftp_crc32, receive, request_message as request
+from conftest import ftp_crc32, receive, request_message as request, mavftp
 from test_ground_station import daemon  # noqa: F401 (the fixture)
 
 ML = mavutil.mavlink
@@ -71,7 +71,7 @@ def test_qgroundcontrols_initial_connect_is_answered_in_its_order_and_time(daemo
     _, crc = struct.unpack_from("<II", unknown_payload(meta, 108))
     uri = unknown_payload(meta, 108)[8:].split(b"\0")[0].decode()
     assert uri.startswith("mftp://[;comp=1]"), uri
-    ftp = MAVFTP(gcs, 1, 1)
+    ftp = mavftp(gcs)
     local = tmp_path / "general.json"
     ftp.cmd_get([uri.removeprefix("mftp://[;comp=1]"), str(local)])
     assert ftp.process_ftp_reply("OpenFileRO", timeout=30).error_code == FtpError.Success
