@@ -4,6 +4,7 @@ pub mod attitude;
 pub mod motor;
 pub mod position;
 pub mod rate;
+pub mod reduced_attitude;
 pub mod relaxed_hover;
 
 use nalgebra::{UnitQuaternion, Vector3};
