@@ -11,7 +11,7 @@
 //! − D ω − ω × (J ω + h)` and `ḋ = −ω × d` (Mueller (2), (10)), are linearised about the relaxed
 //! hover numerically and the gain is the discrete LQR's, by iterating the Riccati equation.
 
-use super::relaxed_hover::RelaxedHover;
+use super::relaxed_hover::{RelaxedHover, arm_m, net_torque};
 use airframe::Airframe;
 use nalgebra::{Matrix2, Matrix3, SMatrix, SVector, UnitQuaternion, Vector2, Vector3};
 
@@ -30,6 +30,19 @@ pub enum ReducedAttitudeError {
     /// The loop rate is not a positive number.
     #[error("the loop rate must be positive, got {0} Hz")]
     Rate(f64),
+    /// The hover is not one of this airframe's: not a quad, or the rotors differ.
+    #[error("the relaxed hover is not this airframe's (a quad's, one thrust per rotor)")]
+    NotThisAirframe,
+    /// The body's inertia has no inverse.
+    #[error("the airframe's inertia is singular")]
+    Inertia,
+    /// The hover's thrusts do not hold the body still in turn (its state is not an
+    /// equilibrium of this airframe in this air).
+    #[error("the relaxed hover is not an equilibrium of this airframe ({0:.3} rad/s² off)")]
+    NotAnEquilibrium(f64),
+    /// The loop with the gain would not be stable.
+    #[error("the LQR loop is not stable (spectral radius {0:.4})")]
+    Unstable(f64),
 }
 
 /// The controller of one relaxed hover.
@@ -56,31 +69,24 @@ struct Model<'a> {
     trim: Vector3<f64>,
     hover: &'a RelaxedHover,
     across: [Vector3<f64>; 2],
-    air_density: f64,
+    inertia_inverse: Matrix3<f64>,
 }
 
 impl Model<'_> {
     /// `ẋ` at state `x` under input `u`.
     fn derivative(&self, x: &State, u: &Vector2<f64>) -> State {
-        let a = self.airframe;
         let n = self.hover.axis_frd;
         let w = n * self.hover.spin_rad_s + self.across[0] * x[0] + self.across[1] * x[1];
         let d = (n + self.across[0] * x[2] + self.across[1] * x[3]).normalize();
         let f = self.allocation * (self.trim + Vector3::new(0.0, u[0], u[1]));
-        let mut moment = Vector3::zeros();
-        let mut momentum_z = 0.0;
-        for (k, &i) in self.working.iter().enumerate() {
-            let r = &a.rotors[i];
-            let p = &r.position_frd_m;
-            moment += Vector3::new(-p.y, p.x, r.spin.sign() * r.yaw_moment_per_thrust_m()) * f[k];
-            momentum_z -=
-                r.spin.sign() * r.inertia_kg_m2 * r.speed_for_thrust_rad_s(self.air_density, f[k]);
-        }
-        let h = Vector3::new(0.0, 0.0, momentum_z);
-        let damping = Vector3::from(a.drag.rotational_n_m_s_rad).component_mul(&w);
-        let j = a.inertia_kg_m2;
-        let w_dot = j.try_inverse().unwrap_or_else(Matrix3::identity)
-            * (moment - damping - w.cross(&(j * w + h)));
+        let torque = net_torque(
+            self.airframe,
+            &self.working,
+            f.as_slice(),
+            &w,
+            self.hover.air_density,
+        );
+        let w_dot = self.inertia_inverse * torque;
         let d_dot = -w.cross(&d);
         State::new(
             w_dot.dot(&self.across[0]),
@@ -92,33 +98,36 @@ impl Model<'_> {
 }
 
 impl ReducedAttitude {
-    /// The controller of `hover` for `airframe`, its loop at `rate_hz`, in air of `air_density`.
+    /// The controller of `hover` (of `airframe`, in the air it was solved for), its loop at
+    /// `rate_hz`.
     pub fn new(
         airframe: &Airframe,
         hover: RelaxedHover,
         rate_hz: f64,
-        air_density: f64,
     ) -> Result<Self, ReducedAttitudeError> {
         if !(rate_hz.is_finite() && rate_hz > 0.0) {
             return Err(ReducedAttitudeError::Rate(rate_hz));
         }
+        let rotors = airframe.rotors.len();
+        if rotors != 4 || hover.thrust_n.len() != rotors || hover.lost >= rotors {
+            return Err(ReducedAttitudeError::NotThisAirframe);
+        }
         let mut working = [0; 3];
-        for (k, i) in (0..airframe.rotors.len())
-            .filter(|&i| i != hover.lost)
-            .take(3)
-            .enumerate()
-        {
+        for (k, i) in (0..rotors).filter(|&i| i != hover.lost).enumerate() {
             working[k] = i;
         }
-        let columns = working.map(|i| {
-            let p = airframe.rotors[i].position_frd_m;
-            Vector3::new(1.0, -p.y, p.x)
-        });
-        let allocation = Matrix3::from_columns(&columns)
+        // Rows 0–2 of the effectiveness (Σf, M_x, M_y) for the working rotors, Σf positive.
+        let b = airframe.effectiveness();
+        let columns = working.map(|i| Vector3::new(-b[(0, i)], b[(1, i)], b[(2, i)]));
+        let to_wrench = Matrix3::from_columns(&columns);
+        let allocation = to_wrench
             .try_inverse()
             .ok_or(ReducedAttitudeError::NoAllocation)?;
-        let thrusts = Vector3::from(working.map(|i| hover.thrust_n[i]));
-        let trim = Matrix3::from_columns(&columns) * thrusts;
+        let trim = to_wrench * Vector3::from(working.map(|i| hover.thrust_n[i]));
+        let inertia_inverse = airframe
+            .inertia_kg_m2
+            .try_inverse()
+            .ok_or(ReducedAttitudeError::Inertia)?;
         let n = hover.axis_frd;
         let first = if n.x.abs() < 0.9 {
             Vector3::x()
@@ -134,12 +143,16 @@ impl ReducedAttitude {
             trim,
             hover: &hover,
             across,
-            air_density,
+            inertia_inverse,
         };
+        let still = model.derivative(&State::zeros(), &Vector2::zeros()).norm();
+        if still.is_nan() || still >= 1e-3 {
+            return Err(ReducedAttitudeError::NotAnEquilibrium(still));
+        }
         let gain = lqr_gain(&model, 1.0 / rate_hz)?;
         let max_thrust_n = working.map(|i| {
             let r = &airframe.rotors[i];
-            r.thrust_n(air_density, r.max_speed_rad_s)
+            r.thrust_n(hover.air_density, r.max_speed_rad_s)
         });
         Ok(Self {
             hover,
@@ -158,8 +171,9 @@ impl ReducedAttitude {
     }
 
     /// Each rotor's thrust (N, the airframe's order, zero for the lost one) that turns the
-    /// primary axis toward `up_ned` (a unit vector, the direction the thrust should lift in)
-    /// with `lift_n` newtons along it, for the body at attitude `q` turning at `rate_frd`.
+    /// primary axis toward `up_ned` (the direction the thrust should lift in) with `lift_n`
+    /// newtons along it, for the body at attitude `q` turning at `rate_frd`. Inputs that are
+    /// not numbers hold the hover's own thrusts.
     pub fn update(
         &self,
         up_ned: &Vector3<f64>,
@@ -167,10 +181,15 @@ impl ReducedAttitude {
         q: &UnitQuaternion<f64>,
         rate_frd: &Vector3<f64>,
     ) -> Vec<f64> {
+        let finite =
+            lift_n.is_finite() && rate_frd.iter().chain(up_ned.iter()).all(|x| x.is_finite());
+        let (Some(up), true) = (up_ned.try_normalize(1e-9), finite) else {
+            return self.hover.thrust_n.clone();
+        };
         let n = self.hover.axis_frd;
-        let d = q.inverse_transform_vector(up_ned);
-        let e = d - n;
+        let d = q.inverse_transform_vector(&up);
         let rate_error = rate_frd - n * self.hover.spin_rad_s;
+        let e = axis_error(&n, &d, &self.across);
         let x = State::new(
             rate_error.dot(&self.across[0]),
             rate_error.dot(&self.across[1]),
@@ -180,13 +199,68 @@ impl ReducedAttitude {
         let u = -self.gain * x;
         // The lift along the axis is the thrust's component on it (thrust along −z).
         let collective = lift_n.max(0.0) / (-n.z).max(0.1);
-        let f = self.allocation * Vector3::new(collective, self.trim.y + u[0], self.trim.z + u[1]);
+        let moments = Vector3::new(0.0, self.trim.y + u[0], self.trim.z + u[1]);
+        let f = self.saturate(collective, &moments);
         let mut out = vec![0.0; self.hover.thrust_n.len()];
         for (k, &i) in self.working.iter().enumerate() {
-            out[i] = f[k].clamp(0.0, self.max_thrust_n[k]);
+            out[i] = f[k];
         }
         out
     }
+
+    /// Thrusts for `collective` and `moments` within each rotor's range, the moments kept
+    /// first (PX4's and the mixer's priority): the collective moved as little as it must, and
+    /// only when no collective fits, the moments scaled down (by halving the excess).
+    fn saturate(&self, collective: f64, moments: &Vector3<f64>) -> Vector3<f64> {
+        let per_newton = self.allocation * Vector3::x();
+        let fit = |k: f64| -> Option<f64> {
+            let m = self.allocation * (moments * k);
+            let (mut lo, mut hi) = (0.0_f64, f64::INFINITY);
+            for i in 0..3 {
+                let (v, top) = (per_newton[i], self.max_thrust_n[i]);
+                if v.abs() < 1e-9 {
+                    if !(0.0..=top).contains(&m[i]) {
+                        return None;
+                    }
+                } else {
+                    let (a, b) = (-m[i] / v, (top - m[i]) / v);
+                    lo = lo.max(a.min(b));
+                    hi = hi.min(a.max(b));
+                }
+            }
+            (lo <= hi).then(|| collective.clamp(lo, hi))
+        };
+        let (k, total) = match fit(1.0) {
+            Some(total) => (1.0, total),
+            None => {
+                let (mut good, mut bad) = (0.0, 1.0);
+                for _ in 0..20 {
+                    let mid = 0.5 * (good + bad);
+                    if fit(mid).is_some() {
+                        good = mid;
+                    } else {
+                        bad = mid;
+                    }
+                }
+                (good, fit(good).unwrap_or(0.0))
+            }
+        };
+        let f = self.allocation * (Vector3::new(total, 0.0, 0.0) + moments * k);
+        Vector3::from_fn(|i, _| f[i].clamp(0.0, self.max_thrust_n[i]))
+    }
+}
+
+/// Largest axis error the controller acts on (rad): beyond it the turn is asked at this size.
+const MAX_AXIS_ERROR_RAD: f64 = 0.7;
+
+/// The turn from `n` to `d` as a vector across `n` (rad, its length the angle, at most
+/// [`MAX_AXIS_ERROR_RAD`]): `d − n` for small angles, and still pointing the way to turn when
+/// `d` is behind `n` (where `d − n` across `n` would shrink to nothing).
+fn axis_error(n: &Vector3<f64>, d: &Vector3<f64>, across: &[Vector3<f64>; 2]) -> Vector3<f64> {
+    let side = d - n * n.dot(d);
+    let angle = side.norm().atan2(n.dot(d));
+    let way = side.try_normalize(1e-9).unwrap_or(across[0]);
+    way * angle.min(MAX_AXIS_ERROR_RAD)
 }
 
 /// The discrete LQR gain of `model` linearised about its hover, sampled every `dt_s`.
@@ -212,14 +286,18 @@ fn lqr_gain(model: &Model<'_>, dt_s: f64) -> Result<Gain, ReducedAttitudeError> 
             &((model.derivative(&x0, &(u0 + du)) - model.derivative(&x0, &(u0 - du))) / (2.0 * h)),
         );
     }
-    // Zero-order hold, to second order in dt.
-    let eye = SMatrix::<f64, 4, 4>::identity();
-    let ad = eye + a * dt_s + a * a * (dt_s * dt_s / 2.0);
-    let bd = (eye * dt_s + a * (dt_s * dt_s / 2.0)) * b;
-    // Weights: the axis direction (rad²) far above the rates ((rad/s)²); the moments (N·m)²
-    // cheap.
+    // Zero-order hold: exp([[A, B], [0, 0]] dt) = [[A_d, B_d], [0, I]].
+    let mut m = SMatrix::<f64, 6, 6>::zeros();
+    m.fixed_view_mut::<4, 4>(0, 0).copy_from(&(a * dt_s));
+    m.fixed_view_mut::<4, 2>(0, 4).copy_from(&(b * dt_s));
+    let e = expm(&m);
+    let ad: SMatrix<f64, 4, 4> = e.fixed_view::<4, 4>(0, 0).into();
+    let bd: SMatrix<f64, 4, 2> = e.fixed_view::<4, 2>(0, 4).into();
+    // Weights: the axis direction (rad²) far above the rates across it ((rad/s)²); the moments
+    // in units of a third of the weight on the mean arm.
     let q = SMatrix::<f64, 4, 4>::from_diagonal(&State::new(0.05, 0.05, 50.0, 50.0));
-    let r = Matrix2::identity() * 1.0;
+    let moment_unit = model.airframe.weight_n() * arm_m(model.airframe) / 3.0;
+    let r = Matrix2::identity() / (moment_unit * moment_unit);
     let mut p = q;
     for _ in 0..20_000 {
         let bt_p = bd.transpose() * p;
@@ -238,10 +316,39 @@ fn lqr_gain(model: &Model<'_>, dt_s: f64) -> Result<Gain, ReducedAttitudeError> 
                 .ok_or(ReducedAttitudeError::NoGain)?
                 * bt_p
                 * ad;
+            let radius = (ad - bd * gain)
+                .complex_eigenvalues()
+                .iter()
+                .map(|z| z.norm())
+                .fold(0.0, f64::max);
+            if radius.is_nan() || radius >= 1.0 {
+                return Err(ReducedAttitudeError::Unstable(radius));
+            }
             return Ok(gain);
         }
     }
     Err(ReducedAttitudeError::NoGain)
+}
+
+/// The exponential of `m` (scaling and squaring over a Taylor series).
+fn expm(m: &SMatrix<f64, 6, 6>) -> SMatrix<f64, 6, 6> {
+    let norm = m.abs().row_sum().max();
+    let squarings = if norm > 0.5 {
+        (norm / 0.5).log2().ceil() as i32
+    } else {
+        0
+    };
+    let scaled = m / 2f64.powi(squarings);
+    let mut term = SMatrix::<f64, 6, 6>::identity();
+    let mut sum = term;
+    for k in 1..=12 {
+        term = term * scaled / f64::from(k);
+        sum += term;
+    }
+    for _ in 0..squarings {
+        sum = sum * sum;
+    }
+    sum
 }
 
 #[cfg(test)]

@@ -32,10 +32,12 @@ pub struct RelaxedHover {
     pub thrust_n: Vec<f64>,
     /// The lost rotor.
     pub lost: usize,
-    /// The rotor opposite it (the farthest), and its share of the others' mean thrust.
+    /// The rotor opposite it (the farthest).
     pub opposite: usize,
-    /// `share` as solved for.
+    /// The opposite rotor's thrust over the mean of the other two.
     pub share: f64,
+    /// The air density it was solved for (kg/m³).
+    pub air_density: f64,
 }
 
 impl RelaxedHover {
@@ -60,9 +62,22 @@ pub enum RelaxedHoverError {
     /// `share` outside [0, 4].
     #[error("the opposite rotor's share must be within [0, 4], got {0}")]
     Share(f64),
+    /// The air density is not a positive number.
+    #[error("the air density must be positive, got {0} kg/m³")]
+    AirDensity(f64),
     /// The equations have no solution from any start tried.
     #[error("no relaxed hover: the equations did not converge")]
     NoSolution,
+    /// No share keeps the spin under the limit asked.
+    #[error(
+        "no relaxed hover spins under {limit_rad_s:.1} rad/s: the least found is {least_rad_s:.1} rad/s"
+    )]
+    SpinLimit {
+        /// The limit asked (rad/s).
+        limit_rad_s: f64,
+        /// The slowest spin of the shares tried (rad/s).
+        least_rad_s: f64,
+    },
     /// A solution that asks a rotor for negative thrust or more than its most.
     #[error("the relaxed hover needs rotor {rotor} at {thrust_n:.2} N, outside 0 to {max_n:.2} N")]
     BeyondRotor {
@@ -80,7 +95,8 @@ struct Equations<'a> {
     airframe: &'a Airframe,
     /// The three working rotors; the last is the one opposite the lost rotor.
     working: [usize; 3],
-    /// Horizontal unit vector across the lost rotor's diagonal plane: `n̄ · across = 0`.
+    /// Unit vector (FRD, in the rotors' plane) normal to the vertical plane through the lost
+    /// rotor's diagonal: `n̄ · across = 0` keeps the axis in that plane.
     across: Vector3<f64>,
     share: f64,
     air_density: f64,
@@ -92,24 +108,15 @@ impl Equations<'_> {
     fn residual(&self, x: &DVector<f64>) -> DVector<f64> {
         let a = self.airframe;
         let n = Vector3::new(x[3], x[4], x[5]);
-        let w = n * x[6];
-        let mut moment = Vector3::zeros();
-        let mut momentum_z = 0.0;
-        for (k, &i) in self.working.iter().enumerate() {
-            let r = &a.rotors[i];
-            let f = x[k];
-            let p = &r.position_frd_m;
-            // Thrust along −z at the hub, and the rotor's reaction torque (Lewis (4.31)–(4.34)).
-            moment += Vector3::new(-p.y, p.x, r.spin.sign() * r.yaw_moment_per_thrust_m()) * f;
-            // A ccw rotor spins about −z (as the simulator's powertrain has it).
-            momentum_z -=
-                r.spin.sign() * r.inertia_kg_m2 * r.speed_for_thrust_rad_s(self.air_density, f);
-        }
-        let damping = Vector3::from(a.drag.rotational_n_m_s_rad).component_mul(&w);
-        let h = Vector3::new(0.0, 0.0, momentum_z);
-        moment -= damping + w.cross(&(a.inertia_kg_m2 * w + h));
+        let moment = net_torque(
+            a,
+            &self.working,
+            &[x[0], x[1], x[2]],
+            &(n * x[6]),
+            self.air_density,
+        );
         let weight = a.weight_n();
-        let arm = self.arm_m();
+        let arm = arm_m(a);
         let total: f64 = x.rows(0, 3).sum();
         DVector::from_vec(vec![
             moment.x / (weight * arm),
@@ -120,13 +127,6 @@ impl Equations<'_> {
             (x[2] - self.share * 0.5 * (x[0] + x[1])) / weight,
             n.dot(&self.across),
         ])
-    }
-
-    /// Mean distance of the rotors from the centre (m).
-    fn arm_m(&self) -> f64 {
-        let rotors = &self.airframe.rotors;
-        let sum: f64 = rotors.iter().map(|r| r.position_frd_m.xy().norm()).sum();
-        (sum / rotors.len() as f64).max(1e-3)
     }
 
     /// Newton's method with a numerical Jacobian and a halving step, from `x`.
@@ -152,6 +152,9 @@ impl Equations<'_> {
             loop {
                 let next = &x + &step * scale;
                 let rn = self.residual(&next);
+                if !rn.norm().is_finite() {
+                    return None;
+                }
                 if rn.norm() < r.norm() || scale < 1e-4 {
                     x = next;
                     r = rn;
@@ -162,6 +165,39 @@ impl Equations<'_> {
         }
         (r.norm() < 1e-9).then_some(x)
     }
+}
+
+/// Mean distance of the rotors from the centre (m).
+pub(crate) fn arm_m(airframe: &Airframe) -> f64 {
+    let rotors = &airframe.rotors;
+    let sum: f64 = rotors.iter().map(|r| r.position_frd_m.xy().norm()).sum();
+    (sum / rotors.len().max(1) as f64).max(1e-3)
+}
+
+/// The torque on the body (FRD, N·m) of the rotors `working` making `thrusts_n`, the body
+/// turning at `rate_frd`: the thrusts' moments and the rotors' reaction torques (Lewis
+/// (4.31)–(4.34)), less the damping and the gyroscopic torque of the body and its rotors
+/// (Castillo (58)), as the simulator's powertrain and body have them.
+pub(crate) fn net_torque(
+    airframe: &Airframe,
+    working: &[usize],
+    thrusts_n: &[f64],
+    rate_frd: &Vector3<f64>,
+    air_density: f64,
+) -> Vector3<f64> {
+    let mut moment = Vector3::zeros();
+    let mut momentum_z = 0.0;
+    for (&i, &f) in working.iter().zip(thrusts_n) {
+        let r = &airframe.rotors[i];
+        let p = &r.position_frd_m;
+        // Thrust along −z at the hub; the reaction to the rotor's drag torque.
+        moment += Vector3::new(-p.y, p.x, r.spin.sign() * r.yaw_moment_per_thrust_m()) * f;
+        // A ccw rotor spins about −z.
+        momentum_z -= r.spin.sign() * r.inertia_kg_m2 * r.speed_for_thrust_rad_s(air_density, f);
+    }
+    let damping = Vector3::from(airframe.drag.rotational_n_m_s_rad).component_mul(rate_frd);
+    let h = Vector3::new(0.0, 0.0, momentum_z);
+    moment - damping - rate_frd.cross(&(airframe.inertia_kg_m2 * rate_frd + h))
 }
 
 /// The relaxed hover of the quad `airframe` without rotor `lost`, the opposite rotor making
@@ -183,6 +219,9 @@ pub fn solve(
     }
     if !(0.0..=4.0).contains(&share) {
         return Err(RelaxedHoverError::Share(share));
+    }
+    if !(air_density.is_finite() && air_density > 0.0) {
+        return Err(RelaxedHoverError::AirDensity(air_density));
     }
     let at = |i: usize| rotors[i].position_frd_m;
     let opposite = (0..4)
@@ -213,40 +252,48 @@ pub fn solve(
     // away), the spin the yaw moment would reach against the damping alone.
     let weight = airframe.weight_n();
     let yaw_damping = airframe.drag.rotational_n_m_s_rad[2].max(1e-4);
-    let solution = [0.1, -0.1, 0.4, -0.4]
-        .iter()
-        .find_map(|&tilt: &f64| {
-            let f = weight / ((2.0 + share) * tilt.cos());
-            let thrusts = [f, f, share * f];
-            let yaw: f64 = eq
-                .working
-                .iter()
-                .zip(thrusts)
-                .map(|(&i, t)| rotors[i].spin.sign() * rotors[i].yaw_moment_per_thrust_m() * t)
-                .sum();
-            let n = along * tilt.sin() - Vector3::z() * tilt.cos();
-            let spin = yaw / yaw_damping / n.z;
-            let x0 = DVector::from_vec(vec![f, f, share * f, n.x, n.y, n.z, spin]);
-            eq.solve_from(x0).filter(|x| x[5] < 0.0)
-        })
-        .ok_or(RelaxedHoverError::NoSolution)?;
+    let max_n = eq
+        .working
+        .map(|i| rotors[i].thrust_n(air_density, rotors[i].max_speed_rad_s));
+    // A rotor the solution leaves idle may come out a rounding error below zero.
+    let beyond = |x: &DVector<f64>| {
+        (0..3)
+            .find(|&k| !(-1e-9..=max_n[k]).contains(&x[k]))
+            .map(|k| RelaxedHoverError::BeyondRotor {
+                rotor: eq.working[k],
+                thrust_n: x[k],
+                max_n: max_n[k],
+            })
+    };
+    let mut refusal = RelaxedHoverError::NoSolution;
+    let mut solution = None;
+    for tilt in [0.1_f64, -0.1, 0.4, -0.4] {
+        let f = weight / ((2.0 + share) * tilt.cos());
+        let thrusts = [f, f, share * f];
+        let yaw: f64 = eq
+            .working
+            .iter()
+            .zip(thrusts)
+            .map(|(&i, t)| rotors[i].spin.sign() * rotors[i].yaw_moment_per_thrust_m() * t)
+            .sum();
+        let n = along * tilt.sin() - Vector3::z() * tilt.cos();
+        let spin = yaw / yaw_damping / n.z;
+        let x0 = DVector::from_vec(vec![f, f, share * f, n.x, n.y, n.z, spin]);
+        let Some(x) = eq.solve_from(x0).filter(|x| x[5] < 0.0) else {
+            continue;
+        };
+        match beyond(&x) {
+            Some(why) => refusal = why,
+            None => {
+                solution = Some(x);
+                break;
+            }
+        }
+    }
+    let solution = solution.ok_or(refusal)?;
     let mut thrust_n = vec![0.0; 4];
     for (k, &i) in eq.working.iter().enumerate() {
-        let max_n = rotors[i].thrust_n(air_density, rotors[i].max_speed_rad_s);
-        // A rotor the solution leaves idle may come out a rounding error below zero.
-        let t = if solution[k] > -1e-9 {
-            solution[k].max(0.0)
-        } else {
-            solution[k]
-        };
-        if !(0.0..=max_n).contains(&t) {
-            return Err(RelaxedHoverError::BeyondRotor {
-                rotor: i,
-                thrust_n: t,
-                max_n,
-            });
-        }
-        thrust_n[i] = t;
+        thrust_n[i] = solution[k].max(0.0);
     }
     Ok(RelaxedHover {
         axis_frd: Vector3::new(solution[3], solution[4], solution[5]),
@@ -255,6 +302,7 @@ pub fn solve(
         lost,
         opposite,
         share,
+        air_density,
     })
 }
 
@@ -291,8 +339,15 @@ pub fn solve_within_spin(
         }
         below = share;
     }
-    solve(airframe, lost, 0.0, air_density)?;
-    Err(RelaxedHoverError::NoSolution)
+    let least_rad_s = (0..=80)
+        .filter_map(|k| solve(airframe, lost, f64::from(k) * 0.05, air_density).ok())
+        .map(|h| h.spin_rad_s.abs())
+        .min_by(f64::total_cmp)
+        .ok_or(RelaxedHoverError::NoSolution)?;
+    Err(RelaxedHoverError::SpinLimit {
+        limit_rad_s: max_spin_rad_s,
+        least_rad_s,
+    })
 }
 
 #[cfg(test)]
