@@ -203,7 +203,7 @@ impl Autopilot {
             mag_field: MagFieldMonitor::default(),
             mag_cal: None,
             imu_cal: None,
-            imu_correction: ImuCorrection::new(&params.imu),
+            imu_correction: ImuCorrection::new(&params.imu, airframe.imu_position_frd_m),
             hover: HoverCommands::new(2.0),
             blind: None,
             imu_frozen_since_usec: None,
@@ -219,7 +219,7 @@ impl Autopilot {
         self.commander.set_params(params.commander);
         self.commander.set_safety_params(params.safety);
         self.injection_enabled = params.safety.failure_injection != 0;
-        self.imu_correction = ImuCorrection::new(&params.imu);
+        self.imu_correction = ImuCorrection::new(&params.imu, self.airframe.imu_position_frd_m);
         self.battery.set_config(BatteryConfig::from_params(
             &params.battery,
             &self.airframe.battery,
