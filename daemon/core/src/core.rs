@@ -200,6 +200,23 @@ pub struct SensorSample {
     pub rotor_speed_rad_s: Option<[f64; MAX_ROTORS]>,
 }
 
+impl SensorSample {
+    /// The IMU's readings alone, at time 0: every other sensor absent.
+    pub fn imu(gyro: Vector3<f64>, accel: Vector3<f64>) -> Self {
+        Self {
+            t_usec: 0,
+            gyro,
+            accel,
+            mag: None,
+            baro_alt_m: None,
+            gps: None,
+            battery_v: None,
+            esc_current_a: None,
+            rotor_speed_rad_s: None,
+        }
+    }
+}
+
 /// What one step produced.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StepOutput {

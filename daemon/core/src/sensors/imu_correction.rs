@@ -130,17 +130,7 @@ mod tests {
     use super::*;
 
     fn sample(gyro: Vector3<f64>, accel: Vector3<f64>) -> SensorSample {
-        SensorSample {
-            t_usec: 0,
-            gyro,
-            accel,
-            mag: None,
-            baro_alt_m: None,
-            gps: None,
-            battery_v: None,
-            esc_current_a: None,
-            rotor_speed_rad_s: None,
-        }
+        SensorSample::imu(gyro, accel)
     }
 
     #[test]
