@@ -5,176 +5,20 @@
 //! Pure: no clock (time comes with the sample), no I/O, no allocation in `step`.
 
 use crate::control::Setpoint;
-use crate::control::attitude::{KinematicAttitude, KinematicParams, TiltYawPd, TiltYawPdParams};
-use crate::control::motor::{MotorLoopParams, MotorSpeedLoop};
-use crate::control::position::{AttitudeSetpoint, PositionController, PositionParams};
-use crate::control::rate::{LadrcAxis, LadrcParams, PidAxis, PidParams};
+use crate::control::attitude::{KinematicAttitude, TiltYawPd};
+use crate::control::motor::MotorSpeedLoop;
+use crate::control::position::{AttitudeSetpoint, PositionController};
+use crate::control::rate::{LadrcAxis, PidAxis};
+use crate::control::reduced_attitude::ReducedAttitude;
 use crate::estimator::attitude::{AttitudeEstimate, AttitudeEstimator, AttitudeInput, DT_RANGE_S};
-use crate::estimator::translation::{
-    GpsMeasurement, TranslationEstimate, TranslationEstimator, TranslationParams,
-};
+use crate::estimator::translation::{GpsMeasurement, TranslationEstimate, TranslationEstimator};
 use crate::mixer::{Mixer, MixerError, MixerInput, MixerOutput, WrenchRequest};
-use crate::params::{AttitudeParams, FlightParams};
-use crate::safety::motor_failure::{
-    DetectorInput, MotorFailure, MotorFailureDetector, MotorFailureParams,
-};
+use crate::safety::motor_failure::{DetectorInput, MotorFailure, MotorFailureDetector};
 use airframe::{Airframe, MAX_ROTORS};
 use nalgebra::Vector3;
 
-/// Which inner loop flies the rates.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum RateLoopParams {
-    /// Castillo's LADRC, one set of parameters per axis.
-    Ladrc([LadrcParams; 3]),
-    /// The PID alternative.
-    Pid([PidParams; 3]),
-}
-
-/// Which attitude law flies.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum AttitudeLaw {
-    /// Castillo's kinematic law (63) feeding the rate loop.
-    Kinematic(KinematicParams),
-    /// Lewis's tilt/yaw PD (4.19)–(4.21): moments directly, no rate loop.
-    TiltYawPd(TiltYawPdParams),
-}
-
-/// Everything the flight core needs to know.
-#[derive(Debug, Clone, PartialEq)]
-pub struct FlightCoreConfig {
-    /// Attitude estimator.
-    pub attitude: AttitudeParams,
-    /// Translation estimator.
-    pub translation: TranslationParams,
-    /// Position loop.
-    pub position: PositionParams,
-    /// Period of the position loop (s): it runs on the first sample at least this long after
-    /// its last run and its attitude set-point holds in between. The estimators, the attitude
-    /// law and the rate loop run on every sample.
-    pub position_period_s: f64,
-    /// Attitude loop.
-    pub attitude_law: AttitudeLaw,
-    /// Rate loop.
-    pub rate: RateLoopParams,
-    /// Rotor-speed loop (used when the ESCs report rpm).
-    pub motor: MotorLoopParams,
-    /// Motor-failure detection and re-allocation.
-    pub motor_failure: MotorFailureParams,
-}
-
-impl FlightCoreConfig {
-    /// Defaults for an airframe (`params/flight.toml`'s values), with the PID rate loop if
-    /// `use_pid`.
-    pub fn for_airframe(a: &Airframe, use_pid: bool) -> Self {
-        let mut p = FlightParams::default();
-        p.rate.controller = use_pid as u32;
-        Self::from_params(&p, a)
-    }
-
-    /// The configuration a parameter set gives for an airframe: b̄ = 1/I per axis (so the rate
-    /// loop's output is a torque); gains given "per unit inertia" are scaled by I; mass and thrust
-    /// limits from the airframe.
-    pub fn from_params(p: &FlightParams, a: &Airframe) -> Self {
-        let inertia = a.inertia_kg_m2.diagonal();
-        let max_thrust: f64 = a
-            .rotors
-            .iter()
-            .map(|r| r.thrust_n(1.225, r.max_speed_rad_s))
-            .sum();
-        let r = &p.rate;
-        let rate = if r.controller == 1 {
-            RateLoopParams::Pid([0, 1, 2].map(|i| {
-                let j = inertia[i];
-                let (kp, ki, kd, imax) = if i < 2 {
-                    (r.pid_p_rp, r.pid_i_rp, r.pid_d_rp, r.pid_imax_rp)
-                } else {
-                    (r.pid_p_y, r.pid_i_y, 0.0, r.pid_imax_y)
-                };
-                PidParams {
-                    k_p: kp * j,
-                    k_i: ki * j,
-                    k_d: kd * j,
-                    k_ff: 0.0,
-                    d_cutoff_hz: r.pid_d_cutoff_hz,
-                    i_limit: imax * j,
-                    u_max: 1e3,
-                }
-            }))
-        } else {
-            RateLoopParams::Ladrc([0, 1, 2].map(|i| LadrcParams {
-                b_bar: r.adrc_b_scale / inertia[i],
-                k_d: if i < 2 { r.adrc_kd_rp } else { r.adrc_kd_y },
-                beta: r.adrc_beta,
-                td_limit: if r.adrc_td_limit > 0.0 {
-                    r.adrc_td_limit
-                } else {
-                    f64::INFINITY
-                },
-                u_max: 1e3,
-            }))
-        };
-        let c = &p.attitude_control;
-        let attitude_law = if c.law == 1 {
-            let tilt_inertia = inertia.x.max(inertia.y);
-            AttitudeLaw::TiltYawPd(TiltYawPdParams {
-                k_p_tilt: c.pd_k_p_tilt * tilt_inertia,
-                k_d_tilt: c.pd_k_d_tilt * tilt_inertia,
-                k_p_yaw: c.pd_k_p_yaw * inertia.z,
-                k_d_yaw: c.pd_k_d_yaw * inertia.z,
-            })
-        } else {
-            AttitudeLaw::Kinematic(KinematicParams {
-                k_k: c.k_k,
-                yaw_weight: c.yaw_weight,
-                max_tilt_rate: c.max_tilt_rate_deg_s.to_radians(),
-                max_yaw_rate: c.max_yaw_rate_deg_s.to_radians(),
-            })
-        };
-        let (t, q, m) = (&p.translation, &p.position, &p.motor);
-        Self {
-            attitude: p.attitude.clone(),
-            translation: TranslationParams {
-                tau_xy_s: t.tau_xy_s,
-                tau_z_s: t.tau_z_s,
-                tau_vel_s: t.tau_vel_s,
-                gps_delay_s: t.gps_delay_s,
-                gps_max_h_acc_m: t.gps_max_h_acc_m,
-                gps_timeout_s: t.gps_timeout_s,
-                baro_timeout_s: t.baro_timeout_s,
-                accel_bias_limit: t.accel_bias_limit,
-            },
-            position: PositionParams {
-                mass_kg: a.mass_kg,
-                k_pos: Vector3::new(q.k_pos_xy, q.k_pos_xy, q.k_pos_z),
-                k_vel: Vector3::new(q.k_vel_xy, q.k_vel_xy, q.k_vel_z),
-                k_vel_i: Vector3::new(q.k_vel_i_xy, q.k_vel_i_xy, q.k_vel_i_z),
-                max_speed_h: q.max_speed_h,
-                max_speed_up: q.max_speed_up,
-                max_speed_down: q.max_speed_down,
-                max_accel_h: q.max_accel_h,
-                max_accel_v: q.max_accel_v,
-                max_tilt: q.max_tilt_deg.to_radians(),
-                max_thrust_n: max_thrust,
-                i_limit: q.i_limit,
-            },
-            position_period_s: 1.0 / q.loop_hz,
-            attitude_law,
-            rate,
-            motor: MotorLoopParams {
-                k_p: m.k_p,
-                k_i: m.k_i,
-                k_g: m.k_g,
-                i_limit: m.i_limit,
-                gain_range: m.gain_range,
-            },
-            motor_failure: MotorFailureParams {
-                enabled: p.safety.motor_failure_detection != 0,
-                timeout_s: p.safety.motor_failure_timeout_ms as f64 * 1e-3,
-                reallocate: p.safety.motor_failure_mode != 0,
-            },
-        }
-    }
-}
+mod config;
+pub use config::{AttitudeLaw, FlightCoreConfig, RateLoopParams};
 
 /// One sample of the flight board's sensors.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -252,6 +96,11 @@ pub struct FlightCore {
     mixer: Mixer,
     motor: MotorSpeedLoop,
     motor_failure: MotorFailureDetector,
+    /// A quad's reduced-attitude controller for each rotor it may lose (empty for other
+    /// airframes; `None` where that rotor's loss has no relaxed hover).
+    three_rotors: Vec<Option<ReducedAttitude>>,
+    /// The rotor lost while a quad flies spinning on the other three.
+    spinning_without: Option<usize>,
     /// The allocation flown since the last sample (what the rotors were told).
     last_mix: Option<MixerOutput>,
     in_air: bool,
@@ -299,6 +148,14 @@ impl FlightCore {
             mixer: Mixer::new(airframe)?,
             motor: MotorSpeedLoop::new(airframe, config.motor),
             motor_failure: MotorFailureDetector::new(airframe, config.motor_failure),
+            three_rotors: if airframe.rotors.len() == 4 {
+                (0..4)
+                    .map(|lost| ReducedAttitude::for_lost_rotor(airframe, lost))
+                    .collect()
+            } else {
+                Vec::new()
+            },
+            spinning_without: None,
             last_mix: None,
             in_air: false,
             last_t_usec: None,
@@ -364,6 +221,18 @@ impl FlightCore {
         self.motor_failure.failed()
     }
 
+    /// The rotor lost while a quad flies spinning on its other three (the reduced-attitude
+    /// controller flying), if it does.
+    pub fn spinning_without(&self) -> Option<usize> {
+        self.spinning_without
+    }
+
+    /// Whether a quad can fly on when `rotor` stops: the reduced-attitude controller of that
+    /// loss exists (false for other airframes, which re-allocate instead).
+    pub fn flies_on_three_rotors(&self, rotor: usize) -> bool {
+        self.three_rotors.get(rotor).is_some_and(Option::is_some)
+    }
+
     fn reallocate(&mut self) -> Result<(), MixerError> {
         if self.config.motor_failure.reallocate {
             let failed = self.motor_failure.failed().to_vec();
@@ -391,6 +260,7 @@ impl FlightCore {
         self.rate = rate_axes(&self.config.rate);
         // A new flight judges the rotors afresh.
         self.motor_failure.reset();
+        self.spinning_without = None;
         self.last_mix = None;
         let all_working = vec![false; self.motor_failure.failed().len()];
         // Every rotor working is always allocatable.
@@ -444,6 +314,54 @@ impl FlightCore {
         match &self.last_mix {
             Some(m) if max > 0.0 => m.thrust_n.iter().sum::<f64>() / max,
             _ => 0.0,
+        }
+    }
+
+    /// The attitude law and the rate loop: the rate reference and the body moment (N·m) that
+    /// fly `sp` (or, `rate_only`, the rates `rate_ff`).
+    fn attitude_law(
+        &mut self,
+        a: &AttitudeEstimate,
+        sp: &AttitudeSetpoint,
+        rate_ff: &Vector3<f64>,
+        rate_only: bool,
+        dt: f64,
+    ) -> (Vector3<f64>, Vector3<f64>) {
+        match self.attitude_law {
+            AttitudeLaw::Kinematic(params) => {
+                let r = if rate_only {
+                    // Rate mode: the body rates are the reference, within the loop's limits.
+                    let mut r = *rate_ff;
+                    let tilt = r.xy().norm();
+                    if tilt > params.max_tilt_rate {
+                        r.x *= params.max_tilt_rate / tilt;
+                        r.y *= params.max_tilt_rate / tilt;
+                    }
+                    r.z = r.z.clamp(-params.max_yaw_rate, params.max_yaw_rate);
+                    r
+                } else {
+                    KinematicAttitude { params }
+                        .update(&a.q, &sp.q_d, rate_ff)
+                        .rate
+                };
+                let mut torque = Vector3::zeros();
+                for (i, axis) in self.rate.iter_mut().enumerate() {
+                    torque[i] = match axis {
+                        RateAxis::Ladrc(l) => l.update(r[i], a.rate[i], dt),
+                        RateAxis::Pid(p) => p.update(r[i], a.rate[i], dt),
+                    };
+                }
+                (r, torque)
+            }
+            AttitudeLaw::TiltYawPd(params) => {
+                // Lewis's PD damps the rate toward Ω_d (its derivative term; rate mode has
+                // no proportional term: q_d is the current attitude).
+                let law = TiltYawPd { params };
+                (
+                    Vector3::zeros(),
+                    law.update(&a.q, &sp.q_d, &(a.rate - *rate_ff)),
+                )
+            }
         }
     }
 
@@ -509,8 +427,13 @@ impl FlightCore {
             return out;
         };
         self.flying = true;
-        // Motor-failure detection on what the rotors were told over the interval just sampled.
-        if let Some(last) = &self.last_mix {
+        // Motor-failure detection on what the rotors were told over the interval just sampled
+        // (not while spinning on three rotors: a second loss leaves nothing to fly on).
+        if let Some(last) = self
+            .last_mix
+            .as_ref()
+            .filter(|_| self.spinning_without.is_none())
+        {
             let n = self.motor_failure.failed().len();
             out.motor_failure = self.motor_failure.step(&DetectorInput {
                 dt,
@@ -521,7 +444,11 @@ impl FlightCore {
                 measured_speed: s.rotor_speed_rad_s.as_ref().map(|r| &r[..n]),
                 in_air: self.in_air,
             });
-            if out.motor_failure.is_some() {
+            if let Some(f) = out.motor_failure {
+                if self.config.motor_failure.reallocate && self.flies_on_three_rotors(f.rotor) {
+                    // A quad: spin about the relaxed-hover axis and control its direction.
+                    self.spinning_without = Some(f.rotor);
+                }
                 // Uncontrollable without it (a quad's second rotor): the old allocation is the
                 // best left.
                 let _ = self.reallocate();
@@ -555,67 +482,54 @@ impl FlightCore {
                 (sp, rate, target.q_d.is_none())
             }
         };
-        let (rate_reference, torque) = match self.attitude_law {
-            AttitudeLaw::Kinematic(params) => {
-                let r = if rate_only {
-                    // Rate mode: the body rates are the reference, within the loop's limits.
-                    let mut r = rate_ff;
-                    let tilt = r.xy().norm();
-                    if tilt > params.max_tilt_rate {
-                        r.x *= params.max_tilt_rate / tilt;
-                        r.y *= params.max_tilt_rate / tilt;
-                    }
-                    r.z = r.z.clamp(-params.max_yaw_rate, params.max_yaw_rate);
-                    r
-                } else {
-                    KinematicAttitude { params }
-                        .update(&a.q, &sp.q_d, &rate_ff)
-                        .rate
-                };
-                let mut torque = Vector3::zeros();
-                for (i, axis) in self.rate.iter_mut().enumerate() {
-                    torque[i] = match axis {
-                        RateAxis::Ladrc(l) => l.update(r[i], a.rate[i], dt),
-                        RateAxis::Pid(p) => p.update(r[i], a.rate[i], dt),
-                    };
-                }
-                (r, torque)
-            }
-            AttitudeLaw::TiltYawPd(params) => {
-                // Lewis's PD damps the rate toward Ω_d (its derivative term; rate mode has
-                // no proportional term: q_d is the current attitude).
-                let law = TiltYawPd { params };
-                (
-                    Vector3::zeros(),
-                    law.update(&a.q, &sp.q_d, &(a.rate - rate_ff)),
-                )
-            }
-        };
         // The density of the last barometer sample, held between samples (the barometer is
         // fresh at 50 Hz: falling back to sea level in between made the thrust jump by the
         // density ratio, 5 % at 500 m, four samples in five).
         if let Some(b) = s.baro_alt_m {
             self.air_density_kg_m3 = air_density(b);
         }
-        let rho = self.air_density_kg_m3;
         let battery_v = s.battery_v.unwrap_or(self.nominal_battery_v);
-        let m = self.mixer.mix(&MixerInput {
+        let rho = self.air_density_kg_m3;
+        let input = |torque_frd_n_m| MixerInput {
             request: WrenchRequest {
                 thrust_n: sp.thrust_n,
-                torque_frd_n_m: torque,
+                torque_frd_n_m,
             },
             battery_v,
             air_density: rho,
-        });
-        for (i, axis) in self.rate.iter_mut().enumerate() {
-            match axis {
-                RateAxis::Ladrc(l) => l.applied(m.achieved.torque_frd_n_m[i]),
-                RateAxis::Pid(p) => p.saturation(
-                    m.unallocated.torque_frd_n_m[i].signum()
-                        * (m.unallocated.torque_frd_n_m[i].abs() > 1e-9) as u8 as f64,
-                ),
+        };
+        let spinning = self
+            .spinning_without
+            .and_then(|r| self.three_rotors.get(r).and_then(Option::as_ref));
+        let (rate_reference, m) = match spinning {
+            Some(control) => {
+                // Mueller & D'Andrea: the primary axis turned toward the thrust direction asked
+                // (upright when only rates are: the spin leaves no body rate to fly), the spin
+                // left free.
+                let up = if rate_only {
+                    -Vector3::z()
+                } else {
+                    sp.q_d * -Vector3::z()
+                };
+                let thrusts = control.update(&up, sp.thrust_n, &a.q, &a.rate);
+                let m = self.mixer.for_thrusts(&thrusts, &input(Vector3::zeros()));
+                (Vector3::zeros(), m)
             }
-        }
+            None => {
+                let (rate_reference, torque) = self.attitude_law(&a, &sp, &rate_ff, rate_only, dt);
+                let m = self.mixer.mix(&input(torque));
+                for (i, axis) in self.rate.iter_mut().enumerate() {
+                    match axis {
+                        RateAxis::Ladrc(l) => l.applied(m.achieved.torque_frd_n_m[i]),
+                        RateAxis::Pid(p) => p.saturation(
+                            m.unallocated.torque_frd_n_m[i].signum()
+                                * (m.unallocated.torque_frd_n_m[i].abs() > 1e-9) as u8 as f64,
+                        ),
+                    }
+                }
+                (rate_reference, m)
+            }
+        };
         // Rotor speeds → commands: the inverse motor curve with the estimated gains, plus the speed
         // PI when rpm is measured (Lewis (4.40)–(4.41), (6.13)).
         let rpm = s.rotor_speed_rad_s.as_ref().map(|r| &r[..]);

@@ -226,6 +226,46 @@ impl Mixer {
                 thrust[i] += c_yaw[i] * t.z * yaw_scale;
             }
         }
+        let request = WrenchRequest {
+            thrust_n: thrust_req,
+            torque_frd_n_m: t,
+        };
+        let mut out = self.output(&thrust, &t_max, &request, rho, input.battery_v);
+        out.tilt_scale = tilt_scale;
+        out.yaw_scale = yaw_scale;
+        out
+    }
+
+    /// The output for thrusts chosen elsewhere (the reduced-attitude controller of a quad
+    /// spinning on three rotors): each within its rotor's range, then speeds, commands and the
+    /// wrench they make, as [`Mixer::mix`] does with its own.
+    pub fn for_thrusts(&self, thrust_n: &[f64], input: &MixerInput) -> MixerOutput {
+        let rho = input.air_density.max(0.1);
+        let mut thrust = [0.0; MAX_ROTORS];
+        let mut t_max = [0.0; MAX_ROTORS];
+        for i in 0..self.rotors.len() {
+            t_max[i] = self.max_thrust(i, rho, input.battery_v);
+            thrust[i] = thrust_n
+                .get(i)
+                .copied()
+                .filter(|x| x.is_finite())
+                .unwrap_or(0.0);
+        }
+        let mut out = self.output(&thrust, &t_max, &input.request, rho, input.battery_v);
+        out.yaw_scale = 0.0;
+        out
+    }
+
+    /// Thrusts (clamped to `[0, t_max]`, zero on failed rotors) → speeds (Lewis (4.30)),
+    /// commands (Lewis (6.12): `u = f⁻¹(Ω/a, V)` with `f(u, V) = u V`) and the wrench made.
+    fn output(
+        &self,
+        thrust: &[f64; MAX_ROTORS],
+        t_max: &[f64; MAX_ROTORS],
+        request: &WrenchRequest,
+        rho: f64,
+        battery_v: f64,
+    ) -> MixerOutput {
         let mut out = MixerOutput {
             commands: [0.0; MAX_ROTORS],
             thrust_n: [0.0; MAX_ROTORS],
@@ -238,11 +278,11 @@ impl Mixer {
                 thrust_n: 0.0,
                 torque_frd_n_m: Vector3::zeros(),
             },
-            tilt_scale,
-            yaw_scale,
+            tilt_scale: 1.0,
+            yaw_scale: 1.0,
         };
         let mut w = [0.0; 4];
-        for i in 0..n {
+        for i in 0..self.rotors.len() {
             let ti = if self.failed[i] {
                 0.0
             } else {
@@ -250,10 +290,9 @@ impl Mixer {
             };
             out.thrust_n[i] = ti;
             let r = &self.rotors[i];
-            out.speed_rad_s[i] = r.speed_for_thrust_rad_s(rho, ti); // Lewis (4.30)
-            // Lewis (6.12): u = f⁻¹(Ω/a, V) with f(u, V) = u V.
+            out.speed_rad_s[i] = r.speed_for_thrust_rad_s(rho, ti);
             out.commands[i] = (out.speed_rad_s[i]
-                / (r.motor_gain_rad_s_per_v * input.battery_v.max(1.0)))
+                / (r.motor_gain_rad_s_per_v * battery_v.max(1.0)))
             .clamp(0.0, 1.0);
             for (k, wk) in w.iter_mut().enumerate() {
                 *wk += self.b[(k, i)] * ti;
@@ -264,8 +303,8 @@ impl Mixer {
             torque_frd_n_m: Vector3::new(w[1], w[2], w[3]),
         };
         out.unallocated = WrenchRequest {
-            thrust_n: thrust_req - out.achieved.thrust_n,
-            torque_frd_n_m: t - out.achieved.torque_frd_n_m,
+            thrust_n: request.thrust_n - out.achieved.thrust_n,
+            torque_frd_n_m: request.torque_frd_n_m - out.achieved.torque_frd_n_m,
         };
         out
     }

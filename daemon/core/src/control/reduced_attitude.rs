@@ -12,7 +12,7 @@
 //! hover numerically and the gain is the discrete LQR's, by iterating the Riccati equation.
 
 use super::relaxed_hover::{RelaxedHover, arm_m, net_torque};
-use airframe::Airframe;
+use airframe::{Airframe, MAX_ROTORS};
 use nalgebra::{Matrix2, Matrix3, SMatrix, SVector, UnitQuaternion, Vector2, Vector3};
 
 type State = SVector<f64, 4>;
@@ -40,6 +40,9 @@ pub enum ReducedAttitudeError {
     /// equilibrium of this airframe in this air).
     #[error("the relaxed hover is not an equilibrium of this airframe ({0:.3} rad/s² off)")]
     NotAnEquilibrium(f64),
+    /// No moments hold the axis still at this spin (rad/s) on the way up to the hover's.
+    #[error("no trim holds the axis at a spin of {0:.1} rad/s")]
+    NoTrim(f64),
     /// The loop with the gain would not be stable.
     #[error("the LQR loop is not stable (spectral radius {0:.4})")]
     Unstable(f64),
@@ -51,23 +54,44 @@ pub struct ReducedAttitude {
     hover: RelaxedHover,
     /// The working rotors, in the allocation's order.
     working: [usize; 3],
-    /// `[Σf, M_x, M_y]` to the working rotors' thrusts.
+    /// `[Σf, M_x, M_y]` to the working rotors' thrusts, and back.
     allocation: Matrix3<f64>,
-    /// The equilibrium's `[Σf, M_x, M_y]`.
-    trim: Vector3<f64>,
+    to_wrench: Matrix3<f64>,
+    /// The mean arm (m).
+    arm_m: f64,
     /// Two unit vectors across `n̄` (FRD): the coordinates of `d − n̄`.
     across: [Vector3<f64>; 2],
-    gain: Gain,
+    /// The gains and trims from no spin (index 0) to the hover's (the last), evenly spaced.
+    schedule: Vec<Scheduled>,
     max_thrust_n: [f64; 3],
 }
 
-/// The rotational model about the relaxed hover, for its linearisation.
+/// The LQR's weight on the rates across the axis ((rad/s)⁻²) with no spin and at the hover's,
+/// geometric in between (the axis's own is 50 rad⁻²).
+const RATE_WEIGHT: (f64, f64) = (5.0, 0.05);
+
+/// Spins between none and the hover's at which the loop is linearised (intervals).
+const SCHEDULE_INTERVALS: usize = 8;
+
+/// The loop at one spin about `n̄`: the trim that holds the axis still there and the LQR gain
+/// about it.
+#[derive(Debug, Clone)]
+struct Scheduled {
+    /// `[Σf, M_x, M_y]` that leave no turning across `n̄` at this spin.
+    trim: Vector3<f64>,
+    gain: Gain,
+}
+
+/// The rotational model about the relaxed hover's axis at one spin, for its linearisation.
+#[derive(Clone, Copy)]
 struct Model<'a> {
     airframe: &'a Airframe,
     working: [usize; 3],
     allocation: Matrix3<f64>,
     trim: Vector3<f64>,
     hover: &'a RelaxedHover,
+    /// The spin about `n̄` (rad/s).
+    spin: f64,
     across: [Vector3<f64>; 2],
     inertia_inverse: Matrix3<f64>,
 }
@@ -76,7 +100,7 @@ impl Model<'_> {
     /// `ẋ` at state `x` under input `u`.
     fn derivative(&self, x: &State, u: &Vector2<f64>) -> State {
         let n = self.hover.axis_frd;
-        let w = n * self.hover.spin_rad_s + self.across[0] * x[0] + self.across[1] * x[1];
+        let w = n * self.spin + self.across[0] * x[0] + self.across[1] * x[1];
         let d = (n + self.across[0] * x[2] + self.across[1] * x[3]).normalize();
         let f = self.allocation * (self.trim + Vector3::new(0.0, u[0], u[1]));
         let torque = net_torque(
@@ -95,9 +119,55 @@ impl Model<'_> {
             d_dot.dot(&self.across[1]),
         )
     }
+
+    /// The same model at `spin`, its moments trimmed (Newton's method) so that the axis does
+    /// not turn there: the spin up from none is not an equilibrium (the yaw torque speeds it),
+    /// but across the axis the body can be held still at every spin on the way.
+    fn at_spin(&self, spin: f64) -> Option<Self> {
+        let mut m = Self { spin, ..*self };
+        for _ in 0..50 {
+            let r = m.derivative(&State::zeros(), &Vector2::zeros());
+            let residual = Vector2::new(r[0], r[1]);
+            if residual.norm() < 1e-9 {
+                return Some(m);
+            }
+            let h = 1e-6;
+            let column = |j: usize| {
+                let mut du = Vector2::zeros();
+                du[j] = h;
+                let (a, b) = (
+                    m.derivative(&State::zeros(), &du),
+                    m.derivative(&State::zeros(), &-du),
+                );
+                Vector2::new(a[0] - b[0], a[1] - b[1]) / (2.0 * h)
+            };
+            let jacobian = Matrix2::from_columns(&[column(0), column(1)]);
+            let step = jacobian.try_inverse()? * residual;
+            m.trim.y -= step.x;
+            m.trim.z -= step.y;
+        }
+        None
+    }
 }
 
+/// The spin a quad on three rotors is held within (rad/s): 80 % of the ±2000°/s range of the
+/// common MEMS gyro, so that the wobble on top of it stays inside the range.
+pub const MAX_SPIN_RAD_S: f64 = 0.8 * 2000.0 * std::f64::consts::PI / 180.0;
+
+/// The loop rate the gains are computed for (Hz): the simulator's sample rate. A board whose
+/// loop runs faster samples the same law more often.
+pub const LOOP_RATE_HZ: f64 = 250.0;
+
 impl ReducedAttitude {
+    /// The controller of `airframe` without rotor `lost`, about its relaxed hover in sea-level
+    /// air that spins within [`MAX_SPIN_RAD_S`], at [`LOOP_RATE_HZ`]; `None` when the airframe has
+    /// no such hover or no stable loop (not a quad, or rotors too weak).
+    pub fn for_lost_rotor(airframe: &Airframe, lost: usize) -> Option<Self> {
+        let hover =
+            super::relaxed_hover::solve_within_spin(airframe, lost, MAX_SPIN_RAD_S, 1.225).ok()?;
+        Self::new(airframe, hover, LOOP_RATE_HZ).ok()
+    }
+
     /// The controller of `hover` (of `airframe`, in the air it was solved for), its loop at
     /// `rate_hz`.
     pub fn new(
@@ -142,6 +212,7 @@ impl ReducedAttitude {
             allocation,
             trim,
             hover: &hover,
+            spin: hover.spin_rad_s,
             across,
             inertia_inverse,
         };
@@ -149,7 +220,30 @@ impl ReducedAttitude {
         if still.is_nan() || still >= 1e-3 {
             return Err(ReducedAttitudeError::NotAnEquilibrium(still));
         }
-        let gain = lqr_gain(&model, 1.0 / rate_hz)?;
+        // Mueller's LQR about the relaxed hover, and the same about the axis at lower spins
+        // (scheduled on the spin measured): after a rotor stops the body spins up from none
+        // over seconds, and a gain made for the full spin turns the moments the wrong way
+        // (the gyroscopic coupling it counts on is not there yet).
+        let mut schedule = Vec::with_capacity(SCHEDULE_INTERVALS + 1);
+        for k in 0..=SCHEDULE_INTERVALS {
+            let spin = hover.spin_rad_s * k as f64 / SCHEDULE_INTERVALS as f64;
+            let at = if k == SCHEDULE_INTERVALS {
+                model
+            } else {
+                model
+                    .at_spin(spin)
+                    .ok_or(ReducedAttitudeError::NoTrim(spin))?
+            };
+            // The rates across the axis damped hard at no spin (the rate a rotor's loss leaves
+            // is what tips the body while it spins up), lightly at the full spin (where turning
+            // the axis is a precession: a rate across it is how it moves).
+            let rate_weight = RATE_WEIGHT.0
+                * (RATE_WEIGHT.1 / RATE_WEIGHT.0).powf(k as f64 / SCHEDULE_INTERVALS as f64);
+            schedule.push(Scheduled {
+                trim: at.trim,
+                gain: lqr_gain(&at, 1.0 / rate_hz, rate_weight)?,
+            });
+        }
         let max_thrust_n = working.map(|i| {
             let r = &airframe.rotors[i];
             r.thrust_n(hover.air_density, r.max_speed_rad_s)
@@ -158,9 +252,10 @@ impl ReducedAttitude {
             hover,
             working,
             allocation,
-            trim,
+            to_wrench,
+            arm_m: arm_m(airframe),
             across,
-            gain,
+            schedule,
             max_thrust_n,
         })
     }
@@ -168,6 +263,15 @@ impl ReducedAttitude {
     /// The relaxed hover it flies about.
     pub fn hover(&self) -> &RelaxedHover {
         &self.hover
+    }
+
+    /// The hover's thrusts (N), the airframe's order.
+    fn hover_thrusts(&self) -> [f64; MAX_ROTORS] {
+        let mut out = [0.0; MAX_ROTORS];
+        for (o, &t) in out.iter_mut().zip(&self.hover.thrust_n) {
+            *o = t;
+        }
+        out
     }
 
     /// Each rotor's thrust (N, the airframe's order, zero for the lost one) that turns the
@@ -180,11 +284,11 @@ impl ReducedAttitude {
         lift_n: f64,
         q: &UnitQuaternion<f64>,
         rate_frd: &Vector3<f64>,
-    ) -> Vec<f64> {
+    ) -> [f64; MAX_ROTORS] {
         let finite =
             lift_n.is_finite() && rate_frd.iter().chain(up_ned.iter()).all(|x| x.is_finite());
         let (Some(up), true) = (up_ned.try_normalize(1e-9), finite) else {
-            return self.hover.thrust_n.clone();
+            return self.hover_thrusts();
         };
         let n = self.hover.axis_frd;
         let d = q.inverse_transform_vector(&up);
@@ -196,59 +300,107 @@ impl ReducedAttitude {
             e.dot(&self.across[0]),
             e.dot(&self.across[1]),
         );
-        let u = -self.gain * x;
+        let (gain, trim) = self.scheduled(rate_frd.dot(&n));
+        let u = -gain * x;
         // The lift along the axis is the thrust's component on it (thrust along −z).
         let collective = lift_n.max(0.0) / (-n.z).max(0.1);
-        let moments = Vector3::new(0.0, self.trim.y + u[0], self.trim.z + u[1]);
+        let moments = Vector3::new(0.0, trim.y + u[0], trim.z + u[1]);
         let f = self.saturate(collective, &moments);
-        let mut out = vec![0.0; self.hover.thrust_n.len()];
+        let mut out = [0.0; MAX_ROTORS];
         for (k, &i) in self.working.iter().enumerate() {
             out[i] = f[k];
         }
         out
     }
 
+    /// The gain and trim at `spin` (rad/s about `n̄`): interpolated between the nearest two
+    /// scheduled, held at either end beyond them.
+    fn scheduled(&self, spin: f64) -> (Gain, Vector3<f64>) {
+        let top = self.hover.spin_rad_s;
+        let at = if top.abs() > 1e-9 {
+            (spin / top).clamp(0.0, 1.0) * SCHEDULE_INTERVALS as f64
+        } else {
+            SCHEDULE_INTERVALS as f64
+        };
+        let k = (at.floor() as usize).min(SCHEDULE_INTERVALS - 1);
+        let w = at - k as f64;
+        let (a, b) = (&self.schedule[k], &self.schedule[k + 1]);
+        (
+            a.gain * (1.0 - w) + b.gain * w,
+            a.trim * (1.0 - w) + b.trim * w,
+        )
+    }
+
     /// Thrusts for `collective` and `moments` within each rotor's range, the moments kept
-    /// first (PX4's and the mixer's priority): the collective moved as little as it must, and
-    /// only when no collective fits, the moments scaled down (by halving the excess).
+    /// first: the bounded least-squares fit of `[Σf, M_x, M_y]`, the moments weighted
+    /// [`MOMENT_PRIORITY`] times the collective (per mean-arm weight). Found by trying each
+    /// rotor free, at zero or at its top (27 cases): a moment one way that only a negative
+    /// thrust would give (after a rotor's loss the opposite rotor can only push) is given up
+    /// alone, the rest of the moment kept.
     fn saturate(&self, collective: f64, moments: &Vector3<f64>) -> Vector3<f64> {
-        let per_newton = self.allocation * Vector3::x();
-        let fit = |k: f64| -> Option<f64> {
-            let m = self.allocation * (moments * k);
-            let (mut lo, mut hi) = (0.0_f64, f64::INFINITY);
+        let wanted = Vector3::new(collective, moments.y, moments.z);
+        let to_wrench = self.to_wrench;
+        let weight = Vector3::new(
+            1.0,
+            MOMENT_PRIORITY / self.arm_m,
+            MOMENT_PRIORITY / self.arm_m,
+        );
+        let cost = |f: &Vector3<f64>| {
+            (to_wrench * f - wanted)
+                .component_mul(&weight)
+                .norm_squared()
+        };
+        let unbounded = self.allocation * wanted;
+        if (0..3).all(|i| (0.0..=self.max_thrust_n[i]).contains(&unbounded[i])) {
+            return unbounded;
+        }
+        let mut best = (f64::INFINITY, Vector3::zeros());
+        for case in 0..27usize {
+            // Each rotor: 0 free, 1 at zero, 2 at its top.
+            let state = [case % 3, case / 3 % 3, case / 9];
+            let mut f = Vector3::zeros();
+            let mut free = Vec::with_capacity(3);
             for i in 0..3 {
-                let (v, top) = (per_newton[i], self.max_thrust_n[i]);
-                if v.abs() < 1e-9 {
-                    if !(0.0..=top).contains(&m[i]) {
-                        return None;
-                    }
-                } else {
-                    let (a, b) = (-m[i] / v, (top - m[i]) / v);
-                    lo = lo.max(a.min(b));
-                    hi = hi.min(a.max(b));
+                match state[i] {
+                    0 => free.push(i),
+                    1 => f[i] = 0.0,
+                    _ => f[i] = self.max_thrust_n[i],
                 }
             }
-            (lo <= hi).then(|| collective.clamp(lo, hi))
-        };
-        let (k, total) = match fit(1.0) {
-            Some(total) => (1.0, total),
-            None => {
-                let (mut good, mut bad) = (0.0, 1.0);
-                for _ in 0..20 {
-                    let mid = 0.5 * (good + bad);
-                    if fit(mid).is_some() {
-                        good = mid;
-                    } else {
-                        bad = mid;
-                    }
+            if !free.is_empty() {
+                // Weighted least squares over the free rotors: (W A)ᵀ(W A) x = (W A)ᵀ W r.
+                let rest = wanted - to_wrench * f;
+                let a = nalgebra::DMatrix::from_fn(3, free.len(), |r, c| {
+                    to_wrench[(r, free[c])] * weight[r]
+                });
+                let b = nalgebra::DVector::from_fn(3, |r, _| rest[r] * weight[r]);
+                let Some(x) = (a.transpose() * &a)
+                    .try_inverse()
+                    .map(|inv| inv * a.transpose() * b)
+                else {
+                    continue;
+                };
+                for (c, &i) in free.iter().enumerate() {
+                    f[i] = x[c];
                 }
-                (good, fit(good).unwrap_or(0.0))
+                if free
+                    .iter()
+                    .any(|&i| !(0.0..=self.max_thrust_n[i]).contains(&f[i]))
+                {
+                    continue;
+                }
             }
-        };
-        let f = self.allocation * (Vector3::new(total, 0.0, 0.0) + moments * k);
-        Vector3::from_fn(|i, _| f[i].clamp(0.0, self.max_thrust_n[i]))
+            let c = cost(&f);
+            if c < best.0 {
+                best = (c, f);
+            }
+        }
+        best.1
     }
 }
+
+/// How much more a moment's error counts than the collective's, per mean-arm weight.
+const MOMENT_PRIORITY: f64 = 10.0;
 
 /// Largest axis error the controller acts on (rad): beyond it the turn is asked at this size.
 const MAX_AXIS_ERROR_RAD: f64 = 0.7;
@@ -263,8 +415,9 @@ fn axis_error(n: &Vector3<f64>, d: &Vector3<f64>, across: &[Vector3<f64>; 2]) ->
     way * angle.min(MAX_AXIS_ERROR_RAD)
 }
 
-/// The discrete LQR gain of `model` linearised about its hover, sampled every `dt_s`.
-fn lqr_gain(model: &Model<'_>, dt_s: f64) -> Result<Gain, ReducedAttitudeError> {
+/// The discrete LQR gain of `model` linearised about its hover, sampled every `dt_s`, the rates
+/// across the axis weighted `rate_weight` ((rad/s)⁻², against 50 rad⁻² on the axis).
+fn lqr_gain(model: &Model<'_>, dt_s: f64, rate_weight: f64) -> Result<Gain, ReducedAttitudeError> {
     // Numerical Jacobians about the equilibrium (central differences).
     let (x0, u0) = (State::zeros(), Vector2::zeros());
     let mut a = SMatrix::<f64, 4, 4>::zeros();
@@ -293,9 +446,9 @@ fn lqr_gain(model: &Model<'_>, dt_s: f64) -> Result<Gain, ReducedAttitudeError> 
     let e = expm(&m);
     let ad: SMatrix<f64, 4, 4> = e.fixed_view::<4, 4>(0, 0).into();
     let bd: SMatrix<f64, 4, 2> = e.fixed_view::<4, 2>(0, 4).into();
-    // Weights: the axis direction (rad²) far above the rates across it ((rad/s)²); the moments
-    // in units of a third of the weight on the mean arm.
-    let q = SMatrix::<f64, 4, 4>::from_diagonal(&State::new(0.05, 0.05, 50.0, 50.0));
+    // Weights: the axis direction and the rates across it as given; the moments in units of a
+    // third of the weight on the mean arm.
+    let q = SMatrix::<f64, 4, 4>::from_diagonal(&State::new(rate_weight, rate_weight, 50.0, 50.0));
     let moment_unit = model.airframe.weight_n() * arm_m(model.airframe) / 3.0;
     let r = Matrix2::identity() / (moment_unit * moment_unit);
     let mut p = q;

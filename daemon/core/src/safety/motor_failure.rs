@@ -16,7 +16,8 @@
 //!
 //! Both the belief and the measurement go through the same first-order filter (30 ms), whose
 //! derivative of the gyro is exact: `d/dt ω_f = (ω − ω_f)/τ`. A suspect must stay one for
-//! `FD_ACT_MOT_TOUT` before the failure is declared (and latched until [`MotorFailureDetector::reset`]).
+//! `FD_ACT_MOT_TOUT` before the failure is declared (and latched until [`MotorFailureDetector::reset`]);
+//! a rotor's own low speed only 20 ms (a quad on three rotors cannot wait).
 //! The thrust check runs only in the air: on the ground the ground carries what the rotors do not.
 
 use airframe::{Airframe, MAX_ROTORS};
@@ -36,6 +37,10 @@ const MIN_SPEED_SHARE: f64 = 0.2;
 /// A single rotor cannot lose more than its whole thrust: a fit beyond this (with margin for
 /// noise) is several rotors, or no rotor at all.
 const MAX_LOST_FRACTION: f64 = 1.4;
+/// A rotor's own speed is direct evidence: a reading far below its set-point is confirmed after
+/// this long (s; or `FD_ACT_MOT_TOUT` if shorter), the next ESC reading at 50 Hz. A quad cannot
+/// wait longer: every 10 ms its dead rotor's side drops faster (0.3 rad/s more by 100 ms).
+const RPM_CONFIRM_S: f64 = 0.02;
 /// ESC telemetry comes slower than the control loop (50 Hz in the simulator): a reading is
 /// judged until this old (s).
 const RPM_MAX_AGE_S: f64 = 0.1;
@@ -298,7 +303,11 @@ impl MotorFailureDetector {
                 ),
             ] {
                 *suspect = if seen { *suspect + dt } else { 0.0 };
-                if found.is_none() && *suspect >= self.params.timeout_s {
+                let confirm = match by {
+                    Detection::RotorSpeed => self.params.timeout_s.min(RPM_CONFIRM_S),
+                    Detection::ThrustImbalance => self.params.timeout_s,
+                };
+                if found.is_none() && *suspect >= confirm {
                     found = Some(MotorFailure {
                         rotor: r,
                         by,
