@@ -491,6 +491,7 @@ impl Autopilot {
                     .iter()
                     .position(|&f| f)
                     .map(|i| i + 1),
+                spinning: self.core.spinning_without().is_some(),
                 sensors_lost: self.monitor.lost(),
                 battery_remaining: self.battery.state().remaining,
                 geofence_breached: outside_fence,

@@ -428,9 +428,14 @@ impl GroundStation {
         if motor != self.motor_failed_shown {
             self.motor_failed_shown = motor;
             if let Some(m) = motor {
+                let how = if t.status.is_some_and(|s| s.spinning) {
+                    "flying on three rotors, spinning"
+                } else {
+                    "flying on the others"
+                };
                 out.say(
                     MavSeverity::MAV_SEVERITY_CRITICAL,
-                    &format!("motor {m} failed: flying on the others"),
+                    &format!("motor {m} failed: {how}"),
                 );
             }
         }

@@ -20,6 +20,7 @@ pub fn telemetry(armed: bool, mode: FlightMode) -> Telemetry {
             failsafe: false,
             failsafe_action: None,
             motor_failed: None,
+            spinning: false,
             failsafe_conditions: 0,
             safety_log: Default::default(),
             orbit: None,

@@ -37,6 +37,7 @@ impl Commander {
             roll_pitch_rad: h.roll_pitch_rad,
             home_set: self.flight.home.is_some(),
             motor_failed: h.motor_failed.is_some(),
+            spinning: h.spinning,
         });
         self.safety_events.extend(d.events.iter().copied());
         for &e in &d.events {

@@ -91,6 +91,8 @@ pub struct Health {
     pub roll_pitch_rad: (f64, f64),
     /// A motor marked failed (1-based), if any.
     pub motor_failed: Option<usize>,
+    /// A quad flying on its other three rotors, spinning (the reduced-attitude controller).
+    pub spinning: bool,
     /// The magnetometer's calibration and the field it measures.
     pub mag: crate::sensors::mag_check::MagStatus,
 }
@@ -107,6 +109,7 @@ impl Default for Health {
             sensors_lost: SensorsLost::default(),
             roll_pitch_rad: (0.0, 0.0),
             motor_failed: None,
+            spinning: false,
             mag: crate::sensors::mag_check::MagStatus::default(),
         }
     }

@@ -166,6 +166,8 @@ pub struct CommanderStatus {
     pub mission: MissionStatus,
     /// A motor declared failed (1-based), if any.
     pub motor_failed: Option<usize>,
+    /// A quad flying on its other three rotors, spinning.
+    pub spinning: bool,
     /// The failsafe conditions acting (bit k: `safety::CONDITIONS[k]`).
     pub failsafe_conditions: u32,
     /// Disarmed and every arming check passes (`SYS_STATUS`'s pre-arm bit).
@@ -303,6 +305,7 @@ impl Commander {
             offboard_losses: self.offboard_losses,
             mission: f.mission.status(),
             motor_failed: self.last.and_then(|i| i.health.motor_failed),
+            spinning: self.last.is_some_and(|i| i.health.spinning),
             failsafe_conditions: self.safety.active_mask(),
             prearm_ok: !f.armed && self.prearm_ok,
             safety_log: self.safety_log,

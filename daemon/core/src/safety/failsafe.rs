@@ -207,11 +207,11 @@ crate::params::param_group! {
         /// Motor-failure detection on (1) or off (0).
         motor_failure_detection: u32 = 1, "FD_ACT_EN", "", [0.0, 1.0], "Motor-failure detection (rotor speed and thrust imbalance): 1 on, 0 off";
         /// Time a motor must look failed before it is declared (ms).
-        motor_failure_timeout_ms: u32 = 100, "FD_ACT_MOT_TOUT", "ms", [10.0, 2000.0], "A motor must look failed this long before the failure is declared";
+        motor_failure_timeout_ms: u32 = 100, "FD_ACT_MOT_TOUT", "ms", [10.0, 2000.0], "A motor must look failed this long before the failure is declared (its own low speed: 20 ms at most)";
         /// Re-allocation on a motor failure.
-        motor_failure_mode: u32 = 1, "CA_FAILURE_MODE", "", [0.0, 1.0], "On a motor failure: 1 re-allocate without the failed rotor (yaw given up first when needed), 0 keep the allocation";
+        motor_failure_mode: u32 = 1, "CA_FAILURE_MODE", "", [0.0, 1.0], "On a motor failure: 1 fly on without the failed rotor (re-allocated, yaw given up first when needed; a quad spins on its other three under reduced-attitude control and lands), 0 keep the allocation";
         /// Motor-failure action.
-        motor_failure_action: u32 = 0, "COM_ACT_FAIL_ACT", "", [0.0, 4.0], "Motor failure: 0 warn and continue, 1 Hold, 2 Land, 3 Return, 4 terminate";
+        motor_failure_action: u32 = 0, "COM_ACT_FAIL_ACT", "", [0.0, 4.0], "Motor failure: 0 warn and continue, 1 Hold, 2 Land, 3 Return, 4 terminate (a quad spinning on three rotors lands at least)";
         /// Failure injection allowed.
         failure_injection: u32 = 0, "SYS_FAILURE_EN", "", [0.0, 1.0], "Allow MAV_CMD_INJECT_FAILURE (simulation and bench tests): 1 allowed, 0 refused";
     }
@@ -348,6 +348,8 @@ pub struct SafetyInput {
     pub home_set: bool,
     /// A motor was declared failed.
     pub motor_failed: bool,
+    /// A quad flies on its other three rotors, spinning: at least Land.
+    pub spinning: bool,
 }
 
 /// A change the operator should hear of (`STATUSTEXT`).
@@ -566,7 +568,12 @@ impl Safety {
         let mut events = Vec::new();
         let (mut action, mut cause) = (FailsafeAction::None, None);
         for (k, &c) in CONDITIONS.iter().enumerate() {
-            let rule = self.params.rule(c);
+            let mut rule = self.params.rule(c);
+            if c == Condition::MotorFailure && i.spinning && rule.action < FailsafeAction::Return {
+                // A quad spinning on three rotors flies a mission on no margin: it lands
+                // (or returns, if asked), whatever the action for other airframes.
+                rule.action = FailsafeAction::Land;
+            }
             let t = &mut self.tracked[k];
             // Clearing.
             if t.since_s.is_some() {

@@ -25,6 +25,7 @@ fn flying() -> SafetyInput {
         roll_pitch_rad: (0.0, 0.0),
         home_set: true,
         motor_failed: false,
+        spinning: false,
     }
 }
 
@@ -439,6 +440,30 @@ fn motor_failure_warns_or_returns_and_latches_until_disarm() {
     i.motor_failed = false;
     i.t_s = 0.3;
     assert_eq!(s.update(&i).events, [E::Cleared(C::MotorFailure)]);
+}
+
+/// A quad spinning on three rotors lands when the action would warn or hold, and returns when
+/// asked to; termination stays termination.
+#[test]
+fn a_quad_spinning_on_three_rotors_lands_or_returns() {
+    for (action, expected) in [
+        (0, A::Land),
+        (1, A::Land),
+        (2, A::Land),
+        (3, A::Return),
+        (4, A::Terminate),
+    ] {
+        let mut s = Safety::new(SafetyParams {
+            motor_failure_action: action,
+            ..SafetyParams::default()
+        });
+        let mut i = flying();
+        i.motor_failed = true;
+        i.spinning = true;
+        let d = s.update(&i);
+        assert_eq!(d.action, expected, "COM_ACT_FAIL_ACT {action}");
+        assert_eq!(d.events, [E::Triggered(C::MotorFailure, expected)]);
+    }
 }
 
 /// Estimator and sensor failures: the estimate's validity decides (Descend without position or

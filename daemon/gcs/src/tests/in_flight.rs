@@ -397,6 +397,28 @@ fn gcs_heartbeats_are_forwarded_and_failsafes_announced() {
     assert_eq!(said[0], "4 failsafe messages missed");
 }
 
+/// A failed motor is said once: on a hexa as flying on the others, on a quad that spins on its
+/// other three as such.
+#[test]
+fn a_motor_failure_is_said_once_with_how_the_vehicle_flies_on() {
+    for (spinning, said) in [
+        (false, "motor 2 failed: flying on the others"),
+        (true, "motor 1 failed: flying on three rotors, spinning"),
+    ] {
+        let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
+        let mut t = telemetry(true, FlightMode::Loiter);
+        let mut out = Outbox::default();
+        g.poll(0.0, &t, &mut out);
+        if let Some(st) = t.status.as_mut() {
+            st.motor_failed = Some(if spinning { 1 } else { 2 });
+            st.spinning = spinning;
+        }
+        g.poll(0.1, &t, &mut out);
+        g.poll(0.2, &t, &mut out);
+        assert_eq!(statustexts(&out), [said]);
+    }
+}
+
 /// `SYS_STATUS` health bits follow the checks (a lost magnetometer clears the magnetometer's bit,
 /// a critical battery the battery's, a motor failure the motor outputs'), the pre-arm bit the
 /// arming checks; the battery estimate reaches `SYS_STATUS` and `BATTERY_STATUS`.

@@ -48,20 +48,30 @@ fn a_run_is_drawn_from_its_own_stream_alone() {
 
 /// A batch's rows are the same whatever the number of workers (each run draws from its own
 /// stream; rows are written in run order whichever ends first), a quad with no fault lands, and one that loses a
-/// motor crashes (it cannot fly on three) and is counted so.
+/// motor with its allocation kept crashes and is counted so.
 #[test]
 fn a_batch_gives_the_same_rows_whatever_the_workers_and_tells_crashes_from_landings() {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../params");
     let tmp = tempfile::tempdir().unwrap();
     let mut cfg = config(&[FaultKind::None, FaultKind::MotorOff]);
     cfg.runs = 6;
+    // The allocation kept after a rotor's loss (CA_FAILURE_MODE 0): the quad does not spin on
+    // its other three, and a motor that stops brings it down.
+    let params = tmp.path().join("flight.toml");
+    let text = std::fs::read_to_string(dir.join("flight.toml")).unwrap();
+    assert!(text.contains("motor_failure_mode = 1"));
+    std::fs::write(
+        &params,
+        text.replace("motor_failure_mode = 1", "motor_failure_mode = 0"),
+    )
+    .unwrap();
     let rows = |jobs: usize, name: &str| {
         let out = tmp.path().join(name);
         run(
             &cfg,
             Shard::WHOLE,
             &dir.join("airframes/quad_x.toml"),
-            &dir.join("flight.toml"),
+            &params,
             jobs,
             &out,
         )
@@ -97,7 +107,7 @@ fn a_batch_gives_the_same_rows_whatever_the_workers_and_tells_crashes_from_landi
             f => panic!("fault {f} was not asked for"),
         }
     }
-    // A quad cannot fly on three rotors: of this seed's five, three come down hard.
+    // Without the spin a quad cannot fly on three rotors: of this seed's five, some come down hard.
     assert!(seen.0 > 0 && seen.1 > 0, "a landing and a crash: {seen:?}");
 }
 
