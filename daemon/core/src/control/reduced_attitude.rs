@@ -359,34 +359,38 @@ impl ReducedAttitude {
             // Each rotor: 0 free, 1 at zero, 2 at its top.
             let state = [case % 3, case / 3 % 3, case / 9];
             let mut f = Vector3::zeros();
-            let mut free = Vec::with_capacity(3);
+            let mut free = [false; 3];
             for i in 0..3 {
                 match state[i] {
-                    0 => free.push(i),
+                    0 => free[i] = true,
                     1 => f[i] = 0.0,
                     _ => f[i] = self.max_thrust_n[i],
                 }
             }
-            if !free.is_empty() {
-                // Weighted least squares over the free rotors: (W A)ᵀ(W A) x = (W A)ᵀ W r.
-                let rest = wanted - to_wrench * f;
-                let a = nalgebra::DMatrix::from_fn(3, free.len(), |r, c| {
-                    to_wrench[(r, free[c])] * weight[r]
+            if free.contains(&true) {
+                // Weighted least squares over the free rotors: (W A)ᵀ(W A) x = (W A)ᵀ W r, the
+                // fixed rotors' columns zero and their rows of the normal matrix the identity.
+                let rest = (wanted - to_wrench * f).component_mul(&weight);
+                let a = Matrix3::from_fn(|r, c| {
+                    if free[c] {
+                        to_wrench[(r, c)] * weight[r]
+                    } else {
+                        0.0
+                    }
                 });
-                let b = nalgebra::DVector::from_fn(3, |r, _| rest[r] * weight[r]);
-                let Some(x) = (a.transpose() * &a)
-                    .try_inverse()
-                    .map(|inv| inv * a.transpose() * b)
-                else {
+                let mut normal = a.transpose() * a;
+                for (i, &is_free) in free.iter().enumerate() {
+                    if !is_free {
+                        normal[(i, i)] = 1.0;
+                    }
+                }
+                let Some(x) = normal.try_inverse().map(|inv| inv * a.transpose() * rest) else {
                     continue;
                 };
-                for (c, &i) in free.iter().enumerate() {
-                    f[i] = x[c];
+                for i in (0..3).filter(|&i| free[i]) {
+                    f[i] = x[i];
                 }
-                if free
-                    .iter()
-                    .any(|&i| !(0.0..=self.max_thrust_n[i]).contains(&f[i]))
-                {
+                if (0..3).any(|i| free[i] && !(0.0..=self.max_thrust_n[i]).contains(&f[i])) {
                     continue;
                 }
             }
