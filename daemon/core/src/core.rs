@@ -511,7 +511,11 @@ impl FlightCore {
                 } else {
                     sp.q_d * -Vector3::z()
                 };
-                let thrusts = control.update(&up, sp.thrust_n, &a.q, &a.rate);
+                let mut top = [0.0; MAX_ROTORS];
+                for (i, t) in top.iter_mut().enumerate().take(self.three_rotors.len()) {
+                    *t = self.mixer.max_thrust(i, rho.max(0.1), battery_v);
+                }
+                let thrusts = control.update_within(&up, sp.thrust_n, &a.q, &a.rate, &top);
                 let m = self.mixer.for_thrusts(&thrusts, &input(Vector3::zeros()));
                 (Vector3::zeros(), m)
             }

@@ -145,7 +145,9 @@ impl Mixer {
         Ok(())
     }
 
-    fn max_thrust(&self, i: usize, rho: f64, v_batt: f64) -> f64 {
+    /// Rotor `i`'s top thrust (N) at air density `rho` and battery voltage `v_batt`: zero when
+    /// failed, else at the lower of its top speed and what the voltage drives.
+    pub fn max_thrust(&self, i: usize, rho: f64, v_batt: f64) -> f64 {
         if self.failed[i] {
             return 0.0;
         }

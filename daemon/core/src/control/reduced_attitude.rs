@@ -276,8 +276,8 @@ impl ReducedAttitude {
 
     /// Each rotor's thrust (N, the airframe's order, zero for the lost one) that turns the
     /// primary axis toward `up_ned` (the direction the thrust should lift in) with `lift_n`
-    /// newtons along it, for the body at attitude `q` turning at `rate_frd`. Inputs that are
-    /// not numbers hold the hover's own thrusts.
+    /// newtons along it, for the body at attitude `q` turning at `rate_frd`, each rotor within
+    /// its top thrust in sea-level air. Inputs that are not numbers hold the hover's own thrusts.
     pub fn update(
         &self,
         up_ned: &Vector3<f64>,
@@ -285,8 +285,30 @@ impl ReducedAttitude {
         q: &UnitQuaternion<f64>,
         rate_frd: &Vector3<f64>,
     ) -> [f64; MAX_ROTORS] {
-        let finite =
-            lift_n.is_finite() && rate_frd.iter().chain(up_ned.iter()).all(|x| x.is_finite());
+        let mut top = [0.0; MAX_ROTORS];
+        for (k, &i) in self.working.iter().enumerate() {
+            top[i] = self.max_thrust_n[k];
+        }
+        self.update_within(up_ned, lift_n, q, rate_frd, &top)
+    }
+
+    /// [`ReducedAttitude::update`] with each rotor's top thrust now (N, the airframe's order:
+    /// the mixer's, for the battery's voltage and the air's density), so that the moments keep
+    /// their priority when the rotors are weaker than at sea level on a full pack.
+    pub fn update_within(
+        &self,
+        up_ned: &Vector3<f64>,
+        lift_n: f64,
+        q: &UnitQuaternion<f64>,
+        rate_frd: &Vector3<f64>,
+        top_thrust_n: &[f64; MAX_ROTORS],
+    ) -> [f64; MAX_ROTORS] {
+        let finite = lift_n.is_finite()
+            && rate_frd
+                .iter()
+                .chain(up_ned.iter())
+                .chain(q.coords.iter())
+                .all(|x| x.is_finite());
         let (Some(up), true) = (up_ned.try_normalize(1e-9), finite) else {
             return self.hover_thrusts();
         };
@@ -305,7 +327,16 @@ impl ReducedAttitude {
         // The lift along the axis is the thrust's component on it (thrust along −z).
         let collective = lift_n.max(0.0) / (-n.z).max(0.1);
         let moments = Vector3::new(0.0, trim.y + u[0], trim.z + u[1]);
-        let f = self.saturate(collective, &moments);
+        // A top that is not a number is the sea-level one.
+        let top = Vector3::from_fn(|k, _| {
+            let t = top_thrust_n[self.working[k]];
+            if t.is_finite() {
+                t.max(0.0)
+            } else {
+                self.max_thrust_n[k]
+            }
+        });
+        let f = self.saturate(collective, &moments, &top);
         let mut out = [0.0; MAX_ROTORS];
         for (k, &i) in self.working.iter().enumerate() {
             out[i] = f[k];
@@ -337,7 +368,12 @@ impl ReducedAttitude {
     /// rotor free, at zero or at its top (27 cases): a moment one way that only a negative
     /// thrust would give (after a rotor's loss the opposite rotor can only push) is given up
     /// alone, the rest of the moment kept.
-    fn saturate(&self, collective: f64, moments: &Vector3<f64>) -> Vector3<f64> {
+    fn saturate(
+        &self,
+        collective: f64,
+        moments: &Vector3<f64>,
+        top: &Vector3<f64>,
+    ) -> Vector3<f64> {
         let wanted = Vector3::new(collective, moments.y, moments.z);
         let to_wrench = self.to_wrench;
         let weight = Vector3::new(
@@ -351,9 +387,11 @@ impl ReducedAttitude {
                 .norm_squared()
         };
         let unbounded = self.allocation * wanted;
-        if (0..3).all(|i| (0.0..=self.max_thrust_n[i]).contains(&unbounded[i])) {
+        if (0..3).all(|i| (0.0..=top[i]).contains(&unbounded[i])) {
             return unbounded;
         }
+        // Every rotor at zero fits: the fallback should no case be a number (never, with the
+        // inputs checked).
         let mut best = (f64::INFINITY, Vector3::zeros());
         for case in 0..27usize {
             // Each rotor: 0 free, 1 at zero, 2 at its top.
@@ -364,7 +402,7 @@ impl ReducedAttitude {
                 match state[i] {
                     0 => free[i] = true,
                     1 => f[i] = 0.0,
-                    _ => f[i] = self.max_thrust_n[i],
+                    _ => f[i] = top[i],
                 }
             }
             if free.contains(&true) {
@@ -390,7 +428,7 @@ impl ReducedAttitude {
                 for i in (0..3).filter(|&i| free[i]) {
                     f[i] = x[i];
                 }
-                if (0..3).any(|i| free[i] && !(0.0..=self.max_thrust_n[i]).contains(&f[i])) {
+                if (0..3).any(|i| free[i] && !(0.0..=top[i]).contains(&f[i])) {
                     continue;
                 }
             }

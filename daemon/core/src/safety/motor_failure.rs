@@ -17,7 +17,8 @@
 //! Both the belief and the measurement go through the same first-order filter (30 ms), whose
 //! derivative of the gyro is exact: `d/dt ω_f = (ω − ω_f)/τ`. A suspect must stay one for
 //! `FD_ACT_MOT_TOUT` before the failure is declared (and latched until [`MotorFailureDetector::reset`]);
-//! a rotor's own low speed only 20 ms (a quad on three rotors cannot wait).
+//! a rotor's own low speed only two ESC readings in a row, or one the imbalance agrees with (a
+//! quad on three rotors cannot wait).
 //! The thrust check runs only in the air: on the ground the ground carries what the rotors do not.
 
 use airframe::{Airframe, MAX_ROTORS};
@@ -37,10 +38,12 @@ const MIN_SPEED_SHARE: f64 = 0.2;
 /// A single rotor cannot lose more than its whole thrust: a fit beyond this (with margin for
 /// noise) is several rotors, or no rotor at all.
 const MAX_LOST_FRACTION: f64 = 1.4;
-/// A rotor's own speed is direct evidence: a reading far below its set-point is confirmed after
-/// this long (s; or `FD_ACT_MOT_TOUT` if shorter), the next ESC reading at 50 Hz. A quad cannot
-/// wait longer: every 10 ms its dead rotor's side drops faster (0.3 rad/s more by 100 ms).
-const RPM_CONFIRM_S: f64 = 0.02;
+/// A rotor's own speed is direct evidence: this many ESC readings in a row far below its
+/// set-point confirm it (40 ms at 50 Hz), or one that the thrust imbalance agrees with, or
+/// `FD_ACT_MOT_TOUT` of them if sooner. One reading alone is never enough (a telemetry glitch);
+/// a quad cannot wait longer: every 10 ms its dead rotor's side tips faster (about 5° more at
+/// the worst of the spin-up).
+const RPM_CONFIRM_READINGS: u32 = 2;
 /// ESC telemetry comes slower than the control loop (50 Hz in the simulator): a reading is
 /// judged until this old (s).
 const RPM_MAX_AGE_S: f64 = 0.1;
@@ -131,6 +134,8 @@ pub struct MotorFailureDetector {
     rpm: [f64; MAX_ROTORS],
     rpm_age_s: f64,
     rpm_suspect_s: [f64; MAX_ROTORS],
+    /// Fresh ESC readings in a row far below the set-point.
+    rpm_low_readings: [u32; MAX_ROTORS],
     imbalance_suspect_s: [f64; MAX_ROTORS],
     failed: [bool; MAX_ROTORS],
 }
@@ -175,6 +180,7 @@ impl MotorFailureDetector {
             rpm: [0.0; MAX_ROTORS],
             rpm_age_s: f64::INFINITY,
             rpm_suspect_s: [0.0; MAX_ROTORS],
+            rpm_low_readings: [0; MAX_ROTORS],
             imbalance_suspect_s: [0.0; MAX_ROTORS],
             failed: [false; MAX_ROTORS],
         }
@@ -206,6 +212,7 @@ impl MotorFailureDetector {
     pub fn reset(&mut self) {
         self.failed = [false; MAX_ROTORS];
         self.rpm_suspect_s = [0.0; MAX_ROTORS];
+        self.rpm_low_readings = [0; MAX_ROTORS];
         self.imbalance_suspect_s = [0.0; MAX_ROTORS];
         self.primed = false;
         self.rpm_age_s = f64::INFINITY;
@@ -228,13 +235,17 @@ impl MotorFailureDetector {
             self.thrust_lag[r] += lag * (clean(i.thrust_setpoint[r]) - self.thrust_lag[r]);
             believed += self.columns[r] * self.thrust_lag[r];
         }
-        match i.measured_speed {
+        let new_reading = match i.measured_speed {
             Some(m) if m.len() >= n => {
                 self.rpm[..n].copy_from_slice(&m[..n]);
                 self.rpm_age_s = 0.0;
+                true
             }
-            _ => self.rpm_age_s += dt,
-        }
+            _ => {
+                self.rpm_age_s += dt;
+                false
+            }
+        };
         let rpm_fresh = self.rpm_age_s <= RPM_MAX_AGE_S;
         let gyro = i.gyro.map(|x| if x.is_finite() { x } else { 0.0 });
         let force = if i.accel.z.is_finite() {
@@ -276,6 +287,11 @@ impl MotorFailureDetector {
                 && self.speed_lag[r] > MIN_SPEED_SHARE * self.max_speed[r]
                 && w.is_finite()
                 && w < (1.0 - LOST_FRACTION) * self.speed_lag[r];
+            if !rpm_low {
+                self.rpm_low_readings[r] = 0;
+            } else if new_reading {
+                self.rpm_low_readings[r] += 1;
+            }
             // This rotor's column explains the deficit, and the loss is most of its thrust.
             let t = self.thrust_lag[r];
             let imbalance = (i.in_air && t > MIN_THRUST_SHARE * self.max_thrust[r])
@@ -287,6 +303,10 @@ impl MotorFailureDetector {
                 })
                 .flatten()
                 .filter(|&f| f > LOST_FRACTION && f < MAX_LOST_FRACTION);
+            // Two low readings in a row, or one that the body's motion agrees with (the other
+            // witness suspects the same rotor): two pieces of evidence either way.
+            let readings_confirm = self.rpm_low_readings[r] >= RPM_CONFIRM_READINGS
+                || (self.rpm_low_readings[r] >= 1 && imbalance.is_some());
             let rpm_fraction = 1.0 - w / self.speed_lag[r].max(1e-9);
             for (suspect, seen, by, fraction) in [
                 (
@@ -303,11 +323,9 @@ impl MotorFailureDetector {
                 ),
             ] {
                 *suspect = if seen { *suspect + dt } else { 0.0 };
-                let confirm = match by {
-                    Detection::RotorSpeed => self.params.timeout_s.min(RPM_CONFIRM_S),
-                    Detection::ThrustImbalance => self.params.timeout_s,
-                };
-                if found.is_none() && *suspect >= confirm {
+                let confirmed = *suspect >= self.params.timeout_s
+                    || (seen && by == Detection::RotorSpeed && readings_confirm);
+                if found.is_none() && confirmed {
                     found = Some(MotorFailure {
                         rotor: r,
                         by,
