@@ -111,6 +111,7 @@ async def quad_loses_a_motor(gcs_port):
               f"{away:.2f} m, landed {math.hypot(end.north_m - b.north_m, end.east_m - b.east_m):.2f} m "
               f"from the cut (estimate); said: {[t.text for t in texts]}")
         assert away <= 4.0, away
+        assert "failsafe: motor failure: Land" in [t.text for t in texts], texts
         assert not await first(telemetry.subscribe_in_air(), lambda a: True, 5)
 
 

@@ -44,10 +44,8 @@ struct Outcome {
     departure_m: f64,
     /// Horizontal distance of the touchdown from the point of the cut (m).
     landed_from_cut_m: f64,
-    /// Vertical speed at touchdown (m/s).
+    /// Fastest vertical speed of the touchdowns after the cut (m/s; a bounce is one more).
     touchdown_m_s: f64,
-    /// Tilt of the body's z from the vertical after the disarm (deg).
-    final_tilt_deg: f64,
     /// Disarmed on the ground.
     disarmed: bool,
     /// Mean and largest yaw rate from 3 s after the cut to the touchdown (rad/s).
@@ -55,14 +53,16 @@ struct Outcome {
     max_yaw_rate: f64,
     /// Largest tilt of the body's z from the vertical in the air after the cut (deg).
     peak_tilt_deg: f64,
-    /// Mode at the end.
-    mode: Option<FlightMode>,
+    /// The failsafe's Land flew it.
+    landed_by_land: bool,
+    /// Largest body rate after the cut (rad/s, the truth: what the gyro must read).
+    max_rate: f64,
     /// Time from the cut to the disarm (s).
     down_after_s: f64,
 }
 
 /// `name` takes off to 10 m, flies as `before` says, loses rotor `rotor` and flies on under
-/// `params` until it has landed and disarmed (at most 120 s).
+/// `params` until it has landed and disarmed (at most 150 s of simulated time).
 fn lose_a_rotor(
     name: &str,
     rotor: usize,
@@ -95,6 +95,7 @@ fn lose_a_rotor(
     let (mut hover_since, mut cut_at) = (None::<f64>, None::<(f64, Vector3<f64>)>);
     let (mut yaw_sum, mut yaw_n) = (0.0, 0usize);
     let mut asked_forward = false;
+    let mut touchdowns = 0;
     while sim.time_s() < 150.0 {
         let s = common::control_interval(&mut sim, &commands[..a.rotors.len()]);
         let out = autopilot.step(&s, &StepInputs::default()).unwrap();
@@ -142,6 +143,13 @@ fn lose_a_rotor(
             }
             Some((c, at)) => {
                 o.spinning |= status.spinning;
+                o.landed_by_land |= status.mode == FlightMode::Land;
+                o.max_rate = o.max_rate.max(body.rate_frd_rad_s.norm());
+                let stats = sim.stats();
+                if stats.touchdowns > touchdowns {
+                    touchdowns = stats.touchdowns;
+                    o.touchdown_m_s = o.touchdown_m_s.max(stats.last_touchdown_speed_m_s);
+                }
                 let off = body.pos_ned_m - at;
                 if !truth.landed {
                     // Below the set-point's descent (the landing's own is not a loss).
@@ -163,11 +171,6 @@ fn lose_a_rotor(
                 if !status.armed {
                     o.disarmed = truth.landed;
                     o.landed_from_cut_m = off.xy().norm();
-                    o.touchdown_m_s = sim.stats().last_touchdown_speed_m_s;
-                    o.final_tilt_deg = (body.q_ned_from_frd * Vector3::z())
-                        .angle(&Vector3::z())
-                        .to_degrees();
-                    o.mode = Some(status.mode);
                     o.down_after_s = t - c;
                     break;
                 }
@@ -186,19 +189,21 @@ struct Worst {
     departure_m: f64,
     landed_from_cut_m: f64,
     touchdown_m_s: f64,
-    final_tilt_deg: f64,
     peak_tilt_deg: f64,
+    max_rate: f64,
     down_after_s: f64,
     mean_yaw_rate: f64,
     max_yaw_rate: f64,
 }
 
 /// Each rotor of `quad_x` and `quad_plus` cut in turn, five seeds each, on the simulator's
-/// `typical` sensors: found within 0.25 s, the quad spins on its other three and lands (the
-/// failsafe's Land, `COM_ACT_FAIL_ACT` left at its warning), upright and disarmed. From a hover
-/// at 10 m it falls at most 2.5 m below its set-point (measured: 2.1 m), leaves the point of the
-/// cut by at most 3 m (2.7 m) and lands within 3 m of it (0.1 m) at 1.5 m/s at most (0.34 m/s);
-/// from 5 m/s forward and in a 5 m/s wind with turbulence it lands at 2 m/s at most.
+/// `typical` sensors: found within 0.25 s, the quad spins on its other three (the body rate
+/// within the ±2000°/s gyro's range, the spin-up's tilt short of the crash check's 60°) and the
+/// failsafe's Land (`COM_ACT_FAIL_ACT` left at its warning) brings it down and disarms it. From
+/// a hover at 10 m it falls at most 2 m below its set-point, leaves the point of the cut by at
+/// most 3 m and lands within 3 m of it at 1.5 m/s at most; from 5 m/s forward and in a 5 m/s
+/// wind with turbulence it falls at most 2.5 m and lands at 2 m/s at most. (The simulator levels a body at rest on the ground, so
+/// whether a spinning touchdown tips over is not judged here.) The figures are printed.
 #[test]
 fn a_quad_that_loses_a_rotor_spins_on_three_and_lands() {
     let mut p = FlightParams::default();
@@ -216,22 +221,26 @@ fn a_quad_that_loses_a_rotor_spins_on_three_and_lands() {
                     let (found, after) = o.detected.unwrap_or_else(|| panic!("not found: {case}"));
                     assert!(found == rotor && (0.0..=0.25).contains(&after), "{case}");
                     assert!(o.spinning, "{case}");
-                    assert!(o.disarmed && o.final_tilt_deg < 10.0, "{case}");
+                    assert!(o.disarmed && o.landed_by_land, "{case}");
+                    assert!(
+                        o.peak_tilt_deg < 60.0 && o.max_rate < 2000f64.to_radians(),
+                        "{case}"
+                    );
                     if before == Before::Hover {
-                        assert!(o.alt_loss_m <= 2.5 && o.departure_m <= 3.0, "{case}");
+                        assert!(o.alt_loss_m <= 2.0 && o.departure_m <= 3.0, "{case}");
                         assert!(
                             o.landed_from_cut_m <= 3.0 && o.touchdown_m_s <= 1.5,
                             "{case}"
                         );
                     } else {
-                        assert!(o.touchdown_m_s <= 2.0, "{case}");
+                        assert!(o.alt_loss_m <= 2.5 && o.touchdown_m_s <= 2.0, "{case}");
                     }
                     w.detect_s = w.detect_s.max(after);
                     w.alt_loss_m = w.alt_loss_m.max(o.alt_loss_m);
                     w.departure_m = w.departure_m.max(o.departure_m);
                     w.landed_from_cut_m = w.landed_from_cut_m.max(o.landed_from_cut_m);
                     w.touchdown_m_s = w.touchdown_m_s.max(o.touchdown_m_s);
-                    w.final_tilt_deg = w.final_tilt_deg.max(o.final_tilt_deg);
+                    w.max_rate = w.max_rate.max(o.max_rate);
                     w.peak_tilt_deg = w.peak_tilt_deg.max(o.peak_tilt_deg);
                     w.down_after_s = w.down_after_s.max(o.down_after_s);
                     w.mean_yaw_rate += o.mean_yaw_rate / 20.0;
@@ -239,14 +248,14 @@ fn a_quad_that_loses_a_rotor_spins_on_three_and_lands() {
                 }
             }
             println!(
-                "{name}, {before:?}, each rotor cut, 5 seeds: found within {:.3} s; below the set-point ≤ {:.2} m; from the cut ≤ {:.2} m in the air, ≤ {:.2} m at touchdown; touchdown ≤ {:.2} m/s; tilt ≤ {:.0}° in the air (the spin-up), ≤ {:.1}° at rest; down within {:.1} s; yaw rate {:.1} rad/s mean, {:.1} rad/s peak",
+                "{name}, {before:?}, each rotor cut, 5 seeds: found within {:.3} s; below the set-point ≤ {:.2} m; from the cut ≤ {:.2} m in the air, ≤ {:.2} m at touchdown; touchdown ≤ {:.2} m/s; tilt ≤ {:.0}° in the air (the spin-up); body rate ≤ {:.1} rad/s; down within {:.1} s; yaw rate {:.1} rad/s mean, {:.1} rad/s peak",
                 w.detect_s,
                 w.alt_loss_m,
                 w.departure_m,
                 w.landed_from_cut_m,
                 w.touchdown_m_s,
                 w.peak_tilt_deg,
-                w.final_tilt_deg,
+                w.max_rate,
                 w.down_after_s,
                 w.mean_yaw_rate,
                 w.max_yaw_rate

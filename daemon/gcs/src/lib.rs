@@ -430,6 +430,8 @@ impl GroundStation {
             if let Some(m) = motor {
                 let how = if t.status.is_some_and(|s| s.spinning) {
                     "flying on three rotors, spinning"
+                } else if self.mav_type == MavType::MAV_TYPE_QUADROTOR {
+                    "cannot fly on three rotors"
                 } else {
                     "flying on the others"
                 };

@@ -398,14 +398,27 @@ fn gcs_heartbeats_are_forwarded_and_failsafes_announced() {
 }
 
 /// A failed motor is said once: on a hexa as flying on the others, on a quad that spins on its
-/// other three as such.
+/// other three as such, and on a quad that does not (`CA_FAILURE_MODE` 0) as lost.
 #[test]
 fn a_motor_failure_is_said_once_with_how_the_vehicle_flies_on() {
-    for (spinning, said) in [
-        (false, "motor 2 failed: flying on the others"),
-        (true, "motor 1 failed: flying on three rotors, spinning"),
+    for (mav_type, spinning, said) in [
+        (
+            MavType::MAV_TYPE_HEXAROTOR,
+            false,
+            "motor 2 failed: flying on the others",
+        ),
+        (
+            MavType::MAV_TYPE_QUADROTOR,
+            true,
+            "motor 1 failed: flying on three rotors, spinning",
+        ),
+        (
+            MavType::MAV_TYPE_QUADROTOR,
+            false,
+            "motor 2 failed: cannot fly on three rotors",
+        ),
     ] {
-        let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
+        let mut g = GroundStation::new(1, mav_type);
         let mut t = telemetry(true, FlightMode::Loiter);
         let mut out = Outbox::default();
         g.poll(0.0, &t, &mut out);
