@@ -4,9 +4,11 @@ attitude against its set-point, position and path, motor outputs, estimator erro
 simulator's truth, where the log has it) and loop timing.
 
     .venv/bin/python tools/plot_flight.py logs/2026-11-23_10-15-02.csv [--out DIR] [--overview]
+        [--spin]
 
 Writes DIR/<stem>_attitude.png, _position.png, _motors.png, _estimator.png and _loop.png
-(DIR: beside the CSV), or with --overview the five in one <stem>_overview.png.
+(DIR: beside the CSV), or with --overview the five in one <stem>_overview.png, or with --spin
+<stem>_spin.png: height, yaw rate, tilt and motor outputs of a quad flying on three rotors.
 """
 
 import argparse
@@ -87,6 +89,8 @@ def plot_position(c, ax_height, ax_path):
     ax_height.set_xlabel("time (s)")
     ax_height.set_title("Height")
     ax_height.legend(loc="upper right", fontsize="small")
+    if ax_path is None:
+        return
     ax_path.plot(c["e_m"], c["n_m"], label="estimate", lw=1)
     ax_path.plot(c["sp_e_m"], c["sp_n_m"], "x", ms=3, label="set-point")
     if has(c, "true_e_m"):
@@ -149,6 +153,29 @@ def plot_loop(c, ax):
     ax.set_xlabel("time (s)")
 
 
+def plot_spin(c, axes):
+    """Height, yaw rate, the body's tilt and the motor outputs, one above the other."""
+    t = c["t_s"]
+    plot_position(c, axes[0], None)
+    axes[0].set_xlabel("")
+    axes[1].plot(t, c["gz"], lw=0.8, label="gyro z")
+    axes[1].set_ylabel("yaw rate (rad/s)")
+    axes[1].set_title("Yaw rate")
+    tilt = np.degrees(np.arccos(np.clip(np.cos(np.radians(c["roll_deg"]))
+                                        * np.cos(np.radians(c["pitch_deg"])), -1.0, 1.0)))
+    axes[2].plot(t, tilt, lw=0.8, label="estimate")
+    if has(c, "true_roll_deg"):
+        k = rows_with(c, "true_roll_deg")
+        true_tilt = np.degrees(np.arccos(np.clip(
+            np.cos(np.radians(c["true_roll_deg"][k])) * np.cos(np.radians(c["true_pitch_deg"][k])),
+            -1.0, 1.0)))
+        axes[2].plot(t[k], true_tilt, ":", lw=1, label="truth")
+    axes[2].set_ylabel("tilt (deg)")
+    axes[2].set_title("Tilt of the body's z axis from the vertical")
+    axes[2].legend(loc="upper right", fontsize="small")
+    plot_motors(c, axes[3])
+
+
 def save(fig, path):
     fig.tight_layout()
     fig.savefig(path, dpi=100)
@@ -161,6 +188,8 @@ def main():
     ap.add_argument("csv", type=Path, help="flight-data CSV")
     ap.add_argument("--out", type=Path, help="directory of the PNGs [default: beside the CSV]")
     ap.add_argument("--overview", action="store_true", help="one PNG with every figure")
+    ap.add_argument("--spin", action="store_true",
+                    help="one PNG of a flight on three rotors: height, yaw rate, tilt, motors")
     args = ap.parse_args()
     try:
         c = load(args.csv)
@@ -169,6 +198,11 @@ def main():
     out = args.out or args.csv.parent
     out.mkdir(parents=True, exist_ok=True)
     stem = args.csv.stem
+    if args.spin:
+        fig, axes = plt.subplots(4, 1, figsize=(10, 10), sharex=True)
+        plot_spin(c, axes)
+        save(fig, out / f"{stem}_spin.png")
+        return
     if args.overview:
         fig = plt.figure(figsize=(16, 12))
         grid = fig.add_gridspec(4, 3)
