@@ -133,7 +133,8 @@ pub fn nominal_battery_v(airframe: &Airframe) -> f64 {
 
 /// ISA air density from a pressure altitude (kg/m³).
 fn air_density(pressure_alt_m: f64) -> f64 {
-    1.225 * (1.0 - 2.255_77e-5 * pressure_alt_m.clamp(-500.0, 11_000.0)).powf(4.255_9)
+    crate::SEA_LEVEL_AIR_DENSITY_KG_M3
+        * (1.0 - 2.255_77e-5 * pressure_alt_m.clamp(-500.0, 11_000.0)).powf(4.255_9)
 }
 
 impl FlightCore {

@@ -18,3 +18,6 @@ pub mod sensors;
 
 /// Standard gravity (m/s²), along NED +z.
 pub const GRAVITY_M_S2: f64 = 9.806_65;
+
+/// ISA sea-level air density (kg/m³): what the rotors' top thrusts are rated in.
+pub const SEA_LEVEL_AIR_DENSITY_KG_M3: f64 = 1.225;

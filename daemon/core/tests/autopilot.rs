@@ -19,11 +19,7 @@ use sitl_core::sim::{SimConfig, Simulator};
 mod common;
 
 fn quad() -> Airframe {
-    Airframe::load(std::path::Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../params/airframes/quad_x.toml"
-    )))
-    .unwrap()
+    common::airframe("quad_x")
 }
 
 /// The default parameters as the daemon flies them in a simulator (whose magnetometer needs no

@@ -13,19 +13,9 @@ use flight_core::params::FlightParams;
 use nalgebra::Vector3;
 use sitl_core::BodyState;
 use sitl_core::sim::{SimConfig, Simulator};
-use std::path::PathBuf;
 
 mod common;
-use common::DECIMATION;
-
-/// An airframe of `params/airframes/`.
-fn airframe(name: &str) -> Airframe {
-    Airframe::load(
-        &PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-            .join(format!("../../params/airframes/{name}.toml")),
-    )
-    .unwrap()
-}
+use common::{DECIMATION, airframe};
 
 /// The simulator with `a` resting at home, still air, typical sensors, seeded.
 fn resting(a: &Airframe, seed: u64) -> Simulator {

@@ -3,7 +3,7 @@
 //! touchdown and the disarm) on the simulator's `typical` sensors.
 #![allow(clippy::unwrap_used, missing_docs)]
 
-use airframe::{Airframe, MAX_ROTORS};
+use airframe::MAX_ROTORS;
 use flight_core::autopilot::command::AutopilotCommand;
 use flight_core::autopilot::{AutoFlight, Autopilot, StepInputs};
 use flight_core::commander::{FlightMode, LandedState};
@@ -14,11 +14,7 @@ use sitl_core::environment::WindConfig;
 use sitl_core::sim::{SimAction, SimConfig, Simulator};
 
 mod common;
-
-fn airframe(name: &str) -> Airframe {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../params/airframes");
-    Airframe::load(&dir.join(format!("{name}.toml"))).unwrap()
-}
+use common::airframe;
 
 /// The flight before the cut.
 #[derive(Debug, Clone, Copy, PartialEq)]

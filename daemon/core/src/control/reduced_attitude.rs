@@ -163,8 +163,13 @@ impl ReducedAttitude {
     /// air that spins within [`MAX_SPIN_RAD_S`], at [`LOOP_RATE_HZ`]; `None` when the airframe has
     /// no such hover or no stable loop (not a quad, or rotors too weak).
     pub fn for_lost_rotor(airframe: &Airframe, lost: usize) -> Option<Self> {
-        let hover =
-            super::relaxed_hover::solve_within_spin(airframe, lost, MAX_SPIN_RAD_S, 1.225).ok()?;
+        let hover = super::relaxed_hover::solve_within_spin(
+            airframe,
+            lost,
+            MAX_SPIN_RAD_S,
+            crate::SEA_LEVEL_AIR_DENSITY_KG_M3,
+        )
+        .ok()?;
         Self::new(airframe, hover, LOOP_RATE_HZ).ok()
     }
 

@@ -69,7 +69,7 @@ impl FlightCoreConfig {
         let max_thrust: f64 = a
             .rotors
             .iter()
-            .map(|r| r.thrust_n(1.225, r.max_speed_rad_s))
+            .map(|r| r.thrust_n(crate::SEA_LEVEL_AIR_DENSITY_KG_M3, r.max_speed_rad_s))
             .sum();
         let r = &p.rate;
         let rate = if r.controller == 1 {

@@ -218,8 +218,8 @@ crate::params::param_group! {
 }
 
 impl SafetyParams {
-    /// The rule of `c` under these parameters.
-    pub fn rule(&self, c: Condition) -> Rule {
+    /// The rule of `c` under these parameters, for a quad `spinning` on three rotors or not.
+    pub fn rule(&self, c: Condition, spinning: bool) -> Rule {
         use Condition as C;
         let (action, clear, takeover, delayed) = match c {
             C::GcsLinkLost => (
@@ -277,6 +277,13 @@ impl SafetyParams {
                     3 => FailsafeAction::Return,
                     4 => FailsafeAction::Terminate,
                     _ => FailsafeAction::Warn,
+                };
+                // A quad spinning on three rotors flies on no margin: it lands (or returns, if
+                // asked), whatever the action for other airframes.
+                let a = if spinning && a < FailsafeAction::Return {
+                    FailsafeAction::Land
+                } else {
+                    a
                 };
                 (a, Clear::OnDisarm, true, false)
             }
@@ -436,6 +443,8 @@ pub struct Safety {
     tilted_since_s: Option<f64>,
     /// A flight termination happened: no arming until restart.
     terminated: bool,
+    /// The last update's quad was spinning on three rotors.
+    spinning: bool,
 }
 
 impl Safety {
@@ -446,6 +455,7 @@ impl Safety {
             tracked: [Tracked::default(); CONDITIONS.len()],
             tilted_since_s: None,
             terminated: false,
+            spinning: false,
         }
     }
 
@@ -490,7 +500,7 @@ impl Safety {
     /// (silent until they clear and trigger anew).
     pub fn take_over(&mut self) -> Result<(), crate::commander::Denial> {
         if let Some(c) = self.active().into_iter().find(|&c| {
-            let rule = self.params.rule(c);
+            let rule = self.params.rule(c, self.spinning);
             !rule.takeover && rule.action > FailsafeAction::Warn
         }) {
             return Err(format!("mode change refused: failsafe in progress ({c})").into());
@@ -564,16 +574,12 @@ impl Safety {
 
     /// One step: conditions tracked, the action decided.
     pub fn update(&mut self, i: &SafetyInput) -> SafetyDecision {
+        self.spinning = i.spinning;
         let now = self.conditions_now(i);
         let mut events = Vec::new();
         let (mut action, mut cause) = (FailsafeAction::None, None);
         for (k, &c) in CONDITIONS.iter().enumerate() {
-            let mut rule = self.params.rule(c);
-            if c == Condition::MotorFailure && i.spinning && rule.action < FailsafeAction::Return {
-                // A quad spinning on three rotors flies a mission on no margin: it lands
-                // (or returns, if asked), whatever the action for other airframes.
-                rule.action = FailsafeAction::Land;
-            }
+            let rule = self.params.rule(c, i.spinning);
             let t = &mut self.tracked[k];
             // Clearing.
             if t.since_s.is_some() {

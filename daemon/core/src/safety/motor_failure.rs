@@ -159,7 +159,7 @@ impl MotorFailureDetector {
             columns[i] = Vector3::new(-1.0, -r.position_frd_m.y / arm, r.position_frd_m.x / arm);
             motor_tau_s[i] = r.time_constant_s.max(1e-3);
             max_speed[i] = r.max_speed_rad_s;
-            max_thrust[i] = r.thrust_n(1.225, r.max_speed_rad_s);
+            max_thrust[i] = r.thrust_n(crate::SEA_LEVEL_AIR_DENSITY_KG_M3, r.max_speed_rad_s);
         }
         Self {
             params,

@@ -8,6 +8,16 @@ use nalgebra::Vector3;
 use sitl_core::sensors::fields;
 use sitl_core::sim::Simulator;
 
+/// An airframe of `params/airframes/` by name.
+#[allow(dead_code)] // not every test crate sharing this module loads one
+pub fn airframe(name: &str) -> airframe::Airframe {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../params/airframes");
+    match airframe::Airframe::load(&dir.join(format!("{name}.toml"))) {
+        Ok(a) => a,
+        Err(e) => panic!("airframe {name}: {e}"),
+    }
+}
+
 /// Physics steps per control step: 1 kHz physics, 250 Hz control (as the HIL link).
 pub const DECIMATION: usize = 4;
 
