@@ -112,6 +112,30 @@ fn a_stopped_rotor_is_found_by_thrust_imbalance_within_a_quarter_second() {
     }
 }
 
+/// A quad has no spare rotor: one that stops is found by the imbalance alone within 0.05 s (its
+/// spin-up tilts it about 5° more every 10 ms). Part of a rotor's thrust lost is not judged so
+/// fast: 60 % waits for `FD_ACT_MOT_TOUT`, 40 % is left to the controllers; a hexa's stopped
+/// rotor waits for the timeout too.
+#[test]
+fn a_quad_rotor_that_stops_is_found_at_once_a_partial_loss_is_not() {
+    for name in ["quad_x", "quad_plus"] {
+        let mut slowest = 0.0f64;
+        for r in 0..4 {
+            let (f, after) = run(name, Fault::Rotor(r, 1.0, true), false, true).unwrap();
+            assert_eq!((f.rotor, f.by), (r, Detection::ThrustImbalance), "{name}");
+            slowest = slowest.max(after);
+        }
+        println!("{name}: a stopped rotor found within {slowest:.3} s");
+        assert!(slowest <= 0.05, "{name}: {slowest:.3} s");
+    }
+    let (f, after) = run("quad_x", Fault::Rotor(2, 0.6, false), false, true).unwrap();
+    assert_eq!(f.rotor, 2);
+    assert!(after >= 0.1, "60 % lost, found after {after:.3} s");
+    assert!(run("quad_x", Fault::Rotor(2, 0.4, false), false, true).is_none());
+    let (_, after) = run("hexa_x", Fault::Rotor(0, 1.0, true), false, true).unwrap();
+    assert!(after >= 0.1, "a hexa's rotor found after {after:.3} s");
+}
+
 /// With rpm reported, a stopped motor is seen by its speed as well; a chipped propeller
 /// (70 % of thrust lost, speed normal) only by the imbalance; 30 % lost is left to the
 /// controllers.
