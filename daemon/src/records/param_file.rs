@@ -329,7 +329,10 @@ mod tests {
             store.record("MIS_TAKEOFF_ALT", 0.5 + k as f64 / 100.0);
             store.record("ATT_ALIGN_N", (1 + k) as f64);
             save(&store).unwrap();
-            eprintln!("saved {k}");
+            // One write of the whole line: `eprintln!` writes its pieces one by one, and a kill
+            // between them leaves the parent half a line.
+            let line = format!("saved {k}\n");
+            std::io::stderr().write_all(line.as_bytes()).unwrap();
             n += 1;
         }
     }
