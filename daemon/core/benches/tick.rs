@@ -2,7 +2,9 @@
 //! loops, mixer. Target (issue 3): ≤ 2 µs for quad_x and dodeca.
 //!
 //! Measured in closed loop: the simulator flies the vehicle (a hover at 5 m) so every stage sees
-//! realistic inputs; only `FlightCore::step` is timed.
+//! realistic inputs; only `FlightCore::step` is timed. Also a quad's tick spinning on three
+//! rotors (the reduced-attitude controller in place of the attitude and rate loops), and what
+//! a flight core costs to build: a quad's solves four relaxed hovers and 36 LQRs.
 
 #[path = "../tests/common/mod.rs"]
 mod common;
@@ -14,7 +16,7 @@ use flight_core::core::{FlightCore, FlightCoreConfig};
 use flight_core::params::FlightParams;
 use nalgebra::Vector3;
 use sitl_core::BodyState;
-use sitl_core::sim::{SimConfig, Simulator};
+use sitl_core::sim::{SimAction, SimConfig, Simulator};
 use std::hint::black_box;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -75,5 +77,50 @@ fn tick(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, tick);
+/// `quad_x` hovering at 5 m, rotor 1 cut and 10 s of spinning on the other three, then its
+/// tick timed; and `FlightCore::new` for a quad and a hexa.
+fn three_rotors(c: &mut Criterion) {
+    let mut g = c.benchmark_group("flight_core_three_rotors");
+    let a = airframe("quad_x");
+    let p = FlightParams::default();
+    let mut sim = Simulator::new(&a, SimConfig::default(), BodyState::default()).expect("sim");
+    let mut core = FlightCore::new(&a, FlightCoreConfig::from_params(&p, &a)).expect("mixer");
+    let sp = flight_core::control::Setpoint::Position(PositionSetpoint {
+        pos_ned_m: Vector3::new(0.0, 0.0, -5.0),
+        vel_ned_m_s: Vector3::zeros(),
+        accel_ned_m_s2: Vector3::zeros(),
+        yaw_rad: 0.0,
+    });
+    let mut commands = [0.0; 16];
+    for step in 0..(25 * 250) {
+        if step == 15 * 250 {
+            sim.apply(SimAction::MotorFail { index: 0 });
+        }
+        let s = common::control_interval(&mut sim, &commands[..4]);
+        commands = core.step(&s, &sp, sim.time_s() > 3.0).commands;
+    }
+    assert_eq!(core.spinning_without(), Some(0), "spinning on three rotors");
+    g.bench_function("quad_x/spinning tick", |b| {
+        b.iter_custom(|iters| {
+            let mut spent = Duration::ZERO;
+            for _ in 0..iters {
+                let s = common::control_interval(&mut sim, &commands[..4]);
+                let start = Instant::now();
+                commands = black_box(core.step(black_box(&s), &sp, true)).commands;
+                spent += start.elapsed();
+            }
+            spent
+        })
+    });
+    for name in ["quad_x", "hexa_x"] {
+        let a = airframe(name);
+        let config = FlightCoreConfig::from_params(&p, &a);
+        g.bench_function(format!("{name}/FlightCore::new"), |b| {
+            b.iter(|| black_box(FlightCore::new(black_box(&a), config.clone()).expect("core")))
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, tick, three_rotors);
 criterion_main!(benches);

@@ -236,8 +236,7 @@ impl FlightCore {
 
     fn reallocate(&mut self) -> Result<(), MixerError> {
         if self.config.motor_failure.reallocate {
-            let failed = self.motor_failure.failed().to_vec();
-            self.mixer.set_failed(&failed)
+            self.mixer.set_failed(self.motor_failure.failed())
         } else {
             Ok(())
         }
@@ -263,9 +262,8 @@ impl FlightCore {
         self.motor_failure.reset();
         self.spinning_without = None;
         self.last_mix = None;
-        let all_working = vec![false; self.motor_failure.failed().len()];
         // Every rotor working is always allocatable.
-        let _ = self.mixer.set_failed(&all_working);
+        let _ = self.mixer.set_failed(&[false; MAX_ROTORS]);
     }
 
     /// The position loop at its own, lower rate, on the first sample within half a sample of
