@@ -207,7 +207,7 @@ crate::params::param_group! {
         /// Motor-failure detection on (1) or off (0).
         motor_failure_detection: u32 = 1, "FD_ACT_EN", "", [0.0, 1.0], "Motor-failure detection (rotor speed and thrust imbalance): 1 on, 0 off";
         /// Time a motor must look failed before it is declared (ms).
-        motor_failure_timeout_ms: u32 = 100, "FD_ACT_MOT_TOUT", "ms", [10.0, 2000.0], "A motor must look failed this long before the failure is declared (sooner: its own low speed on two ESC readings, a quad's stopping rotor in 8 ms)";
+        motor_failure_timeout_ms: u32 = 100, "FD_ACT_MOT_TOUT", "ms", [10.0, 2000.0], "A motor must look failed this long before the failure is declared (sooner: its own low speed on two ESC readings; a quad's stopping rotor held 8 ms, about 0.04 s after it stops)";
         /// Re-allocation on a motor failure.
         motor_failure_mode: u32 = 1, "CA_FAILURE_MODE", "", [0.0, 1.0], "On a motor failure: 1 fly on without the failed rotor (re-allocated, yaw given up first when needed; a quad spins on its other three under reduced-attitude control and lands), 0 keep the allocation";
         /// Motor-failure action.

@@ -19,7 +19,7 @@
 //! `FD_ACT_MOT_TOUT` before the failure is declared (and latched until [`MotorFailureDetector::reset`]);
 //! a rotor's own low speed only two ESC readings in a row, or one the imbalance agrees with; a
 //! quad's rotor that stops (the deficit its column's alone, and with the filter's lag undone
-//! most of its thrust) only 8 ms, ESC telemetry or not. A quad on three rotors cannot wait:
+//! most of its thrust) only for 8 ms, ESC telemetry or not: found about 0.04 s after it stops. A quad on three rotors cannot wait:
 //! every 10 ms costs about 5° more tilt in the spin-up.
 //! The thrust check runs only in the air: on the ground the ground carries what the rotors do not.
 
@@ -56,11 +56,13 @@ const RPM_MAX_AGE_S: f64 = 0.1;
 const STOP_RESIDUAL_FRACTION: f64 = 0.15;
 /// ... a loss above this share of its thrust ...
 const STOP_SEEN_FRACTION: f64 = 0.3;
-/// ... held this long (s, three control steps at 250 Hz) ...
+/// ... held this long (s: three samples 4 ms apart at 250 Hz) ...
 const STOP_CONFIRM_S: f64 = 0.008;
-/// ... and the loss the filter's input shows (its output with the lag undone, `x + τ ẋ`) above
-/// this share: a rotor that is stopping, not one that lost part of its thrust (that one is left
-/// to `FD_ACT_MOT_TOUT`).
+/// ... and then the loss the filter's input shows above this share: its output with the lag
+/// undone, `x + τ ẋ`, `ẋ` the mean slope since the fit turned clean. That slope overstates the
+/// present one on the filter's rise after a step, so a sudden loss of about 70 % passes too; a
+/// rotor that keeps a third of its thrust or more is left to `FD_ACT_MOT_TOUT` (60 % lost: found
+/// by it; 40 %: flown on by the controllers).
 const STOP_PROJECTED_FRACTION: f64 = 0.8;
 /// Airframes with at most this many rotors have no spare for a lost one: the quads.
 const NO_SPARE_ROTORS: usize = 4;
@@ -81,7 +83,9 @@ pub struct MotorFailure {
     pub rotor: usize,
     /// Which witness saw it.
     pub by: Detection,
-    /// Fraction of the rotor's thrust (or speed) found missing.
+    /// Fraction of the rotor's thrust (or speed) found missing, at most 1 (a quad's stopping
+    /// rotor: the loss projected with the filter's lag undone, where the filtered one still
+    /// lags).
     pub lost_fraction: f64,
 }
 
@@ -154,7 +158,6 @@ pub struct MotorFailureDetector {
     /// Fresh ESC readings in a row far below the set-point.
     rpm_low_readings: [u32; MAX_ROTORS],
     imbalance_suspect_s: [f64; MAX_ROTORS],
-    /// Time the deficit has been a quad's stopping rotor's alone.
     /// How long each rotor has looked like a quad's stopping one (s), and the share lost when
     /// it began to.
     stop_seen: [Option<(f64, f64)>; MAX_ROTORS],
@@ -243,6 +246,10 @@ impl MotorFailureDetector {
 
     /// One step; a newly declared failure, if any (at most one per step).
     pub fn step(&mut self, i: &DetectorInput) -> Option<MotorFailure> {
+        if !i.dt.is_finite() {
+            // A step without a time is not judged (nor let into the filters).
+            return None;
+        }
         let dt = i.dt.clamp(1e-4, 0.1);
         let n = self
             .n
@@ -369,8 +376,8 @@ impl MotorFailureDetector {
 
     /// Whether rotor `r` of a quad is stopping, from this step's fit of the deficit to its
     /// column, `(lost share of its thrust, unexplained share)`: a clean fit held for
-    /// [`STOP_CONFIRM_S`], whose loss with the filter's lag undone is most of the thrust. That
-    /// loss, when it is.
+    /// [`STOP_CONFIRM_S`], whose loss with the filter's lag undone (see
+    /// [`STOP_PROJECTED_FRACTION`]) is most of the thrust. That loss, when it is.
     fn judge_stop(&mut self, r: usize, fit: Option<(f64, f64)>, dt: f64) -> Option<f64> {
         let clean = fit.filter(|&(lost, unexplained)| {
             self.n <= NO_SPARE_ROTORS
@@ -384,7 +391,7 @@ impl MotorFailureDetector {
         };
         let (held_s, first) = self.stop_seen[r].map_or((0.0, lost), |(h, f)| (h + dt, f));
         self.stop_seen[r] = Some((held_s, first));
-        // The first-order filter's input from its output: u = x + τ ẋ.
+        // The first-order filter's input from its output: u = x + τ ẋ, ẋ over the hold.
         let projected = lost + FILTER_TAU_S * (lost - first) / held_s.max(dt);
         (held_s >= STOP_CONFIRM_S - 1e-9 && projected > STOP_PROJECTED_FRACTION)
             .then_some(projected)

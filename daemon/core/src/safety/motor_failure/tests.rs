@@ -207,8 +207,9 @@ fn disturbances_ground_contact_and_disabled_detection_are_not_failures() {
     }
 }
 
-/// Nonsense in (NaN, infinities, short slices) never panics nor declares a failure of a rotor
-/// that does not exist; a declaration latches until reset.
+/// Nonsense in (NaN, infinities, short slices) never panics, never declares a failure of a rotor
+/// that does not exist and leaves no non-number in the filters; a declaration latches until
+/// reset.
 #[test]
 fn nonsense_input_and_the_latch() {
     let a = shipped("quad_x");
@@ -226,6 +227,14 @@ fn nonsense_input_and_the_latch() {
         });
         assert!(found.is_none_or(|f| f.rotor < 4));
     }
+    // Nothing of it stays in the filters (a non-number there would last until disarm).
+    let state = d
+        .speed_lag
+        .iter()
+        .chain(&d.thrust_lag)
+        .chain(d.believed.iter());
+    assert!(state.chain(d.rate_f.iter()).all(|x| x.is_finite()));
+    assert!(d.force_f.is_finite());
     d.declare(2);
     d.declare(9);
     assert_eq!(d.failed(), [false, false, true, false]);
