@@ -11,16 +11,16 @@ fi
 
 echo "== cargo fmt --check"
 cargo fmt --all -- --check
-echo "== cargo clippy"
+echo "== cargo clippy (at $SECONDS s)"
 cargo clippy --workspace --all-targets --quiet -- -D warnings
-echo "== layout lints (file length, unique type names)"
+echo "== layout lints (file length, unique type names) (at $SECONDS s)"
 python3 tools/lint.py
-echo "== cargo test"
+echo "== cargo test (at $SECONDS s)"
 cargo test --workspace
 # The Python tests drive the debug binaries that `cargo test` has just built.
 cargo build --workspace --bins --quiet
 
-echo "== python tests"
+echo "== python tests (at $SECONDS s)"
 venv=.venv
 stamp="$venv/.requirements"
 if ! cat tests/requirements.txt tests/requirements-nodeps.txt | cmp -s - "$stamp" 2>/dev/null; then
@@ -32,5 +32,6 @@ if ! cat tests/requirements.txt tests/requirements-nodeps.txt | cmp -s - "$stamp
 fi
 "$venv/bin/python" -m pytest -q --durations=20 tests/python
 
-echo "== fuzz (coverage-guided, a short run of each target)"
+echo "== fuzz (coverage-guided, a short run of each target) (at $SECONDS s)"
 tools/fuzz.sh 12
+echo "== all tests passed in $SECONDS s"
