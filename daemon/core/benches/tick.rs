@@ -29,6 +29,56 @@ fn airframe(name: &str) -> Airframe {
     .expect("shipped")
 }
 
+/// A flight core flying its airframe in the simulator, toward a hover at 5 m.
+struct Hover {
+    sim: Simulator,
+    core: FlightCore,
+    setpoint: flight_core::control::Setpoint,
+    commands: [f64; 16],
+    rotors: usize,
+}
+
+impl Hover {
+    fn new(a: &Airframe, p: &FlightParams) -> Self {
+        Self {
+            sim: Simulator::new(a, SimConfig::default(), BodyState::default()).expect("sim"),
+            core: FlightCore::new(a, FlightCoreConfig::from_params(p, a)).expect("mixer"),
+            setpoint: flight_core::control::Setpoint::Position(PositionSetpoint {
+                pos_ned_m: Vector3::new(0.0, 0.0, -5.0),
+                vel_ned_m_s: Vector3::zeros(),
+                accel_ned_m_s2: Vector3::zeros(),
+                yaw_rad: 0.0,
+            }),
+            commands: [0.0; 16],
+            rotors: a.rotors.len(),
+        }
+    }
+
+    /// One control interval of the simulator, then the core's step on its sample; the time
+    /// of the step alone.
+    fn step(&mut self) -> Duration {
+        let s = common::control_interval(&mut self.sim, &self.commands[..self.rotors]);
+        let armed = self.sim.time_s() > 3.0;
+        let start = Instant::now();
+        let out = black_box(self.core.step(black_box(&s), &self.setpoint, armed));
+        let spent = start.elapsed();
+        self.commands = out.commands;
+        spent
+    }
+
+    /// Aligns, takes off (armed after 3 s) and flies until `t_s` of simulated time.
+    fn fly_until(&mut self, t_s: f64) {
+        while self.sim.time_s() < t_s {
+            self.step();
+        }
+    }
+
+    /// Criterion's timing of `iters` steps.
+    fn timed(&mut self, iters: u64) -> Duration {
+        (0..iters).map(|_| self.step()).sum()
+    }
+}
+
 fn tick(c: &mut Criterion) {
     let mut g = c.benchmark_group("flight_core_tick");
     for name in ["quad_x", "dodeca"] {
@@ -39,38 +89,14 @@ fn tick(c: &mut Criterion) {
             ("pid", true, 1),
             ("ladrc-castillo", false, 0),
         ] {
-            let a = airframe(name);
-            let n = a.rotors.len();
-            let mut sim =
-                Simulator::new(&a, SimConfig::default(), BodyState::default()).expect("sim");
             let mut p = FlightParams::default();
             p.rate.controller = pid as u32;
             p.attitude.mode = mode;
-            let mut core =
-                FlightCore::new(&a, FlightCoreConfig::from_params(&p, &a)).expect("mixer");
-            let sp = flight_core::control::Setpoint::Position(PositionSetpoint {
-                pos_ned_m: Vector3::new(0.0, 0.0, -5.0),
-                vel_ned_m_s: Vector3::zeros(),
-                accel_ned_m_s2: Vector3::zeros(),
-                yaw_rad: 0.0,
-            });
-            let mut commands = [0.0; 16];
+            let mut hover = Hover::new(&airframe(name), &p);
             // Align, take off and settle into the hover first.
-            for _ in 0..(15 * 250) {
-                let s = common::control_interval(&mut sim, &commands[..n]);
-                commands = core.step(&s, &sp, sim.time_s() > 3.0).commands;
-            }
+            hover.fly_until(15.0);
             g.bench_function(format!("{name}/{label}"), |b| {
-                b.iter_custom(|iters| {
-                    let mut spent = Duration::ZERO;
-                    for _ in 0..iters {
-                        let s = common::control_interval(&mut sim, &commands[..n]);
-                        let start = Instant::now();
-                        commands = black_box(core.step(black_box(&s), &sp, true)).commands;
-                        spent += start.elapsed();
-                    }
-                    spent
-                })
+                b.iter_custom(|iters| hover.timed(iters))
             });
         }
     }
@@ -81,36 +107,18 @@ fn tick(c: &mut Criterion) {
 /// tick timed; and `FlightCore::new` for a quad and a hexa.
 fn three_rotors(c: &mut Criterion) {
     let mut g = c.benchmark_group("flight_core_three_rotors");
-    let a = airframe("quad_x");
     let p = FlightParams::default();
-    let mut sim = Simulator::new(&a, SimConfig::default(), BodyState::default()).expect("sim");
-    let mut core = FlightCore::new(&a, FlightCoreConfig::from_params(&p, &a)).expect("mixer");
-    let sp = flight_core::control::Setpoint::Position(PositionSetpoint {
-        pos_ned_m: Vector3::new(0.0, 0.0, -5.0),
-        vel_ned_m_s: Vector3::zeros(),
-        accel_ned_m_s2: Vector3::zeros(),
-        yaw_rad: 0.0,
-    });
-    let mut commands = [0.0; 16];
-    for step in 0..(25 * 250) {
-        if step == 15 * 250 {
-            sim.apply(SimAction::MotorFail { index: 0 });
-        }
-        let s = common::control_interval(&mut sim, &commands[..4]);
-        commands = core.step(&s, &sp, sim.time_s() > 3.0).commands;
-    }
-    assert_eq!(core.spinning_without(), Some(0), "spinning on three rotors");
+    let mut hover = Hover::new(&airframe("quad_x"), &p);
+    hover.fly_until(15.0);
+    hover.sim.apply(SimAction::MotorFail { index: 0 });
+    hover.fly_until(25.0);
+    assert_eq!(
+        hover.core.spinning_without(),
+        Some(0),
+        "spinning on three rotors"
+    );
     g.bench_function("quad_x/spinning tick", |b| {
-        b.iter_custom(|iters| {
-            let mut spent = Duration::ZERO;
-            for _ in 0..iters {
-                let s = common::control_interval(&mut sim, &commands[..4]);
-                let start = Instant::now();
-                commands = black_box(core.step(black_box(&s), &sp, true)).commands;
-                spent += start.elapsed();
-            }
-            spent
-        })
+        b.iter_custom(|iters| hover.timed(iters))
     });
     for name in ["quad_x", "hexa_x"] {
         let a = airframe(name);
