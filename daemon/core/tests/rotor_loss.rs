@@ -87,10 +87,7 @@ struct Outcome {
     spin_up_tilt_error_deg: f64,
     /// The estimator in the air after the spin-up: the largest error of its tilt (deg), of its
     /// heading (deg), of its horizontal position (m) and of its velocity (m/s).
-    tilt_error_deg: f64,
-    heading_error_deg: f64,
-    position_error_m: f64,
-    velocity_error_m_s: f64,
+    errors: [f64; 4],
     /// The same four over the hover's last 3 s before the cut.
     before_errors: [f64; 4],
     /// Samples of the estimate judged in the spin-up and after it.
@@ -99,9 +96,20 @@ struct Outcome {
     max_alt_m: f64,
 }
 
+/// Keeps in `largest` the larger of each of its errors and `e`'s.
+fn keep_largest(largest: &mut [f64; 4], e: [f64; 4]) {
+    for (l, e) in largest.iter_mut().zip(e) {
+        *l = l.max(e);
+    }
+}
+
 /// The estimate's errors against the truth: tilt (deg), heading (deg), horizontal position (m),
-/// velocity (m/s).
-fn estimate_errors(out: &AutopilotOutput, truth: &TruthState) -> Option<[f64; 4]> {
+/// velocity (m/s). `origin_frame` keeps the estimator's local frame once it has an origin.
+fn estimate_errors(
+    out: &AutopilotOutput,
+    truth: &TruthState,
+    origin_frame: &mut Option<LocalFrame>,
+) -> Option<[f64; 4]> {
     let a = out.estimate.attitude?;
     let tr = &out.estimate.translation;
     let origin = tr.origin?;
@@ -116,9 +124,8 @@ fn estimate_errors(out: &AutopilotOutput, truth: &TruthState) -> Option<[f64; 4]
     let heading = d.sin().atan2(d.cos()).abs();
     // The estimate's position is from its own origin (the first GPS fix): through the globe to
     // the simulator's home frame.
-    let at = truth
-        .home
-        .to_ned(&LocalFrame::new(origin).to_geodetic(&tr.pos_ned_m));
+    let frame = origin_frame.get_or_insert_with(|| LocalFrame::new(origin));
+    let at = truth.home.to_ned(&frame.to_geodetic(&tr.pos_ned_m));
     let position = (at - body.pos_ned_m).xy().norm();
     let velocity = (tr.vel_ned_m_s - body.vel_ned_m_s).norm();
     Some([tilt.to_degrees(), heading.to_degrees(), position, velocity])
@@ -159,6 +166,7 @@ fn lose_a_rotor(case: Case, params: &FlightParams) -> Outcome {
     let (mut hover_since, mut cut_at) = (None::<f64>, None::<(f64, Vector3<f64>)>);
     let (mut yaw_sum, mut yaw_n) = (0.0, 0usize);
     let (mut asked_away, mut settled_since) = (false, None::<f64>);
+    let mut origin_frame = None;
     let mut touchdowns = 0;
     while sim.time_s() < 150.0 {
         let mut s = common::control_interval(&mut sim, &commands[..a.rotors.len()]);
@@ -175,7 +183,7 @@ fn lose_a_rotor(case: Case, params: &FlightParams) -> Outcome {
             let after = cut_at.map_or(-1.0, |(c, _)| t - c);
             o.detected.get_or_insert((f.rotor, after));
         }
-        let errors = estimate_errors(&out, &truth);
+        let errors = estimate_errors(&out, &truth, &mut origin_frame);
         match cut_at {
             None => {
                 let up = status.landed == LandedState::InAir && -body.pos_ned_m.z > 9.7;
@@ -223,9 +231,7 @@ fn lose_a_rotor(case: Case, params: &FlightParams) -> Outcome {
                 }
                 let s0 = *settled_since.get_or_insert(t);
                 if let Some(e) = errors {
-                    for (b, e) in o.before_errors.iter_mut().zip(e) {
-                        *b = b.max(e);
-                    }
+                    keep_largest(&mut o.before_errors, e);
                 }
                 if t > s0 + 3.0 {
                     sim.apply(SimAction::MotorFail { index: rotor });
@@ -260,12 +266,9 @@ fn lose_a_rotor(case: Case, params: &FlightParams) -> Outcome {
                     if let (Some(e), true) = (errors, t < c + SPIN_UP_S) {
                         o.spin_up_tilt_error_deg = o.spin_up_tilt_error_deg.max(e[0]);
                         o.error_samples[0] += 1;
-                    } else if let Some([tilt, heading, position, velocity]) = errors {
-                        o.tilt_error_deg = o.tilt_error_deg.max(tilt);
+                    } else if let Some(e) = errors {
+                        keep_largest(&mut o.errors, e);
                         o.error_samples[1] += 1;
-                        o.heading_error_deg = o.heading_error_deg.max(heading);
-                        o.position_error_m = o.position_error_m.max(position);
-                        o.velocity_error_m_s = o.velocity_error_m_s.max(velocity);
                     }
                     if t > c + 3.0 {
                         let r = body.rate_frd_rad_s.z.abs();
@@ -332,16 +335,8 @@ impl Worst {
         self.yaw_rate_sum += o.mean_yaw_rate;
         self.max_yaw_rate = self.max_yaw_rate.max(o.max_yaw_rate);
         self.spin_up_tilt_error_deg = self.spin_up_tilt_error_deg.max(o.spin_up_tilt_error_deg);
-        let after = [
-            o.tilt_error_deg,
-            o.heading_error_deg,
-            o.position_error_m,
-            o.velocity_error_m_s,
-        ];
-        for (k, e) in after.into_iter().enumerate() {
-            self.errors[k] = self.errors[k].max(e);
-            self.before_errors[k] = self.before_errors[k].max(o.before_errors[k]);
-        }
+        keep_largest(&mut self.errors, o.errors);
+        keep_largest(&mut self.before_errors, o.before_errors);
     }
 
     /// Prints the figures of `what`.
@@ -403,13 +398,7 @@ fn assert_flown(c: &Case, o: &Outcome, found_within_s: f64) {
     );
     assert!(o.error_samples.iter().all(|&n| n > 0), "{case}");
     assert!(o.spin_up_tilt_error_deg <= SPIN_UP_TILT_ERROR_DEG, "{case}");
-    let errors = [
-        o.tilt_error_deg,
-        o.heading_error_deg,
-        o.position_error_m,
-        o.velocity_error_m_s,
-    ];
-    for (e, bound) in errors.iter().zip(ERRORS_AT_SPIN) {
+    for (e, bound) in o.errors.iter().zip(ERRORS_AT_SPIN) {
         assert!(*e <= bound, "{case}");
     }
     match c.before {

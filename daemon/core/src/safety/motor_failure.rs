@@ -341,24 +341,26 @@ impl MotorFailureDetector {
             let readings_confirm = self.rpm_low_readings[r] >= RPM_CONFIRM_READINGS
                 || (self.rpm_low_readings[r] >= 1 && imbalance.is_some());
             let rpm_fraction = 1.0 - w / self.speed_lag[r].max(1e-9);
-            for (suspect, seen, by, fraction) in [
+            // Each witness: its suspicion's time, whether it sees a loss now, whether its own
+            // evidence confirms it before `FD_ACT_MOT_TOUT`, and the share lost.
+            for (suspect, seen, early, by, fraction) in [
                 (
                     &mut self.rpm_suspect_s[r],
                     rpm_low,
+                    rpm_low && readings_confirm,
                     Detection::RotorSpeed,
                     rpm_fraction,
                 ),
                 (
                     &mut self.imbalance_suspect_s[r],
                     imbalance.is_some(),
+                    stopping.is_some(),
                     Detection::ThrustImbalance,
                     stopping.or(imbalance).unwrap_or(0.0),
                 ),
             ] {
                 *suspect = if seen { *suspect + dt } else { 0.0 };
-                let confirmed = *suspect >= self.params.timeout_s
-                    || (seen && by == Detection::RotorSpeed && readings_confirm)
-                    || (by == Detection::ThrustImbalance && stopping.is_some());
+                let confirmed = *suspect >= self.params.timeout_s || early;
                 if found.is_none() && confirmed {
                     found = Some(MotorFailure {
                         rotor: r,
