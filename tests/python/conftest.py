@@ -8,6 +8,7 @@ import select
 import signal
 import socket
 import subprocess
+import sys
 import threading
 import time
 import zlib
@@ -281,6 +282,7 @@ class Daemon:
         self.store = tmp_path / "params.toml"
         self.out = tmp_path / "autopilot.out"
         self.logs = tmp_path / "logs"
+        self.sim_err = tmp_path / "sitl.err"
         self.gcs = None
         if connect:
             self.gcs = mavutil.mavlink_connection(f"udpin:127.0.0.1:{self.gcs_port}",
@@ -303,7 +305,7 @@ class Daemon:
         self.sim = subprocess.Popen(
             [str(binary("sitl")), "--params-dir", str(ROOT / "params"), "--status-interval", "0",
              *self.sim_args, "--autopilot", f"127.0.0.1:{self.sim_port}"],
-            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+            stdout=subprocess.PIPE, stderr=open(self.sim_err, "a"), text=True,
         )
 
     def stop_sim(self):
@@ -338,12 +340,25 @@ class Daemon:
         assert "panicked" not in err, err
 
     def close(self):
+        """Kills both processes. Printed (pytest shows it when the test fails): whether either
+        had already ended, and the end of what each logged."""
+        sim_ended, ap_ended = self.sim.poll(), self.ap.poll()
         self.sim.kill()
         self.sim.wait()
-        if self.ap.poll() is None:
+        if ap_ended is None:
             self.ap.kill()
             _, err = self.ap.communicate()
-            assert "panicked" not in err, err
+        elif self.ap.stderr and not self.ap.stderr.closed:
+            err = self.ap.stderr.read()
+        else:
+            err = getattr(self, "ap_stderr", "")
+
+        def state(code):
+            return "killed" if code is None else f"had ended (exit {code})"
+
+        print(f"sitl {state(sim_ended)}; its log's end:\n{self.sim_err.read_text()[-1500:]}\n"
+              f"autopilot {state(ap_ended)}; its log's end:\n{err[-3000:]}", file=sys.stderr)
+        assert "panicked" not in err, err
 
 
 async def first(stream, condition, timeout):

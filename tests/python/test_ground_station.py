@@ -48,13 +48,23 @@ def fast_vehicle(tmp_path):
 
 
 def wait(gcs, what, condition, timeout=30):
-    """The first message of type `what` for which condition(msg) holds, within `timeout` s."""
+    """The first message of type `what` for which condition(msg) holds, within `timeout` s. A
+    wait that fails says the last such message seen (and pymavlink's mode then) and what the
+    vehicle said meanwhile (STATUSTEXT)."""
+    wanted = [what] if isinstance(what, str) else list(what)
     end = time.monotonic() + timeout
+    last, said = None, []
     while time.monotonic() < end:
-        m = gcs.recv_match(type=what, blocking=True, timeout=0.5)
-        if m is not None and m.get_srcComponent() == 1 and condition(m):
+        m = gcs.recv_match(type=wanted + ["STATUSTEXT"], blocking=True, timeout=0.5)
+        if m is None or m.get_srcComponent() != 1:
+            continue
+        if m.get_type() not in wanted:
+            said.append(m.text)
+            continue
+        if condition(m):
             return m
-    pytest.fail(f"no {what} as expected within {timeout} s")
+        last = f"{m} (mode {gcs.flightmode})"
+    pytest.fail(f"no {what} as expected within {timeout} s; the last one: {last}; said: {said[-10:]}")
 
 
 def ack(gcs, command, timeout=5):

@@ -68,6 +68,7 @@ def test_logs_are_flushed_on_sigterm_and_a_killed_daemon_loses_under_a_second(tm
         assert ack(gcs, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM) == 0
         gcs.mav.command_long_send(1, 1, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF, 0,
                                   0, 0, 0, float("nan"), float("nan"), float("nan"), float("nan"))
+        assert ack(gcs, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF) == 0
         wait_holding_in_air(gcs)
         seen_s = vehicle_time_s(gcs)
         killed_at = time.time()
