@@ -156,7 +156,11 @@ fuzz_target!(|steps: Vec<Step>| {
                 now += f64::from(dt_s);
                 files.poll(now, usize::from(budget), &mut out);
                 // The budget, and a CRC's answer when one is done.
-                assert!(out.len() <= usize::from(budget) + 1, "{} > {budget}", out.len());
+                assert!(
+                    out.len() <= usize::from(budget) + 1,
+                    "{} > {budget}",
+                    out.len()
+                );
                 continue;
             }
         };

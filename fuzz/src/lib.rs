@@ -18,6 +18,15 @@ pub fn quad() -> &'static Airframe {
     })
 }
 
+/// The default quad's autopilot with the default parameters, made once and cloned for each
+/// input (making one solves its controllers' LQRs: most of an input's time, were it made anew).
+fn resting_autopilot() -> &'static Autopilot {
+    static AUTOPILOT: std::sync::OnceLock<Autopilot> = std::sync::OnceLock::new();
+    AUTOPILOT.get_or_init(|| {
+        Autopilot::new(quad(), &FlightParams::default(), None).expect("the default quad flies")
+    })
+}
+
 /// The protocol, the vehicle it passes commands to, and the telemetry it reads.
 pub struct Vehicle {
     /// The ground-station protocol.
@@ -38,8 +47,8 @@ impl Vehicle {
         }
         Self {
             gcs: GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR)
-                .with_parameters(gcs::params::Parameters::default(), params.clone()),
-            autopilot: Autopilot::new(quad(), &params, None).expect("the default quad flies"),
+                .with_parameters(gcs::params::Parameters::default(), params),
+            autopilot: resting_autopilot().clone(),
             telemetry,
         }
     }

@@ -105,6 +105,7 @@ pub struct AutopilotOutput {
 }
 
 /// The autopilot: flight core, commander, and the checks and failsafes around them.
+#[derive(Clone)]
 pub struct Autopilot {
     core: FlightCore,
     commander: Commander,

@@ -80,12 +80,14 @@ pub struct StepOutput {
     pub motor_failure: Option<MotorFailure>,
 }
 
+#[derive(Clone)]
 enum RateAxis {
     Ladrc(LadrcAxis),
     Pid(PidAxis),
 }
 
 /// The flight core.
+#[derive(Clone)]
 pub struct FlightCore {
     config: FlightCoreConfig,
     attitude: AttitudeEstimator,
