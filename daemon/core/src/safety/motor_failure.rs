@@ -19,8 +19,9 @@
 //! `FD_ACT_MOT_TOUT` before the failure is declared (and latched until [`MotorFailureDetector::reset`]);
 //! a rotor's own low speed only two ESC readings in a row, or one the imbalance agrees with; a
 //! quad's rotor that stops (the deficit its column's alone, and with the filter's lag undone
-//! most of its thrust) only for 8 ms, ESC telemetry or not: found about 0.04 s after it stops. A quad on three rotors cannot wait:
-//! every 10 ms costs about 5° more tilt in the spin-up.
+//! most of its thrust) only for 8 ms, unless a fresh ESC reading shows it turning as told: found
+//! about 0.04 s after it stops. A quad on three rotors cannot wait: every 10 ms costs about 5°
+//! more tilt in the spin-up.
 //! The thrust check runs only in the air: on the ground the ground carries what the rotors do not.
 
 use airframe::{Airframe, MAX_ROTORS};
@@ -64,6 +65,10 @@ const STOP_CONFIRM_S: f64 = 0.008;
 /// rotor that keeps a third of its thrust or more is left to `FD_ACT_MOT_TOUT` (60 % lost: found
 /// by it; 40 %: flown on by the controllers).
 const STOP_PROJECTED_FRACTION: f64 = 0.8;
+/// A rotor whose fresh ESC reading is within this share of its lagged set-point speed turns as
+/// told: the quick stop judgement does not overrule it. (A stopping rotor's speed leaves this
+/// band within a reading: its ESC tells before the imbalance could.)
+const TURNING_FRACTION: f64 = 0.1;
 /// Airframes with at most this many rotors have no spare for a lost one: the quads.
 const NO_SPARE_ROTORS: usize = 4;
 
@@ -335,7 +340,12 @@ impl MotorFailureDetector {
                     res <= RESIDUAL_FRACTION && f > LOST_FRACTION && f < MAX_LOST_FRACTION
                 })
                 .map(|(f, _)| f);
-            let stopping = self.judge_stop(r, fit, dt);
+            // The quick stop judgement stands in for ESC telemetry: a fresh reading of the
+            // rotor turning as told overrules it (a lost propeller is left to the timeout).
+            let speed_says_turning = rpm_fresh
+                && self.speed_lag[r] > MIN_SPEED_SHARE * self.max_speed[r]
+                && w >= (1.0 - TURNING_FRACTION) * self.speed_lag[r];
+            let stopping = self.judge_stop(r, fit.filter(|_| !speed_says_turning), dt);
             // Two low readings in a row, or one that the body's motion agrees with (the other
             // witness suspects the same rotor): two pieces of evidence either way.
             let readings_confirm = self.rpm_low_readings[r] >= RPM_CONFIRM_READINGS

@@ -136,6 +136,18 @@ fn a_quad_rotor_that_stops_is_found_at_once_a_partial_loss_is_not() {
     assert!(after >= 0.1, "a hexa's rotor found after {after:.3} s");
 }
 
+/// A quad's rotor whose thrust goes while its ESC reports it turning as told (a propeller lost):
+/// the quick stop judgement stands down for the reading, and the imbalance waits its
+/// `FD_ACT_MOT_TOUT`. The same loss unmeasured is judged at once.
+#[test]
+fn a_quad_rotor_reported_turning_as_told_is_not_judged_stopped_at_once() {
+    let (f, after) = run("quad_x", Fault::Rotor(1, 1.0, false), true, true).unwrap();
+    assert_eq!((f.rotor, f.by), (1, Detection::ThrustImbalance));
+    assert!(after >= 0.1, "found after {after:.3} s");
+    let (_, after) = run("quad_x", Fault::Rotor(1, 1.0, false), false, true).unwrap();
+    assert!(after <= 0.05, "found after {after:.3} s");
+}
+
 /// With rpm reported, a stopped motor is seen by its speed as well; a chipped propeller
 /// (70 % of thrust lost, speed normal) only by the imbalance; 30 % lost is left to the
 /// controllers.
