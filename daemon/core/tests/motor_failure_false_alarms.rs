@@ -5,7 +5,7 @@
 
 use airframe::MAX_ROTORS;
 use flight_core::autopilot::command::AutopilotCommand;
-use flight_core::autopilot::{AutoFlight, Autopilot, StepInputs};
+use flight_core::autopilot::{AutoFlight, Autopilot};
 use flight_core::commander::{FlightMode, LandedState, OrbitYaw};
 use flight_core::mission::{MissionAltitude, MissionPoint};
 use flight_core::params::FlightParams;
@@ -49,12 +49,13 @@ fn orbit_in_wind(name: &str, seed: u64, wind_from_west_m_s: f64, esc_telemetry: 
     let mut orbit_since = None::<f64>;
     let mut flown = Flown::default();
     while sim.time_s() < 120.0 {
-        let mut s = common::control_interval(&mut sim, &commands[..a.rotors.len()]);
-        if !esc_telemetry {
-            s.rotor_speed_rad_s = None;
-        }
-        let out = autopilot.step(&s, &StepInputs::default()).unwrap();
-        commands = out.commands;
+        let out = common::autopilot_interval(
+            &mut sim,
+            &mut autopilot,
+            &mut commands,
+            a.rotors.len(),
+            esc_telemetry,
+        );
         let t = sim.time_s();
         if let Some(f) = out.estimate.motor_failure {
             flown.declared.get_or_insert((f.rotor, t));

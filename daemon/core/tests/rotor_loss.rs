@@ -5,7 +5,7 @@
 
 use airframe::MAX_ROTORS;
 use flight_core::autopilot::command::AutopilotCommand;
-use flight_core::autopilot::{AutoFlight, Autopilot, AutopilotOutput, StepInputs};
+use flight_core::autopilot::{AutoFlight, Autopilot, AutopilotOutput};
 use flight_core::commander::{FlightMode, LandedState};
 use flight_core::mission::{MissionAltitude, MissionPoint};
 use flight_core::params::FlightParams;
@@ -169,12 +169,13 @@ fn lose_a_rotor(case: Case, params: &FlightParams) -> Outcome {
     let mut origin_frame = None;
     let mut touchdowns = 0;
     while sim.time_s() < 150.0 {
-        let mut s = common::control_interval(&mut sim, &commands[..a.rotors.len()]);
-        if !esc_telemetry {
-            s.rotor_speed_rad_s = None;
-        }
-        let out = autopilot.step(&s, &StepInputs::default()).unwrap();
-        commands = out.commands;
+        let out = common::autopilot_interval(
+            &mut sim,
+            &mut autopilot,
+            &mut commands,
+            a.rotors.len(),
+            esc_telemetry,
+        );
         let t = sim.time_s();
         let truth = sim.truth();
         let body = truth.body;

@@ -18,6 +18,27 @@ pub fn airframe(name: &str) -> airframe::Airframe {
     }
 }
 
+/// One control interval of the whole autopilot: physics under `commands`, the sample (its ESC
+/// telemetry dropped unless `esc_telemetry`) stepped, and `commands` replaced by the answer's.
+#[allow(dead_code)] // not every test crate sharing this module flies the whole autopilot
+pub fn autopilot_interval(
+    sim: &mut Simulator,
+    autopilot: &mut flight_core::autopilot::Autopilot,
+    commands: &mut [f64; airframe::MAX_ROTORS],
+    rotors: usize,
+    esc_telemetry: bool,
+) -> flight_core::autopilot::AutopilotOutput {
+    let mut s = control_interval(sim, &commands[..rotors]);
+    if !esc_telemetry {
+        s.rotor_speed_rad_s = None;
+    }
+    let out = autopilot
+        .step(&s, &flight_core::autopilot::StepInputs::default())
+        .expect("a sample from the simulator steps");
+    *commands = out.commands;
+    out
+}
+
 /// Physics steps per control step: 1 kHz physics, 250 Hz control (as the HIL link).
 pub const DECIMATION: usize = 4;
 
