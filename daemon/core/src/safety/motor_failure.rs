@@ -5,7 +5,8 @@
 //!   half the speed it was told to reach — the set-point passed through the motor's own lag,
 //!   so a spin-up is not a failure — while it was told to turn fast enough to matter.
 //! - **Thrust imbalance** (ArduPilot's thrust-balance idea, made model-based): the wrench the
-//!   mixer believes the rotors make, `B T` (Lewis (4.31), (4.34)), against the wrench the body
+//!   mixer believes the rotors make, `B T` (Lewis (4.31), (4.34)), `T` the thrust of each speed
+//!   set-point passed through the motor's lag (thrust as the speed squared), against the wrench the body
 //!   shows: collective from the accelerometer (`m f_z`) and moments from the gyro through Euler's
 //!   equation `J ω̇ + ω × J ω` (Castillo (58), without the small rotor terms). A rotor that makes
 //!   `ΔT` less than believed leaves a deficit `ΔT b_i` — its own column of `B`: a thrust loss
@@ -147,9 +148,11 @@ pub struct MotorFailureDetector {
     max_thrust: [f64; MAX_ROTORS],
     inertia: Matrix3<f64>,
     mass_kg: f64,
-    /// Set-points through the motor lag.
+    /// The speed set-points through the motor lag, and the thrust of those speeds.
     speed_lag: [f64; MAX_ROTORS],
     thrust_lag: [f64; MAX_ROTORS],
+    /// Each rotor's thrust over its speed squared, from the mixer's last set-point (N s²).
+    thrust_per_speed_sq: [f64; MAX_ROTORS],
     /// Believed `[F_z, M_x, M_y]`, filtered.
     believed: Vector3<f64>,
     /// Gyro and `m f_z`, filtered.
@@ -202,6 +205,9 @@ impl MotorFailureDetector {
             mass_kg: airframe.mass_kg,
             speed_lag: [0.0; MAX_ROTORS],
             thrust_lag: [0.0; MAX_ROTORS],
+            thrust_per_speed_sq: std::array::from_fn(|r| {
+                max_thrust[r] / (max_speed[r] * max_speed[r]).max(1e-9)
+            }),
             believed: Vector3::zeros(),
             rate_f: Vector3::zeros(),
             force_f: 0.0,
@@ -262,12 +268,19 @@ impl MotorFailureDetector {
             .min(i.thrust_setpoint.len());
         let k = (dt / FILTER_TAU_S).min(1.0);
         let clean = |x: f64| if x.is_finite() { x.max(0.0) } else { 0.0 };
-        // The set-points through each motor's lag: what a healthy rotor is doing now.
+        // The set-points through each motor's lag: what a healthy rotor is doing now. A motor
+        // lags in speed and its thrust goes as the speed squared, so the thrust is that of the
+        // lagged speed (the thrust set-point lagged instead runs ahead of a rotor speeding up
+        // from slow: a deficit on its column where none is).
         let mut believed = Vector3::zeros();
         for r in 0..n {
             let lag = 1.0 - (-dt / self.motor_tau_s[r]).exp();
-            self.speed_lag[r] += lag * (clean(i.speed_setpoint[r]) - self.speed_lag[r]);
-            self.thrust_lag[r] += lag * (clean(i.thrust_setpoint[r]) - self.thrust_lag[r]);
+            let speed = clean(i.speed_setpoint[r]);
+            if speed > 1e-3 * self.max_speed[r] {
+                self.thrust_per_speed_sq[r] = clean(i.thrust_setpoint[r]) / (speed * speed);
+            }
+            self.speed_lag[r] += lag * (speed - self.speed_lag[r]);
+            self.thrust_lag[r] = self.thrust_per_speed_sq[r] * self.speed_lag[r].powi(2);
             believed += self.columns[r] * self.thrust_lag[r];
         }
         let new_reading = match i.measured_speed {
