@@ -148,9 +148,8 @@ pub struct MotorFailureDetector {
     max_thrust: [f64; MAX_ROTORS],
     inertia: Matrix3<f64>,
     mass_kg: f64,
-    /// The speed set-points through the motor lag, and the thrust of those speeds.
+    /// The speed set-points through the motor lag.
     speed_lag: [f64; MAX_ROTORS],
-    thrust_lag: [f64; MAX_ROTORS],
     /// Each rotor's thrust over its speed squared, from the mixer's last set-point (N s²).
     thrust_per_speed_sq: [f64; MAX_ROTORS],
     /// Believed `[F_z, M_x, M_y]`, filtered.
@@ -204,7 +203,6 @@ impl MotorFailureDetector {
             inertia: airframe.inertia_kg_m2,
             mass_kg: airframe.mass_kg,
             speed_lag: [0.0; MAX_ROTORS],
-            thrust_lag: [0.0; MAX_ROTORS],
             thrust_per_speed_sq: std::array::from_fn(|r| {
                 max_thrust[r] / (max_speed[r] * max_speed[r]).max(1e-9)
             }),
@@ -280,8 +278,7 @@ impl MotorFailureDetector {
                 self.thrust_per_speed_sq[r] = clean(i.thrust_setpoint[r]) / (speed * speed);
             }
             self.speed_lag[r] += lag * (speed - self.speed_lag[r]);
-            self.thrust_lag[r] = self.thrust_per_speed_sq[r] * self.speed_lag[r].powi(2);
-            believed += self.columns[r] * self.thrust_lag[r];
+            believed += self.columns[r] * self.thrust_lag(r);
         }
         let new_reading = match i.measured_speed {
             Some(m) if m.len() >= n => {
@@ -329,19 +326,21 @@ impl MotorFailureDetector {
             if self.failed[r] {
                 continue;
             }
-            // Rotor speed well below the lagged set-point.
+            // Rotor speed well below the lagged set-point, or turning as told.
             let w = self.rpm[r];
-            let rpm_low = rpm_fresh
+            let speed_judged = rpm_fresh
                 && self.speed_lag[r] > MIN_SPEED_SHARE * self.max_speed[r]
-                && w.is_finite()
-                && w < (1.0 - LOST_FRACTION) * self.speed_lag[r];
+                && w.is_finite();
+            let rpm_low = speed_judged && w < (1.0 - LOST_FRACTION) * self.speed_lag[r];
+            let speed_says_turning =
+                speed_judged && w >= (1.0 - TURNING_FRACTION) * self.speed_lag[r];
             if !rpm_low {
                 self.rpm_low_readings[r] = 0;
             } else if new_reading {
                 self.rpm_low_readings[r] += 1;
             }
             // This rotor's column explains the deficit, and the loss is most of its thrust.
-            let t = self.thrust_lag[r];
+            let t = self.thrust_lag(r);
             let fit = (i.in_air && t > MIN_THRUST_SHARE * self.max_thrust[r]).then(|| {
                 let b = &self.columns[r];
                 let lost = b.dot(&deficit) / b.norm_squared();
@@ -355,9 +354,6 @@ impl MotorFailureDetector {
                 .map(|(f, _)| f);
             // The quick stop judgement stands in for ESC telemetry: a fresh reading of the
             // rotor turning as told overrules it (a lost propeller is left to the timeout).
-            let speed_says_turning = rpm_fresh
-                && self.speed_lag[r] > MIN_SPEED_SHARE * self.max_speed[r]
-                && w >= (1.0 - TURNING_FRACTION) * self.speed_lag[r];
             let stopping = self.judge_stop(r, fit.filter(|_| !speed_says_turning), dt);
             // Two low readings in a row, or one that the body's motion agrees with (the other
             // witness suspects the same rotor): two pieces of evidence either way.
@@ -397,6 +393,11 @@ impl MotorFailureDetector {
             self.failed[f.rotor] = true;
         }
         found
+    }
+
+    /// Rotor `r`'s thrust at its lagged speed set-point (N): what a healthy rotor makes now.
+    fn thrust_lag(&self, r: usize) -> f64 {
+        self.thrust_per_speed_sq[r] * self.speed_lag[r].powi(2)
     }
 
     /// Whether rotor `r` of a quad is stopping, from this step's fit of the deficit to its

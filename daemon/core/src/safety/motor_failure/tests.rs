@@ -243,7 +243,7 @@ fn nonsense_input_and_the_latch() {
     let state = d
         .speed_lag
         .iter()
-        .chain(&d.thrust_lag)
+        .chain(&d.thrust_per_speed_sq)
         .chain(d.believed.iter());
     assert!(state.chain(d.rate_f.iter()).all(|x| x.is_finite()));
     assert!(d.force_f.is_finite());
