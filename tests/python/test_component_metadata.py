@@ -2,7 +2,7 @@
 component-metadata client (pinned, unmodified): `REQUEST_MESSAGE` for `COMPONENT_METADATA`,
 the general file fetched over MAVLink FTP from the `mftp://` URI it names, then the parameter
 metadata it lists. The files are checked against the MAVLink project's JSON schemas
-(`../shared/specs/component_metadata/`, pinned `jsonschema`) and their CRCs, fetched again with
+(`tests/schemas/component_metadata/`, pinned `jsonschema`) and their CRCs, fetched again with
 pymavlink's FTP client; the parameter metadata is the table the parameter protocol serves."""
 
 import asyncio
@@ -20,9 +20,8 @@ from test_ground_station import ack, daemon, wait  # noqa: F401 (the fixture)
 from conftest import free_tcp_port
 from test_ulog import fetch_params
 
-# The MAVLink project's schemas, kept beside the project (not copied into it).
-SCHEMAS = ROOT.parent / "shared" / "specs" / "component_metadata"
-assert SCHEMAS.is_dir(), f"MAVLink's component-metadata schemas expected in {SCHEMAS}"
+# The MAVLink project's schemas (their origin and licence in the folder's README).
+SCHEMAS = ROOT / "tests" / "schemas" / "component_metadata"
 
 
 def ftp_get(ftp, path, tmp_path):
