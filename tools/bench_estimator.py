@@ -3,11 +3,12 @@
 
     tools/bench_estimator.py [--autopilot BIN] [--trials DIR] [--params FILE] [--json OUT]
 
-For every BROAD trial in DIR (default ../shared/benchmarks/broad beside the repository), runs
+For every BROAD trial in DIR (default: the folder tools/broad.py finds; `tools/broad.py fetch`
+brings them), runs
 `autopilot replay` with each of the project's attitude estimators (ATT_MODE 1, the tilt/heading
 filter; ATT_MODE 0, Castillo's q-method observer; both with their default gains and only the
 site's magnetic field set) and VQF (PyPI `vqf`, default parameters) on the same samples, scores
-them with the benchmark's own scorer (`score.py`), and prints one table: total, heading and
+them as the benchmark does (tools/broad_score.py), and prints one table: total, heading and
 inclination RMSE per trial and the means.
 
 Then the replay of a log that does not start at rest: every trial is cut at 20, 40, 60 and 80 %
@@ -29,6 +30,9 @@ import time
 
 import numpy as np
 from vqf import VQF
+
+import broad
+import broad_score
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # The site's field (BROAD README: medians over the undisturbed rest phases; truth referenced to
@@ -69,16 +73,6 @@ CONVERGED = {"inclination": 2.0, "total": 5.0}
 HOLD_S = 5.0
 
 
-def error_angles(q_est, q_true):
-    """Total and inclination error (deg) of q_est * conj(q_true), row by row (as score.py)."""
-    w = np.sum(q_est * q_true, 1)
-    z = (-q_est[:, 0] * q_true[:, 3] + q_est[:, 3] * q_true[:, 0]
-         - q_est[:, 1] * q_true[:, 2] + q_est[:, 2] * q_true[:, 1])
-    total = np.degrees(2 * np.arccos(np.clip(np.abs(w), 0, 1)))
-    inclination = np.degrees(2 * np.arccos(np.clip(np.sqrt(w * w + z * z), 0, 1)))
-    return {"total": total, "inclination": inclination}
-
-
 def settling_time(t, err, limit):
     """The time from which err stays within limit for HOLD_S (or to the end of the log)."""
     start = 0
@@ -113,23 +107,22 @@ def convergence(autopilot, params, trial_csv, tmp):
                 subprocess.run([autopilot, "replay", "--input", cut_csv, "--output", est_csv,
                                 "--params", params], check=True)
             e = np.genfromtxt(est_csv, delimiter=",", names=True)
-            errors = error_angles(quat(e)[known], truth[known])
+            errors = {k: np.degrees(v) for k, v in
+                      broad_score.error_angles(quat(e)[known], truth[known]).items()}
             for k, limit in CONVERGED.items():
                 out[who][k].append(settling_time(e["t"][known], errors[k], limit))
     return out
 
 
-def score(scorer, trial_gz, est_csv):
-    out = subprocess.run([sys.executable, scorer, trial_gz, est_csv], check=True,
-                         capture_output=True, text=True).stdout
-    r = json.loads(out)
+def score(trial_gz, est_csv):
+    r = broad_score.score(trial_gz, est_csv)
     return {k: r[k + "_rmse_deg"] for k in ("total", "heading", "inclination")}
 
 
 def bench_trial(job):
     """One trial: both modes replayed and scored, VQF run and scored, the convergence from the
     middle of the motion. In a directory of its own (trials run side by side)."""
-    autopilot, scorer, trial_gz, params, tmp = job
+    autopilot, trial_gz, params, tmp = job
     name = os.path.basename(trial_gz)
     tmp = tempfile.mkdtemp(dir=tmp)
     trial = os.path.join(tmp, name[:-3])
@@ -142,9 +135,9 @@ def bench_trial(job):
         subprocess.run([autopilot, "replay", "--input", trial, "--output", est,
                         "--params", params[who]], check=True)
         row["replay_s"] += time.perf_counter() - t0
-        row[who] = score(scorer, trial_gz, est)
+        row[who] = score(trial_gz, est)
     run_vqf(trial, os.path.join(tmp, "vqf.csv"))
-    row["vqf"] = score(scorer, trial_gz, os.path.join(tmp, "vqf.csv"))
+    row["vqf"] = score(trial_gz, os.path.join(tmp, "vqf.csv"))
     row["convergence_s"] = convergence(autopilot, params["tilt_heading"], trial, tmp)
     os.remove(trial)
     return row
@@ -153,16 +146,21 @@ def bench_trial(job):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--autopilot", default=os.path.join(ROOT, "target", "release", "autopilot"))
-    ap.add_argument("--trials", default=os.path.join(ROOT, "..", "shared", "benchmarks", "broad"))
+    ap.add_argument("--trials", help="a folder of BROAD trials (NN_name.csv.gz); default: the "
+                    "one tools/broad.py finds")
     ap.add_argument("--params", help="a flight-parameter file for both modes; default: the "
                     "site's field only")
     ap.add_argument("--json", help="write the figures here")
     a = ap.parse_args()
-    scorer = os.path.join(a.trials, "score.py")
+    if a.trials is None:
+        found = broad.trials_dir()
+        if found is None:
+            sys.exit(broad.why_none())
+        a.trials = str(found)
     trials = sorted(f for f in os.listdir(a.trials) if f.endswith(".csv.gz")) \
         if os.path.isdir(a.trials) else []
-    if not trials or not os.path.exists(scorer):
-        sys.exit(f"{a.trials}: no BROAD trials (NN_name.csv.gz) and score.py there")
+    if not trials:
+        sys.exit(f"{a.trials}: no BROAD trials (NN_name.csv.gz) there")
     if not os.access(a.autopilot, os.X_OK):
         sys.exit(f"{a.autopilot}: not found; build it (cargo build --release -p autopilot)")
     rows = []
@@ -176,7 +174,7 @@ def main():
                 f.write(base.replace("[attitude]\n", f"[attitude]\nmode = {mode}\n", 1))
         # The trials are independent: two at a time (the machines this runs on have two
         # cores; each replay is one process).
-        jobs = [(a.autopilot, scorer, os.path.join(a.trials, name), params, tmp)
+        jobs = [(a.autopilot, os.path.join(a.trials, name), params, tmp)
                 for name in trials]
         with concurrent.futures.ProcessPoolExecutor(max_workers=2) as pool:
             for n, row in enumerate(pool.map(bench_trial, jobs), 1):
@@ -185,7 +183,7 @@ def main():
     who_all = list(MODES) + ["vqf"]
     mean = {who: {k: sum(r[who][k] for r in rows) / len(rows)
                   for k in ("total", "heading", "inclination")} for who in who_all}
-    print("RMSE (deg) on BROAD, scored by its score.py, same files, same run: total / heading / "
+    print("RMSE (deg) on BROAD, scored as the benchmark defines it, same files, same run: total / heading / "
           "inclination for autopilot replay with ATT_MODE 1 (tilt/heading) and 0 (Castillo), "
           "and VQF (vqf, default parameters)")
     print(f"| {'trial':<44} | tilt/heading (1) | Castillo (0) | VQF |")

@@ -30,7 +30,8 @@ if ! cat tests/requirements.txt tests/requirements-nodeps.txt | cmp -s - "$stamp
     "${pip[@]}" --no-deps -r tests/requirements-nodeps.txt
     cat tests/requirements.txt tests/requirements-nodeps.txt > "$stamp"
 fi
-"$venv/bin/python" -m pytest -q --durations=20 tests/python
+# -rs: the summary says why a test was skipped (the BROAD data not fetched, and how to fetch it).
+"$venv/bin/python" -m pytest -q -rs --durations=20 tests/python
 
 echo "== fuzz (coverage-guided, a short run of each target) (at $SECONDS s)"
 tools/fuzz.sh 12
