@@ -353,8 +353,9 @@ fn the_same_flight_over_a_serial_line() {
 
 /// A flight board in the real world: `sitl` in real time on a serial line streams its frames
 /// without waiting for answers, and the autopilot's loop runs on absolute deadlines at 1 kHz,
-/// stepping on each frame as it arrives. Timing figures belong to the benchmark (tools/bench.sh);
-/// this asserts that the loop kept its rate and flew the sequence to the ground.
+/// stepping on each frame as it arrives. How well it keeps its rate is the benchmark's
+/// (tools/bench.sh), which a machine busy with other work must not fail: this asserts that the
+/// deadline loop flew the sequence to the ground in real time, and prints its rate.
 #[test]
 fn a_board_in_real_time_flies_the_deadline_paced_loop() {
     let dir = tempfile::tempdir().unwrap();
@@ -391,20 +392,13 @@ fn a_board_in_real_time_flies_the_deadline_paced_loop() {
     ));
     interrupt(sitl);
     assert_eq!(s["pacing"], "deadlines");
-    let (hz, wall) = (figure(&s, "loop_hz"), figure(&s, "wall_time_s"));
-    assert!((950.0..=1001.0).contains(&hz), "loop at {hz} Hz");
-    assert!(
-        figure(&s, "ticks") >= 0.95 * 1000.0 * wall,
-        "{} ticks in {wall} s",
-        s["ticks"]
+    let wall = figure(&s, "wall_time_s");
+    println!(
+        "deadline loop at {} Hz ({} ticks in {wall} s), {} frames in {} s of sensor time",
+        s["loop_hz"], s["ticks"], s["frames"], s["sim_time_s"]
     );
-    // The board's 250 frames/s, each stepped once (real time: the flight's sensor time is its
-    // wall time, less the start-up before the first frame).
-    let fps = figure(&s, "frames") / figure(&s, "sim_time_s");
-    assert!(
-        (240.0..=251.0).contains(&fps),
-        "{fps} frames per sensor second"
-    );
+    // Real time: the flight's sensor time is its wall time, less the start-up before the first
+    // frame; never more.
     assert!(
         figure(&s, "sim_time_s") <= wall + 0.1,
         "real time, not faster"
@@ -557,8 +551,10 @@ fn sitl_json_answers_servo_packets_as_ardupilot_expects() {
         first.starts_with('\n') && first.ends_with('\n'),
         "{first:?}"
     );
+    // Compact, as ArduPilot's reader needs: a space after a colon makes its vectors unreadable.
+    assert!(!first.contains(": "), "{first:?}");
     let timestamp = |text: &str| -> f64 {
-        let rest = &text[text.find("\"timestamp\": ").unwrap() + 13..];
+        let rest = &text[text.find("\"timestamp\":").unwrap() + 12..];
         rest[..rest.find(',').unwrap()].parse().unwrap()
     };
     let t1 = timestamp(&first);
@@ -594,4 +590,66 @@ fn sitl_json_answers_servo_packets_as_ardupilot_expects() {
     let s = String::from_utf8_lossy(&out.stdout);
     assert!(s.contains("malformed=1"), "{s}");
     assert!(!s.contains("stale=0"), "resends counted: {s}");
+}
+
+/// Noise-free sensors (`sitl --sensors ideal`) over UDP: the autopilot is not told they are
+/// exact, and readings that repeat on a still vehicle are not frozen ones, so it arms, flies
+/// and lands as the embedded simulator with the same preset does, to the byte.
+#[test]
+fn ideal_sensors_fly_over_udp_as_in_process() {
+    let dir = tempfile::tempdir().unwrap();
+    let (embedded_csv, udp_csv) = (dir.path().join("a.csv"), dir.path().join("udp.csv"));
+    let mut args = vec![
+        "--sim",
+        "--speed",
+        "max",
+        "--sensors",
+        "ideal",
+        "--truth-csv",
+        embedded_csv.to_str().unwrap(),
+    ];
+    args.extend(FLIGHT);
+    let in_process = summary(&wait(
+        spawn_autopilot(&args),
+        "autopilot --sim --sensors ideal",
+        Duration::from_secs(120),
+    ));
+    let port = free_port().to_string();
+    let source = format!("udp://127.0.0.1:{port}");
+    let mut args = vec!["--source", &source];
+    args.extend(FLIGHT);
+    let autopilot = spawn_autopilot(&args);
+    let target = format!("127.0.0.1:{port}");
+    let sitl = spawn_sitl(
+        &["--autopilot", &target, "--sensors", "ideal"],
+        "quad_x",
+        1,
+        &udp_csv,
+    );
+    let over_udp = summary(&wait(
+        autopilot,
+        "autopilot --source udp (sitl --sensors ideal)",
+        Duration::from_secs(120),
+    ));
+    interrupt(sitl);
+    println!("in process: {in_process:?}\nover UDP: {over_udp:?}");
+    assert!(figure(&over_udp, "max_alt_m") > 4.8, "took off");
+    assert_eq!(
+        (over_udp["landed"].as_str(), over_udp["disarmed"].as_str()),
+        ("true", "true")
+    );
+    for key in ["frames", "max_alt_m", "hover_alt_rms_m", "touchdown_m_s"] {
+        assert_eq!(
+            in_process[key], over_udp[key],
+            "{key} in-process vs over UDP"
+        );
+    }
+    let (a, udp) = (
+        std::fs::read(&embedded_csv).unwrap(),
+        std::fs::read(&udp_csv).unwrap(),
+    );
+    assert!(
+        udp.len() >= a.len() && a[..] == udp[..a.len()],
+        "truth over UDP differs from in-process"
+    );
 }
