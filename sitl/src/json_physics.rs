@@ -31,6 +31,7 @@ fn state(end: &SimulatorEnd) -> PhysicsState {
         vel_ned_m_s: truth.body.vel_ned_m_s,
         q_ned_from_frd: truth.body.q_ned_from_frd,
         battery: Some((truth.battery_voltage_v, truth.battery_current_a)),
+        airspeed_m_s: Some((truth.body.vel_ned_m_s - truth.wind_ned_m_s).norm()),
     }
 }
 

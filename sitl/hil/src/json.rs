@@ -11,7 +11,14 @@
 //! `imu.accel_body` (specific force, m/s² FRD: −9.8 down at rest), `position` and `velocity`
 //! (NED, m and m/s, from the physics' origin), and the attitude as `quaternion` ([w, x, y, z],
 //! body to NED) or `attitude` ([roll, pitch, yaw], rad). Other keys (`battery`, `rng_1`,
-//! `airspeed`, …) are optional; of them, `battery.voltage` and `battery.current` are read.
+//! `airspeed`, …) are optional; of them, `battery.voltage`, `battery.current` and `airspeed`
+//! are read.
+//!
+//! ArduPilot reads the state with no JSON parser (`SIM_JSON.cpp`, `parse_sensors`): it finds
+//! each key as the first match of its name, skips the name and two characters (the closing
+//! quote and the colon) and reads `[%f, %f, %f]` there, so a space after the colon makes every
+//! vector unreadable. [`PhysicsState::to_json`] writes compact JSON, `"key":value`, with no
+//! key inside another's name before it; `tests.rs` reads it with that rule.
 
 use nalgebra::{UnitQuaternion, Vector3};
 
@@ -137,16 +144,20 @@ pub struct PhysicsState {
     pub q_ned_from_frd: UnitQuaternion<f64>,
     /// Battery voltage (V) and current (A), when the physics has them.
     pub battery: Option<(f64, f64)>,
+    /// True airspeed, the speed through the air (m/s), when the physics has wind. ArduPilot's
+    /// JSON side otherwise takes the ground speed as the airspeed: it assumes no wind.
+    pub airspeed_m_s: Option<f64>,
 }
 
 impl PhysicsState {
-    /// The state as ArduPilot reads it: one line of JSON between newlines, the attitude as a
-    /// quaternion.
+    /// The state as ArduPilot reads it: one line of compact JSON (`"key":value`, no space
+    /// after a colon) between newlines, the attitude as a quaternion. The newline before it
+    /// matters too: ArduPilot takes the text between the last two newlines it has.
     pub fn to_json(&self) -> String {
-        let v = |v: &Vector3<f64>| format!("[{:e}, {:e}, {:e}]", v.x, v.y, v.z);
+        let v = |v: &Vector3<f64>| format!("[{:e},{:e},{:e}]", v.x, v.y, v.z);
         let q = self.q_ned_from_frd.quaternion();
         let mut s = format!(
-            "\n{{\"timestamp\": {:e}, \"imu\": {{\"gyro\": {}, \"accel_body\": {}}}, \"position\": {}, \"velocity\": {}, \"quaternion\": [{:e}, {:e}, {:e}, {:e}]",
+            "\n{{\"timestamp\":{:e},\"imu\":{{\"gyro\":{},\"accel_body\":{}}},\"position\":{},\"velocity\":{},\"quaternion\":[{:e},{:e},{:e},{:e}]",
             self.timestamp_s,
             v(&self.gyro_frd_rad_s),
             v(&self.accel_frd_m_s2),
@@ -157,8 +168,11 @@ impl PhysicsState {
             q.j,
             q.k
         );
+        if let Some(airspeed) = self.airspeed_m_s {
+            s += &format!(",\"airspeed\":{airspeed:e}");
+        }
         if let Some((voltage, current)) = self.battery {
-            s += &format!(", \"battery\": {{\"voltage\": {voltage:e}, \"current\": {current:e}}}");
+            s += &format!(",\"battery\":{{\"voltage\":{voltage:e},\"current\":{current:e}}}");
         }
         s + "}\n"
     }
@@ -216,6 +230,10 @@ impl PhysicsState {
             )),
             None => None,
         };
+        let airspeed_m_s = match root.get("airspeed") {
+            Some(a) => Some(number(Some(a), "airspeed")?),
+            None => None,
+        };
         Ok(Self {
             timestamp_s: number(root.get("timestamp"), "timestamp")?,
             gyro_frd_rad_s: vector(imu.and_then(|i| i.get("gyro")), "imu.gyro")?,
@@ -224,6 +242,7 @@ impl PhysicsState {
             vel_ned_m_s: vector(root.get("velocity"), "velocity")?,
             q_ned_from_frd,
             battery,
+            airspeed_m_s,
         })
     }
 
@@ -242,117 +261,4 @@ impl PhysicsState {
 }
 
 #[cfg(test)]
-mod tests {
-    #![allow(clippy::unwrap_used)]
-    use super::*;
-
-    #[test]
-    fn the_servo_packet_is_laid_out_as_ardupilot_declares_it() {
-        let p = ServoPacket {
-            frame_rate: 400,
-            frame_count: 0x0102_0304,
-            pwm: vec![1000, 1500, 2000, 1100],
-        };
-        let mut bytes = Vec::new();
-        p.encode(&mut bytes);
-        // struct { uint16_t magic = 18458; uint16_t frame_rate; uint32_t frame_count;
-        // uint16_t pwm[16]; }, little-endian, no padding.
-        assert_eq!(bytes.len(), 40);
-        assert_eq!(
-            &bytes[..8],
-            &[0x1A, 0x48, 0x90, 0x01, 0x04, 0x03, 0x02, 0x01]
-        );
-        assert_eq!(&bytes[8..12], &[0xE8, 0x03, 0xDC, 0x05]);
-        assert!(bytes[16..].iter().all(|&b| b == 0), "unused channels 0");
-        let back = ServoPacket::decode(&bytes).unwrap();
-        assert_eq!(back.pwm.len(), 16);
-        assert_eq!(&back.pwm[..4], &p.pwm[..]);
-        assert_eq!((back.frame_rate, back.frame_count), (400, 0x0102_0304));
-
-        let wide = ServoPacket {
-            frame_rate: 1000,
-            frame_count: 7,
-            pwm: vec![1234; 20],
-        };
-        let mut bytes = Vec::new();
-        wide.encode(&mut bytes);
-        assert_eq!(
-            (bytes.len(), u16::from_le_bytes([bytes[0], bytes[1]])),
-            (72, MAGIC_32)
-        );
-        assert_eq!(ServoPacket::decode(&bytes).unwrap().pwm[19], 1234);
-
-        for bad in [&bytes[..7], &bytes[..40], &[0u8; 40][..]] {
-            assert!(ServoPacket::decode(bad).is_err(), "{bad:?}");
-        }
-    }
-
-    #[test]
-    fn pwm_maps_to_commands_and_back() {
-        assert_eq!(pwm_from_command(0.0), 1000);
-        assert_eq!(pwm_from_command(0.5), 1500);
-        assert_eq!(pwm_from_command(1.7), 2000);
-        assert_eq!(pwm_from_command(f64::NAN), 1000);
-        assert_eq!(command_from_pwm(0), 0.0);
-        assert_eq!(command_from_pwm(1250), 0.25);
-        assert_eq!(command_from_pwm(2100), 1.0);
-    }
-
-    #[test]
-    fn ardupilots_documented_state_parses_and_ours_round_trips() {
-        // The documentation's example: Euler angles instead of a quaternion, other keys.
-        let doc = r#"{"timestamp": 2.5, "imu": {"gyro": [0.1, 0, 0], "accel_body": [0, 0, -9.8]},
-            "position": [1, 2, -3], "attitude": [0, 0, 1.5707963267948966],
-            "velocity": [0, 0.5, 0], "airspeed": 3.2, "rng_1": 4}"#;
-        let s = PhysicsState::parse(&doc.replace('\n', " ")).unwrap();
-        assert_eq!(s.timestamp_s, 2.5);
-        assert_eq!(s.pos_ned_m, Vector3::new(1.0, 2.0, -3.0));
-        assert_eq!(s.accel_frd_m_s2.z, -9.8);
-        // Yawed 90°: the nose points east.
-        let nose = s.q_ned_from_frd.transform_vector(&Vector3::x());
-        assert!((nose - Vector3::y()).norm() < 1e-12, "{nose}");
-        assert_eq!(s.battery, None);
-
-        let ours = PhysicsState {
-            timestamp_s: 12.004,
-            gyro_frd_rad_s: Vector3::new(0.01, -0.02, 0.3),
-            accel_frd_m_s2: Vector3::new(0.1, 0.2, -9.81),
-            pos_ned_m: Vector3::new(3.0, -4.0, -5.5),
-            vel_ned_m_s: Vector3::new(0.5, 0.0, -1.0),
-            q_ned_from_frd: UnitQuaternion::from_euler_angles(0.1, -0.2, 2.0),
-            battery: Some((15.9, 12.5)),
-        };
-        let text = ours.to_json();
-        assert!(text.starts_with('\n') && text.ends_with('\n'));
-        assert_eq!(text.trim().lines().count(), 1, "one line");
-        // Two states queued in one datagram: the newer is taken.
-        let mut older = ours;
-        older.timestamp_s = 12.0;
-        let datagram = older.to_json() + &text;
-        let mut back = PhysicsState::parse_latest(datagram.as_bytes()).unwrap();
-        // Every number exactly; the quaternion renormalised, within an ulp.
-        assert!(back.q_ned_from_frd.angle_to(&ours.q_ned_from_frd) < 1e-12);
-        back.q_ned_from_frd = ours.q_ned_from_frd;
-        assert_eq!(back, ours);
-    }
-
-    #[test]
-    fn states_missing_a_field_or_not_finite_are_refused() {
-        let good = r#"{"timestamp": 1, "imu": {"gyro": [0,0,0], "accel_body": [0,0,-9.8]}, "position": [0,0,0], "velocity": [0,0,0], "quaternion": [1,0,0,0]}"#;
-        assert!(PhysicsState::parse(good).is_ok());
-        for (from, to) in [
-            ("\"timestamp\": 1", "\"time\": 1"),
-            ("\"gyro\": [0,0,0]", "\"gyro\": [0,0]"),
-            ("\"position\": [0,0,0]", "\"position\": [0,0,\"x\"]"),
-            ("\"quaternion\": [1,0,0,0]", "\"quaternion\": [0,0,0,0]"),
-            ("\"quaternion\": [1,0,0,0]", "\"heading\": 3"),
-            ("\"timestamp\": 1", "\"timestamp\": 1e999"),
-        ] {
-            let text = good.replace(from, to);
-            assert!(PhysicsState::parse(&text).is_err(), "{text}");
-        }
-        assert!(PhysicsState::parse("{\"timestamp\": ").is_err());
-        assert!(PhysicsState::parse_latest(b"\n\n").is_err());
-        assert!(PhysicsState::parse_latest(&[0xff, 0xfe]).is_err());
-    }
-}
+mod tests;
