@@ -312,12 +312,6 @@ impl Autopilot {
         self.repeated_frames
     }
 
-    /// The sensors have no noise (the embedded simulator's ideal preset): repeated readings are
-    /// no sign of a frozen sensor.
-    pub fn sensors_noise_free(&mut self) {
-        self.monitor.noise_free();
-    }
-
     /// Ends the run (Ctrl-C): lands first if in the air.
     pub fn request_land(&mut self) {
         self.end_when_disarmed = true;
@@ -577,9 +571,6 @@ impl Autopilot {
         fresh.fence_zones = std::mem::take(&mut self.fence_zones);
         fresh.repeated_frames = self.repeated_frames;
         fresh.source_restarts = self.source_restarts + 1;
-        if self.monitor.is_noise_free() {
-            fresh.monitor.noise_free();
-        }
         // A calibration under way cannot go on in a clock that went back: ended, and said so.
         self.end_calibrations();
         fresh.mag_cal = self.mag_cal.take();

@@ -17,7 +17,7 @@ use flight_core::math::geo::LatLonAlt;
 use gcs::telemetry::Telemetry;
 use prepare::{Prepared, prepare, sensor_preset};
 use sitl_core::Airframe;
-use sitl_core::sensors::{SensorConfig, SensorPreset};
+use sitl_core::sensors::SensorConfig;
 use sitl_core::sim::SimConfig;
 use std::time::Duration;
 use tokio::sync::{mpsc, watch};
@@ -72,9 +72,6 @@ pub fn fly(cfg: Settings) -> Result<()> {
             match source {
                 Source::Embedded => {
                     let sensors = sensor_preset(&cfg)?;
-                    if sensors == SensorPreset::Ideal {
-                        autopilot.sensors_noise_free();
-                    }
                     let world = SimConfig {
                         seed: cfg.seed,
                         sensors: SensorConfig::preset(sensors),
@@ -114,9 +111,6 @@ pub fn fly(cfg: Settings) -> Result<()> {
                         );
                     };
                     let sensors = sensor_preset(&cfg)?;
-                    if sensors == SensorPreset::Ideal {
-                        autopilot.sensors_noise_free();
-                    }
                     let mut link = json_link::JsonLink::connect(
                         addr,
                         channels,
@@ -248,10 +242,7 @@ fn fly_together(cfg: Settings, source: Source) -> Result<()> {
     let mut vehicles = Vec::with_capacity(cfg.count.into());
     let mut sims = Vec::with_capacity(cfg.count.into());
     for k in 0..cfg.count {
-        let mut p = prepare(&cfg, &source, &airframe, cfg.instance + k)?;
-        if sensors == SensorPreset::Ideal {
-            p.autopilot.sensors_noise_free();
-        }
+        let p = prepare(&cfg, &source, &airframe, cfg.instance + k)?;
         let world = SimConfig {
             seed: cfg.seed.wrapping_add(k.into()),
             sensors: SensorConfig::preset(sensors),

@@ -9,8 +9,8 @@
 //! (the site's field seen through the attitude), the barometer (ISA pressure at the height) and
 //! the GPS (position and velocity with latency), by the simulator's own sensor models at the
 //! preset asked for; the IMU is the physics' own with the preset's noise and bias on it (as
-//! ArduPilot's SITL adds its `SIM_ACC_RND`, `SIM_GYR_RND`: a physics' IMU is often exact, and
-//! an exact IMU at rest reads the same twice, which the sensor monitor takes for a frozen one).
+//! ArduPilot's SITL adds its `SIM_ACC_RND`, `SIM_GYR_RND`; with the ideal preset it stays
+//! exact).
 //! The truth (`HIL_STATE_QUATERNION`, for logs and scoring) is the state itself.
 
 use super::SensorLink;

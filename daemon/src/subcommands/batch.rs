@@ -378,9 +378,6 @@ pub fn fly_run(
             hover_s: cfg.hover_s,
         };
         let mut autopilot = Autopilot::new(airframe, params, Some(auto))?;
-        if cfg.sensors == SensorPreset::Ideal {
-            autopilot.sensors_noise_free();
-        }
         let mut records = FlightRecords::new(cfg.takeoff_m);
         let sim =
             EmbeddedSim::with_world(airframe, plan.world(cfg.sensors), &plan.events, None, None)?;
