@@ -4,15 +4,18 @@
 //! builds its allocation from the geometry): one schema, one validation, two independent uses.
 //!
 //! The file gives rotor properties once in `[rotor_defaults]` and each rotor's position and spin in
-//! `[[rotors]]`; a rotor may override any default (a bent prop, a different motor). Parsing
+//! `[[rotors]]`; a rotor may override any default (a bent prop, a different motor). Its
+//! `[landing_gear]` (optional) is where its feet stand ([`LandingGear`]). Parsing
 //! resolves every rotor to a complete [`RotorSpec`] and loading validates the physics
 //! (positive mass, a symmetric positive-definite inertia tensor that a real body can have, 1–16
 //! rotors, an allocation of rank 4) before anything flies.
 
 pub mod config;
+mod landing_gear;
 
 use config::{Checker, parse_toml, read_toml};
 pub use config::{ConfigError, Violation};
+pub use landing_gear::{LandingGear, MAX_FEET};
 use nalgebra::{DMatrix, Matrix3, Vector3};
 use serde::Deserialize;
 use std::path::Path;
@@ -166,6 +169,7 @@ struct AirframeFile {
     rotor_defaults: Option<RotorDefaultsFile>,
     #[serde(default)]
     rotors: Vec<RotorFile>,
+    landing_gear: Option<landing_gear::LandingGearFile>,
 }
 
 /// A complete, validated vehicle description.
@@ -188,6 +192,8 @@ pub struct Airframe {
     pub battery: BatterySpec,
     /// Rotors in output order: rotor i is actuator channel i.
     pub rotors: Vec<RotorSpec>,
+    /// What it stands on.
+    pub landing_gear: LandingGear,
 }
 
 impl Airframe {
@@ -256,7 +262,9 @@ impl Airframe {
                 violations: check.violations,
             });
         }
+        let hubs: Vec<_> = rotors.iter().map(|r| r.position_frd_m).collect();
         let airframe = Airframe {
+            landing_gear: LandingGear::from_file(raw.landing_gear, &hubs),
             name: raw.name,
             description: raw.description,
             mass_kg: raw.mass_kg,
@@ -286,6 +294,7 @@ impl Airframe {
             }
         }
         c.finite("drag.aero_torque_m3", &self.drag.aero_torque_m3);
+        self.landing_gear.check(c);
         let b = &self.battery;
         if !(1..=24).contains(&b.cells) {
             c.fail(

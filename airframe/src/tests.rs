@@ -234,3 +234,53 @@ fn dodeca_geometry_decouples_yaw_from_tilt() {
         );
     }
 }
+
+#[test]
+fn the_landing_gear_defaults_under_the_arms_or_is_read_from_the_file() {
+    // No [landing_gear]: four feet on 0.6 of the 0.141 m arm, a tenth of a metre down.
+    let a = Airframe::from_toml_str(MINIMAL, "m.toml").unwrap();
+    let g = &a.landing_gear;
+    assert_eq!(g.feet_frd_m.len(), 4);
+    for f in &g.feet_frd_m {
+        assert!(
+            (f.xy().norm() - 0.6 * 0.1f64.hypot(0.1)).abs() < 1e-12,
+            "{f}"
+        );
+        assert_eq!(f.z, 0.1);
+    }
+    assert_eq!((g.sag_m, g.damping_ratio, g.friction), (0.005, 0.7, 0.8));
+    let text = format!(
+        "{MINIMAL}\n[landing_gear]\nfeet_m = [[0.2, 0.0, 0.15], [-0.1, 0.15, 0.15], [-0.1, -0.15, 0.15]]\nsag_m = 0.01\nfriction = 0.4\n"
+    );
+    let g = Airframe::from_toml_str(&text, "t.toml")
+        .unwrap()
+        .landing_gear;
+    assert_eq!(g.feet_frd_m[0], Vector3::new(0.2, 0.0, 0.15));
+    assert_eq!((g.sag_m, g.damping_ratio, g.friction), (0.01, 0.7, 0.4));
+}
+
+#[test]
+fn a_landing_gear_that_cannot_stand_the_vehicle_is_refused() {
+    let gear = |body: &str| format!("{MINIMAL}\n[landing_gear]\n{body}\n");
+    for (body, key) in [
+        (
+            "feet_m = [[0.1, 0.1, 0.1], [-0.1, -0.1, 0.1]]",
+            "landing_gear.feet_m",
+        ),
+        // A foot above the centre of mass.
+        (
+            "feet_m = [[0.1, 0.1, 0.1], [-0.1, 0.1, -0.1], [0.0, -0.1, 0.1]]",
+            "landing_gear.feet_m[1]",
+        ),
+        // All feet on one side: the vehicle would fall over.
+        (
+            "feet_m = [[0.1, 0.1, 0.1], [0.2, 0.1, 0.1], [0.15, -0.1, 0.1]]",
+            "landing_gear.feet_m",
+        ),
+        ("sag_m = 0.0", "landing_gear.sag_m"),
+        ("damping_ratio = -1.0", "landing_gear.damping_ratio"),
+        ("friction = 5.0", "landing_gear.friction"),
+    ] {
+        assert_eq!(invalid_keys(&gear(body)), [key], "{body}");
+    }
+}

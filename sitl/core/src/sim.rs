@@ -16,6 +16,7 @@ use navmath::geo::{LatLonAlt, LocalFrame};
 
 use events::Pulse;
 pub use events::{Event, SimAction};
+use ground::Ground;
 use hand::Hand;
 pub use hand::{Face, PLACE_S, SET_DOWN_S, TUMBLE_RAMP_S, tumble_attitude};
 
@@ -68,11 +69,18 @@ pub struct SimStats {
     pub clamped_commands: u64,
     /// Non-finite actuator values replaced by 0.
     pub nonfinite_commands: u64,
-    /// Touchdowns (transitions from flying to landed).
+    /// Touchdowns (transitions from flying to landed; a bounce shorter than
+    /// [`BOUNCE_S`] is the same touchdown).
     pub touchdowns: u64,
     /// Vertical speed at the last touchdown (m/s, positive down).
     pub last_touchdown_speed_m_s: f64,
 }
+
+/// Time in the air after which a contact is a new touchdown, not a bounce of the last (s).
+pub const BOUNCE_S: f64 = 0.5;
+
+/// How long a vehicle set down settles on its legs before the world starts (s).
+const SETTLE_S: f64 = 2.0;
 
 /// The true state, for logs, scoring and `HIL_STATE_QUATERNION`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -87,7 +95,7 @@ pub struct TruthState {
     pub home: LocalFrame,
     /// Air velocity at the vehicle, NED (m/s).
     pub wind_ned_m_s: Vector3<f64>,
-    /// Whether the vehicle rests on the ground.
+    /// Whether the ground bears the vehicle (a foot touches it).
     pub landed: bool,
     /// Battery terminal voltage (V).
     pub battery_voltage_v: f64,
@@ -157,7 +165,10 @@ pub struct Simulator {
     battery: Battery,
     wind: Wind,
     sensors: SensorSuite,
+    ground: Ground,
     landed: bool,
+    /// When a foot last touched the ground (µs).
+    last_contact_usec: Option<u64>,
     accel_ned: Vector3<f64>,
     ang_accel_frd: Vector3<f64>,
     air: AirState,
@@ -195,7 +206,8 @@ pub enum SimError {
 }
 
 impl Simulator {
-    /// A vehicle of `airframe` in state `initial`; it starts landed when at or below ground level.
+    /// A vehicle of `airframe` in state `initial`; at or below ground level (z ≥ 0) it starts
+    /// standing on its feet, level at the initial heading, settled on its legs.
     pub fn new(airframe: &Airframe, cfg: SimConfig, initial: BodyState) -> Result<Self, SimError> {
         if !(cfg.dt_s > 0.0 && cfg.dt_s <= 0.05) {
             return Err(SimError::Step(cfg.dt_s));
@@ -236,7 +248,9 @@ impl Simulator {
             battery: Battery::charged_to(&airframe.battery, cfg.battery_charge),
             wind,
             sensors,
+            ground: Ground::new(airframe, cfg.dt_s),
             landed: false,
+            last_contact_usec: None,
             accel_ned: Vector3::zeros(),
             ang_accel_frd: Vector3::zeros(),
             air: isa(cfg.home.alt_m - initial.pos_ned_m.z),
@@ -253,7 +267,7 @@ impl Simulator {
             cfg,
         };
         if sim.body.pos_ned_m.z >= 0.0 {
-            sim.rest_on_ground();
+            sim.stand_on_feet();
         }
         Ok(sim)
     }
@@ -347,13 +361,46 @@ impl Simulator {
         &self.mass
     }
 
-    fn rest_on_ground(&mut self) {
+    /// Stands the vehicle on its feet where it is, level at its heading, and lets it settle on
+    /// its legs under its weight alone ([`SETTLE_S`], outside the world's time): it starts at
+    /// rest, as a vehicle put down by hand does.
+    fn stand_on_feet(&mut self) {
         let (_, _, yaw) = self.body.q_ned_from_frd.euler_angles();
         self.body.pos_ned_m.z = 0.0;
         self.body.vel_ned_m_s = Vector3::zeros();
         self.body.rate_frd_rad_s = Vector3::zeros();
         self.body.q_ned_from_frd = UnitQuaternion::from_euler_angles(0.0, 0.0, yaw);
+        self.ground.release();
+        let still = Loads {
+            rotor: RotorWrench {
+                force_frd_n: Vector3::zeros(),
+                torque_frd_n_m: Vector3::zeros(),
+                rotor_momentum_frd: Vector3::zeros(),
+                shaft_power_w: 0.0,
+                thrust_n: [0.0; MAX_ROTORS],
+                yaw_moment_n_m: [0.0; MAX_ROTORS],
+            },
+            rho: self.air.density_kg_m3,
+            wind_ned: Vector3::zeros(),
+            ext_force_ned: Vector3::zeros(),
+            ext_torque_frd: Vector3::zeros(),
+        };
+        let dt = self.cfg.dt_s;
+        for _ in 0..(SETTLE_S / dt).round() as usize {
+            let forces = Forces {
+                loads: &still,
+                mass: &self.mass,
+                drag: &self.airframe.drag,
+                ground: &self.ground,
+            };
+            self.body = self
+                .cfg
+                .integrator
+                .step(&self.body, dt, |s| forces.accel(s));
+            self.ground.settle_anchors(&self.body);
+        }
         self.landed = true;
+        self.last_contact_usec = Some(self.time_usec);
     }
 
     /// Sanitises actuator commands: NaN → 0, clamped to [0, 1], both counted.
@@ -426,24 +473,26 @@ impl Simulator {
                 loads: &loads,
                 mass: &self.mass,
                 drag: &self.airframe.drag,
+                ground: &self.ground,
             };
-            // Lift off only when the forces at rest would accelerate the vehicle upward.
-            if self.landed && forces.accel(&self.body).lin_ned_m_s2.z < 0.0 {
-                self.landed = false;
-            }
-            if !self.landed {
-                self.body = self
-                    .cfg
-                    .integrator
-                    .step(&self.body, dt, |s| forces.accel(s));
-                if self.body.pos_ned_m.z > 0.0 {
+            self.body = self
+                .cfg
+                .integrator
+                .step(&self.body, dt, |s| forces.accel(s));
+            self.ground.settle_anchors(&self.body);
+            let touching = self.ground.contact(&self.body).touching;
+            if touching {
+                let bounce_usec = (BOUNCE_S * 1e6) as u64;
+                let airborne = self
+                    .last_contact_usec
+                    .is_none_or(|last| self.time_usec.saturating_sub(last) > bounce_usec);
+                if !self.landed && airborne {
                     self.stats.touchdowns += 1;
-                    self.stats.last_touchdown_speed_m_s = self.body.vel_ned_m_s.z;
-                    self.rest_on_ground();
+                    self.stats.last_touchdown_speed_m_s = before.vel_ned_m_s.z;
                 }
-            } else {
-                self.rest_on_ground();
+                self.last_contact_usec = Some(self.time_usec);
             }
+            self.landed = touching;
         }
         self.accel_ned = (self.body.vel_ned_m_s - before.vel_ned_m_s) / dt;
         self.ang_accel_frd = (self.body.rate_frd_rad_s - before.rate_frd_rad_s) / dt;
@@ -464,6 +513,7 @@ impl Simulator {
             loads: &loads,
             mass: &self.mass,
             drag: &self.airframe.drag,
+            ground: &self.ground,
         };
         let (aero_force_frd_n, aero_moment_frd_n_m) = forces.body_loads(&self.body);
         let after = body.advance(&StepLoads {
@@ -522,6 +572,7 @@ struct Forces<'a> {
     loads: &'a Loads,
     mass: &'a MassProperties,
     drag: &'a crate::airframe::DragSpec,
+    ground: &'a Ground,
 }
 
 impl Forces<'_> {
@@ -551,20 +602,22 @@ impl Forces<'_> {
     fn accel(&self, s: &BodyState) -> Accel {
         let (force_frd, moment_frd) = self.body_loads(s);
         let rotor = &self.loads.rotor;
+        let ground = self.ground.contact(s);
         let force_ned = s
             .q_ned_from_frd
             .transform_vector(&(rotor.force_frd_n + force_frd))
-            + Vector3::new(0.0, 0.0, self.mass.mass_kg * GRAVITY_M_S2);
+            + Vector3::new(0.0, 0.0, self.mass.mass_kg * GRAVITY_M_S2)
+            + ground.force_ned_n;
+        let moment = rotor.torque_frd_n_m + moment_frd + ground.moment_frd_n_m;
         Accel {
             lin_ned_m_s2: force_ned / self.mass.mass_kg,
-            ang_frd_rad_s2: self
-                .mass
-                .angular_accel(&s.rate_frd_rad_s, &(rotor.torque_frd_n_m + moment_frd)),
+            ang_frd_rad_s2: self.mass.angular_accel(&s.rate_frd_rad_s, &moment),
         }
     }
 }
 
 mod events;
+mod ground;
 mod hand;
 #[cfg(test)]
 mod tests;

@@ -214,7 +214,7 @@ impl Simulator {
         };
         if hand.released(t) {
             self.hand = None;
-            self.rest_on_ground();
+            self.stand_on_feet();
             return;
         }
         self.body.rate_frd_rad_s = (self.body.q_ned_from_frd.inverse() * q).scaled_axis() / dt;

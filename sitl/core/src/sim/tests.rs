@@ -166,12 +166,13 @@ fn vehicle_rests_on_the_ground_lifts_off_and_touches_down() {
     let a = shipped("quad_x");
     let mut sim = Simulator::new(&a, config(SensorPreset::Ideal), BodyState::default()).unwrap();
     assert!(sim.truth().landed);
-    run(&mut sim, &[0.2; 4], 2000); // below hover: stays down
+    run(&mut sim, &[0.2; 4], 2000); // below hover: stays down, the legs a little less loaded
     let t = sim.truth();
-    assert!(t.landed && t.body.pos_ned_m.z == 0.0 && t.body.vel_ned_m_s == Vector3::zeros());
+    assert!(t.landed && t.body.pos_ned_m.z.abs() < 0.005, "{t:?}");
+    assert!(t.body.vel_ned_m_s.norm() < 1e-6, "{t:?}");
     let f = sim.sample_sensors().accel_frd_m_s2;
     assert!(
-        (f - Vector3::new(0.0, 0.0, -GRAVITY_M_S2)).norm() < 1e-9,
+        (f - Vector3::new(0.0, 0.0, -GRAVITY_M_S2)).norm() < 1e-6,
         "resting accel {f:?}"
     );
     run(&mut sim, &[0.8; 4], 1500); // climb
@@ -181,9 +182,9 @@ fn vehicle_rests_on_the_ground_lifts_off_and_touches_down() {
         "{:?}",
         t.body.pos_ned_m
     );
-    run(&mut sim, &[0.0; 4], 5000); // fall back
+    run(&mut sim, &[0.0; 4], 5000); // fall back: bounces on its legs, one touchdown
     let t = sim.truth();
-    assert!(t.landed && t.body.pos_ned_m.z == 0.0);
+    assert!(t.landed && t.body.pos_ned_m.z.abs() < 0.005, "{t:?}");
     assert_eq!(sim.stats().touchdowns, 1);
     assert!(sim.stats().last_touchdown_speed_m_s > 2.0);
 }
@@ -231,10 +232,10 @@ fn a_tumble_turns_the_vehicle_through_every_orientation_and_sets_it_down() {
         "held still: the accelerometer feels gravity alone"
     );
     let t = sim.truth();
-    assert!(t.landed && t.body.pos_ned_m.z == 0.0);
+    assert!(t.landed && t.body.pos_ned_m.z.abs() < 0.005, "{t:?}");
     let (roll, pitch, _) = t.body.q_ned_from_frd.euler_angles();
-    assert!(roll == 0.0 && pitch == 0.0, "{roll} {pitch}");
-    assert!(t.body.rate_frd_rad_s == Vector3::zeros());
+    assert!(roll.abs() < 1e-4 && pitch.abs() < 1e-4, "{roll} {pitch}");
+    assert!(t.body.rate_frd_rad_s.norm() < 1e-6);
     // Set down without a jump: the gyro's turns still add up to the attitude.
     let err = integrated.angle_to(&t.body.q_ned_from_frd);
     assert!(
