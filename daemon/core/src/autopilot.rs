@@ -389,6 +389,7 @@ impl Autopilot {
             status.landed,
             LandedState::InAir | LandedState::Landing
         ));
+        self.core.set_ground_contact(status.ground_contact);
         let output = self.core.step(&flown, &setpoint, armed);
         if let Some(f) = output.motor_failure {
             tracing::error!(

@@ -4,12 +4,12 @@
 //! loop ─► kinematic attitude law (Castillo (63)) ─► rate loop (LADRC or PID) ─► mixer.
 //! Pure: no clock (time comes with the sample), no I/O, no allocation in `step`.
 
-use crate::control::Setpoint;
 use crate::control::attitude::{KinematicAttitude, TiltYawPd};
 use crate::control::motor::MotorSpeedLoop;
 use crate::control::position::{AttitudeSetpoint, PositionController};
 use crate::control::rate::{LadrcAxis, PidAxis};
 use crate::control::reduced_attitude::ReducedAttitude;
+use crate::control::{GroundContact, Setpoint};
 use crate::estimator::attitude::{AttitudeEstimate, AttitudeEstimator, AttitudeInput, DT_RANGE_S};
 use crate::estimator::translation::{GpsMeasurement, TranslationEstimate, TranslationEstimator};
 use crate::mixer::{Mixer, MixerError, MixerInput, MixerOutput, WrenchRequest};
@@ -106,6 +106,7 @@ pub struct FlightCore {
     /// The allocation flown since the last sample (what the rotors were told).
     last_mix: Option<MixerOutput>,
     in_air: bool,
+    ground_contact: GroundContact,
     last_t_usec: Option<u64>,
     flying: bool,
     /// The position loop's last output, the time since it ran (s), and the time since its
@@ -161,6 +162,7 @@ impl FlightCore {
             spinning_without: None,
             last_mix: None,
             in_air: false,
+            ground_contact: GroundContact::None,
             last_t_usec: None,
             flying: false,
             position_output: None,
@@ -217,6 +219,14 @@ impl FlightCore {
     /// thrust-imbalance check of motor-failure detection runs only in the air.
     pub fn set_in_air(&mut self, in_air: bool) {
         self.in_air = in_air;
+    }
+
+    /// Tells the core how far a landing has come on the ground (the commander's land
+    /// detector): in contact the position loop stops holding the horizontal position, maybe
+    /// landed the thrust is cut to idle with the attitude level and the rate loop's
+    /// integrators cleared, so that the ground holds the vehicle, not the loops.
+    pub fn set_ground_contact(&mut self, contact: GroundContact) {
+        self.ground_contact = contact;
     }
 
     /// Rotors declared failed this flight (true = failed).
@@ -459,11 +469,28 @@ impl FlightCore {
         // its schedule; the schedule keeps its phase, so the mean rate is the configured one
         // (100 Hz over 250 Hz samples: 8 and 12 ms alternately), over the time since it last ran.
         let (sp, rate_ff, rate_only) = match setpoint {
-            Setpoint::Position(setpoint) => (
-                self.position_step(setpoint, &translation, &a.q, dt),
-                Vector3::zeros(),
-                false,
-            ),
+            Setpoint::Position(setpoint) => {
+                let mut setpoint = *setpoint;
+                if self.ground_contact != GroundContact::None {
+                    // PX4's ground contact: the horizontal axes free (thrust straight up).
+                    for v in [
+                        &mut setpoint.pos_ned_m,
+                        &mut setpoint.vel_ned_m_s,
+                        &mut setpoint.accel_ned_m_s2,
+                    ] {
+                        (v.x, v.y) = (f64::NAN, f64::NAN);
+                    }
+                }
+                let mut sp = self.position_step(&setpoint, &translation, &a.q, dt);
+                if self.ground_contact == GroundContact::MaybeLanded {
+                    // PX4's maybe landed: idle thrust, level, the rate integrators cleared.
+                    let (_, _, yaw) = a.q.euler_angles();
+                    sp.q_d = nalgebra::UnitQuaternion::from_euler_angles(0.0, 0.0, yaw);
+                    sp.thrust_n = 0.0;
+                    self.rate = rate_axes(&self.config.rate);
+                }
+                (sp, Vector3::zeros(), false)
+            }
             Setpoint::Attitude(target) => {
                 // The position loop rests; back in a position mode it starts from the
                 // vehicle's own velocity.

@@ -16,6 +16,7 @@ pub fn telemetry(armed: bool, mode: FlightMode) -> Telemetry {
             armed,
             mode,
             landed: LandedState::OnGround,
+            ground_contact: Default::default(),
             home: None,
             failsafe: false,
             failsafe_action: None,

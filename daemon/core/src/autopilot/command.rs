@@ -174,6 +174,12 @@ impl Autopilot {
                 self.fence =
                     origin.map(|o| FenceMonitor::new(Geofence::new(&zones, &LocalFrame::new(o))));
                 self.fence_zones = zones;
+                // Judged now, not at the next step: an arm in the same batch of commands must
+                // meet the new fence.
+                if let (Some(f), Some(tr)) = (&self.fence, last.map(|e| e.translation)) {
+                    let outside = tr.horizontal_valid && !f.fence.allows(&tr.pos_ned_m.xy());
+                    c_.note_geofence_breached(outside);
+                }
                 Ok(())
             }
             AutopilotCommand::SetMissionCurrent(seq) => c_.set_mission_current(seq),

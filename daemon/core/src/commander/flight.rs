@@ -4,6 +4,7 @@
 
 use super::mission_run::MissionRun;
 use super::{CommanderInput, CommanderParams, Denial, LandedState, OffboardTarget, Sticks};
+use crate::control::GroundContact;
 use crate::control::position::PositionSetpoint;
 use crate::mission::SpeedChange;
 use nalgebra::Vector3;
@@ -37,6 +38,8 @@ pub(super) struct Flight {
     pub(super) yaw_goal: Option<(f64, Option<f64>)>,
     /// A task saw the vehicle touch down in this update: the commander disarms after it.
     pub(super) touched_down: bool,
+    /// How far a landing has come on the ground in this update (said by [`Touchdown`]).
+    pub(super) ground_contact: GroundContact,
 }
 
 impl Flight {
@@ -54,6 +57,7 @@ impl Flight {
             auto_yaw: None,
             yaw_goal: None,
             touched_down: false,
+            ground_contact: GroundContact::None,
         }
     }
 
@@ -170,22 +174,58 @@ pub(super) struct Touchdown {
     still_since_s: Option<f64>,
 }
 
+/// Stopped this long, a landing is maybe landed (PX4's `MAYBE_LAND_TRIGGER_TIME`, s).
+pub(super) const MAYBE_LANDED_S: f64 = 0.3;
+/// Stopped this long, it is on the ground (s).
+const LANDED_S: f64 = 1.0;
+
 impl Touchdown {
-    /// Watches whether the vehicle is `stopped` at `t_s`; after a second of it, the vehicle is
-    /// on the ground and the commander disarms once the task's update returns (within the same
-    /// [`super::Commander::update`]). Returns whether it touched down.
+    /// Watches whether the vehicle is `stopped` at `t_s`; after [`LANDED_S`] of it, the vehicle
+    /// is on the ground and the commander disarms once the task's update returns (within the
+    /// same [`super::Commander::update`]). Returns whether it touched down.
     pub(super) fn check(&mut self, f: &mut Flight, stopped: bool, t_s: f64) -> bool {
-        match (stopped, self.still_since_s) {
-            (true, None) => self.still_since_s = Some(t_s),
-            (true, Some(s)) if t_s - s >= 1.0 => {
-                f.touched_down = true;
-                f.landed = LandedState::OnGround;
-                return true;
-            }
-            (false, _) => self.still_since_s = None,
-            _ => {}
+        self.held_s(stopped, t_s)
+            .is_some_and(|held| held >= LANDED_S && Self::touched_down(f))
+    }
+
+    /// [`Self::check`] for a landing whose descent a set-point below the vehicle asks for,
+    /// staged as PX4's land detector stages it in `f.ground_contact`: ground contact at once,
+    /// maybe landed after `maybe_landed_s` ([`MAYBE_LANDED_S`], or 0 for a vehicle only its
+    /// motors can tip over), on the ground after [`LANDED_S`].
+    pub(super) fn check_staged(
+        &mut self,
+        f: &mut Flight,
+        stopped: bool,
+        t_s: f64,
+        maybe_landed_s: f64,
+    ) -> bool {
+        let Some(held_s) = self.held_s(stopped, t_s) else {
+            return false;
+        };
+        if held_s >= LANDED_S {
+            return Self::touched_down(f);
         }
+        f.ground_contact = if held_s >= maybe_landed_s {
+            GroundContact::MaybeLanded
+        } else {
+            GroundContact::Contact
+        };
         false
+    }
+
+    /// How long the vehicle has been `stopped` (s), or `None` when it is not.
+    fn held_s(&mut self, stopped: bool, t_s: f64) -> Option<f64> {
+        if !stopped {
+            self.still_since_s = None;
+            return None;
+        }
+        Some(t_s - *self.still_since_s.get_or_insert(t_s))
+    }
+
+    fn touched_down(f: &mut Flight) -> bool {
+        f.touched_down = true;
+        f.landed = LandedState::OnGround;
+        true
     }
 
     /// Forgets a stillness in progress.

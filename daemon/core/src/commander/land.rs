@@ -3,7 +3,7 @@
 //! ends a return and a mission's Land item.
 
 use super::LandedState;
-use super::flight::{Flight, Tick, Touchdown};
+use super::flight::{Flight, MAYBE_LANDED_S, Tick, Touchdown};
 use super::task::FlightTask;
 use crate::commander::CommanderInput;
 use crate::control::Setpoint;
@@ -52,8 +52,17 @@ impl Landing {
         let down = self.down.get_or_insert(i.pos_ned_m.z);
         *down = (*down + speed * dt).min(i.pos_ned_m.z + 1.0);
         let down = *down;
-        let stopped = i.vel_ned_m_s.z.abs() < 0.15 && down - i.pos_ned_m.z > 0.5;
-        self.touchdown.check(f, stopped, i.t_s);
+        // A quad spinning on three rotors wobbles on its legs, its vertical speed never quite
+        // still, and on the ground only its motors and its spin can tip it over: it is down
+        // when it stops coming down, and its thrust is cut at once.
+        let (still_m_s, maybe_landed_s) = if i.health.spinning {
+            (0.3, 0.0)
+        } else {
+            (0.15, MAYBE_LANDED_S)
+        };
+        let stopped = i.vel_ned_m_s.z.abs() < still_m_s && down - i.pos_ned_m.z > 0.5;
+        self.touchdown
+            .check_staged(f, stopped, i.t_s, maybe_landed_s);
         PositionSetpoint {
             pos_ned_m: Vector3::new(x, y, down),
             vel_ned_m_s: Vector3::new(0.0, 0.0, speed),

@@ -26,8 +26,8 @@ pub use orbit::{
 };
 pub use params::{COMMANDER_META, CommanderParams};
 
-use crate::control::Setpoint;
 use crate::control::position::PositionSetpoint;
+use crate::control::{GroundContact, Setpoint};
 use crate::mission::MissionStatus;
 use crate::safety::failsafe::{
     Condition, FailsafeAction, Safety, SafetyEvent, SafetyLog, SafetyParams,
@@ -146,6 +146,8 @@ pub struct CommanderStatus {
     pub mode: FlightMode,
     /// On the ground, taking off, flying or landing.
     pub landed: LandedState,
+    /// How far a landing has come on the ground.
+    pub ground_contact: GroundContact,
     /// Home position NED (m) and heading (rad), once set.
     pub home: Option<(Vector3<f64>, f64)>,
     /// A failsafe is flying the vehicle.
@@ -285,6 +287,14 @@ impl Commander {
         self.flight.params = params;
     }
 
+    /// A new fence, judged at once against the last estimate: the arming check reads it
+    /// before the next update.
+    pub fn note_geofence_breached(&mut self, breached: bool) {
+        if let Some(i) = self.last.as_mut() {
+            i.health.geofence_breached = breached;
+        }
+    }
+
     /// The state as telemetry shows it.
     pub fn status(&self) -> CommanderStatus {
         let f = &self.flight;
@@ -292,6 +302,7 @@ impl Commander {
             armed: f.armed,
             mode: self.mode,
             landed: f.landed,
+            ground_contact: f.ground_contact,
             home: f.home,
             failsafe: self.mode == FlightMode::Descend || self.failsafe.0 > FailsafeAction::Warn,
             failsafe_action: match self.failsafe {
@@ -573,6 +584,7 @@ impl Commander {
         if let Some(sp) = self.stream_lost(&tick) {
             return (Setpoint::Position(sp), self.flight.armed);
         }
+        self.flight.ground_contact = GroundContact::None;
         let sp = self.task.flight_task().update(&mut self.flight, &tick);
         if std::mem::take(&mut self.flight.touched_down) {
             self.disarmed();

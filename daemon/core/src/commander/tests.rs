@@ -78,7 +78,8 @@ fn takeoff_hold_and_land_follow_the_flight() {
         (14.0, -1.5, 0.7, Do::Nothing, Land, Landing, true), // descending at 0.7 m/s
         (16.6, 0.0, 0.0, Do::Nothing, Land, Landing, true),  // on the ground, set-point not below
         (17.1, 0.0, 0.0, Do::Nothing, Land, Landing, true),  // set-point 0.6 m below: still for...
-        (17.6, 0.0, 0.0, Do::Nothing, Land, Landing, true),
+        (17.3, 0.0, 0.0, Do::Nothing, Land, Landing, true),  // ground contact
+        (17.6, 0.0, 0.0, Do::Nothing, Land, Landing, true),  // maybe landed (0.3 s)
         (18.2, 0.0, 0.0, Do::Nothing, Loiter, OnGround, false), // ...a second: disarmed
     ];
     for (t, d, vd, cmd, mode, landed, armed) in table {
@@ -95,6 +96,13 @@ fn takeoff_hold_and_land_follow_the_flight() {
             (mode, landed, armed, armed),
             "at t = {t}"
         );
+        // PX4's land detector stages on the ground, from the first still update at 17.1 s.
+        let contact = match t {
+            17.1 | 17.3 => GroundContact::Contact,
+            17.6 => GroundContact::MaybeLanded,
+            _ => GroundContact::None,
+        };
+        assert_eq!(c.status().ground_contact, contact, "at t = {t}");
     }
 }
 

@@ -26,6 +26,22 @@ pub struct AttitudeTarget {
     pub thrust: f64,
 }
 
+/// How far a landing has come on the ground, as PX4's land detector stages it: what the
+/// loops stop doing so that the ground, not they, holds the vehicle (a vehicle whose position
+/// and attitude integrators fight the ground's hold tips itself over).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum GroundContact {
+    /// Flying, or not landing.
+    #[default]
+    None,
+    /// The descent has stopped though asked to go on (PX4's `ground_contact`): the horizontal
+    /// position is no longer held, the thrust points up.
+    Contact,
+    /// Stopped for a while longer (PX4's `maybe_landed`): the thrust is cut to idle, the
+    /// attitude set level and the rate loop's integrators cleared.
+    MaybeLanded,
+}
+
 /// What the flight core flies toward.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Setpoint {
