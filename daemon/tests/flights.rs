@@ -5,134 +5,11 @@
 // Test code: a failed unwrap is a failed test.
 #![allow(clippy::unwrap_used)]
 
+mod common;
+use common::*;
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Output, Stdio};
+use std::path::Path;
 use std::time::{Duration, Instant};
-
-const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
-
-/// Waits for `child` to end; one still running after `limit` is killed and fails the test (a
-/// hang must fail here, not stall CI).
-fn wait(mut child: Child, what: &str, limit: Duration) -> Output {
-    let deadline = Instant::now() + limit;
-    while child.try_wait().unwrap().is_none() {
-        if Instant::now() > deadline {
-            child.kill().unwrap();
-            let out = child.wait_with_output().unwrap();
-            panic!(
-                "{what} still running after {limit:?}; last output:\n{}\n{}",
-                tail(&out.stdout),
-                tail(&out.stderr)
-            );
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    child.wait_with_output().unwrap()
-}
-
-fn tail(bytes: &[u8]) -> String {
-    let s = String::from_utf8_lossy(bytes);
-    let lines: Vec<&str> = s.lines().collect();
-    lines[lines.len().saturating_sub(8)..].join("\n")
-}
-
-fn spawn(exe: &Path, args: &[&str]) -> Child {
-    Command::new(exe)
-        .current_dir(ROOT)
-        .args(args)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap()
-}
-
-/// The autopilot with `args`, keeping no logs but those the arguments name (these flights run
-/// as fast as lockstep goes, and the default logs would slow them threefold), and no
-/// ground-station links unless they name one (flights run side by side would take each
-/// other's ports).
-fn spawn_autopilot(args: &[&str]) -> Child {
-    let mut args = args.to_vec();
-    args.extend(["--log-dir", "none"]);
-    if !args.contains(&"--mavlink") {
-        args.extend(["--mavlink", "none"]);
-    }
-    spawn(&autopilot_exe(), &args)
-}
-
-fn autopilot_exe() -> PathBuf {
-    PathBuf::from(env!("CARGO_BIN_EXE_autopilot"))
-}
-
-/// The `sitl` binary beside `autopilot` in the workspace's target directory (`cargo test
-/// --workspace` builds both).
-fn sitl_exe() -> PathBuf {
-    let p = autopilot_exe().with_file_name(format!("sitl{}", std::env::consts::EXE_SUFFIX));
-    assert!(
-        p.exists(),
-        "{} is missing: build it first (cargo build -p sitl, or cargo test --workspace)",
-        p.display()
-    );
-    p
-}
-
-/// The `autopilot summary:` line as key → value.
-fn summary(out: &Output) -> HashMap<String, String> {
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{}\n{}",
-        tail(&out.stdout),
-        tail(&out.stderr)
-    );
-    let line = stdout
-        .lines()
-        .find(|l| l.starts_with("autopilot summary:"))
-        .expect("summary");
-    line.split_whitespace()
-        .filter_map(|kv| kv.split_once('='))
-        .map(|(k, v)| (k.to_owned(), v.to_owned()))
-        .collect()
-}
-
-/// `sitl` on `link` (its link flags), simulating `airframe` with `seed`, writing its truth to
-/// `truth_csv`; it waits up to 30 s for the autopilot and runs until interrupted.
-fn spawn_sitl(link: &[&str], airframe: &str, seed: u64, truth_csv: &Path) -> Child {
-    let seed = seed.to_string();
-    let mut args = link.to_vec();
-    args.extend([
-        "--airframe",
-        airframe,
-        "--seed",
-        &seed,
-        "--duration",
-        "300",
-        "--connect-timeout",
-        "30",
-        "--status-interval",
-        "0",
-        "--truth-csv",
-        truth_csv.to_str().unwrap(),
-    ]);
-    spawn(&sitl_exe(), &args)
-}
-
-/// The flight is over: Ctrl-C the simulator as a person would, so that it writes its truth and
-/// summary and exits cleanly.
-fn interrupt(sitl: Child) -> Output {
-    let status = Command::new("kill")
-        .args(["-INT", &sitl.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(status.success());
-    let out = wait(sitl, "sitl", Duration::from_secs(30));
-    assert!(out.status.success(), "sitl: {}", tail(&out.stderr));
-    out
-}
-
-fn figure(s: &HashMap<String, String>, key: &str) -> f64 {
-    s[key].parse().unwrap()
-}
 
 const FLIGHT: [&str; 6] = ["--takeoff", "5", "--hover", "20", "--params-dir", "params"];
 
@@ -270,37 +147,6 @@ fn one_seed_one_flight_in_process_and_over_udp() {
     );
 }
 
-/// `sitl` with `link` (which opens a pseudo-terminal) flying quad_x with `seed`: the child and
-/// the autopilot's end of the line, which sitl prints first. `None` (said loudly) on a machine
-/// without pseudo-terminals.
-fn sitl_on_a_pty(link: &[&str], seed: u64, truth_csv: &Path) -> Option<(Child, String)> {
-    let mut sitl = spawn_sitl(link, "quad_x", seed, truth_csv);
-    // Read on a thread, so that a simulator that never prints cannot hang the test.
-    let stdout = sitl.stdout.take().unwrap();
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        use std::io::BufRead;
-        let mut reader = std::io::BufReader::new(stdout);
-        let mut line = String::new();
-        let _ = reader.read_line(&mut line);
-        let _ = tx.send(line);
-        // Keep reading to the end: a closed pipe would fail sitl's summary.
-        let _ = std::io::copy(&mut reader, &mut std::io::sink());
-    });
-    let line = rx.recv_timeout(Duration::from_secs(30)).unwrap_or_default();
-    let Some(device) = line.trim().strip_prefix("sitl serial: ") else {
-        let _ = sitl.kill();
-        let out = sitl.wait_with_output().unwrap();
-        let err = String::from_utf8_lossy(&out.stderr);
-        if err.contains("opening a pseudo-terminal pair") {
-            eprintln!("SKIPPED a serial flight: this machine has no pseudo-terminals: {err}");
-            return None;
-        }
-        panic!("sitl did not name its pseudo-terminal: {line:?}\n{err}");
-    };
-    Some((sitl, device.to_owned()))
-}
-
 /// The same flight over a serial line: `sitl --serial pty` opens a pseudo-terminal pair and plays
 /// the flight board on one end, the autopilot opens the other as `serial:///dev/pts/N`. Frames
 /// that queued in the line before the autopilot opened it are answered, not flown twice, so the
@@ -349,64 +195,6 @@ fn the_same_flight_over_a_serial_line() {
         "truth over serial differs from in-process at byte {}",
         a.iter().zip(&b).position(|(x, y)| x != y).unwrap_or(common)
     );
-}
-
-/// A flight board in the real world: `sitl` in real time on a serial line streams its frames
-/// without waiting for answers, and the autopilot's loop runs on absolute deadlines at 1 kHz,
-/// stepping on each frame as it arrives. How well it keeps its rate is the benchmark's
-/// (tools/bench.sh), which a machine busy with other work must not fail: this asserts that the
-/// deadline loop flew the sequence to the ground in real time, and prints its rate.
-#[test]
-fn a_board_in_real_time_flies_the_deadline_paced_loop() {
-    let dir = tempfile::tempdir().unwrap();
-    let truth = dir.path().join("truth.csv");
-    let Some((sitl, device)) = sitl_on_a_pty(&["--serial", "pty", "--mode", "realtime"], 3, &truth)
-    else {
-        return;
-    };
-    let source = format!("serial://{device}");
-    // A board's magnetometer is calibrated once by its owner (a simulator's is preset).
-    let params = dir.path().join("flight.toml");
-    let text = std::fs::read_to_string(Path::new(ROOT).join("params/flight.toml")).unwrap();
-    let calibrated = text.replace("mag_calibration_id = 0 ", "mag_calibration_id = 1 ");
-    assert_ne!(text, calibrated);
-    std::fs::write(&params, calibrated).unwrap();
-    let args = [
-        "--source",
-        &source,
-        "--params",
-        params.to_str().unwrap(),
-        "--loop-hz",
-        "1000",
-        "--takeoff",
-        "2",
-        "--hover",
-        "2",
-        "--params-dir",
-        "params",
-    ];
-    let s = summary(&wait(
-        spawn_autopilot(&args),
-        "autopilot --source serial (real time)",
-        Duration::from_secs(90),
-    ));
-    interrupt(sitl);
-    assert_eq!(s["pacing"], "deadlines");
-    let wall = figure(&s, "wall_time_s");
-    println!(
-        "deadline loop at {} Hz ({} ticks in {wall} s), {} frames in {} s of sensor time",
-        s["loop_hz"], s["ticks"], s["frames"], s["sim_time_s"]
-    );
-    // Real time: the flight's sensor time is its wall time, less the start-up before the first
-    // frame; never more.
-    assert!(
-        figure(&s, "sim_time_s") <= wall + 0.1,
-        "real time, not faster"
-    );
-    assert_eq!(s["malformed"], "0");
-    assert!(figure(&s, "max_alt_m") > 1.5, "took off");
-    assert_eq!(s["landed"], "true");
-    assert_eq!(s["disarmed"], "true");
 }
 
 /// Bad command lines and parameter files stop the daemon with a message that names the problem.
@@ -459,15 +247,6 @@ fn refuses_what_it_cannot_fly() {
             "{err}"
         );
     }
-}
-
-/// A free UDP port on the loopback: bind, note, release.
-fn free_port() -> u16 {
-    std::net::UdpSocket::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
 }
 
 /// ArduPilot's JSON interface: `sitl --json` is the physics, the autopilot plays ArduPilot's

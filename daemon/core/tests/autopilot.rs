@@ -184,3 +184,39 @@ fn a_gps_failure_in_the_air_is_said_as_the_position_lost_not_the_attitude() {
         }
     }
 }
+
+/// A fence uploaded and an arm asked between two samples (a ground station's upload, then its
+/// arm, in one batch of commands): the arm meets the new fence, not the last step's.
+#[test]
+fn an_arm_right_after_a_fence_upload_meets_the_new_fence() {
+    use flight_core::safety::geofence::GeoZone;
+    let mut f = Flight::new(1, 1, None);
+    f.fly_until(60.0, |f| f.autopilot.status().prearm_ok);
+    let home = f.sim.truth().position();
+    // A circle 200 m north of the vehicle, 50 m across: the vehicle is outside it.
+    let away = GeoZone::Circle {
+        inclusion: true,
+        center_deg: (home.lat_deg + 200.0 / 111_195.0, home.lon_deg),
+        radius_m: 50.0,
+    };
+    f.autopilot
+        .command(AutopilotCommand::SetFence(vec![away]))
+        .unwrap();
+    let refused = f
+        .autopilot
+        .command(AutopilotCommand::Arm { force: false })
+        .unwrap_err();
+    assert!(refused.0.contains("geofence"), "{refused}");
+    // Around the vehicle: allowed at once too.
+    let around = GeoZone::Circle {
+        inclusion: true,
+        center_deg: (home.lat_deg, home.lon_deg),
+        radius_m: 50.0,
+    };
+    f.autopilot
+        .command(AutopilotCommand::SetFence(vec![around]))
+        .unwrap();
+    f.autopilot
+        .command(AutopilotCommand::Arm { force: false })
+        .unwrap();
+}
