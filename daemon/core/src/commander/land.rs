@@ -17,6 +17,9 @@ pub(super) struct Landing {
     xy: Option<(f64, f64)>,
     /// The descending set-point's down (m).
     down: Option<f64>,
+    /// The vehicle has come down at half the speed asked since the landing began: a stop now
+    /// is the ground (PX4's `hit_ground`), not the top of a climb turning into the descent.
+    descended: bool,
     touchdown: Touchdown,
 }
 
@@ -30,8 +33,8 @@ impl Landing {
     }
 
     /// One step: the set-point goes down steadily (slower near the ground); touchdown when
-    /// the vehicle has stopped moving down for a second while the set-point is well below it
-    /// (it cannot go lower).
+    /// the vehicle, having come down, has stopped moving down for a second while the set-point
+    /// is well below it (it cannot go lower).
     pub(super) fn step(
         &mut self,
         f: &mut Flight,
@@ -60,7 +63,9 @@ impl Landing {
         } else {
             (0.15, MAYBE_LANDED_S)
         };
-        let stopped = i.vel_ned_m_s.z.abs() < still_m_s && down - i.pos_ned_m.z > 0.5;
+        self.descended |= i.vel_ned_m_s.z > 0.5 * speed;
+        let stopped =
+            self.descended && i.vel_ned_m_s.z.abs() < still_m_s && down - i.pos_ned_m.z > 0.5;
         self.touchdown
             .check_staged(f, stopped, i.t_s, maybe_landed_s);
         PositionSetpoint {

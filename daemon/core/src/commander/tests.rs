@@ -936,3 +936,45 @@ fn an_orbit_takes_over_from_a_failsafe_as_a_mode_change_does() {
     step(&mut c, &with(8.0, |h| h.gcs_link_age_s = Some(6.5)));
     assert_eq!(c.mode(), FlightMode::Orbit, "overridden until it clears");
 }
+
+/// Land entered in a climb: the vehicle turns over at the top, its vertical speed near zero
+/// with the set-point already below it. That is not the ground (a battery failsafe's Land after
+/// a Return's climb cut the thrust there, 8 m up); a stop after coming down is.
+#[test]
+fn a_land_begun_in_a_climb_is_not_grounded_at_the_top() {
+    let mut c = ready();
+    c.takeoff(None).unwrap();
+    c.arm(false).unwrap();
+    for (t, d, vd) in [(1.5, 0.0, 0.0), (3.0, -2.0, -1.5), (6.0, -5.0, -1.5)] {
+        step(&mut c, &input(t, d, vd));
+    }
+    c.set_mode(FlightMode::Land).unwrap();
+    // Still climbing, then slowing through zero for a second at the top.
+    let mut t = 6.0;
+    for k in 0..150 {
+        t += 0.01;
+        let vd = (-1.5 + 0.015 * k as f64).min(0.05);
+        step(&mut c, &input(t, -6.0, vd));
+        assert_eq!(
+            c.status().ground_contact,
+            GroundContact::None,
+            "at {t:.2} s"
+        );
+        assert!(c.armed(), "at {t:.2} s");
+    }
+    // Then down at the land speed, and stopped on the ground: contact, maybe landed, disarm.
+    for k in 0..300 {
+        t += 0.02;
+        step(&mut c, &input(t, -6.0 + 0.7 * 0.02 * k as f64, 0.7));
+    }
+    let mut stages = Vec::new();
+    while c.armed() {
+        t += 0.02;
+        step(&mut c, &input(t, 0.0, 0.0));
+        stages.push(c.status().ground_contact);
+        assert!(t < 40.0, "disarmed on the ground");
+    }
+    assert!(
+        stages.contains(&GroundContact::Contact) && stages.contains(&GroundContact::MaybeLanded)
+    );
+}
