@@ -390,6 +390,7 @@ mod tests {
             &WindConfig {
                 mean_ned_m_s: [0.0, -5.0, 0.5],
                 turbulence_w20_m_s: 7.7,
+                roughness_m: None,
             },
             true,
         );

@@ -38,10 +38,17 @@ def free_udp_ports(n):
 
 
 def request(conn, sysid, what):
-    conn.mav.command_long_send(sysid, 1, mavutil.mavlink.MAV_CMD_REQUEST_MESSAGE, 0,
-                               getattr(mavutil.mavlink, f"MAVLINK_MSG_ID_{what}"),
-                               0, 0, 0, 0, 0, 0)
-    return wait(conn, what, lambda m: True, timeout=10)
+    """`REQUEST_MESSAGE` for `what`, sent again every 2 s until it comes (as the command protocol
+    has a ground station retransmit: a datagram on a busy machine may be lost), for 20 s."""
+    end = time.monotonic() + 20
+    while True:
+        conn.mav.command_long_send(sysid, 1, mavutil.mavlink.MAV_CMD_REQUEST_MESSAGE, 0,
+                                   getattr(mavutil.mavlink, f"MAVLINK_MSG_ID_{what}"),
+                                   0, 0, 0, 0, 0, 0)
+        m = conn.recv_match(type=what, blocking=True, timeout=2)
+        if m is not None:
+            return m
+        assert time.monotonic() < end, f"no {what} from system {sysid} in 20 s"
 
 
 class Heartbeats:

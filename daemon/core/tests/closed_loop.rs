@@ -501,6 +501,7 @@ fn mission_legs_at_5_m_s_track_the_straight_line() {
                 wind: WindConfig {
                     mean_ned_m_s: [-wind * 0.6, wind * 0.8, 0.0],
                     turbulence_w20_m_s: turbulence,
+                    roughness_m: None,
                 },
                 ..SimConfig::default()
             },
@@ -679,6 +680,7 @@ fn hover_in_10_m_s_wind_with_turbulence() {
             wind: WindConfig {
                 mean_ned_m_s: [-6.0, 8.0, 0.0],
                 turbulence_w20_m_s: 7.7,
+                roughness_m: None,
             },
             ..SimConfig::default()
         };

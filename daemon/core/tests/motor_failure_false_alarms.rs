@@ -36,6 +36,7 @@ fn orbit_in_wind(name: &str, seed: u64, esc_telemetry: bool) -> Flown {
         wind: WindConfig {
             mean_ned_m_s: [0.0, WIND_M_S, 0.0],
             turbulence_w20_m_s: 0.0,
+            roughness_m: None,
         },
         ..SimConfig::default()
     };

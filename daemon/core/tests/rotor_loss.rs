@@ -149,6 +149,7 @@ fn lose_a_rotor(case: Case, params: &FlightParams) -> Outcome {
         WindConfig {
             mean_ned_m_s: [0.0, 5.0, 0.0],
             turbulence_w20_m_s: 5.0,
+            roughness_m: None,
         }
     } else {
         WindConfig::default()

@@ -40,6 +40,7 @@ fn land_in_wind(seed: u64) -> Landing {
         wind: WindConfig {
             mean_ned_m_s: [10.0, 0.0, 0.0],
             turbulence_w20_m_s: 0.0,
+            roughness_m: None,
         },
         ..SimConfig::default()
     };

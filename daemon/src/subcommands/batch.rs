@@ -264,6 +264,7 @@ impl RunPlan {
             wind: WindConfig {
                 mean_ned_m_s: [self.wind_m_s * to.cos(), self.wind_m_s * to.sin(), 0.0],
                 turbulence_w20_m_s: self.turbulence_m_s,
+                roughness_m: None,
             },
             ..SimConfig::default()
         }

@@ -53,6 +53,27 @@ pub struct WindConfig {
     /// MIL-F-8785C calls 15 kt (7.7 m/s) light, 30 kt moderate, 45 kt severe.
     #[serde(default)]
     pub turbulence_w20_m_s: f64,
+    /// The ground's roughness length z₀ (m; 0.03: open grassland): a surface layer in which the
+    /// mean wind falls with height as `ln(h / z₀) / ln(10 m / z₀)` to nothing at z₀, the mean
+    /// being the wind at [`WIND_REFERENCE_HEIGHT_M`]. `None`: the same wind down to the ground.
+    /// (ArduPilot's SITL lets its wind fall too, as `√(h / 60 m)`: `SIM_WIND_T`.)
+    #[serde(default)]
+    pub roughness_m: Option<f64>,
+}
+
+/// The height at which a surface layer's mean wind is given (m): the meteorological standard.
+pub const WIND_REFERENCE_HEIGHT_M: f64 = 10.0;
+
+impl WindConfig {
+    /// The share of the mean wind at `height_m` above the ground: 1 without a surface layer.
+    pub fn profile(&self, height_m: f64) -> f64 {
+        match self.roughness_m {
+            Some(z0) if z0 > 0.0 => {
+                (height_m.max(z0) / z0).ln() / (WIND_REFERENCE_HEIGHT_M / z0).ln()
+            }
+            _ => 1.0,
+        }
+    }
 }
 
 /// A "1 − cos" discrete gust: the air velocity rises from zero to `peak` and back in `duration`.
@@ -152,8 +173,11 @@ impl Dryden {
 /// Mean wind, turbulence and gusts together.
 #[derive(Debug, Clone)]
 pub struct Wind {
-    /// Mean wind, NED (m/s); may be changed at run time.
+    /// Mean wind, NED (m/s), at the reference height of a surface layer; may be changed at run
+    /// time.
     pub mean_ned_m_s: Vector3<f64>,
+    /// The surface layer, if any ([`WindConfig::profile`]).
+    layer: WindConfig,
     turbulence: Dryden,
     gusts: Vec<Gust>,
     last_turbulence_ned: Vector3<f64>,
@@ -164,6 +188,7 @@ impl Wind {
     pub fn new(config: &WindConfig, rng: Rng) -> Self {
         Self {
             mean_ned_m_s: Vector3::from(config.mean_ned_m_s),
+            layer: config.clone(),
             turbulence: Dryden::new(config.turbulence_w20_m_s, rng),
             gusts: Vec::new(),
             last_turbulence_ned: Vector3::zeros(),
@@ -188,12 +213,13 @@ impl Wind {
         vehicle_vel_ned: &Vector3<f64>,
         altitude_agl_m: f64,
     ) -> Vector3<f64> {
-        let mean = self.mean_ned_m_s;
+        let mean = self.mean_ned_m_s * self.layer.profile(altitude_agl_m);
         let airspeed = (vehicle_vel_ned - mean).norm();
         let uvw = self.turbulence.step(dt, airspeed, altitude_agl_m);
         // Rotate (along, across, down) into NED about the mean wind's heading.
-        let heading = if mean.x.hypot(mean.y) > 0.1 {
-            mean.y.atan2(mean.x)
+        let at_reference = self.mean_ned_m_s;
+        let heading = if at_reference.x.hypot(at_reference.y) > 0.1 {
+            at_reference.y.atan2(at_reference.x)
         } else {
             0.0
         };
@@ -209,6 +235,39 @@ impl Wind {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_surface_layer_falls_logarithmically_to_the_ground() {
+        let layer = WindConfig {
+            mean_ned_m_s: [10.0, 0.0, 0.0],
+            roughness_m: Some(0.03),
+            ..WindConfig::default()
+        };
+        assert_eq!(layer.profile(WIND_REFERENCE_HEIGHT_M), 1.0);
+        // ln(h/z0)/ln(10/z0): 1 m 0.60, 0.2 m 0.33, at z0 and below nothing; above, a little
+        // more (30 m: 1.19).
+        for (h, share) in [
+            (1.0, 0.603),
+            (0.2, 0.327),
+            (0.03, 0.0),
+            (0.0, 0.0),
+            (30.0, 1.189),
+        ] {
+            assert!(
+                (layer.profile(h) - share).abs() < 1e-3,
+                "{h} m: {}",
+                layer.profile(h)
+            );
+        }
+        assert_eq!(
+            WindConfig::default().profile(0.0),
+            1.0,
+            "uniform without a layer"
+        );
+        let mut wind = Wind::new(&layer, Rng::stream(1, 8));
+        let at_ground = wind.step(0.0, 0.001, &Vector3::zeros(), 0.2);
+        assert!((at_ground.x - 3.27).abs() < 0.01, "{at_ground}");
+    }
 
     #[test]
     fn isa_matches_standard_tables() {

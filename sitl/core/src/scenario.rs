@@ -15,6 +15,7 @@
 //! [wind]
 //! mean_ned_m_s = [3.0, 0.0, 0.0]
 //! turbulence_w20_m_s = 7.7
+//! roughness_m = 0.03            # optional: a surface layer, the mean wind being that at 10 m
 //! [battery]                   # the airframe's pack, changed
 //! charge = 0.3                 # at the start (0–1)
 //! capacity_mah = 500.0
@@ -255,6 +256,9 @@ impl Scenario {
         c.finite("initial.velocity_ned_m_s", &ini.velocity_ned_m_s);
         c.finite("initial.attitude_euler_deg", &ini.attitude_euler_deg);
         c.finite("initial.rate_frd_rad_s", &ini.rate_frd_rad_s);
+        if let Some(z0) = raw.wind.roughness_m {
+            c.within("wind.roughness_m", z0, 1e-4, 2.0);
+        }
         c.finite("wind.mean_ned_m_s", &raw.wind.mean_ned_m_s);
         c.within(
             "wind.turbulence_w20_m_s",

@@ -278,6 +278,7 @@ fn same_seed_gives_identical_streams_and_another_seed_does_not() {
             wind: WindConfig {
                 mean_ned_m_s: [3.0, 1.0, 0.0],
                 turbulence_w20_m_s: 8.0,
+                roughness_m: None,
             },
             ..SimConfig::default()
         };
