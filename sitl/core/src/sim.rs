@@ -16,7 +16,7 @@ use navmath::geo::{LatLonAlt, LocalFrame};
 
 use events::Pulse;
 pub use events::{Event, SimAction};
-use ground::Ground;
+use ground::{Contact, Ground};
 use hand::Hand;
 pub use hand::{Face, PLACE_S, SET_DOWN_S, TUMBLE_RAMP_S, tumble_attitude};
 
@@ -81,6 +81,12 @@ pub const BOUNCE_S: f64 = 0.5;
 
 /// How long a vehicle set down settles on its legs before the world starts (s).
 const SETTLE_S: f64 = 2.0;
+
+/// Below these a body on the ground is at rest and its step is skipped, as a physics engine
+/// lets a resting body sleep: speed (m/s), body rate (rad/s), and the accelerations the loads
+/// would give it (m/s², rad/s²).
+const REST_SPEED: f64 = 1e-9;
+const REST_ACCEL: f64 = 1e-9;
 
 /// The true state, for logs, scoring and `HIL_STATE_QUATERNION`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -386,21 +392,53 @@ impl Simulator {
             ext_torque_frd: Vector3::zeros(),
         };
         let dt = self.cfg.dt_s;
+        // Level on legs of equal depth around the centre of mass, z = 0 is the rest already and
+        // the first steps say so; other legs settle.
         for _ in 0..(SETTLE_S / dt).round() as usize {
-            let forces = Forces {
-                loads: &still,
-                mass: &self.mass,
-                drag: &self.airframe.drag,
-                ground: &self.ground,
-            };
-            self.body = self
-                .cfg
-                .integrator
-                .step(&self.body, dt, |s| forces.accel(s));
-            self.ground.settle_anchors(&self.body);
+            self.integrate(&still);
+            if self.body.vel_ned_m_s.norm() < 1e-9 && self.body.rate_frd_rad_s.norm() < 1e-9 {
+                break;
+            }
         }
         self.landed = true;
         self.last_contact_usec = Some(self.time_usec);
+    }
+
+    /// Whether the body rests on the ground with nothing to move it: it stays as it is this
+    /// step (the integrator would move it by less than `REST_ACCEL` dt², and at a quarter of
+    /// the cost on the ground, where a vehicle waits most of its time on the ground).
+    fn resting(&self, loads: &Loads) -> bool {
+        let b = &self.body;
+        if !self.landed
+            || b.vel_ned_m_s.norm() >= REST_SPEED
+            || b.rate_frd_rad_s.norm() >= REST_SPEED
+        {
+            return false;
+        }
+        let forces = Forces {
+            loads,
+            mass: &self.mass,
+            drag: &self.airframe.drag,
+            ground: self.ground.contact(b),
+        };
+        let a = forces.accel(b);
+        a.lin_ned_m_s2.norm() < REST_ACCEL && a.ang_frd_rad_s2.norm() < REST_ACCEL
+    }
+
+    /// Moves the rigid body one step under `loads`, gravity and the ground; whether a point of
+    /// it touches the ground after.
+    fn integrate(&mut self, loads: &Loads) -> bool {
+        let forces = Forces {
+            loads,
+            mass: &self.mass,
+            drag: &self.airframe.drag,
+            ground: self.ground.contact(&self.body),
+        };
+        self.body = self
+            .cfg
+            .integrator
+            .step(&self.body, self.cfg.dt_s, |s| forces.accel(s));
+        self.ground.settle_anchors(&self.body)
     }
 
     /// Sanitises actuator commands: NaN → 0, clamped to [0, 1], both counted.
@@ -469,18 +507,7 @@ impl Simulator {
         if let Some(hand) = self.hand {
             self.turn_by_hand(hand, dt);
         } else {
-            let forces = Forces {
-                loads: &loads,
-                mass: &self.mass,
-                drag: &self.airframe.drag,
-                ground: &self.ground,
-            };
-            self.body = self
-                .cfg
-                .integrator
-                .step(&self.body, dt, |s| forces.accel(s));
-            self.ground.settle_anchors(&self.body);
-            let touching = self.ground.contact(&self.body).touching;
+            let touching = self.resting(&loads) || self.integrate(&loads);
             if touching {
                 let bounce_usec = (BOUNCE_S * 1e6) as u64;
                 let airborne = self
@@ -513,7 +540,7 @@ impl Simulator {
             loads: &loads,
             mass: &self.mass,
             drag: &self.airframe.drag,
-            ground: &self.ground,
+            ground: Contact::NONE,
         };
         let (aero_force_frd_n, aero_moment_frd_n_m) = forces.body_loads(&self.body);
         let after = body.advance(&StepLoads {
@@ -572,7 +599,10 @@ struct Forces<'a> {
     loads: &'a Loads,
     mass: &'a MassProperties,
     drag: &'a crate::airframe::DragSpec,
-    ground: &'a Ground,
+    /// The ground's push, taken at the step's start and held over it (as the rotors' loads
+    /// are): a quarter of the contact's cost for RK4, and the legs' bounce (ω dt ≤ 0.5, damped
+    /// at ζ 0.7) stays stable.
+    ground: Contact,
 }
 
 impl Forces<'_> {
@@ -602,7 +632,7 @@ impl Forces<'_> {
     fn accel(&self, s: &BodyState) -> Accel {
         let (force_frd, moment_frd) = self.body_loads(s);
         let rotor = &self.loads.rotor;
-        let ground = self.ground.contact(s);
+        let ground = &self.ground;
         let force_ned = s
             .q_ned_from_frd
             .transform_vector(&(rotor.force_frd_n + force_frd))

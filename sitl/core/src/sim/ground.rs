@@ -6,8 +6,8 @@
 //! slides, and its anchor follows it. The forces act at the feet, so a touchdown turns the body
 //! over time at rates its gyro measures, a vehicle set down tilted rocks onto its feet, and one
 //! pushed hard enough over its feet tips over. The rotor hubs touch the ground the same way, so a
-//! vehicle on its side or back lies on its arms. The anchors move only between steps (the
-//! forces within a step are a function of the state alone, as every integrator needs).
+//! vehicle on its side or back lies on its arms. The push is taken at each step's start and
+//! held over the step, as the rotors' loads are, and the anchors move between steps.
 //!
 //! The ground plane lies where the feet rest when the legs give their sag: a vehicle standing
 //! level has its centre of mass at z ≈ 0, as the JSBSim back-end puts it.
@@ -20,7 +20,7 @@
 use crate::GRAVITY_M_S2;
 use crate::airframe::{Airframe, MAX_FEET, MAX_ROTORS};
 use crate::body::BodyState;
-use nalgebra::{Vector2, Vector3};
+use nalgebra::{Matrix3, Vector2, Vector3};
 
 /// The softest a spring is made for a long step: ω dt at most this.
 const MAX_OMEGA_DT: f64 = 0.5;
@@ -43,6 +43,8 @@ pub(crate) struct Ground {
     reach: f64,
     /// Where each touching point holds on, north and east (m); `None` in the air.
     anchors: [Option<Vector2<f64>>; MAX_POINTS],
+    /// Some point held on after the last step.
+    held: bool,
 }
 
 /// The ground's push on the body: force in NED (N), moment about the centre of mass in FRD
@@ -55,7 +57,8 @@ pub(crate) struct Contact {
 }
 
 impl Contact {
-    const NONE: Self = Self {
+    /// No touch.
+    pub const NONE: Self = Self {
         force_ned_n: Vector3::new(0.0, 0.0, 0.0),
         moment_frd_n_m: Vector3::new(0.0, 0.0, 0.0),
         touching: false,
@@ -92,36 +95,50 @@ impl Ground {
             mu: gear.friction,
             plane_z: gear.depth_m() - sag,
             anchors: [None; MAX_POINTS],
+            held: false,
         }
     }
 
     /// Whether no foot can reach the ground from `s`: the cheap test flight takes.
+    #[inline]
     fn out_of_reach(&self, s: &BodyState) -> bool {
         s.pos_ned_m.z + self.reach < self.plane_z
     }
 
-    /// Where point `i` is (NED, m) and how fast it moves (NED, m/s) in state `s`.
-    fn point(&self, s: &BodyState, i: usize) -> (Vector3<f64>, Vector3<f64>) {
-        let q = &s.q_ned_from_frd;
-        let p = &self.points[i];
-        (
-            s.pos_ned_m + q.transform_vector(p),
-            s.vel_ned_m_s + q.transform_vector(&s.rate_frd_rad_s.cross(p)),
-        )
+    /// The points below the ground in state `s`: each one's index, place and velocity (NED),
+    /// and how deep it is (m). The depth takes one row of the rotation; a point in the air costs
+    /// no more.
+    fn touching<'a>(
+        &'a self,
+        s: &'a BodyState,
+        r: &'a Matrix3<f64>,
+    ) -> impl Iterator<Item = (usize, Vector3<f64>, Vector3<f64>, f64)> + 'a {
+        let down = r.row(2);
+        (0..self.count).filter_map(move |i| {
+            let p = &self.points[i];
+            let depth = s.pos_ned_m.z + down.dot(&p.transpose()) - self.plane_z;
+            (depth > 0.0).then(|| {
+                let at = s.pos_ned_m + r * p;
+                let vel = s.vel_ned_m_s + r * s.rate_frd_rad_s.cross(p);
+                (i, at, vel, depth)
+            })
+        })
     }
 
     /// The ground's push on a body in state `s`, the anchors held where the step began.
+    #[inline]
     pub fn contact(&self, s: &BodyState) -> Contact {
         if self.out_of_reach(s) {
             return Contact::NONE;
         }
+        self.contact_near(s)
+    }
+
+    /// [`Self::contact`] within reach of the ground.
+    fn contact_near(&self, s: &BodyState) -> Contact {
+        let r = s.q_ned_from_frd.to_rotation_matrix().into_inner();
         let mut out = Contact::NONE;
-        for i in 0..self.count {
-            let (at, vel) = self.point(s, i);
-            let depth = at.z - self.plane_z;
-            if depth <= 0.0 {
-                continue;
-            }
+        for (i, at, vel, depth) in self.touching(s, &r) {
             out.touching = true;
             let normal = (self.k * depth + self.c * vel.z).max(0.0);
             // Sideways: the spring to the anchor (none yet for a foot touching down within this
@@ -134,37 +151,45 @@ impl Ground {
             }
             let force = Vector3::new(side.x, side.y, -normal);
             out.force_ned_n += force;
-            out.moment_frd_n_m +=
-                self.points[i].cross(&s.q_ned_from_frd.inverse_transform_vector(&force));
+            out.moment_frd_n_m += self.points[i].cross(&(r.transpose() * force));
         }
         out
     }
 
     /// After a step ending in `s`: a foot touching down holds where it touched, one pulled
-    /// further than friction holds slides until it does, one in the air lets go.
-    pub fn settle_anchors(&mut self, s: &BodyState) {
-        for i in 0..self.count {
-            let (at, vel) = self.point(s, i);
-            let depth = at.z - self.plane_z;
-            self.anchors[i] = if depth <= 0.0 {
-                None
-            } else {
+    /// further than friction holds slides until it does, one in the air lets go. Returns
+    /// whether any point touches.
+    pub fn settle_anchors(&mut self, s: &BodyState) -> bool {
+        if self.out_of_reach(s) {
+            if self.held {
+                self.release();
+            }
+            return false;
+        }
+        let mut anchors = [None; MAX_POINTS];
+        {
+            let r = s.q_ned_from_frd.to_rotation_matrix().into_inner();
+            for (i, at, vel, depth) in self.touching(s, &r) {
                 let normal = (self.k * depth + self.c * vel.z).max(0.0);
                 let hold = self.mu * normal / self.k;
-                Some(match self.anchors[i] {
+                anchors[i] = Some(match self.anchors[i] {
                     Some(a) if (at.xy() - a).norm() > hold => {
                         at.xy() - (at.xy() - a).normalize() * hold
                     }
                     Some(a) => a,
                     None => at.xy(),
-                })
-            };
+                });
+            }
         }
+        self.anchors = anchors;
+        self.held = anchors.iter().any(Option::is_some);
+        self.held
     }
 
     /// Lets go of the ground (the body was moved by hand).
     pub fn release(&mut self) {
         self.anchors = [None; MAX_POINTS];
+        self.held = false;
     }
 }
 

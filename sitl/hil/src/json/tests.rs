@@ -54,6 +54,20 @@ fn pwm_maps_to_commands_and_back() {
     assert_eq!(command_from_pwm(2100), 1.0);
 }
 
+/// A state with every field ours sends.
+fn our_state() -> PhysicsState {
+    PhysicsState {
+        timestamp_s: 12.004,
+        gyro_frd_rad_s: Vector3::new(0.01, -0.02, 0.3),
+        accel_frd_m_s2: Vector3::new(0.1, 0.2, -9.81),
+        pos_ned_m: Vector3::new(3.0, -4.0, -5.5),
+        vel_ned_m_s: Vector3::new(0.5, 0.0, -1.0),
+        q_ned_from_frd: UnitQuaternion::from_euler_angles(0.1, -0.2, 2.0),
+        battery: Some((15.9, 12.5)),
+        airspeed_m_s: Some(7.25),
+    }
+}
+
 #[test]
 fn ardupilots_documented_state_parses_and_ours_round_trips() {
     // The documentation's example: Euler angles instead of a quaternion, other keys.
@@ -69,16 +83,7 @@ fn ardupilots_documented_state_parses_and_ours_round_trips() {
     assert!((nose - Vector3::y()).norm() < 1e-12, "{nose}");
     assert_eq!((s.battery, s.airspeed_m_s), (None, Some(3.2)));
 
-    let ours = PhysicsState {
-        timestamp_s: 12.004,
-        gyro_frd_rad_s: Vector3::new(0.01, -0.02, 0.3),
-        accel_frd_m_s2: Vector3::new(0.1, 0.2, -9.81),
-        pos_ned_m: Vector3::new(3.0, -4.0, -5.5),
-        vel_ned_m_s: Vector3::new(0.5, 0.0, -1.0),
-        q_ned_from_frd: UnitQuaternion::from_euler_angles(0.1, -0.2, 2.0),
-        battery: Some((15.9, 12.5)),
-        airspeed_m_s: Some(7.25),
-    };
+    let ours = our_state();
     let text = ours.to_json();
     assert!(text.starts_with('\n') && text.ends_with('\n'));
     assert_eq!(text.trim().lines().count(), 1, "one line");
@@ -229,16 +234,7 @@ mod ardupilot_rule {
 
 #[test]
 fn ardupilot_reads_every_field_of_our_state_by_its_own_rule() {
-    let ours = PhysicsState {
-        timestamp_s: 12.004,
-        gyro_frd_rad_s: Vector3::new(0.01, -0.02, 0.3),
-        accel_frd_m_s2: Vector3::new(0.1, 0.2, -9.81),
-        pos_ned_m: Vector3::new(3.0, -4.0, -5.5),
-        vel_ned_m_s: Vector3::new(0.5, 0.0, -1.0),
-        q_ned_from_frd: UnitQuaternion::from_euler_angles(0.1, -0.2, 2.0),
-        battery: Some((15.9, 12.5)),
-        airspeed_m_s: Some(7.25),
-    };
+    let ours = our_state();
     // The first datagram ArduPilot ever gets: the newline before the state gives it two NULs.
     let line = ardupilot_rule::last_line(ours.to_json().as_bytes()).unwrap();
     let (mask, values) = ardupilot_rule::parse_sensors(&line).unwrap();
