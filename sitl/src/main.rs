@@ -2,13 +2,15 @@
 //!
 //! Runs the physics and sensors of `sitl-core` behind the MAVLink HIL link of ARCHITECTURE.md:
 //! sends `HIL_SENSOR`, `HIL_GPS`, `ESC_STATUS` and `HIL_STATE_QUATERNION` to the autopilot's UDP
-//! port and steps physics on its `HIL_ACTUATOR_CONTROLS`, in lockstep (default) or real time. With
+//! port (or over a serial line, or to PX4 connected over TCP) and steps physics on its
+//! `HIL_ACTUATOR_CONTROLS`, in lockstep (default) or real time. With
 //! `--open-loop` it flies the scenario's actuator script with no autopilot at all.
 
 mod control;
 mod jsbsim;
 mod json_physics;
 mod run;
+mod tcp;
 mod transport;
 
 use anyhow::{Context, Result, bail};
@@ -72,8 +74,17 @@ pub struct SitlCli {
     /// as JSON (the IMU, position, velocity, quaternion, battery). Lockstep: the world waits for
     /// the next packet [default address: 127.0.0.1:9002].
     #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:9002",
-          conflicts_with_all = ["serial", "open_loop", "control"])]
+          conflicts_with_all = ["serial", "tcp", "open_loop", "control"])]
     pub json: Option<SocketAddr>,
+    /// Listen for the autopilot on TCP, as PX4's SITL start-up connects to its simulator
+    /// (`simulator_mavlink start -c 4560+i`): ADDR's port offset by --instance, one autopilot
+    /// at a time, the HIL messages framed in the stream. From the autopilot's first word to its
+    /// first actuator command the clock runs in real time (times --speed), as PX4 boots on the
+    /// simulator's time; then lockstep (--mode). It may set the ground truth's rate
+    /// (SET_MESSAGE_INTERVAL) [default address: 127.0.0.1:4560].
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:4560",
+          conflicts_with_all = ["serial", "open_loop"])]
+    pub tcp: Option<SocketAddr>,
     /// Talk over a serial line instead of UDP, playing the flight board: a device such as
     /// /dev/ttyUSB0, or `pty` to open a new pseudo-terminal pair and print the autopilot's end
     /// (`sitl serial: /dev/pts/N`) for `autopilot --source serial:///dev/pts/N`.

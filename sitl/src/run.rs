@@ -1,7 +1,8 @@
 //! The simulation loops: open-loop script, and the HIL link in lockstep or real time.
 
 use crate::jsbsim::{Jsbsim, Launch};
-use crate::transport::{Link, SerialTransport, Transport, UdpTransport};
+use crate::tcp::TcpTransport;
+use crate::transport::{Link, Peer, SerialTransport, Transport, UdpTransport};
 use crate::{Mode, Physics, SitlCli};
 use anyhow::{Context, Result, bail};
 use hil::SimulatorEnd;
@@ -62,6 +63,17 @@ impl fmt::Display for Summary {
             self.landed
         )
     }
+}
+
+/// `addr` with its port offset by the instance number.
+fn with_instance(
+    mut addr: std::net::SocketAddr,
+    instance: u16,
+    flag: &str,
+) -> Result<std::net::SocketAddr> {
+    let port = addr.port().checked_add(instance);
+    addr.set_port(port.with_context(|| format!("--instance pushes the {flag} port past 65535"))?);
+    Ok(addr)
 }
 
 pub(crate) fn build(scenario: &Scenario) -> Result<Simulator> {
@@ -327,22 +339,23 @@ pub fn hil(
     let mut dynamics = Dynamics::start(cli, scenario, &sim)?;
     let mut truth = open_truth(cli, &sim)?;
     let mut end = SimulatorEnd::new(sim, cli.hil_rate);
-    let (transport, target): (Box<dyn Transport>, String) = match &cli.serial {
-        Some(path) => {
+    let (transport, target): (Box<dyn Transport>, String) = match (&cli.serial, cli.tcp) {
+        (Some(path), _) => {
             let t = SerialTransport::open(path, cli.baud)?;
             let name = t.name().to_owned();
             // Scripts read this line to learn the device of a new pseudo-terminal.
             println!("sitl serial: {name}");
             (Box::new(t), name)
         }
-        None => {
-            let mut target = cli.autopilot;
-            target.set_port(
-                target
-                    .port()
-                    .checked_add(cli.instance)
-                    .context("--instance pushes the autopilot port past 65535")?,
-            );
+        (None, Some(addr)) => {
+            let t = TcpTransport::listen(with_instance(addr, cli.instance, "--tcp")?)?;
+            let at = t.local_addr()?;
+            // Scripts read this line to learn the port (`--tcp 127.0.0.1:0` takes a free one).
+            println!("sitl tcp: {at}");
+            (Box::new(t), format!("TCP {at}"))
+        }
+        (None, None) => {
+            let target = with_instance(cli.autopilot, cli.instance, "--autopilot")?;
             let t = UdpTransport::new(cli.bind, target)?;
             tracing::info!(local = %t.local_addr()?, "UDP bound");
             (Box::new(t), target.to_string())
@@ -362,14 +375,9 @@ pub fn hil(
     let mut summary = Summary::default();
     let mut link = Link::new(transport);
     let mut control = match cli.control {
-        Some(mut addr) => {
-            addr.set_port(
-                addr.port()
-                    .checked_add(cli.instance)
-                    .context("--instance pushes the --control port past 65535")?,
-            );
+        Some(addr) => {
             let c = crate::control::Control::bind(
-                addr,
+                with_instance(addr, cli.instance, "--control")?,
                 &scenario.sim.wind,
                 scenario.sim.calibration_hand,
             )?;
@@ -382,7 +390,36 @@ pub fn hil(
     let timeout = Duration::from_millis(cli.timeout_ms.max(1));
     let mut last_timeout_log: Option<Instant> = None;
     let mut awaiting = AwaitAutopilot::new(started);
+    // PX4's simulator interface (TCP): its first word starts the sensor stream, and the clock
+    // runs in real time until its first answer, as PX4 boots on the simulator's clock.
+    let boots_in_real_time = cli.tcp.is_some();
+    let mut boot_pacer = Pacer {
+        start: started,
+        factor: Some(speed.unwrap_or(1.0)),
+    };
     while end.sim().time_s() < scenario.duration_s - 1e-9 && !stop.load(Ordering::Relaxed) {
+        match link.peer(Duration::from_millis(200))? {
+            Peer::Absent => {
+                awaiting.unanswered(cli, &target)?;
+                continue; // nobody connected: physics waits
+            }
+            Peer::New => {
+                connected = false;
+                pacer.restart_at(end.sim().time_s());
+            }
+            Peer::There => {}
+        }
+        if boots_in_real_time && !connected && link.heard == 0 {
+            if !link.listen(Duration::from_millis(200), &mut summary)? {
+                awaiting.unanswered(cli, &target)?;
+                continue;
+            }
+            tracing::info!("autopilot heard: sensor frames in real time until its first command");
+            boot_pacer.restart_at(end.sim().time_s());
+        }
+        if let Some(interval) = link.take_state_interval() {
+            end.set_state_interval(interval);
+        }
         status.maybe_print(end.sim(), started);
         if let Some(c) = control.as_mut() {
             for action in c.poll(end.sim().time_s()) {
@@ -398,6 +435,10 @@ pub fn hil(
         link.send()?;
         summary.frames_sent += 1;
         let waited = match cli.mode {
+            Mode::Lockstep if boots_in_real_time && !connected => {
+                boot_pacer.wait_until(end.sim().time_s());
+                link.drain(&mut summary)?
+            }
             Mode::Lockstep => link.wait_for(
                 time_usec,
                 if connected {
@@ -418,6 +459,11 @@ pub fn hil(
                 }
                 connected = true;
                 end.apply(&cmd);
+            }
+            // The autopilot went away: physics waits for the next one.
+            None if link.gone() => continue,
+            None if cli.mode == Mode::Lockstep && !connected && boots_in_real_time => {
+                awaiting.unanswered(cli, &target)?; // and physics steps on: the clock runs
             }
             None if cli.mode == Mode::Lockstep && !connected => {
                 awaiting.unanswered(cli, &target)?;

@@ -11,7 +11,8 @@ use sitl_core::sensors::SensorFrame;
 use sitl_core::sim::SimAction;
 use sitl_core::sim::Simulator;
 
-/// Interval of the ground truth (`HIL_STATE_QUATERNION`, 50 Hz).
+/// Interval of the ground truth (`HIL_STATE_QUATERNION`, 50 Hz) unless the autopilot asks for
+/// another ([`SimulatorEnd::set_state_interval`]).
 pub const STATE_INTERVAL_USEC: u64 = 20_000;
 
 /// How long the hand keeps doing what it was asked after the requests stop (s): a lost
@@ -29,6 +30,8 @@ pub struct SimulatorEnd {
     encoder: Encoder,
     steps_per_exchange: usize,
     next_state_usec: u64,
+    /// Interval of the ground truth (µs); `None`: not sent.
+    state_interval_usec: Option<u64>,
     controls: [f64; MAX_ROTORS],
     /// What the hand is doing on request, and when a request last came (s).
     hand: HandRequest,
@@ -47,6 +50,7 @@ impl SimulatorEnd {
             encoder: Encoder::default(),
             steps_per_exchange: steps,
             next_state_usec: 0,
+            state_interval_usec: Some(STATE_INTERVAL_USEC),
             controls: [0.0; MAX_ROTORS],
             hand: HandRequest::None,
             hand_heard_s: f64::NEG_INFINITY,
@@ -77,14 +81,27 @@ impl SimulatorEnd {
         frame.time_usec
     }
 
-    /// Whether this exchange carries the ground truth (every [`STATE_INTERVAL_USEC`]).
+    /// Whether this exchange carries the ground truth: every interval on average (at most once
+    /// an exchange), the next due time kept on the interval's grid so that a rate the exchange
+    /// rate does not divide (PX4 asks for 200 Hz) is still kept.
     fn state_due(&mut self) -> bool {
+        let Some(interval) = self.state_interval_usec else {
+            return false;
+        };
         let t = self.acc.frame().time_usec;
         let due = t >= self.next_state_usec;
         if due {
-            self.next_state_usec = t + STATE_INTERVAL_USEC;
+            self.next_state_usec = (self.next_state_usec + interval).max(t);
         }
         due
+    }
+
+    /// Sends the ground truth every `interval_usec` (MAV_CMD_SET_MESSAGE_INTERVAL for
+    /// `HIL_STATE_QUATERNION`, as PX4's simulator interface asks on connecting), or not at all
+    /// (`None`). Takes effect from the next frame.
+    pub fn set_state_interval(&mut self, interval_usec: Option<u64>) {
+        self.state_interval_usec = interval_usec.map(|i| i.max(1));
+        self.next_state_usec = self.acc.frame().time_usec;
     }
 
     /// Takes an answer: an armed command's controls, all rotors off otherwise; and, when the

@@ -21,6 +21,18 @@ pub fn nothing_yet(e: &io::Error) -> bool {
     )
 }
 
+/// Whether a socket whose read timeout is `set` (zero: non-blocking; `None`: never set) can
+/// wait for `timeout` as it is. A wait a little shorter than asked is fine (callers loop to
+/// their deadline): the set timeout is kept while it is within [timeout / 2, timeout], which
+/// saves two system calls a read.
+pub fn timeout_kept(set: Option<Duration>, timeout: Duration) -> bool {
+    match set {
+        Some(t) if timeout.is_zero() => t.is_zero(),
+        Some(t) => !t.is_zero() && t <= timeout && t * 2 >= timeout,
+        None => false,
+    }
+}
+
 /// A UDP socket that waits for one datagram at a time, with the read timeout set only when it
 /// changes (two system calls per frame otherwise).
 pub struct Datagrams {
@@ -53,14 +65,7 @@ impl Datagrams {
     /// Waits up to `timeout` (zero: only what is already there) for a datagram: its bytes and
     /// sender, or `None` when nothing came ([`nothing_yet`]).
     pub fn recv(&mut self, timeout: Duration) -> io::Result<Option<(&[u8], SocketAddr)>> {
-        // A wait a little shorter than asked is fine (callers loop to their deadline): keep the
-        // set timeout while it is within [timeout / 2, timeout].
-        let keep = match self.read_timeout {
-            Some(t) if timeout.is_zero() => t.is_zero(),
-            Some(t) => !t.is_zero() && t <= timeout && t * 2 >= timeout,
-            None => false,
-        };
-        if !keep {
+        if !timeout_kept(self.read_timeout, timeout) {
             self.socket.set_nonblocking(timeout.is_zero())?;
             if !timeout.is_zero() {
                 self.socket.set_read_timeout(Some(timeout))?;
