@@ -17,7 +17,6 @@ import argparse
 import bisect
 import csv
 import os
-import signal
 import subprocess
 import sys
 import tempfile
@@ -26,7 +25,7 @@ import time
 from pymavlink import mavutil
 
 from peer_flight import (Log, Truth, euler_to_quat, quat_angle_deg, report_flight, square,
-                         upload_mission, write_events)
+                         stop, upload_mission, await_landing)
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -75,13 +74,7 @@ def main():
     try:
         fly(a, out)
     finally:
-        for p in (copter, sitl):
-            p.send_signal(signal.SIGINT)
-        for p in (copter, sitl):
-            try:
-                p.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                p.kill()
+        stop(copter, sitl)
     report(out, truth_csv)
 
 
@@ -131,12 +124,7 @@ def fly(a, out):
     items.append((cmd.MAV_CMD_NAV_LAND, hlat, hlon, 0.0))
     upload_mission(m, (1, 1), items)
     m.set_mode("AUTO")
-    auto_at = log.t_ms
-    log.wait("disarm after the landing", lambda: log.t_ms - auto_at > 5000 and not log.is_armed(), 300)
-    disarm_at = log.t_ms
-    write_events(os.path.join(out, "ardupilot.csv"),
-                 [("armed", armed_at), ("hover_from", hover_from), ("auto", auto_at),
-                  ("disarmed", disarm_at)])
+    await_landing(log, os.path.join(out, "ardupilot.csv"), armed_at, hover_from)
     with open(os.path.join(out, "simstate.csv"), "w") as f:
         w = csv.writer(f)
         w.writerow(["t_boot_ms", "roll", "pitch", "yaw"])

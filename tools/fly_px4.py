@@ -22,7 +22,6 @@ import csv
 import math
 import os
 import shutil
-import signal
 import subprocess
 import sys
 import tempfile
@@ -32,7 +31,7 @@ import tomllib
 from pymavlink import mavutil
 
 from peer_flight import (Log, Truth, euler_to_quat, quat_angle_deg, report_flight, square,
-                         upload_mission, write_events)
+                         stop, upload_mission, await_landing)
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # PX4's generic quad airframe on its MAVLink simulator interface (init.d-posix/airframes).
@@ -42,7 +41,8 @@ PX4_AIRFRAME = 10016
 def px4_params(airframe):
     """PX4's control-allocation geometry for one of our airframes (params/airframes/NAME.toml):
     rotor n at CA_ROTORn_PX/PY (m, forward/right), CA_ROTORn_KM the rotor's torque per thrust
-    (m), positive for a counter-clockwise rotor as PX4 counts it. Our rotor order is kept: our
+    (m), positive for a counter-clockwise rotor as PX4 counts it, on output n + 1. Our rotor
+    order is kept: our
     quad_x is PX4's quad-X order (1 front-right ccw, 2 rear-left ccw, 3 front-left cw, 4
     rear-right cw)."""
     path = airframe if airframe.endswith(".toml") else os.path.join(
@@ -56,9 +56,12 @@ def px4_params(airframe):
         # Torque over thrust of a propeller: (K_Q rho n^2 D^5) / (K_T rho n^2 D^4) = D K_Q / K_T.
         km = rotor["diameter_m"] * rotor["k_q"] / rotor["k_t"]
         x, y, _ = rotor["position_m"]
-        params[f"CA_ROTOR{n}_PX"] = round(x, 4)
-        params[f"CA_ROTOR{n}_PY"] = round(y, 4)
+        params[f"CA_ROTOR{n}_PX"] = round(x, 4) or 0.0  # no -0.0
+        params[f"CA_ROTOR{n}_PY"] = round(y, 4) or 0.0
         params[f"CA_ROTOR{n}_KM"] = round(km if rotor["spin"] == "ccw" else -km, 4)
+        # Output n + 1 drives motor n + 1 (function 101 is motor 1): HIL_ACTUATOR_CONTROLS
+        # carries them in that order, sitl's rotor n takes controls[n].
+        params[f"PWM_MAIN_FUNC{n + 1}"] = 101 + n
     return params
 
 
@@ -125,13 +128,7 @@ def main():
     try:
         fly(a, out)
     finally:
-        os.killpg(px4.pid, signal.SIGTERM)
-        sitl.send_signal(signal.SIGINT)
-        for p in (px4, sitl):
-            try:
-                p.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                p.kill()
+        stop(sitl, groups=(px4,))
     report(out)
 
 
@@ -187,13 +184,7 @@ def fly(a, out):
         if time.monotonic() > end:
             raise RuntimeError("Mission mode refused")
         log.pump(1.0)
-    auto_at = log.t_ms
-    log.wait("disarm after the landing",
-             lambda: log.t_ms - auto_at > 5000 and not log.is_armed(), 300)
-    disarm_at = log.t_ms
-    write_events(os.path.join(out, "px4.csv"),
-                 [("armed", armed_at), ("hover_from", hover_from), ("auto", auto_at),
-                  ("disarmed", disarm_at)])
+    await_landing(log, os.path.join(out, "px4.csv"), armed_at, hover_from)
     with open(os.path.join(out, "hil_state.csv"), "w") as f:
         w = csv.writer(f)
         w.writerow(["t_boot_ms", "qw", "qx", "qy", "qz"])

@@ -4,9 +4,26 @@ flight's figures from sitl's truth CSV."""
 import bisect
 import csv
 import math
+import os
+import signal
+import subprocess
 import time
 
 from pymavlink import mavutil
+
+
+def stop(*procs, groups=()):
+    """Stops the autopilot and sitl: SIGINT to each of `procs`, SIGTERM to the process group of
+    each of `groups` (a PX4 and what it starts); then waits up to 20 s each before killing."""
+    for p in groups:
+        os.killpg(p.pid, signal.SIGTERM)
+    for p in procs:
+        p.send_signal(signal.SIGINT)
+    for p in (*groups, *procs):
+        try:
+            p.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            p.kill()
 
 
 def quat_angle_deg(a, b):
@@ -113,11 +130,17 @@ def upload_mission(m, target, items):
         raise RuntimeError(f"mission refused: {ack}")
 
 
-def write_events(path, events):
+def await_landing(log, path, armed_at, hover_from):
+    """From the mission's start (now) to the disarm on the ground; then the flight's moments on
+    the autopilot's clock, written to `path`."""
+    auto_at = log.t_ms
+    log.wait("disarm after the landing",
+             lambda: log.t_ms - auto_at > 5000 and not log.is_armed(), 300)
     with open(path, "w") as f:
         w = csv.writer(f)
         w.writerow(["event", "t_boot_ms"])
-        w.writerows(events)
+        w.writerows([("armed", armed_at), ("hover_from", hover_from), ("auto", auto_at),
+                     ("disarmed", log.t_ms)])
 
 
 class Truth:
