@@ -13,6 +13,9 @@ use nalgebra::Vector3;
 #[derive(Debug, Clone, PartialEq, Default)]
 pub(super) struct Takeoff {
     line: Option<Line>,
+    /// Where it stood on the ground when the take-off began (NED, m): the climb holds above
+    /// it, not where the wind has pushed the vehicle, lightened on its feet, by the time it lifts.
+    ground: Option<Vector3<f64>>,
     /// Where it holds once the climb is done.
     reached: Option<(Vector3<f64>, f64)>,
 }
@@ -32,6 +35,9 @@ impl Takeoff {
 impl FlightTask for Takeoff {
     fn update(&mut self, f: &mut Flight, t: &Tick) -> Setpoint {
         let (p, i) = (f.params, t.i);
+        if f.landed == LandedState::OnGround && self.ground.is_none() {
+            self.ground = Some(Vector3::new(i.pos_ned_m.x, i.pos_ned_m.y, t.home.z));
+        }
         if f.landed == LandedState::OnGround && t.since_arming_s < p.spool_s {
             return Setpoint::Position(spooled(t.home, t.yaw));
         }
@@ -46,9 +52,10 @@ impl FlightTask for Takeoff {
             }
             None => {
                 // From the ground the climb starts at the ground, not at the estimate's noise
-                // around it.
+                // around it, above where the vehicle stood.
                 let from = if f.landed == LandedState::OnGround {
-                    Vector3::new(i.pos_ned_m.x, i.pos_ned_m.y, t.home.z)
+                    self.ground
+                        .unwrap_or(Vector3::new(i.pos_ned_m.x, i.pos_ned_m.y, t.home.z))
                 } else {
                     i.pos_ned_m
                 };

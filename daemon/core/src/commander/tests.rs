@@ -315,6 +315,50 @@ fn the_takeoff_set_point_climbs_smoothly_and_stops_at_the_altitude() {
     assert!((t - 1.0 - 4.83).abs() < 0.05, "arrived after {} s", t - 1.0);
 }
 
+/// A wind that slides the vehicle on its feet as the thrust comes up, and drifts it on the
+/// climb, does not move the point it climbs above and then holds: where it stood.
+#[test]
+fn the_takeoff_holds_above_where_the_vehicle_stood_not_where_the_wind_pushed_it() {
+    let mut c = ready();
+    c.takeoff(None).unwrap();
+    c.arm(false).unwrap();
+    // Armed at t = 0: the spool-up's second on the ground, then the climb.
+    let dt = 0.004;
+    let (mut t, mut up): (f64, f64) = (dt, 0.0);
+    while t < 12.0 && c.mode() != FlightMode::Loiter {
+        // 1.5 m downwind within 2 s, on the ground and in the climb.
+        let slid = -1.5 * ((t - 0.1) / 2.0).clamp(0.0, 1.0);
+        let (sp, _) = step(
+            &mut c,
+            &at(
+                t,
+                Vector3::new(slid, 0.2 * slid, -up),
+                Vector3::zeros(),
+                0.0,
+            ),
+        );
+        assert!(
+            sp.pos_ned_m.xy().norm() < 1e-9,
+            "at t = {t}: {:?}",
+            sp.pos_ned_m
+        );
+        if !sp.pos_ned_m.z.is_nan() {
+            up = -sp.pos_ned_m.z;
+        }
+        t += dt;
+    }
+    assert_eq!(c.mode(), FlightMode::Loiter);
+    let (hold, _) = step(
+        &mut c,
+        &at(t, Vector3::new(-1.5, -0.3, -5.0), Vector3::zeros(), 0.0),
+    );
+    assert!(
+        hold.pos_ned_m.xy().norm() < 1e-9,
+        "holds there: {:?}",
+        hold.pos_ned_m
+    );
+}
+
 /// Takeoff selected as a mode climbs to MIS_TAKEOFF_ALT as it is now, not as it was when the
 /// commander started (or at the last `MAV_CMD_NAV_TAKEOFF`).
 #[test]
