@@ -65,7 +65,8 @@ def fly(a, airframe, sensors, case, out):
         stdout=subprocess.DEVNULL, stderr=open(os.path.join(out, "sitl.err"), "w"))
     ap_args = [os.path.join(a.bin_dir, "autopilot"), "--source", f"udp://127.0.0.1:{sim_port}",
                "--params-dir", os.path.join(ROOT, "params"), "--airframe", airframe,
-               "--param-store", "none", "--log-dir", "none"]
+               "--param-store", "none", "--log-dir", "none",
+               *(["--params", a.params] if a.params else [])]
     try:
         if case == "square":
             gcs_port = free_port()
@@ -198,6 +199,8 @@ def main():
     ap.add_argument("--sensors", default="ideal,typical")
     ap.add_argument("--cases", default=",".join(WIND))
     ap.add_argument("--bin-dir", default=os.path.join(ROOT, "target", "release"))
+    ap.add_argument("--params", default=None,
+                    help="the autopilot's flight parameters file (default: params/flight.toml)")
     ap.add_argument("--out", default=None)
     a = ap.parse_args()
     for b in ("sitl", "autopilot"):
