@@ -28,7 +28,9 @@ import sys
 import tempfile
 import time
 
-from peer_flight import Truth, square
+# pymavlink's MAVLink 2 dialect, chosen when it is first imported (by peer_flight).
+os.environ.setdefault("MAVLINK20", "1")
+from peer_flight import Truth, square, tilt_deg, upload_mission
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 WIND = {
@@ -40,14 +42,10 @@ WIND = {
 HOVER_S = 40.0
 
 
-def free_port(kind=socket.SOCK_DGRAM):
-    with socket.socket(socket.AF_INET, kind) as s:
+def free_port():
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
-
-
-def tilt_deg(q):
-    return math.degrees(math.acos(max(-1.0, min(1.0, 1 - 2 * (q[1] ** 2 + q[2] ** 2)))))
 
 
 def fly(a, airframe, sensors, case, out):
@@ -90,7 +88,6 @@ def fly(a, airframe, sensors, case, out):
 
 
 def fly_square(gcs_port):
-    os.environ.setdefault("MAVLINK20", "1")
     from pymavlink import mavutil
     ml = mavutil.mavlink
     m = mavutil.mavlink_connection(f"udpout:127.0.0.1:{gcs_port}", source_system=255)
@@ -101,23 +98,10 @@ def fly_square(gcs_port):
             raise RuntimeError("no heartbeat from the autopilot")
     pos = m.recv_match(type="GLOBAL_POSITION_INT", blocking=True, timeout=30)
     home = (pos.lat * 1e-7, pos.lon * 1e-7)
-    rel = ml.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
-    plan = [(ml.MAV_CMD_NAV_TAKEOFF, home, 10.0)]
-    plan += [(ml.MAV_CMD_NAV_WAYPOINT, c, 10.0) for c in square(home)]
-    plan.append((ml.MAV_CMD_NAV_LAND, home, 0.0))
-    m.mav.mission_count_send(1, 1, len(plan), ml.MAV_MISSION_TYPE_MISSION)
-    while True:
-        r = m.recv_match(type=["MISSION_REQUEST_INT", "MISSION_ACK"], blocking=True, timeout=10)
-        if r is None:
-            raise RuntimeError("mission upload stalled")
-        if r.get_type() == "MISSION_ACK":
-            if r.type != ml.MAV_MISSION_ACCEPTED:
-                raise RuntimeError(f"mission refused: {r}")
-            break
-        c, (lat, lon), alt = plan[r.seq]
-        m.mav.mission_item_int_send(1, 1, r.seq, rel, c, 0, 1, 0, 0, 0, math.nan,
-                                    int(round(lat * 1e7)), int(round(lon * 1e7)), alt,
-                                    ml.MAV_MISSION_TYPE_MISSION)
+    plan = [(ml.MAV_CMD_NAV_TAKEOFF, *home, 10.0)]
+    plan += [(ml.MAV_CMD_NAV_WAYPOINT, lat, lon, 10.0) for lat, lon in square(home)]
+    plan.append((ml.MAV_CMD_NAV_LAND, *home, 0.0))
+    upload_mission(m, (1, 1), plan, yaw=math.nan)
     # Armed when the estimator is ready; then the mission; done once disarmed on the ground.
     end = time.monotonic() + 120
     while True:

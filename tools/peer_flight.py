@@ -110,8 +110,9 @@ def square(home_latlon, side_m=20.0):
     return [at(n, e) for n, e in [(side_m, 0), (side_m, side_m), (0, side_m), (0, 0)]]
 
 
-def upload_mission(m, target, items):
-    """The mission protocol's upload: `items` are (command, lat, lon, alt above home)."""
+def upload_mission(m, target, items, yaw=0.0):
+    """The mission protocol's upload: `items` are (command, lat, lon, alt above home), each with
+    `yaw` as its param 4 (NaN: the autopilot's own choice of heading)."""
     cmd = mavutil.mavlink
     m.mav.mission_count_send(*target, len(items))
     sent = 0
@@ -122,10 +123,10 @@ def upload_mission(m, target, items):
             raise RuntimeError("mission upload stalled")
         c, lat, lon, alt = items[r.seq]
         m.mav.mission_item_int_send(*target, r.seq, cmd.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, c,
-                                    0, 1, 0, 0, 0, 0, int(lat * 1e7), int(lon * 1e7), alt)
+                                    0, 1, 0, 0, 0, yaw, int(round(lat * 1e7)),
+                                    int(round(lon * 1e7)), alt)
         sent = r.seq + 1
     ack = m.recv_match(type="MISSION_ACK", blocking=True, timeout=10)
-    print("mission:", ack)
     if ack is None or ack.type != cmd.MAV_MISSION_ACCEPTED:
         raise RuntimeError(f"mission refused: {ack}")
 
@@ -159,6 +160,11 @@ class Truth:
         return bisect.bisect_left(self.t, t_s)
 
 
+def tilt_deg(q):
+    """The tilt of a (w, x, y, z) attitude: the angle of the body's down axis from the vertical."""
+    return math.degrees(math.acos(max(-1.0, min(1.0, 1 - 2 * (q[1] ** 2 + q[2] ** 2)))))
+
+
 def report_flight(truth, i_arm, i_hover, i_auto, i_dis):
     """The flight's figures from the truth: take-off, hover, the square, the landing. The rows
     are the truth's at arming, the hover's start, the mission's start and the disarm."""
@@ -185,8 +191,7 @@ def report_flight(truth, i_arm, i_hover, i_auto, i_dis):
     moved = next(i for i in range(i_auto, len(t)) if away(i) > 0.5)
     far = next(i for i in range(moved, len(t)) if away(i) > 15)
     back = next(i for i in range(far, len(t)) if away(i) < 1.0)
-    tilt = max(math.degrees(math.acos(max(-1, min(1, 1 - 2 * (q[i][1] ** 2 + q[i][2] ** 2)))))
-               for i in range(first_air, touch))
+    tilt = max(tilt_deg(q[i]) for i in range(first_air, touch))
     vz = max(float(truth.rows[i]["vd_m_s"]) for i in range(touch - 10, touch + 1))
     land_off = math.hypot(pos[touch][0] - pos[first_air][0], pos[touch][1] - pos[first_air][1])
     print(f"square: {t[back] - t[moved]:.1f} s from the first move to back at the start; "

@@ -4,7 +4,9 @@
 //! count) gets the same reply again without a step, so the world moves once per command.
 
 use crate::SitlCli;
-use crate::run::{AwaitAutopilot, Dynamics, Pacer, Status, Summary, build, finish, open_truth};
+use crate::run::{
+    AwaitAutopilot, Dynamics, Pacer, Status, Summary, build, finish, open_truth, with_instance,
+};
 use anyhow::{Context, Result, bail};
 use hil::json::{JSON_INSTANCE_STRIDE, PhysicsState, ServoPacket, command_from_pwm};
 use hil::{ActuatorCommand, SimulatorEnd};
@@ -42,15 +44,10 @@ pub fn run(
     speed: Option<f64>,
     stop: &AtomicBool,
 ) -> Result<Summary> {
-    let Some(mut addr) = cli.json else {
+    let Some(addr) = cli.json else {
         bail!("--json needs an address");
     };
-    let port = cli
-        .instance
-        .checked_mul(JSON_INSTANCE_STRIDE)
-        .and_then(|o| addr.port().checked_add(o))
-        .context("--instance pushes the --json port past 65535")?;
-    addr.set_port(port);
+    let addr = with_instance(addr, cli.instance, JSON_INSTANCE_STRIDE, "--json")?;
     let sim = build(scenario)?;
     let mut dynamics = Dynamics::start(cli, scenario, &sim)?;
     let mut truth = open_truth(cli, &sim)?;

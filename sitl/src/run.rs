@@ -65,13 +65,16 @@ impl fmt::Display for Summary {
     }
 }
 
-/// `addr` with its port offset by the instance number.
-fn with_instance(
+/// `addr` with its port offset by `instance` times `stride` (the ports of instance N).
+pub(crate) fn with_instance(
     mut addr: std::net::SocketAddr,
     instance: u16,
+    stride: u16,
     flag: &str,
 ) -> Result<std::net::SocketAddr> {
-    let port = addr.port().checked_add(instance);
+    let port = instance
+        .checked_mul(stride)
+        .and_then(|offset| addr.port().checked_add(offset));
     addr.set_port(port.with_context(|| format!("--instance pushes the {flag} port past 65535"))?);
     Ok(addr)
 }
@@ -348,14 +351,14 @@ pub fn hil(
             (Box::new(t), name)
         }
         (None, Some(addr)) => {
-            let t = TcpTransport::listen(with_instance(addr, cli.instance, "--tcp")?)?;
+            let t = TcpTransport::listen(with_instance(addr, cli.instance, 1, "--tcp")?)?;
             let at = t.local_addr()?;
             // Scripts read this line to learn the port (`--tcp 127.0.0.1:0` takes a free one).
             println!("sitl tcp: {at}");
             (Box::new(t), format!("TCP {at}"))
         }
         (None, None) => {
-            let target = with_instance(cli.autopilot, cli.instance, "--autopilot")?;
+            let target = with_instance(cli.autopilot, cli.instance, 1, "--autopilot")?;
             let t = UdpTransport::new(cli.bind, target)?;
             tracing::info!(local = %t.local_addr()?, "UDP bound");
             (Box::new(t), target.to_string())
@@ -377,7 +380,7 @@ pub fn hil(
     let mut control = match cli.control {
         Some(addr) => {
             let c = crate::control::Control::bind(
-                with_instance(addr, cli.instance, "--control")?,
+                with_instance(addr, cli.instance, 1, "--control")?,
                 &scenario.sim.wind,
                 scenario.sim.calibration_hand,
             )?;

@@ -266,10 +266,6 @@ impl Link {
         let mut messages = std::mem::take(&mut self.decoded.messages);
         for (header, msg) in messages.drain(..) {
             match msg {
-                MavMessage::HEARTBEAT(h) => {
-                    s.other_messages += 1;
-                    tracing::debug!(autopilot = ?h.autopilot, "autopilot's heartbeat");
-                }
                 MavMessage::COMMAND_LONG(c)
                     if c.command == MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL =>
                 {
