@@ -15,6 +15,7 @@ Cases, each with every sensor preset and airframe asked for:
 - square: a mission uploaded with pymavlink (take-off to 10 m, a 20 m square of four waypoints
   at the 5 m/s cruise speed, a landing home): from the first move to back within 1 m of the start,
   the farthest from the ideal path, the farthest outside the square, the touchdown speed.
+BENCH_LOG_DIR=DIR keeps the autopilot's flight logs (CSV, ULog, .tlog) there.
 What it measured is in docs/performance.md; ArduCopter's and PX4's figures on the same physics
 are in docs/simulator.md.
 """
@@ -63,7 +64,7 @@ def fly(a, airframe, sensors, case, out):
         stdout=subprocess.DEVNULL, stderr=open(os.path.join(out, "sitl.err"), "w"))
     ap_args = [os.path.join(a.bin_dir, "autopilot"), "--source", f"udp://127.0.0.1:{sim_port}",
                "--params-dir", os.path.join(ROOT, "params"), "--airframe", airframe,
-               "--param-store", "none", "--log-dir", "none",
+               "--param-store", "none", "--log-dir", os.environ.get("BENCH_LOG_DIR", "none"),
                *(["--params", a.params] if a.params else [])]
     try:
         if case == "square":

@@ -17,8 +17,8 @@ mod calibration;
 pub mod command;
 
 use crate::commander::{Commander, CommanderInput, CommanderStatus, Health, LandedState};
-use crate::control::Setpoint;
 use crate::control::position::PositionSetpoint;
+use crate::control::{GroundContact, Setpoint};
 use crate::core::{FlightCore, FlightCoreConfig, SensorSample, StepOutput, nominal_battery_v};
 use crate::estimator::translation::GpsMeasurement;
 use crate::math::geo::LocalFrame;
@@ -381,7 +381,8 @@ impl Autopilot {
         }
         let (setpoint, armed) = self.command_setpoint(t_s, inputs);
         let status = self.commander.status();
-        if status.armed && status.landed == LandedState::OnGround {
+        let spooling = status.armed && status.landed == LandedState::OnGround;
+        if spooling {
             // Spooling up on the ground: the position loop starts fresh at take-off.
             self.core.reset_position_loop();
         }
@@ -389,7 +390,13 @@ impl Autopilot {
             status.landed,
             LandedState::InAir | LandedState::Landing
         ));
-        self.core.set_ground_contact(status.ground_contact);
+        // On the ground until a take-off begins: idle, level, held by the ground (PX4's spool-up
+        // at idle). Near the hover thrust the wind would slide it off on light feet.
+        self.core.set_ground_contact(if spooling {
+            GroundContact::MaybeLanded
+        } else {
+            status.ground_contact
+        });
         let output = self.core.step(&flown, &setpoint, armed);
         if let Some(f) = output.motor_failure {
             tracing::error!(
@@ -408,9 +415,10 @@ impl Autopilot {
             ..flown
         });
         self.last_setpoint = armed.then_some(setpoint);
-        if armed && !self.monitor.imu_repeating() {
+        if armed && !spooling && !self.monitor.imu_repeating() {
             // Not while the IMU repeats itself: if it is freezing, the loops fly blind and the
-            // blind descent must not inherit what they command meanwhile.
+            // blind descent must not inherit what they command meanwhile. Nor at idle on the
+            // ground before the take-off: the filter starts from the climb's first commands.
             let dt = self.dt_since_last(t_usec);
             self.hover.update(&output.commands, dt);
         } else if !armed {

@@ -158,7 +158,7 @@ impl PositionController {
         // proportional part and the trajectory's feed-forward), not the integral: it holds what
         // the air does to the vehicle (drag in wind), which only the tilt limit may bound.
         let e = v_sp - vel;
-        let mut a_sp = e.component_mul(&p.k_vel) + sp.accel_ned_m_s2;
+        let mut a_sp = e.component_mul(&p.k_vel) + sp.accel_ned_m_s2.map(zero_nan);
         let h = a_sp.xy().norm();
         let h_limited = h > p.max_accel_h;
         if h_limited {
@@ -477,6 +477,30 @@ mod tests {
         assert!((out.vel_ned_m_s.z - 0.7).abs() < 1e-9, "descent speed set");
         assert!(out.accel_ned_m_s2.z > 0.0, "accelerating down from rest");
         assert!(out.accel_ned_m_s2.xy().norm() < 1e-12);
+    }
+
+    #[test]
+    fn an_axis_with_nothing_set_flies_level_not_nan() {
+        // Ground contact frees the horizontal axes: position, velocity and acceleration NaN.
+        let mut c = PositionController::new(params());
+        let free = PositionSetpoint {
+            pos_ned_m: Vector3::new(f64::NAN, f64::NAN, 0.5),
+            vel_ned_m_s: Vector3::new(f64::NAN, f64::NAN, 0.0),
+            accel_ned_m_s2: Vector3::new(f64::NAN, f64::NAN, 0.0),
+            yaw_rad: 0.3,
+        };
+        let vel = Vector3::new(1.0, -2.0, 0.0);
+        let out = c.update(
+            &free,
+            &Vector3::zeros(),
+            &vel,
+            &UnitQuaternion::identity(),
+            0.02,
+        );
+        assert!(out.thrust_n.is_finite() && out.thrust_n > 0.0, "{out:?}");
+        assert!(out.accel_ned_m_s2.iter().all(|a| a.is_finite()), "{out:?}");
+        let up = Vector3::new(0.0, 0.0, -1.0);
+        assert!((out.q_d * up).angle(&up) < 1e-12, "level: {out:?}");
     }
 
     #[test]

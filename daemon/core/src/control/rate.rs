@@ -74,7 +74,14 @@ impl LadrcAxis {
     }
 
     /// One step: reference `omega_ref`, measured rate `omega`, sample time `h`. Returns u.
+    /// A reference that is not a number is taken as the last one: once in the observer's
+    /// state it would stay there and the axis would never be controlled again.
     pub fn update(&mut self, omega_ref: f64, omega: f64, h: f64) -> f64 {
+        let omega_ref = if omega_ref.is_finite() {
+            omega_ref
+        } else {
+            self.last_ref
+        };
         let p = &self.params;
         if !self.started {
             self.v1 = omega_ref;
@@ -163,9 +170,15 @@ impl PidAxis {
         self.saturated = direction.signum() * (direction != 0.0) as u8 as f64;
     }
 
-    /// One step. Returns u.
+    /// One step. Returns u. A reference that is not a number flies zero error (it would stay
+    /// in the integral for ever).
     pub fn update(&mut self, omega_ref: f64, omega: f64, h: f64) -> f64 {
         let p = &self.params;
+        let omega_ref = if omega_ref.is_finite() {
+            omega_ref
+        } else {
+            omega
+        };
         let error = omega_ref - omega;
         // Anti-windup: integrate only when that does not push further into saturation.
         if !(self.saturated != 0.0 && error.signum() == self.saturated) {

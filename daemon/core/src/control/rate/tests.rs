@@ -314,3 +314,64 @@ fn pid_has_no_derivative_kick_and_does_not_wind_up() {
     a.update(10.0, 0.0, H);
     assert!(a.integral > before);
 }
+
+/// A reference that is not a number (an upstream set-point gone bad for one step) leaves both
+/// loops controlling the axis afterwards: nothing of it stays in their state.
+#[test]
+fn a_nan_reference_does_not_poison_the_loops() {
+    let mut plant = Plant::castillo(Vector3::new(0.5, 0.0, 0.0));
+    let mut l = ladrc(30.0, 0.0);
+    let mut p = PidAxis::new(PidParams {
+        k_p: 0.5,
+        k_i: 1.0,
+        k_d: 0.0,
+        k_ff: 0.0,
+        d_cutoff_hz: 20.0,
+        i_limit: 10.0,
+        u_max: 1e9,
+    });
+    let reference = |t: f64| {
+        Vector3::repeat(if (0.1..0.13).contains(&t) {
+            f64::NAN
+        } else {
+            0.0
+        })
+    };
+    let trace = run(
+        &mut plant,
+        H,
+        |i, r, w| l[i].update(r, w, H),
+        reference,
+        |_| Vector3::zeros(),
+        1.5,
+    );
+    assert!(
+        trace
+            .iter()
+            .all(|(_, w, u)| w.x.is_finite() && u.x.is_finite())
+    );
+    let last = trace.last().unwrap();
+    assert!(
+        last.1.x.abs() < 0.01,
+        "LADRC brought the rate to zero: {}",
+        last.1.x
+    );
+    let mut plant = Plant::castillo(Vector3::new(0.5, 0.0, 0.0));
+    let trace = run(
+        &mut plant,
+        H,
+        |i, r, w| if i == 0 { p.update(r, w, H) } else { 0.0 },
+        reference,
+        |_| Vector3::zeros(),
+        1.5,
+    );
+    assert!(
+        trace
+            .iter()
+            .all(|(_, w, u)| w.x.is_finite() && u.x.is_finite())
+    );
+    assert!(
+        trace.last().unwrap().1.x.abs() < 0.05,
+        "PID brought the rate to zero"
+    );
+}
