@@ -390,6 +390,10 @@ impl Autopilot {
             status.landed,
             LandedState::InAir | LandedState::Landing
         ));
+        self.core.set_learn_disturbance(matches!(
+            status.landed,
+            LandedState::InAir | LandedState::Takeoff
+        ));
         // On the ground until a take-off begins: idle, level, held by the ground (PX4's spool-up
         // at idle). Near the hover thrust the wind would slide it off on light feet.
         self.core.set_ground_contact(if spooling {

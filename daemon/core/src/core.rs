@@ -5,6 +5,7 @@
 //! Pure: no clock (time comes with the sample), no I/O, no allocation in `step`.
 
 use crate::control::attitude::{KinematicAttitude, TiltYawPd};
+use crate::control::disturbance::{DisturbanceObserver, WindEstimate};
 use crate::control::motor::MotorSpeedLoop;
 use crate::control::position::{AttitudeSetpoint, PositionController};
 use crate::control::rate::{LadrcAxis, PidAxis};
@@ -14,7 +15,7 @@ use crate::estimator::attitude::{AttitudeEstimate, AttitudeEstimator, AttitudeIn
 use crate::estimator::translation::{GpsMeasurement, TranslationEstimate, TranslationEstimator};
 use crate::mixer::{Mixer, MixerError, MixerInput, MixerOutput, WrenchRequest};
 use crate::safety::motor_failure::{DetectorInput, MotorFailure, MotorFailureDetector};
-use airframe::{Airframe, MAX_ROTORS};
+use airframe::{Airframe, DragSpec, MAX_ROTORS};
 use nalgebra::Vector3;
 
 mod config;
@@ -78,6 +79,8 @@ pub struct StepOutput {
     pub mixer: Option<MixerOutput>,
     /// A rotor declared failed at this step.
     pub motor_failure: Option<MotorFailure>,
+    /// The wind the outside force on the vehicle means (armed, once it has flown).
+    pub wind: Option<WindEstimate>,
 }
 
 #[derive(Clone)]
@@ -106,6 +109,8 @@ pub struct FlightCore {
     /// The allocation flown since the last sample (what the rotors were told).
     last_mix: Option<MixerOutput>,
     in_air: bool,
+    /// Whether the outside force may be learned now (climbing away or flying, not landing).
+    learn_disturbance: bool,
     ground_contact: GroundContact,
     last_t_usec: Option<u64>,
     flying: bool,
@@ -114,6 +119,10 @@ pub struct FlightCore {
     position_output: Option<AttitudeSetpoint>,
     since_position_s: f64,
     position_phase_s: f64,
+    /// The outside force on the vehicle (wind), learned in the air.
+    disturbance: DisturbanceObserver,
+    /// The airframe's drag, to read the outside force as a wind.
+    drag: DragSpec,
     /// Air density from the last barometer sample (kg/m³).
     air_density_kg_m3: f64,
     /// The pack's nominal voltage (V): 3.8 V a cell, flown while no voltage is reported.
@@ -132,6 +141,12 @@ fn rate_axes(p: &RateLoopParams) -> [RateAxis; 3] {
 /// The pack's nominal voltage (V): 3.8 V a LiPo cell.
 pub fn nominal_battery_v(airframe: &Airframe) -> f64 {
     3.8 * airframe.battery.cells as f64
+}
+
+/// The heading of an attitude (rad, from north, clockwise).
+fn heading(q: &nalgebra::UnitQuaternion<f64>) -> f64 {
+    let (w, x, y, z) = (q.w, q.i, q.j, q.k);
+    (2.0 * (w * z + x * y)).atan2(1.0 - 2.0 * (y * y + z * z))
 }
 
 /// ISA air density from a pressure altitude (kg/m³).
@@ -162,12 +177,15 @@ impl FlightCore {
             spinning_without: None,
             last_mix: None,
             in_air: false,
+            learn_disturbance: false,
             ground_contact: GroundContact::None,
             last_t_usec: None,
             flying: false,
             position_output: None,
             since_position_s: 0.0,
             position_phase_s: 0.0,
+            disturbance: DisturbanceObserver::new(config.position.disturbance_tau_s),
+            drag: airframe.drag.clone(),
             air_density_kg_m3: air_density(0.0),
             nominal_battery_v: nominal_battery_v(airframe),
             dt_clamped: 0,
@@ -188,6 +206,7 @@ impl FlightCore {
         self.attitude.set_params(&config.attitude);
         self.translation.set_params(config.translation);
         self.position.params = config.position;
+        self.disturbance.tau_s = config.position.disturbance_tau_s;
         self.attitude_law = config.attitude_law;
         match (&mut self.rate, &config.rate) {
             (axes, RateLoopParams::Ladrc(p))
@@ -219,6 +238,13 @@ impl FlightCore {
     /// thrust-imbalance check of motor-failure detection runs only in the air.
     pub fn set_in_air(&mut self, in_air: bool) {
         self.in_air = in_air;
+    }
+
+    /// Tells the core whether to learn the outside force (the commander taking off or flying)
+    /// or hold what it learned (landing: near the ground its legs' friction would read as a
+    /// push, and answering it would tip the vehicle over on them).
+    pub fn set_learn_disturbance(&mut self, learn: bool) {
+        self.learn_disturbance = learn;
     }
 
     /// Tells the core how far a landing has come on the ground (the commander's land
@@ -269,6 +295,8 @@ impl FlightCore {
 
     fn reset_controllers(&mut self) {
         self.reset_position_loop();
+        // The wind is learned afresh each flight (it may have changed, or the vehicle moved).
+        self.disturbance.reset();
         self.rate = rate_axes(&self.config.rate);
         // A new flight judges the rotors afresh.
         self.motor_failure.reset();
@@ -315,6 +343,30 @@ impl FlightCore {
                 self.since_position_s = 0.0;
                 sp
             }
+        }
+    }
+
+    /// The outside force learned while flying free (not on the ground, not spinning on three
+    /// rotors, where the body's own spin shows in the accelerometer; held while landing), and
+    /// handed to the position loop to answer.
+    fn step_disturbance(
+        &mut self,
+        a: &AttitudeEstimate,
+        s: &SensorSample,
+        translation: &TranslationEstimate,
+        dt: f64,
+    ) {
+        let free = self.ground_contact == GroundContact::None
+            && self.spinning_without.is_none()
+            && translation.horizontal_valid;
+        if free {
+            if self.learn_disturbance {
+                self.disturbance.update(&a.q, &s.accel, dt);
+            }
+            self.position
+                .set_disturbance(self.disturbance.accel_ned_m_s2());
+        } else {
+            self.position.set_disturbance(Vector3::zeros());
         }
     }
 
@@ -426,6 +478,7 @@ impl FlightCore {
             rate_reference: Vector3::zeros(),
             mixer: None,
             motor_failure: None,
+            wind: None,
         };
         // Armed, the loops fly on any aligned attitude: one flagged invalid (no correction for
         // a while) is still the gyro's best, far better than stopping the motors in the air.
@@ -438,6 +491,13 @@ impl FlightCore {
             return out;
         };
         self.flying = true;
+        self.step_disturbance(&a, s, &translation, dt);
+        out.wind = self.disturbance.wind(
+            &translation.vel_ned_m_s,
+            heading(&a.q),
+            self.config.position.mass_kg,
+            &self.drag,
+        );
         // Motor-failure detection on what the rotors were told over the interval just sampled
         // (not while spinning on three rotors: a second loss leaves nothing to fly on).
         if let Some(last) = self

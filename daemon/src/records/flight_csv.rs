@@ -46,6 +46,8 @@ struct Row {
     q: Option<UnitQuaternion<f64>>,
     q_d: Option<UnitQuaternion<f64>>,
     thrust_n: Option<f64>,
+    /// The wind the outside force on the vehicle means (NED, m/s).
+    wind: Option<Vector3<f64>>,
     rate_ref: Vector3<f64>,
     /// True position from the take-off spot and attitude.
     truth: Option<(Vector3<f64>, UnitQuaternion<f64>)>,
@@ -93,6 +95,12 @@ fn write_row(out: &mut dyn Write, r: &Row, rotors: usize) -> std::io::Result<()>
         write!(out, "{t:.3}")?;
     }
     write!(out, ",")?;
+    if let Some(w) = r.wind {
+        write!(out, "{:.3},{:.3}", w.x, w.y)?;
+    } else {
+        write!(out, ",")?;
+    }
+    write!(out, ",")?;
     match r.truth {
         Some((p, q)) => {
             write!(out, "{:.4},{:.4},{:.4},", p.x, p.y, p.z)?;
@@ -129,7 +137,7 @@ impl FlightCsv {
         let mut header = String::from(
             "t_s,mode,landed,armed,n_m,e_m,d_m,vn_m_s,ve_m_s,vd_m_s,sp_n_m,sp_e_m,sp_d_m,\
              roll_deg,pitch_deg,yaw_deg,sp_roll_deg,sp_pitch_deg,sp_yaw_deg,\
-             p_ref_rad_s,q_ref_rad_s,r_ref_rad_s,thrust_n,\
+             p_ref_rad_s,q_ref_rad_s,r_ref_rad_s,thrust_n,wind_n_m_s,wind_e_m_s,\
              true_n_m,true_e_m,true_d_m,true_roll_deg,true_pitch_deg,true_yaw_deg,loop_late_us,\
              gx,gy,gz,ax,ay,az,mx,my,mz",
         );
@@ -178,6 +186,7 @@ impl FlightCsv {
             q: out.attitude.map(|a| a.q),
             q_d: sp.map(|a| a.q_d),
             thrust_n: sp.map(|a| a.thrust_n),
+            wind: out.wind.map(|w| w.wind_ned_m_s),
             rate_ref: out.rate_reference,
             truth: true_pose,
             loop_late,

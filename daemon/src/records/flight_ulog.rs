@@ -344,6 +344,15 @@ impl FlightUlog {
                 .u8(0);
             self.data(id::ESTIMATOR_STATUS, row);
         }
+        if let Some(w) = est.wind.filter(|_| self.due(id::WIND, t)) {
+            let row = UlogRow::at(t)
+                .u64(t)
+                .f32(w.wind_ned_m_s.x)
+                .f32(w.wind_ned_m_s.y)
+                .f32(w.var_horiz_m2_s2)
+                .f32(w.var_horiz_m2_s2);
+            self.data(id::WIND, row);
+        }
         self.status(t, step, status);
         let due = self.shipped_us.is_none_or(|s| t < s || t >= s + ship_us());
         if due {

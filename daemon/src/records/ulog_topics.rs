@@ -216,6 +216,18 @@ pub(super) const VEHICLE_LAND_DETECTED: Format = topic(
         field(Bool, "landed"),
     ],
 );
+/// PX4's `wind` (its estimator's wind): here the wind the outside force means.
+pub(super) const WIND: Format = topic(
+    "wind",
+    &[
+        field(U64, "timestamp"),
+        field(U64, "timestamp_sample"),
+        field(F32, "windspeed_north"),
+        field(F32, "windspeed_east"),
+        field(F32, "variance_north"),
+        field(F32, "variance_east"),
+    ],
+);
 
 /// Each topic's message id: its place in [`TOPICS`].
 pub(super) mod id {
@@ -253,10 +265,12 @@ pub(super) mod id {
     pub const VEHICLE_STATUS: usize = 15;
     /// `vehicle_land_detected`.
     pub const VEHICLE_LAND_DETECTED: usize = 16;
+    /// `wind`.
+    pub const WIND: usize = 17;
 }
 
 /// The topics, in the order of their message ids.
-pub(super) const TOPICS: [Format; 17] = [
+pub(super) const TOPICS: [Format; 18] = [
     SENSOR_COMBINED,
     VEHICLE_ATTITUDE,
     VEHICLE_ANGULAR_VELOCITY,
@@ -274,6 +288,7 @@ pub(super) const TOPICS: [Format; 17] = [
     ESTIMATOR_STATUS,
     VEHICLE_STATUS,
     VEHICLE_LAND_DETECTED,
+    WIND,
 ];
 
 /// Each topic's period (µs), as PX4's default logging profile spaces them: 0 for every sample
@@ -284,6 +299,7 @@ pub(super) const PERIOD_US: [u64; TOPICS.len()] = [
     0, 0, 0, // as they come: GPS, barometer, magnetometer
     100_000, 100_000, // 10 Hz: battery, estimator
     1_000_000, 1_000_000, // 1 Hz, and at every change: status, land detector
+    100_000,   // 10 Hz: wind, once known
 ];
 
 /// `vehicle_status.nav_state` of a mode (PX4's `NAVIGATION_STATE_*`).

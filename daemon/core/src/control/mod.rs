@@ -1,6 +1,7 @@
 //! The cascade controller: attitude (outer) and rate (inner) loops.
 
 pub mod attitude;
+pub mod disturbance;
 pub mod motor;
 pub mod position;
 pub mod rate;

@@ -41,6 +41,10 @@ pub struct PositionParams {
     pub max_thrust_n: f64,
     /// Bound on the integral term (m/s²).
     pub i_limit: f64,
+    /// Fraction of the outside force's estimate fed forward (0: none, 1: all of it).
+    pub k_disturbance_ff: f64,
+    /// Time constant of the outside force's estimate (s).
+    pub disturbance_tau_s: f64,
 }
 
 /// What to fly to. As PX4's trajectory set-points, a NaN component leaves that axis uncontrolled
@@ -78,6 +82,8 @@ pub struct PositionController {
     pub params: PositionParams,
     integral: Vector3<f64>,
     vel_sp: Option<Vector3<f64>>,
+    /// The outside force per mass the thrust answers (NED, m/s²).
+    disturbance: Vector3<f64>,
 }
 
 /// The attitude whose body −z points along `thrust_dir` (unit, NED) with heading `yaw`.
@@ -103,7 +109,14 @@ impl PositionController {
             params,
             integral: Vector3::zeros(),
             vel_sp: None,
+            disturbance: Vector3::zeros(),
         }
+    }
+
+    /// The outside force per mass (NED, m/s²; `control::disturbance`) the next updates answer
+    /// with thrust, `k_disturbance_ff` of it: the acceleration asked for is then the vehicle's.
+    pub fn set_disturbance(&mut self, accel_ned_m_s2: Vector3<f64>) {
+        self.disturbance = accel_ned_m_s2 * self.params.k_disturbance_ff;
     }
 
     /// Forgets the integrator and the velocity set-point history (mode change, disarm).
@@ -169,7 +182,8 @@ impl PositionController {
         a_sp.z = a_sp.z.clamp(-p.max_accel_v, p.max_accel_v);
         a_sp += self.integral;
         // Thrust vector, tilt-limited: keep the vertical component, shorten the horizontal one.
-        let mut t = (a_sp - Vector3::new(0.0, 0.0, G)) * p.mass_kg;
+        // The outside force is answered first (the vehicle's acceleration is thrust + it + g).
+        let mut t = (a_sp - self.disturbance - Vector3::new(0.0, 0.0, G)) * p.mass_kg;
         t.z = t.z.min(-0.1 * p.mass_kg * G); // always some thrust up
         let horizontal = t.xy().norm();
         let max_h = -t.z * p.max_tilt.tan();
@@ -298,6 +312,10 @@ crate::params::param_group! {
         max_tilt_deg: f64 = 35.0, "MPC_TILTMAX_AIR", "deg", [5.0, 80.0], "Largest tilt in position and altitude modes";
         /// Integral bound.
         i_limit: f64 = 5.0, "MPC_I_MAX", "m/s^2", [0.0, 10.0], "Bound on the velocity integral";
+        /// Outside-force feed-forward.
+        k_disturbance_ff: f64 = 1.0, "MPC_DIST_FF", "", [0.0, 1.0], "Fraction of the outside force (wind) estimated from the accelerometer that the thrust answers at once (0: the velocity integral alone)";
+        /// Outside-force estimate's time constant.
+        disturbance_tau_s: f64 = 0.05, "MPC_DIST_TAU", "s", [0.02, 5.0], "Time constant of the outside force (wind) estimate from the accelerometer";
         /// Rate of the position loop.
         loop_hz: f64 = 50.0, "MPC_LOOP_HZ", "Hz", [10.0, 1000.0], "Rate of the position and velocity loop (the attitude and rate loops run on every sensor sample)";
     }
@@ -321,6 +339,8 @@ mod tests {
             max_tilt: 35f64.to_radians(),
             max_thrust_n: 40.0,
             i_limit: 3.0,
+            k_disturbance_ff: 1.0,
+            disturbance_tau_s: 0.3,
         }
     }
 

@@ -146,6 +146,8 @@ impl FlightCoreConfig {
                 max_tilt: q.max_tilt_deg.to_radians(),
                 max_thrust_n: max_thrust,
                 i_limit: q.i_limit,
+                k_disturbance_ff: q.k_disturbance_ff,
+                disturbance_tau_s: q.disturbance_tau_s,
             },
             position_period_s: 1.0 / q.loop_hz,
             attitude_law,

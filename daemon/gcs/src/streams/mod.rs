@@ -35,6 +35,7 @@ mod servo_output_raw;
 mod sys_status;
 mod system_time;
 mod vfr_hud;
+mod wind_cov;
 
 /// What every stream file uses.
 mod prelude {
@@ -182,6 +183,7 @@ pub fn build(id: u32, t: &Telemetry, unix_usec: u64) -> Option<MavMessage> {
         GPS_GLOBAL_ORIGIN_DATA::ID => gps_global_origin::message(&s),
         PROTOCOL_VERSION_DATA::ID => protocol_version::message(&s),
         ORBIT_EXECUTION_STATUS_DATA::ID => orbit_execution_status::message(&s),
+        WIND_COV_DATA::ID => wind_cov::message(&s),
         _ => None,
     }
 }

@@ -14,8 +14,12 @@ pub(super) fn message(s: &StreamInput) -> Option<MavMessage> {
     let yaw = att.map_or(0.0, |a| a.q.euler_angles().2);
     let n = o.commands.iter().filter(|c| **c > 0.0).count().max(1);
     let throttle = o.commands.iter().sum::<f64>() / n as f64;
+    // The air-relative speed where the wind is known, the ground speed before.
+    let air = o
+        .wind
+        .map_or(tr.vel_ned_m_s, |w| tr.vel_ned_m_s - w.wind_ned_m_s);
     Some(MavMessage::VFR_HUD(VFR_HUD_DATA {
-        airspeed: tr.vel_ned_m_s.xy().norm() as f32,
+        airspeed: air.xy().norm() as f32,
         groundspeed: tr.vel_ned_m_s.xy().norm() as f32,
         alt: alt as f32,
         climb: -tr.vel_ned_m_s.z as f32,
