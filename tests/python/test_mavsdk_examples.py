@@ -115,7 +115,8 @@ def test_do_orbit_circles_its_centre_in_the_wind_then_stops_after_its_turns(tmp_
     over a turn and a half on the circle at speed: the radial error (RMS, and worst) and the
     speed error.
     `ORBIT_EXECUTION_STATUS` says the orbit; the mode is PX4's Orbit (POSCTL, sub-mode 1). The
-    same command from pymavlink with half a turn (param4 = π rad) ends in Hold after it."""
+    same command from pymavlink with half a turn (param4 = π rad) ends in Hold after it, where
+    pymavlink reads the wind in `WIND_COV`."""
 
     async def flight(drone, watcher):
         home = await first(drone.telemetry.home(), lambda h: True, 5)
@@ -192,11 +193,20 @@ def test_do_orbit_circles_its_centre_in_the_wind_then_stops_after_its_turns(tmp_
         held = time.monotonic()
         await asyncio.sleep(1.0)
         assert not watcher.messages("ORBIT_EXECUTION_STATUS", held + 0.3), "streamed in Hold"
+        # The wind, as pymavlink reads WIND_COV in the hold: 5 m/s toward the east.
+        wind = watcher.messages("WIND_COV", held)
+        assert wind, "WIND_COV streamed once the wind is learned"
+        w = wind[-1]
+        print(f"WIND_COV in the hold: ({w.wind_x:.2f}, {w.wind_y:.2f}) m/s, var_horiz "
+              f"{w.var_horiz:.3f}, at {w.wind_alt:.1f} m")
+        assert abs(w.wind_x) < 0.5 and abs(w.wind_y - 5.0) < 0.5, w
+        assert 0.0 <= w.var_horiz < 1.0, w
+        assert abs(w.wind_alt - (home.absolute_altitude_m + 10)) < 1.0, w
         await drone.action.land()
         await first(drone.telemetry.armed(), lambda a: not a, 90)
 
     with_watcher(tmp_path, flight, ["HIL_STATE_QUATERNION", "ORBIT_EXECUTION_STATUS",
-                                    "HEARTBEAT"], scenario=scenario(WINDY))
+                                    "HEARTBEAT", "WIND_COV"], scenario=scenario(WINDY))
 
 
 def test_orbits_and_follow_targets_that_cannot_be_flown_are_refused_with_the_reason(tmp_path):
