@@ -1,11 +1,14 @@
 //! Mission mode (PX4's AUTO.MISSION): each navigation item is a straight leg on the speed- and
-//! acceleration-limited profile of [`Line`] (stopping at its end, so that the path between
-//! waypoints is the straight line and the vehicle is within the acceptance radius when the
-//! profile arrives), then what the item asks at its end (hold, loiter, land, return). `DO_*`
+//! acceleration-limited profile of [`Line`] (so that the path between waypoints is the straight
+//! line), then what the item asks at its end (hold, loiter, land, return). A waypoint with no
+//! hold and no heading of its own that another waypoint follows is flown through on the arc of
+//! a [`Corner`]: its leg ends where the arc begins, at the arc's speed, and the next leg starts
+//! where it ends. Every other leg stops at its end, with the vehicle within the acceptance radius. `DO_*`
 //! items are done at once, in the same update. After the last item it holds (or stays on the
 //! ground).
 
 use super::LandedState;
+use super::corner::Corner;
 use super::flight::{Flight, Tick, hold_setpoint, loiter, spooled};
 use super::land::Landing;
 use super::line::Line;
@@ -45,6 +48,10 @@ pub(super) struct MissionFlight {
     hold: Option<(Vector3<f64>, f64)>,
     landing: Landing,
     rtl: Rtl,
+    /// The corner flown at the start of the current leg (handed on by the last one).
+    arc: Option<Corner>,
+    /// The corner at the end of the current leg, flown through rather than stopped at.
+    corner: Option<Corner>,
 }
 
 impl MissionFlight {
@@ -138,6 +145,14 @@ impl MissionFlight {
             }
             Stage::Leg { target } => {
                 f.landed = LandedState::InAir;
+                if let Some(arc) = self.arc.as_mut() {
+                    let yaw = f.slew_yaw(item_yaw, i, dt);
+                    let (sp, done) = arc.step(dt, yaw);
+                    if done {
+                        self.arc = None;
+                    }
+                    return Some(sp);
+                }
                 let line = self.line.as_mut()?;
                 let along = (line.dir.xy().norm() > 0.5 && line.length - line.s > 1.0)
                     .then(|| line.dir.y.atan2(line.dir.x));
@@ -146,6 +161,17 @@ impl MissionFlight {
                 let off = i.pos_ned_m - target;
                 let within =
                     off.xy().norm() <= acceptance(f, &item) && off.z.abs() <= p.alt_acceptance_m;
+                if let Some(corner) = self.corner.filter(|_| arrived) {
+                    // Through the corner: reached as the arc begins, the vehicle about the
+                    // waypoint (within the acceptance radius of it or of the arc's start).
+                    let near = (i.pos_ned_m - corner.start).xy().norm() <= acceptance(f, &item);
+                    if within || near {
+                        self.line = None;
+                        self.corner = None;
+                        self.arc = Some(corner);
+                        return None;
+                    }
+                }
                 if !(arrived && within) {
                     return Some(sp);
                 }
@@ -199,6 +225,9 @@ impl MissionFlight {
         resolve: &dyn Fn(&MissionPoint) -> Vector3<f64>,
     ) -> Option<Stage> {
         let (p, i, home) = (f.params, t.i, t.home);
+        if !matches!(item, MissionItem::Waypoint { .. }) {
+            self.arc = None; // a corner leads only onto a waypoint's leg
+        }
         if f.landed == LandedState::OnGround {
             if matches!(item, MissionItem::Land { .. } | MissionItem::ReturnToLaunch) {
                 return None; // already down
@@ -243,8 +272,48 @@ impl MissionFlight {
             }
             _ => return None,
         };
-        self.line = Some(f.leg(self.leg_start(i), target));
+        // A corner handed on by the last leg starts this one; it ends where the arc does.
+        let arc = self
+            .arc
+            .filter(|_| matches!(item, MissionItem::Waypoint { .. }));
+        self.arc = arc;
+        let from = arc.map_or_else(|| self.leg_start(i), |c| c.end);
+        let mut leg = f.leg(from, target);
+        let plain =
+            matches!(item, MissionItem::Waypoint { hold_s, yaw_rad: None, .. } if hold_s <= 0.0);
+        self.corner = self
+            .next_waypoint(f, resolve)
+            .filter(|_| plain && p.traj_p > 0.0)
+            .and_then(|next| {
+                let touch = p.traj_p * acceptance(f, &item);
+                Corner::new(from, target, next, touch, p.accel_m_s2, leg.speed)
+            });
+        if let Some(c) = &self.corner {
+            leg = f.leg(from, c.start).passing_at(c.speed);
+        }
+        if let Some(c) = &arc {
+            leg = leg.starting_at(c.speed);
+        }
+        self.line = Some(leg);
         Some(Stage::Leg { target })
+    }
+
+    /// Where the next navigation item after the current one goes, when it is a waypoint flown
+    /// straight on to (past speed changes; not past a jump, whose target may be anything).
+    fn next_waypoint(
+        &self,
+        f: &Flight,
+        resolve: &dyn Fn(&MissionPoint) -> Vector3<f64>,
+    ) -> Option<Vector3<f64>> {
+        let run = &f.mission;
+        for item in run.items.iter().skip(run.current + 1) {
+            match item {
+                MissionItem::ChangeSpeed(_) => continue,
+                MissionItem::Waypoint { at, .. } => return Some(resolve(at)),
+                _ => return None,
+            }
+        }
+        None
     }
 }
 

@@ -640,6 +640,7 @@ impl Commander {
 }
 
 mod arming;
+mod corner;
 mod descend;
 mod failsafes;
 mod flight;

@@ -8,7 +8,9 @@
 //! speed. The drag of the vehicle's own motion turns with the path, which the velocity loop's
 //! integrator (in fixed axes, for the wind) cannot learn — it flew 10 % slow — so the task
 //! integrates the speed error along the path into a tangential acceleration feed-forward of
-//! its own. The tangential speed ramps up at `MPC_ACC_HOR` and is bounded by the radius:
+//! its own, of either sign: with the outside force fed forward the drag is answered already,
+//! and what is left is the attitude's lag behind a thrust that turns with the path (5.35 m/s
+//! for 5 m/s when it could only push forward). The tangential speed ramps up at `MPC_ACC_HOR` and is bounded by the radius:
 //! `v ≤ √(a r)` with `a` = `MC_ORBIT_ACC_MAX`.
 
 use super::flight::{Flight, Tick, wrap_pi};
@@ -226,7 +228,7 @@ impl FlightTask for Orbit {
         let v = tangent * self.speed_now;
         let along = t.i.vel_ned_m_s.xy().dot(&tangent);
         self.drag_ff = (self.drag_ff + SPEED_I_GAIN * (self.speed_now - along) * t.dt)
-            .clamp(0.0, DRAG_FF_MAX_M_S2);
+            .clamp(-DRAG_FF_MAX_M_S2, DRAG_FF_MAX_M_S2);
         let a = -radial * self.speed_now.powi(2) / self.radius_m + tangent * self.drag_ff;
         let goal = self.heading_goal(angle, t, p.manual_yaw_rate_deg_s.to_radians());
         self.heading = slew(self.heading, goal);

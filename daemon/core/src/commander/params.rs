@@ -49,6 +49,8 @@ crate::params::param_group! {
         offboard_loss_action: u32 = 0, "COM_OBL_RC_ACT", "", [0.0, 5.0], "Offboard loss: 0 Position, 1 Altitude, 2 Manual (each Hold without a joystick), 3 Return, 4 Land, 5 Hold";
         /// Horizontal acceptance radius of mission waypoints that give none (m).
         acceptance_m: f64 = 2.0, "NAV_ACC_RAD", "m", [0.05, 200.0], "Horizontal acceptance radius of mission waypoints that give none";
+        /// Where a corner is rounded, as a fraction of the acceptance radius.
+        traj_p: f64 = 0.5, "MPC_XY_TRAJ_P", "", [0.0, 1.0], "A mission flies through a waypoint without a hold on the arc touching both legs this fraction of the acceptance radius from it, at the speed whose centripetal acceleration is MPC_ACC_HOR (0: it stops at every waypoint)";
         /// Vertical acceptance of mission waypoints (m).
         alt_acceptance_m: f64 = 0.8, "NAV_MC_ALT_RAD", "m", [0.05, 200.0], "Vertical acceptance radius of mission waypoints";
         /// Climb speed of automatic flight (m/s).

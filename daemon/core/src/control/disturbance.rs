@@ -25,6 +25,8 @@ pub struct DisturbanceObserver {
     accel_ned_m_s2: Vector3<f64>,
     /// Running variance of the raw estimate about the low-passed one, per axis ((m/s²)²).
     var_m2_s4: Vector2<f64>,
+    /// The low-pass's last gain: the estimate's own variance is the raw one's times k/(2−k).
+    gain: f64,
     primed: bool,
 }
 
@@ -33,7 +35,8 @@ pub struct DisturbanceObserver {
 pub struct WindEstimate {
     /// Wind velocity, NED (m/s): where the air moves to (a north wind is negative north).
     pub wind_ned_m_s: Vector3<f64>,
-    /// Variance of the horizontal wind, the larger of the two axes ((m/s)²).
+    /// Variance of the horizontal wind estimate from the accelerometer's noise, the larger of
+    /// the two axes ((m/s)²).
     pub var_horiz_m2_s2: f64,
     /// The outside force per mass it came from, NED (m/s²).
     pub accel_ned_m_s2: Vector3<f64>,
@@ -46,6 +49,7 @@ impl DisturbanceObserver {
             tau_s,
             accel_ned_m_s2: Vector3::zeros(),
             var_m2_s4: Vector2::zeros(),
+            gain: 0.0,
             primed: false,
         }
     }
@@ -79,6 +83,7 @@ impl DisturbanceObserver {
             return;
         }
         let k = (dt / self.tau_s.max(dt)).clamp(0.0, 1.0);
+        self.gain = k;
         let e = raw - self.accel_ned_m_s2;
         self.accel_ned_m_s2 += e * k;
         for i in 0..2 {
@@ -108,7 +113,10 @@ impl DisturbanceObserver {
         let to_body = |v: Vector2<f64>| Vector2::new(c * v.x + s * v.y, -s * v.x + c * v.y);
         let to_ned = |v: Vector2<f64>| Vector2::new(c * v.x - s * v.y, s * v.x + c * v.y);
         let force = to_body(self.accel_ned_m_s2.xy() * mass_kg);
-        let var = self.var_m2_s4 * mass_kg * mass_kg;
+        // The low-passed estimate's variance: a first-order low-pass of gain k passes
+        // k/(2−k) of white noise's.
+        let passed = self.gain / (2.0 - self.gain).max(1.0);
+        let var = self.var_m2_s4 * mass_kg * mass_kg * passed;
         let mut air = Vector2::zeros();
         let mut var_air = 0.0f64;
         for i in 0..2 {

@@ -136,7 +136,8 @@ fn a_mission_is_refused_until_there_is_one_and_a_global_position() {
 
 /// Take-off item, a square with a speed change, a timed loiter and one repeat of two legs by
 /// a jump, then RTL: every item reached once (the jumped-over ones twice), in order, each
-/// waypoint within its acceptance radius, the legs straight, and landed at home.
+/// waypoint within its acceptance radius, the legs straight, a plain waypoint before another
+/// flown through on an arc inside the corner, and landed at home.
 #[test]
 fn a_square_mission_is_flown_item_by_item_and_ends_landed_at_home() {
     let mut f = Follower::new(CommanderParams {
@@ -172,19 +173,31 @@ fn a_square_mission_is_flown_item_by_item_and_ends_landed_at_home() {
     let mut shown = 0;
     let mut max_speed: f64 = 0.0;
     let mut off_leg: f64 = 0.0;
+    let mut outside: f64 = 0.0;
+    let mut speed_at: Vec<(u16, f64)> = Vec::new();
     while f.c.armed() && f.t < 300.0 {
         let sp = f.step();
         for seq in f.c.mission_status().reached_since(shown) {
             reached_at.push((seq, f.pos, f.t));
+            speed_at.push((seq, sp.vel_ned_m_s.xy().norm()));
         }
         shown = f.c.mission_status().reached_count;
         let cur = f.c.mission_status().current;
         max_speed = max_speed.max(sp.vel_ned_m_s.xy().norm());
-        // Between items 3 and 4 (north 20 → 0 at east 20), the path is the straight line.
+        // Between items 3 and 4 (north 20 → 0 at east 20): the corner at item 3 rounded inside
+        // the square (its arc ends 1 m on), then the straight line.
         if cur == 4 && f.pos.z < -9.0 {
-            off_leg = off_leg.max((f.pos.y - 20.0).abs());
+            outside = outside.max(f.pos.y - 20.0).max(f.pos.x - 20.0);
+            if f.pos.x < 19.0 - 1e-6 {
+                off_leg = off_leg.max((f.pos.y - 20.0).abs());
+            }
         }
     }
+    // Flown through item 3 (a plain waypoint before another), stopped at item 4 (a jump next).
+    let first = |seq: u16| speed_at.iter().find(|s| s.0 == seq).map(|s| s.1).unwrap();
+    assert!(first(3) > 0.2, "through item 3 at {} m/s", first(3));
+    assert!(first(4) < 1e-6, "stopped at item 4: {} m/s", first(4));
+    assert!(outside < 1e-3, "inside the square at the corner: {outside}");
     let order: Vec<u16> = reached_at.iter().map(|r| r.0).collect();
     assert_eq!(order, [0, 1, 2, 3, 4, 5, 3, 4, 5, 6, 7], "reached in order");
     let status = f.c.mission_status();
