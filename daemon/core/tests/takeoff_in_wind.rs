@@ -42,8 +42,6 @@ fn take_off_in_wind(seed: u64) -> Takeoff {
     let mut sim = Simulator::new(&a, cfg, sitl_core::BodyState::default()).unwrap();
     let mut params = FlightParams::default();
     params.attitude.mag_calibration_id = flight_core::sensors::mag_check::SIMULATED_MAG_ID;
-    // The outside force answered at once (off by default: it overspeeds an orbit by 7 %).
-    params.position.k_disturbance_ff = 1.0;
     let auto = AutoFlight {
         takeoff_m: 10.0,
         hover_s: 60.0,
