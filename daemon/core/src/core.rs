@@ -123,6 +123,9 @@ pub struct FlightCore {
     disturbance: DisturbanceObserver,
     /// The airframe's drag, to read the outside force as a wind.
     drag: DragSpec,
+    /// The wind it means, and the time since it was last worked out (s).
+    wind: Option<WindEstimate>,
+    wind_age_s: f64,
     /// Air density from the last barometer sample (kg/m³).
     air_density_kg_m3: f64,
     /// The pack's nominal voltage (V): 3.8 V a cell, flown while no voltage is reported.
@@ -143,11 +146,9 @@ pub fn nominal_battery_v(airframe: &Airframe) -> f64 {
     3.8 * airframe.battery.cells as f64
 }
 
-/// The heading of an attitude (rad, from north, clockwise).
-fn heading(q: &nalgebra::UnitQuaternion<f64>) -> f64 {
-    let (w, x, y, z) = (q.w, q.i, q.j, q.k);
-    (2.0 * (w * z + x * y)).atan2(1.0 - 2.0 * (y * y + z * z))
-}
+/// How often the wind is worked out from the outside force (s): the rate of the fastest
+/// stream or log topic that carries it.
+const WIND_PERIOD_S: f64 = 0.1;
 
 /// ISA air density from a pressure altitude (kg/m³).
 fn air_density(pressure_alt_m: f64) -> f64 {
@@ -186,6 +187,8 @@ impl FlightCore {
             position_phase_s: 0.0,
             disturbance: DisturbanceObserver::new(config.position.disturbance_tau_s),
             drag: airframe.drag.clone(),
+            wind: None,
+            wind_age_s: 0.0,
             air_density_kg_m3: air_density(0.0),
             nominal_battery_v: nominal_battery_v(airframe),
             dt_clamped: 0,
@@ -297,6 +300,7 @@ impl FlightCore {
         self.reset_position_loop();
         // The wind is learned afresh each flight (it may have changed, or the vehicle moved).
         self.disturbance.reset();
+        self.wind = None;
         self.rate = rate_axes(&self.config.rate);
         // A new flight judges the rotors afresh.
         self.motor_failure.reset();
@@ -492,12 +496,18 @@ impl FlightCore {
         };
         self.flying = true;
         self.step_disturbance(&a, s, &translation, dt);
-        out.wind = self.disturbance.wind(
-            &translation.vel_ned_m_s,
-            heading(&a.q),
-            self.config.position.mass_kg,
-            &self.drag,
-        );
+        // The wind for telemetry and logs (10 Hz at most), not on every sample.
+        self.wind_age_s += dt;
+        if self.wind_age_s >= WIND_PERIOD_S {
+            self.wind_age_s = 0.0;
+            self.wind = self.disturbance.wind(
+                &translation.vel_ned_m_s,
+                a.q.euler_angles().2,
+                self.config.position.mass_kg,
+                &self.drag,
+            );
+        }
+        out.wind = self.wind;
         // Motor-failure detection on what the rotors were told over the interval just sampled
         // (not while spinning on three rotors: a second loss leaves nothing to fly on).
         if let Some(last) = self

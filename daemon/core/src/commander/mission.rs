@@ -272,11 +272,9 @@ impl MissionFlight {
             }
             _ => return None,
         };
-        // A corner handed on by the last leg starts this one; it ends where the arc does.
-        let arc = self
-            .arc
-            .filter(|_| matches!(item, MissionItem::Waypoint { .. }));
-        self.arc = arc;
+        // A corner handed on by the last leg starts this one (only a waypoint's: cleared above
+        // for any other item); the leg starts where the arc ends.
+        let arc = self.arc;
         let from = arc.map_or_else(|| self.leg_start(i), |c| c.end);
         let mut leg = f.leg(from, target);
         let plain =
