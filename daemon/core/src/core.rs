@@ -5,7 +5,7 @@
 //! Pure: no clock (time comes with the sample), no I/O, no allocation in `step`.
 
 use crate::control::attitude::{KinematicAttitude, TiltYawPd};
-use crate::control::disturbance::{DisturbanceObserver, WindEstimate};
+use crate::control::disturbance::{DisturbanceObserver, WindEstimate, still_air_drag};
 use crate::control::motor::MotorSpeedLoop;
 use crate::control::position::{AttitudeSetpoint, PositionController};
 use crate::control::rate::{LadrcAxis, PidAxis};
@@ -352,26 +352,37 @@ impl FlightCore {
 
     /// The outside force learned while flying free (not on the ground, not spinning on three
     /// rotors, where the body's own spin shows in the accelerometer; held while landing), and
-    /// handed to the position loop to answer.
+    /// handed to the position loop to answer: the wind's share of it, and the drag of the
+    /// set-point's velocity (the vehicle's own motion's drag is the loops' damping).
     fn step_disturbance(
         &mut self,
         a: &AttitudeEstimate,
         s: &SensorSample,
         translation: &TranslationEstimate,
+        setpoint: &Setpoint,
         dt: f64,
     ) {
         let free = self.ground_contact == GroundContact::None
             && self.spinning_without.is_none()
             && translation.horizontal_valid;
-        if free {
-            if self.learn_disturbance {
-                self.disturbance.update(&a.q, &s.accel, dt);
-            }
-            self.position
-                .set_disturbance(self.disturbance.accel_ned_m_s2());
-        } else {
+        if !free {
             self.position.set_disturbance(Vector3::zeros());
+            return;
         }
+        if self.learn_disturbance {
+            self.disturbance.update(&a.q, &s.accel, dt);
+        }
+        let yaw = a.q.euler_angles().2;
+        let m = self.config.position.mass_kg;
+        let drag = |v: &Vector3<f64>| still_air_drag(v, yaw, m, &self.drag);
+        let wind_share = self.disturbance.accel_ned_m_s2() - drag(&translation.vel_ned_m_s);
+        let planned = match setpoint {
+            Setpoint::Position(sp) => {
+                drag(&sp.vel_ned_m_s.map(|x| if x.is_finite() { x } else { 0.0 }))
+            }
+            Setpoint::Attitude(_) => Vector3::zeros(),
+        };
+        self.position.set_disturbance(wind_share + planned);
     }
 
     /// The rotors' mean thrust fraction over the interval just sampled (0 when they were not
@@ -495,7 +506,7 @@ impl FlightCore {
             return out;
         };
         self.flying = true;
-        self.step_disturbance(&a, s, &translation, dt);
+        self.step_disturbance(&a, s, &translation, setpoint, dt);
         // The wind for telemetry and logs (10 Hz at most), not on every sample.
         self.wind_age_s += dt;
         if self.wind_age_s >= WIND_PERIOD_S {

@@ -42,9 +42,6 @@ fn take_off_in_wind(seed: u64) -> Takeoff {
     let mut sim = Simulator::new(&a, cfg, sitl_core::BodyState::default()).unwrap();
     let mut params = FlightParams::default();
     params.attitude.mag_calibration_id = flight_core::sensors::mag_check::SIMULATED_MAG_ID;
-    // The outside force answered at once (off by default: it made Follow Me's distance
-    // error worse, 1.7 -> 2.4-2.8 m RMS, and that is not understood yet).
-    params.position.k_disturbance_ff = 1.0;
     let auto = AutoFlight {
         takeoff_m: 10.0,
         hover_s: 60.0,

@@ -10,6 +10,11 @@
 //! integrator; its leftover is the integrator's. A tilt error of the estimate does not enter `d`
 //! (the thrust direction and `f` turn together).
 //!
+//! What is fed forward is the wind's share of `d`: `d` less the drag the vehicle's own velocity
+//! would make in still air (`still_air_drag`). That drag damps every motion the loops make, and
+//! they were tuned with it; answering it too, through a low-pass, would take the damping away
+//! and put a lag in its place.
+//!
 //! The wind: the drag model of the airframe (linear and quadratic per body axis, as the
 //! simulator's) turned around for the air-relative velocity `v_a` that makes `m d`, and
 //! `wind = v − v_a`, in the heading's frame (the body's x–y axes at a small tilt).
@@ -136,6 +141,26 @@ impl DisturbanceObserver {
     }
 }
 
+/// The drag per mass (NED, m/s², horizontal) that `drag` makes on a vehicle of `mass_kg` moving
+/// at `vel_ned` (m/s) through still air on heading `yaw` (rad): `−(lin v + quad |v| v)` per
+/// heading-frame axis, as the simulator's per body axis at a small tilt.
+pub fn still_air_drag(
+    vel_ned: &Vector3<f64>,
+    yaw: f64,
+    mass_kg: f64,
+    drag: &DragSpec,
+) -> Vector3<f64> {
+    let (s, c) = yaw.sin_cos();
+    let v = Vector2::new(
+        c * vel_ned.x + s * vel_ned.y,
+        -s * vel_ned.x + c * vel_ned.y,
+    );
+    let f = Vector2::from_fn(|i, _| {
+        -(drag.linear_n_s_m[i] * v[i] + drag.quadratic_n_s2_m2[i] * v[i].abs() * v[i])
+    });
+    Vector3::new(c * f.x - s * f.y, s * f.x + c * f.y, 0.0) / mass_kg
+}
+
 /// The speed (m/s) at which `lin v + quad v²` makes `force` (N); `None` for no drag at all.
 fn drag_speed(force: f64, lin: f64, quad: f64) -> Option<f64> {
     if quad > 1e-9 {
@@ -240,6 +265,24 @@ mod tests {
         o.update(&q, &specific_force(&q, 15.0, push, m), 0.004);
         let w = o.wind(&vel, 0.0, m, &drag).unwrap();
         assert!(w.wind_ned_m_s.norm() < 1e-9, "{}", w.wind_ned_m_s);
+    }
+
+    #[test]
+    fn in_still_air_the_winds_share_is_nothing_whatever_the_vehicles_own_speed() {
+        // The push the accelerometer reads is the drag of the vehicle's own motion alone: the
+        // share fed forward (what is left after `still_air_drag`) is zero, so the loops keep
+        // the damping they were tuned with.
+        let drag = quad_x_drag();
+        let m = 1.5;
+        for (vel, yaw) in [
+            (Vector2::new(4.0, 3.0), 0.0),
+            (Vector2::new(-2.0, 5.0), 1.2),
+            (Vector2::new(0.3, -0.1), -2.0),
+        ] {
+            let push = drag_ned(vel, yaw, &drag) / m;
+            let own = still_air_drag(&Vector3::new(vel.x, vel.y, 0.0), yaw, m, &drag);
+            assert!((push - own).norm() < 1e-12, "{push} against {own}");
+        }
     }
 
     #[test]

@@ -313,7 +313,7 @@ crate::params::param_group! {
         /// Integral bound.
         i_limit: f64 = 5.0, "MPC_I_MAX", "m/s^2", [0.0, 10.0], "Bound on the velocity integral";
         /// Outside-force feed-forward.
-        k_disturbance_ff: f64 = 0.0, "MPC_DIST_FF", "", [0.0, 1.0], "Fraction of the outside force (wind) estimated from the accelerometer that the thrust answers at once (0: the velocity integral alone)";
+        k_disturbance_ff: f64 = 1.0, "MPC_DIST_FF", "", [0.0, 1.0], "Fraction of the outside force the thrust answers at once: the wind's share of what the accelerometer reads, and the drag of the set-point's velocity (0: the velocity integral alone)";
         /// Outside-force estimate's time constant.
         disturbance_tau_s: f64 = 0.05, "MPC_DIST_TAU", "s", [0.02, 5.0], "Time constant of the outside force (wind) estimate from the accelerometer";
         /// Rate of the position loop.
