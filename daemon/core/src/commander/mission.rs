@@ -243,7 +243,7 @@ impl MissionFlight {
                 from,
                 Vector3::new(from.x, from.y, down),
                 p.takeoff_speed_m_s,
-                p.accel_m_s2,
+                p.takeoff_accel_m_s2(),
             ));
             f.landed = LandedState::Takeoff;
             return Some(Stage::Takeoff);

@@ -9,6 +9,8 @@ crate::params::param_group! {
         takeoff_alt_m: f64 = 2.5, "MIS_TAKEOFF_ALT", "m", [0.5, 100.0], "Take-off altitude above home";
         /// Climb speed of the take-off set-point (m/s).
         takeoff_speed_m_s: f64 = 1.5, "MPC_TKO_SPEED", "m/s", [0.3, 5.0], "Climb speed of the take-off";
+        /// Time the take-off climb takes to reach its speed (s).
+        takeoff_ramp_s: f64 = 1.5, "MPC_TKO_RAMP_T", "s", [0.1, 10.0], "Time the take-off climb takes to reach MPC_TKO_SPEED (also the Return's climb): a gentle lift into the wind, whatever MPC_ACC_HOR";
         /// Spool-up time on the ground after arming (s).
         spool_s: f64 = 1.0, "COM_SPOOLUP_TIME", "s", [0.0, 30.0], "Time on the ground after arming before a take-off climbs";
         /// Descent speed while landing (m/s).
@@ -22,7 +24,7 @@ crate::params::param_group! {
         /// Horizontal cruise speed of automatic flight (m/s).
         cruise_speed_m_s: f64 = 5.0, "MPC_XY_CRUISE", "m/s", [0.5, 20.0], "Horizontal speed of automatic flight";
         /// Acceleration of the automatic set-point profiles (m/s²).
-        accel_m_s2: f64 = 1.0, "MPC_ACC_HOR", "m/s^2", [0.2, 15.0], "Acceleration of the automatic set-point profiles";
+        accel_m_s2: f64 = 3.0, "MPC_ACC_HOR", "m/s^2", [0.2, 15.0], "Acceleration of the automatic set-point profiles (the take-off's: MPC_TKO_RAMP_T)";
         /// Deceleration of a failsafe's stop (m/s²).
         failsafe_brake_m_s2: f64 = 2.5, "MPC_ACC_FS_BRK", "m/s^2", [0.5, 15.0], "Deceleration of a failsafe's Hold (a fence breach, a lost link): it holds where the vehicle stops at this rate, not at the gentle MPC_ACC_HOR";
         /// Disarm when armed on the ground this long without taking off (s; 0: never).
@@ -75,5 +77,12 @@ crate::params::param_group! {
         follow_max_speed_m_s: f64 = 5.0, "FLW_TGT_MAX_VEL", "m/s", [0.1, 20.0], "Follow target: fastest speed round the target when its course turns";
         /// Centripetal acceleration that bounds an orbit's speed (m/s²).
         orbit_accel_m_s2: f64 = 3.0, "MC_ORBIT_ACC_MAX", "m/s^2", [0.5, 10.0], "Centripetal acceleration of an orbit: its speed is at most sqrt(this x radius)";
+    }
+}
+
+impl CommanderParams {
+    /// The take-off climb's acceleration (m/s²): `MPC_TKO_SPEED` reached in `MPC_TKO_RAMP_T`.
+    pub fn takeoff_accel_m_s2(&self) -> f64 {
+        self.takeoff_speed_m_s / self.takeoff_ramp_s.max(0.1)
     }
 }

@@ -51,7 +51,7 @@ impl Rtl {
                     let up_to = (home.z - p.rtl_return_alt_m).min(i.pos_ned_m.z);
                     let line = self.line.get_or_insert_with(|| {
                         let to = Vector3::new(i.pos_ned_m.x, i.pos_ned_m.y, up_to);
-                        Line::new(i.pos_ned_m, to, p.takeoff_speed_m_s, p.accel_m_s2)
+                        Line::new(i.pos_ned_m, to, p.takeoff_speed_m_s, p.takeoff_accel_m_s2())
                     });
                     let (sp, arrived) = line.step(dt, yaw);
                     if !arrived {

@@ -64,7 +64,7 @@ impl FlightTask for Takeoff {
                     from,
                     Vector3::new(from.x, from.y, target_down),
                     p.takeoff_speed_m_s,
-                    p.accel_m_s2,
+                    p.takeoff_accel_m_s2(),
                 ))
             }
         };

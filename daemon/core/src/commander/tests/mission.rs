@@ -234,7 +234,7 @@ fn a_square_mission_is_flown_item_by_item_and_ends_landed_at_home() {
         .iter()
         .map(|s| s.accel_ned_m_s2.norm())
         .fold(0.0, f64::max);
-    assert!(accel <= 1.0 + 1e-9, "accel {accel}");
+    assert!(accel <= f.c.params().accel_m_s2 + 1e-9, "accel {accel}");
     // A heading along each leg: flying east on item 3's leg.
     assert!(f.path.iter().any(|s| (s.yaw_rad - FRAC_PI_2).abs() < 1e-6));
 }
