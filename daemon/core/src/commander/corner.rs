@@ -1,9 +1,9 @@
 //! A mission's corner flown through: the arc of the circle inscribed in the angle α between two
-//! legs, touching them `L` = `MPC_XY_TRAJ_P` times the acceptance radius from the waypoint
-//! (PX4's turning circle, radius `R = L tan(α/2)`), at the speed whose centripetal acceleration
-//! is `MPC_ACC_HOR`. The legs end and start at its touching points, so the path stays inside the
-//! corner (`R / sin(α/2) − R` from the waypoint at most: 0.41 m for a right angle and L = 1 m)
-//! and the vehicle stops only where the mission asks it to.
+//! legs, touching them `L` = the acceptance radius (`NAV_ACC_RAD`) from the waypoint (PX4's
+//! turning circle, radius `R = L tan(α/2)`), at the speed whose centripetal acceleration is
+//! `MPC_ACC_HOR` (PX4's `√(a L tan(α/2))`). The legs end and start at its touching points, so the
+//! path stays inside the corner (`R / sin(α/2) − R` from the waypoint at most: 0.83 m for a right
+//! angle and L = 2 m) and the vehicle stops only where the mission asks it to.
 
 use crate::control::position::PositionSetpoint;
 use nalgebra::{Vector2, Vector3};

@@ -126,7 +126,7 @@ impl Flight {
         if !speed.is_finite() {
             speed = self.cruise_speed();
         }
-        Line::new(from, to, speed, p.accel_m_s2)
+        Line::new(from, to, speed, p.accel_m_s2).with_jerk(p.jerk_m_s3)
     }
 
     /// The heading of automatic flight, turned towards `goal` (or the `CONDITION_YAW` goal) at

@@ -239,12 +239,15 @@ impl MissionFlight {
                 _ => home.z - p.takeoff_alt_m,
             };
             let from = Vector3::new(i.pos_ned_m.x, i.pos_ned_m.y, home.z);
-            self.line = Some(Line::new(
-                from,
-                Vector3::new(from.x, from.y, down),
-                p.takeoff_speed_m_s,
-                p.takeoff_accel_m_s2(),
-            ));
+            self.line = Some(
+                Line::new(
+                    from,
+                    Vector3::new(from.x, from.y, down),
+                    p.takeoff_speed_m_s,
+                    p.takeoff_accel_m_s2(),
+                )
+                .with_jerk(p.jerk_m_s3),
+            );
             f.landed = LandedState::Takeoff;
             return Some(Stage::Takeoff);
         }
@@ -281,9 +284,9 @@ impl MissionFlight {
             matches!(item, MissionItem::Waypoint { hold_s, yaw_rad: None, .. } if hold_s <= 0.0);
         self.corner = self
             .next_waypoint(f, resolve)
-            .filter(|_| plain && p.traj_p > 0.0)
+            .filter(|_| plain)
             .and_then(|next| {
-                let touch = p.traj_p * acceptance(f, &item);
+                let touch = acceptance(f, &item);
                 Corner::new(from, target, next, touch, p.accel_m_s2, leg.speed)
             });
         if let Some(c) = &self.corner {

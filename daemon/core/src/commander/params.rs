@@ -25,6 +25,8 @@ crate::params::param_group! {
         cruise_speed_m_s: f64 = 5.0, "MPC_XY_CRUISE", "m/s", [0.5, 20.0], "Horizontal speed of automatic flight";
         /// Acceleration of the automatic set-point profiles (m/s²).
         accel_m_s2: f64 = 3.0, "MPC_ACC_HOR", "m/s^2", [0.2, 15.0], "Acceleration of the automatic set-point profiles (the take-off's: MPC_TKO_RAMP_T)";
+        /// Jerk of the automatic set-point profiles (m/s³).
+        jerk_m_s3: f64 = 6.0, "MPC_JERK_AUTO", "m/s^3", [1.0, 80.0], "Jerk of the automatic set-point profiles: the acceleration ramps at this rate (S-curves), the take-off's too";
         /// Deceleration of a failsafe's stop (m/s²).
         failsafe_brake_m_s2: f64 = 2.5, "MPC_ACC_FS_BRK", "m/s^2", [0.5, 15.0], "Deceleration of a failsafe's Hold (a fence breach, a lost link): it holds where the vehicle stops at this rate, not at the gentle MPC_ACC_HOR";
         /// Disarm when armed on the ground this long without taking off (s; 0: never).
@@ -50,9 +52,7 @@ crate::params::param_group! {
         /// What flies when the offboard set-points stop.
         offboard_loss_action: u32 = 0, "COM_OBL_RC_ACT", "", [0.0, 5.0], "Offboard loss: 0 Position, 1 Altitude, 2 Manual (each Hold without a joystick), 3 Return, 4 Land, 5 Hold";
         /// Horizontal acceptance radius of mission waypoints that give none (m).
-        acceptance_m: f64 = 2.0, "NAV_ACC_RAD", "m", [0.05, 200.0], "Horizontal acceptance radius of mission waypoints that give none";
-        /// Where a corner is rounded, as a fraction of the acceptance radius.
-        traj_p: f64 = 0.5, "MPC_XY_TRAJ_P", "", [0.0, 1.0], "A mission flies through a waypoint without a hold on the arc touching both legs this fraction of the acceptance radius from it, at the speed whose centripetal acceleration is MPC_ACC_HOR (0: it stops at every waypoint)";
+        acceptance_m: f64 = 2.0, "NAV_ACC_RAD", "m", [0.05, 200.0], "Horizontal acceptance radius of mission waypoints that give none; a waypoint without a hold is flown through on the arc touching both legs this far from it";
         /// Vertical acceptance of mission waypoints (m).
         alt_acceptance_m: f64 = 0.8, "NAV_MC_ALT_RAD", "m", [0.05, 200.0], "Vertical acceptance radius of mission waypoints";
         /// Climb speed of automatic flight (m/s).

@@ -52,6 +52,7 @@ impl Rtl {
                     let line = self.line.get_or_insert_with(|| {
                         let to = Vector3::new(i.pos_ned_m.x, i.pos_ned_m.y, up_to);
                         Line::new(i.pos_ned_m, to, p.takeoff_speed_m_s, p.takeoff_accel_m_s2())
+                            .with_jerk(p.jerk_m_s3)
                     });
                     let (sp, arrived) = line.step(dt, yaw);
                     if !arrived {
@@ -64,6 +65,7 @@ impl Rtl {
                     let line = self.line.get_or_insert_with(|| {
                         let to = Vector3::new(home.x, home.y, i.pos_ned_m.z);
                         Line::new(i.pos_ned_m, to, p.cruise_speed_m_s, p.accel_m_s2)
+                            .with_jerk(p.jerk_m_s3)
                     });
                     let to = line.end();
                     let (sp, arrived) = line.step(dt, yaw);

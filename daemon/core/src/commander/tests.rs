@@ -311,8 +311,12 @@ fn the_takeoff_set_point_climbs_smoothly_and_stops_at_the_altitude() {
         t += dt;
     }
     assert_eq!(c.mode(), FlightMode::Loiter);
-    // 5 m at 1.5 m/s with 1 m/s² ramps at both ends: 5/1.5 + 1.5 = 4.83 s after take-off.
-    assert!((t - 1.0 - 4.83).abs() < 0.05, "arrived after {} s", t - 1.0);
+    // 5 m at 1.5 m/s with S-curve ramps (1 m/s², 6 m/s³) at both ends, each 1.5/1 + 1/6 s
+    // over 1.5/2 m/s × that: 2 × 1.667 + (5 − 2.5)/1.5 = 5.0 s after take-off (the defaults).
+    let p = c.params();
+    let ramp = p.takeoff_speed_m_s / p.takeoff_accel_m_s2() + p.takeoff_accel_m_s2() / p.jerk_m_s3;
+    let best = 2.0 * ramp + (5.0 - p.takeoff_speed_m_s * ramp) / p.takeoff_speed_m_s;
+    assert!((t - 1.0 - best).abs() < 0.05, "arrived after {} s", t - 1.0);
 }
 
 /// A wind that slides the vehicle on its feet as the thrust comes up, and drifts it on the
