@@ -230,6 +230,10 @@ def test_uploaded_geofence_refuses_arming_outside_and_holds_at_the_breach(fast_v
     ready_to_arm(gcs)
     take_off(gcs)
     start = wait(gcs, "LOCAL_POSITION_NED", lambda m: True)
+    # SYS_STATUS at 20 Hz: the breach's health bit is seen while the stop lasts (about 2 s).
+    gcs.mav.command_long_send(1, 1, ML.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                              ML.MAVLINK_MSG_ID_SYS_STATUS, 50_000, 0, 0, 0, 0, 0)
+    assert ack(gcs, ML.MAV_CMD_SET_MESSAGE_INTERVAL) == 0
     reposition_north(gcs, home, 25)
     breach, furthest, unhealthy = None, 0.0, False
     end = time.monotonic() + 40

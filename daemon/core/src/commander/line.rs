@@ -12,7 +12,8 @@ use nalgebra::Vector3;
 
 /// A straight-line set-point profile from `from` to `to`: speed ramps up at `accel`, cruises
 /// at `speed`, and slows so that it stops at the end (v ≤ √(2·a·d)), or passes its end at
-/// `end_speed` (v ≤ √(v_end² + 2·a·d)) where a corner goes on.
+/// `end_speed` (v ≤ √(v_end² + 2·a·d)) where a corner goes on; with a jerk limit the ramps are
+/// S-curves (`with_jerk`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct Line {
     pub(super) from: Vector3<f64>,

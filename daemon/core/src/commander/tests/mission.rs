@@ -239,6 +239,53 @@ fn a_square_mission_is_flown_item_by_item_and_ends_landed_at_home() {
     assert!(f.path.iter().any(|s| (s.yaw_rad - FRAC_PI_2).abs() < 1e-6));
 }
 
+/// A waypoint with a hold time stops and holds there though a waypoint follows; a plain one is
+/// flown through; the last before a landing is reached at rest.
+#[test]
+fn a_hold_time_and_a_landing_next_stop_the_vehicle_and_plain_waypoints_do_not() {
+    let mut f = Follower::new(CommanderParams::default());
+    let held = MissionItem::Waypoint {
+        at: point(15.0, 0.0, 5.0),
+        hold_s: 2.0,
+        acceptance_m: Some(0.5),
+        yaw_rad: None,
+    };
+    let items = vec![
+        held,                      // 0
+        waypoint(15.0, 15.0, 5.0), // 1
+        waypoint(0.0, 15.0, 5.0),  // 2
+        MissionItem::Land {
+            at: point(0.0, 15.0, 0.0),
+            yaw_rad: None,
+        }, // 3
+    ];
+    f.c.set_mission(items);
+    f.c.set_mode(FlightMode::Mission).unwrap();
+    f.c.arm(false).unwrap();
+    let mut shown = 0;
+    let mut reached: Vec<(u16, f64, f64)> = Vec::new(); // item, speed, time
+    let mut arrived_at_0 = None;
+    while f.c.armed() && f.t < 120.0 {
+        let sp = f.step();
+        if (f.pos - Vector3::new(15.0, 0.0, -5.0)).norm() < 1e-6 && f.vel.norm() < 1e-9 {
+            arrived_at_0.get_or_insert(f.t);
+        }
+        for seq in f.c.mission_status().reached_since(shown) {
+            reached.push((seq, sp.vel_ned_m_s.xy().norm(), f.t));
+        }
+        shown = f.c.mission_status().reached_count;
+    }
+    let at = |seq: u16| *reached.iter().find(|r| r.0 == seq).unwrap();
+    assert!(
+        at(0).1 < 1e-6 && at(1).1 > 0.5 && at(2).1 < 1e-6,
+        "{reached:?}"
+    );
+    // At item 0 at rest, it holds there 2 s before the item is done.
+    let held_s = at(0).2 - arrived_at_0.unwrap();
+    assert!((1.98..2.1).contains(&held_s), "held {held_s} s");
+    assert!(!f.c.armed() && (f.pos - Vector3::new(0.0, 15.0, 0.0)).norm() < 0.5);
+}
+
 #[test]
 fn leaving_mission_pauses_it_and_coming_back_resumes_the_same_item() {
     let mut f = Follower::new(CommanderParams::default());
