@@ -154,6 +154,8 @@ pub struct Autopilot {
     imu_correction: ImuCorrection,
     /// The recent hover commands, and the open-loop descent flown on them without the IMU.
     hover: HoverCommands,
+    /// The attitude estimate's tilt and heading resets logged.
+    estimate_resets: (u64, u64),
     blind: Option<BlindDescent>,
     /// When the IMU froze while armed (sensor time): the loops cannot fly without it, and it
     /// is not trusted again before the motors stop.
@@ -215,6 +217,7 @@ impl Autopilot {
             imu_cal: None,
             imu_correction: ImuCorrection::new(&params.imu, airframe.imu_position_frd_m),
             hover: HoverCommands::new(2.0),
+            estimate_resets: (0, 0),
             blind: None,
             imu_frozen_since_usec: None,
         })
@@ -410,6 +413,15 @@ impl Autopilot {
                 reallocated = self.core.config().motor_failure.reallocate,
                 "motor failure detected"
             );
+        }
+        if let Some(r) = output.attitude.map(|a| a.reset) {
+            if r.tilt > self.estimate_resets.0 {
+                tracing::warn!(off_deg = %format!("{:.1}", r.tilt_rad.to_degrees()), "attitude estimate reset: tilt");
+            }
+            if r.heading > self.estimate_resets.1 {
+                tracing::warn!(off_deg = %format!("{:.1}", r.heading_rad.to_degrees()), "attitude estimate reset: heading");
+            }
+            self.estimate_resets = (r.tilt, r.heading);
         }
         // Magnetometer and barometer as last seen (a sample carries them only when fresh).
         let prev = self.last_sample;

@@ -63,7 +63,7 @@ impl SensorSample {
 }
 
 /// What one step produced.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct StepOutput {
     /// Motor commands ∈ [0, 1] (all zero when disarmed or not aligned).
     pub commands: [f64; MAX_ROTORS],

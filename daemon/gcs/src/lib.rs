@@ -18,6 +18,7 @@ mod incoming;
 mod link_rates;
 pub mod mission;
 pub mod modes;
+mod notices;
 pub mod offboard;
 pub mod param_store;
 pub mod params;
@@ -243,17 +244,10 @@ pub struct GroundStation {
     params: Parameters,
     /// The values a reset returns to (`flight.toml` and the command line).
     base_params: FlightParams,
-    /// Manual-control losses already reported.
-    manual_losses_shown: u32,
-    /// Offboard losses already reported.
-    offboard_losses_shown: u32,
+    /// What has been said once of what happened (`notices.rs`).
+    notices: notices::Notices,
     /// Failsafe events already said (the count of the commander's log).
     safety_events_shown: u64,
-    /// The failed motor last announced (1-based).
-    motor_failed_shown: Option<usize>,
-    /// The sensor link's state as last said: frames silent, source restarts.
-    sensors_silent_shown: bool,
-    source_restarts_shown: u32,
     /// Offboard set-points dropped as malformed or unsupported.
     pub offboard_refused: u64,
     /// The mission, fence and rally plans and their transfers.
@@ -292,12 +286,8 @@ impl GroundStation {
             unix_start_usec: 0,
             params: Parameters::default(),
             base_params: FlightParams::default(),
-            manual_losses_shown: 0,
-            offboard_losses_shown: 0,
+            notices: Default::default(),
             safety_events_shown: 0,
-            motor_failed_shown: None,
-            sensors_silent_shown: false,
-            source_restarts_shown: 0,
             offboard_refused: 0,
             missions: mission::Missions::default(),
             mission_shown: None,
@@ -408,63 +398,7 @@ impl GroundStation {
             }
             self.rates.sent_everywhere(HEARTBEAT_DATA::ID, now_s);
         }
-        let losses = t.status.map_or(0, |s| s.manual_losses);
-        if losses > self.manual_losses_shown {
-            self.manual_losses_shown = losses;
-            out.say(
-                MavSeverity::MAV_SEVERITY_CRITICAL,
-                "manual control lost: Hold",
-            );
-        }
-        let losses = t.status.map_or(0, |s| s.offboard_losses);
-        if losses > self.offboard_losses_shown {
-            self.offboard_losses_shown = losses;
-            let mode = t.status.map_or("Hold", |s| s.mode.name());
-            out.say(
-                MavSeverity::MAV_SEVERITY_CRITICAL,
-                &format!("offboard set-points lost: {mode}"),
-            );
-        }
-        let motor = t.status.and_then(|s| s.motor_failed);
-        if motor != self.motor_failed_shown {
-            self.motor_failed_shown = motor;
-            if let Some(m) = motor {
-                let how = if t.status.is_some_and(|s| s.spinning) {
-                    "flying on three rotors, spinning"
-                } else if self.mav_type == MavType::MAV_TYPE_QUADROTOR {
-                    "cannot fly on three rotors"
-                } else {
-                    "flying on the others"
-                };
-                out.say(
-                    MavSeverity::MAV_SEVERITY_CRITICAL,
-                    &format!("motor {m} failed: {how}"),
-                );
-            }
-        }
-        // Said before the frames are back: it is why.
-        if t.source_restarts > self.source_restarts_shown {
-            self.source_restarts_shown = t.source_restarts;
-            out.say(
-                MavSeverity::MAV_SEVERITY_WARNING,
-                "sensor source restarted: vehicle reset",
-            );
-        }
-        if t.sensors_silent != self.sensors_silent_shown {
-            self.sensors_silent_shown = t.sensors_silent;
-            if t.sensors_silent {
-                out.say(
-                    MavSeverity::MAV_SEVERITY_CRITICAL,
-                    &format!(
-                        "sensor frames stopped: {}",
-                        t.status
-                            .map_or("-", |s| if s.armed { s.mode.name() } else { "disarmed" })
-                    ),
-                );
-            } else {
-                out.say(MavSeverity::MAV_SEVERITY_NOTICE, "sensor frames back");
-            }
-        }
+        self.notices.say(t, self.mav_type, out);
         if let Some(log) = t.status.map(|s| s.safety_log) {
             // Each failsafe event once, in the state machine's words, however short-lived.
             let (missed, events) = log.since(self.safety_events_shown);

@@ -91,10 +91,27 @@ pub struct AttitudeEstimate {
     pub gyro_bias: Vector3<f64>,
     /// Whether the estimate can be flown on: aligned, and corrected recently enough.
     pub valid: bool,
+    /// The last reset of the estimate (the tilt or heading taken afresh from a steady
+    /// accelerometer or a clean magnetometer, `recovery.rs`), and how many there have been (as
+    /// PX4's `quat_reset_counter`).
+    pub reset: EstimateReset,
     /// Whether the gyro bias is known well enough to take off (an arming check): Castillo's
     /// observer takes it at the alignment; the tilt/heading filter once its uncertainty is
     /// below 0.1°/s (a rest of 1.5 s, or learning in motion).
     pub bias_settled: bool,
+}
+
+/// The resets of the attitude estimate so far.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct EstimateReset {
+    /// Tilt resets.
+    pub tilt: u64,
+    /// The last tilt reset's size (rad).
+    pub tilt_rad: f64,
+    /// Heading resets.
+    pub heading: u64,
+    /// The last heading reset's size (rad, signed).
+    pub heading_rad: f64,
 }
 
 /// Counters and health of the attitude estimator.
@@ -246,6 +263,15 @@ impl AttitudeEstimator {
                 gyro_bias: f.bias(),
                 valid: self.status.since_correction_s <= self.params.max_uncorrected_s,
                 bias_settled: f.bias_settled(),
+                reset: {
+                    let st = f.status();
+                    EstimateReset {
+                        tilt: st.tilt_resets,
+                        tilt_rad: st.last_tilt_reset_rad,
+                        heading: st.heading_resets,
+                        heading_rad: st.last_heading_reset_rad,
+                    }
+                },
             });
         }
         let o = self.observer.as_ref()?;
@@ -255,6 +281,7 @@ impl AttitudeEstimator {
             gyro_bias: o.bias,
             valid: self.status.since_correction_s <= self.params.max_uncorrected_s,
             bias_settled: true,
+            reset: EstimateReset::default(),
         })
     }
 
@@ -487,5 +514,7 @@ impl AttitudeEstimator {
 
 #[cfg(test)]
 mod flight_bias_tests;
+#[cfg(test)]
+mod recovery_tests;
 #[cfg(test)]
 mod tests;

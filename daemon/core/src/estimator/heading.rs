@@ -91,7 +91,17 @@ pub struct HeadingCorrector {
     k_nominal: f64,
     /// The gain of the last correction.
     last_gain: f64,
+    /// A clean field's heading this far from the estimate for [`RESET_AFTER_S`] resets it (rad).
+    reset_limit: f64,
+    /// How long the clean field has been that far (s).
+    far_s: f64,
+    resets: u64,
+    last_reset: f64,
 }
+
+/// How long a clean field must stay further than the reset limit from the heading before the
+/// heading is taken from it at once (s).
+pub const RESET_AFTER_S: f64 = 1.0;
 
 /// `x` wrapped to [−π, π).
 fn wrap(x: f64) -> f64 {
@@ -114,6 +124,10 @@ impl HeadingCorrector {
             last_error: 0.0,
             k_nominal: 0.0,
             last_gain: 0.0,
+            reset_limit: std::f64::consts::PI,
+            far_s: 0.0,
+            resets: 0,
+            last_reset: 0.0,
         }
     }
 
@@ -127,6 +141,17 @@ impl HeadingCorrector {
     pub fn reset_to(&mut self, delta: f64) {
         self.delta = delta;
         self.samples = 0.0;
+    }
+
+    /// A clean field's heading further than `limit` (rad) from the estimate for
+    /// [`RESET_AFTER_S`] resets the heading to it.
+    pub fn set_reset_limit(&mut self, limit: f64) {
+        self.reset_limit = limit;
+    }
+
+    /// Heading resets so far, and the last one's size (rad).
+    pub fn resets(&self) -> (u64, f64) {
+        (self.resets, self.last_reset)
     }
 
     /// Whether the start (the running mean of the first `tau` seconds) is over.
@@ -226,6 +251,20 @@ impl HeadingCorrector {
             self.candidate = None;
             self.reference_held_s += dt;
             reference.approach(&shape, (dt / s.reference_tau_s).min(1.0));
+            // A clean field far from the heading for a second: the heading was wrong (a gyro
+            // that saturated, a tilt reset), not the field. Taken at once, not crept towards.
+            self.far_s = if error.abs() > self.reset_limit {
+                self.far_s + dt
+            } else {
+                0.0
+            };
+            if self.far_s >= RESET_AFTER_S && self.samples > 0.0 {
+                self.far_s = 0.0;
+                self.resets += 1;
+                self.last_reset = error;
+                self.delta = target;
+                return Some(error);
+            }
         }
         self.samples += 1.0;
         self.k_nominal = dt / s.tau_s;

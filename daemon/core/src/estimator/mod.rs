@@ -6,6 +6,7 @@ pub mod hard_iron;
 pub mod heading;
 pub mod lowpass;
 pub mod observer;
+pub mod recovery;
 pub mod replay;
 pub mod rest;
 pub mod tilt_heading;

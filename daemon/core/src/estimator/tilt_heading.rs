@@ -30,6 +30,7 @@ use super::bias::{BiasEstimator, BiasSettings};
 use super::hard_iron::{HardIronEstimator, HardIronSettings};
 use super::heading::{HeadingCorrector, HeadingSettings};
 use super::lowpass::LowPass;
+use super::recovery::TiltRecovery;
 use super::rest::{RestDetector, RestThresholds};
 use crate::GRAVITY_M_S2;
 use crate::math::quat;
@@ -100,6 +101,14 @@ pub struct TiltHeadingStatus {
     pub tilt_correction_rad: f64,
     /// Angle between the last magnetic heading and the estimate (rad).
     pub heading_error_rad: f64,
+    /// Times the tilt was taken from a steady accelerometer at once (`recovery.rs`).
+    pub tilt_resets: u64,
+    /// The last tilt reset's size (rad).
+    pub last_tilt_reset_rad: f64,
+    /// Times the heading was taken from a clean magnetometer at once.
+    pub heading_resets: u64,
+    /// The last heading reset's size (rad, signed).
+    pub last_heading_reset_rad: f64,
 }
 
 /// The filter.
@@ -116,9 +125,13 @@ pub struct TiltHeadingFilter {
     vel_accel_lp: LowPass,
     last_vel: Option<Vector3<f64>>,
     rest: RestDetector,
+    /// The tilt's recovery from errors made faster than the low-pass fades them.
+    recovery: TiltRecovery,
     hard_iron: HardIronEstimator,
     /// Time since the last magnetometer sample (s).
     since_mag_s: f64,
+    /// Time left in which the heading may be reset (s): the gyro may have missed a turn.
+    unseen_turn_s: f64,
     /// Time since the tilt started (s).
     running_s: f64,
     /// The first rest has set the bias and restarted the tilt and heading.
@@ -129,6 +142,16 @@ pub struct TiltHeadingFilter {
 /// The gyro bias is known well enough to take off once its standard deviation is below this
 /// (rad/s): 0.1°/s, a tilt lag of 0.3° through the 3 s accelerometer low-pass.
 pub const BIAS_SETTLED_RAD_S: f64 = 0.1 * std::f64::consts::PI / 180.0;
+
+/// A clean field's heading this far from the estimate for a second resets it, disarmed and armed
+/// (rad), within [`UNSEEN_TURN_S`] of a sign that the gyro missed a turn.
+const HEADING_RESET_RAD: f64 = 5.0 * std::f64::consts::PI / 180.0;
+const HEADING_RESET_ARMED_RAD: f64 = 30.0 * std::f64::consts::PI / 180.0;
+/// How long after a tilt reset or a rate at the gyro's range the heading may be reset (s).
+const UNSEEN_TURN_S: f64 = 10.0;
+/// A rate this high is at the range of a MEMS gyro (2000°/s) or beyond it: the gyro may have
+/// saturated, and the turn it missed is in the heading too (rad/s).
+const GYRO_RANGE_RAD_S: f64 = 30.0;
 
 impl TiltHeadingFilter {
     /// A filter that starts from its first samples (no rest needed).
@@ -146,8 +169,10 @@ impl TiltHeadingFilter {
                 max_bias_rad_s: settings.bias_limit_rad_s,
                 ..RestThresholds::default()
             }),
+            recovery: TiltRecovery::default(),
             hard_iron: HardIronEstimator::new(settings.hard_iron),
             since_mag_s: 0.0,
+            unseen_turn_s: 0.0,
             running_s: 0.0,
             rest_aligned: false,
             status: TiltHeadingStatus::default(),
@@ -186,6 +211,7 @@ impl TiltHeadingFilter {
         self.accel_lp.clear();
         self.vel_accel_lp.clear();
         self.last_vel = None;
+        self.recovery.clear();
         self.bias.restart_tilt();
         self.running_s = 0.0;
     }
@@ -227,6 +253,8 @@ impl TiltHeadingFilter {
             hard_iron_fits: self.hard_iron.accepted(),
             mag_disturbed: self.heading.disturbed_samples(),
             mag_new_reference: self.heading.new_references(),
+            heading_resets: self.heading.resets().0,
+            last_heading_reset_rad: self.heading.resets().1,
             ..self.status
         }
     }
@@ -253,6 +281,11 @@ impl TiltHeadingFilter {
         // Gyro: Castillo (101), (104).
         let bias = self.bias.bias();
         self.q_gyro = quat::propagate(&self.q_gyro, &(gyro - bias), dt);
+        self.unseen_turn_s = if gyro.norm() >= GYRO_RANGE_RAD_S {
+            UNSEEN_TURN_S
+        } else {
+            (self.unseen_turn_s - dt).max(0.0)
+        };
         self.bias.predict(dt);
 
         // Bias at rest: the mean rate. Armed, the vehicle is never at rest: a hover sways slowly
@@ -280,21 +313,42 @@ impl TiltHeadingFilter {
         // low-passed the same way, turned to the vertical. That acceleration is the velocity's
         // difference over the step (LP(Δv/Δt) = d/dt LP(v)): it needs no attitude, so the
         // correction does not chase its own estimate (an acceleration made from R̂f would).
-        let accel_lp = match vel_ned {
-            Some(vel) => {
-                let a = self
-                    .last_vel
-                    .map_or(Vector3::zeros(), |last| (vel - last) / dt);
-                self.last_vel = Some(*vel);
-                self.vel_accel_lp.update(&a, dt)
-            }
+        let known_accel = vel_ned.map(|vel| {
+            let a = self
+                .last_vel
+                .map_or(Vector3::zeros(), |last| (vel - last) / dt);
+            self.last_vel = Some(*vel);
+            a
+        });
+        let accel_lp = match known_accel {
+            Some(a) => self.vel_accel_lp.update(&a, dt),
             None => {
                 self.vel_accel_lp.clear();
                 self.last_vel = None;
                 Vector3::zeros()
             }
         };
-        let lp = self.accel_lp.update(&(self.q_gyro * accel), dt);
+        let f = self.q_gyro * accel;
+        self.recovery
+            .update(&f, known_accel.as_ref(), &(gyro - bias), dt);
+        let mut lp = self.accel_lp.update(&f, dt);
+        let mut accel_lp = accel_lp;
+        // An error made faster than the low-pass fades it (`recovery.rs`): the low-passes start
+        // again at the steady accelerometer's values, so the tilt is its at once.
+        let reset = self
+            .recovery
+            .check(&self.q_tilt, &self.heading.rotation(), armed);
+        if let Some(r) = reset {
+            self.accel_lp.reset_to(r.specific_force);
+            lp = r.specific_force;
+            if known_accel.is_some() {
+                self.vel_accel_lp.reset_to(r.accel_ned);
+                accel_lp = r.accel_ned;
+            }
+            self.status.tilt_resets += 1;
+            self.status.last_tilt_reset_rad = r.error_rad;
+            self.unseen_turn_s = UNSEEN_TURN_S;
+        }
         let v = self.q_tilt * lp - self.heading.rotation().inverse() * accel_lp;
         let up = Vector3::new(0.0, 0.0, -1.0);
         // The shortest turn of the low-passed vector to the vertical: about a horizontal axis.
@@ -307,12 +361,18 @@ impl TiltHeadingFilter {
         }
         // The level frame (tilt corrected, heading unknown) from the body.
         let level_from_body = self.q_tilt * self.q_gyro;
-        self.bias.tilt(
-            &level_from_body.to_rotation_matrix(),
-            correction.map(|c| c.scaled_axis()).as_ref(),
-            moving,
-            dt,
-        );
+        if reset.is_some() {
+            // Not a drift of the bias: its model starts again from here.
+            self.bias
+                .restart_tilt_at(&level_from_body.to_rotation_matrix());
+        } else {
+            self.bias.tilt(
+                &level_from_body.to_rotation_matrix(),
+                correction.map(|c| c.scaled_axis()).as_ref(),
+                moving,
+                dt,
+            );
+        }
 
         // Heading: the horizontal field only.
         self.since_mag_s += dt;
@@ -324,10 +384,23 @@ impl TiltHeadingFilter {
             } else {
                 *m
             };
+            // A wrong heading is reset from a clean field, when the gyro may have missed a turn
+            // (a tilt reset, a rate at its range): beyond 5° disarmed, 30° armed (a soft-iron
+            // error turns the field by a few degrees as the vehicle tilts). Otherwise a field
+            // far from the heading is more likely a magnet than a heading error: crept towards.
+            self.heading
+                .set_reset_limit(match (self.unseen_turn_s > 0.0, armed) {
+                    (false, _) => std::f64::consts::PI,
+                    (true, false) => HEADING_RESET_RAD,
+                    (true, true) => HEADING_RESET_ARMED_RAD,
+                });
+            let resets = self.heading.resets().0;
             if let Some(step) = self.heading.update(&(level_from_body * m), dt) {
                 self.status.heading_error_rad = self.heading.last_error();
-                let k = self.heading.last_gain();
-                self.bias.heading(step, k, moving, dt);
+                if self.heading.resets().0 == resets {
+                    let k = self.heading.last_gain();
+                    self.bias.heading(step, k, moving, dt);
+                }
             }
         }
     }

@@ -70,7 +70,7 @@ pub struct GpsMeasurement {
 }
 
 /// The estimate.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct TranslationEstimate {
     /// Position NED relative to the origin (m).
     pub pos_ned_m: Vector3<f64>,

@@ -432,6 +432,56 @@ fn a_motor_failure_is_said_once_with_how_the_vehicle_flies_on() {
     }
 }
 
+/// A reset of the attitude estimate is said once per reset, with its size; the counts starting
+/// again (a restarted sensor source) say the next one again.
+#[test]
+fn an_attitude_estimate_reset_is_said_once() {
+    use flight_core::core::StepOutput;
+    use flight_core::estimator::attitude::{AttitudeEstimate, EstimateReset};
+    let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
+    let mut t = telemetry(false, FlightMode::Loiter);
+    let estimate = |reset| AttitudeEstimate {
+        q: nalgebra::UnitQuaternion::identity(),
+        rate: nalgebra::Vector3::zeros(),
+        gyro_bias: nalgebra::Vector3::zeros(),
+        valid: true,
+        bias_settled: true,
+        reset,
+    };
+    let mut out = Outbox::default();
+    let mut at = |g: &mut GroundStation, t: &mut Telemetry, s: f64, reset| {
+        t.output = Some(StepOutput {
+            attitude: Some(estimate(reset)),
+            ..Default::default()
+        });
+        g.poll(s, t, &mut out);
+        statustexts(&out)
+    };
+    assert!(at(&mut g, &mut t, 0.0, EstimateReset::default()).is_empty());
+    let tilt = EstimateReset {
+        tilt: 1,
+        tilt_rad: 23f64.to_radians(),
+        ..Default::default()
+    };
+    at(&mut g, &mut t, 0.1, tilt);
+    let heading = EstimateReset {
+        heading: 1,
+        heading_rad: -120f64.to_radians(),
+        ..tilt
+    };
+    at(&mut g, &mut t, 0.2, heading);
+    at(&mut g, &mut t, 0.3, EstimateReset::default());
+    let said = at(&mut g, &mut t, 0.4, tilt);
+    assert_eq!(
+        said,
+        [
+            "attitude estimate reset: tilt was 23 deg off",
+            "attitude estimate reset: heading was -120 deg off",
+            "attitude estimate reset: tilt was 23 deg off",
+        ]
+    );
+}
+
 /// `SYS_STATUS` health bits follow the checks (a lost magnetometer clears the magnetometer's bit,
 /// a critical battery the battery's, a motor failure the motor outputs'), the pre-arm bit the
 /// arming checks; the battery estimate reaches `SYS_STATUS` and `BATTERY_STATUS`.
