@@ -129,6 +129,14 @@ impl Flight {
         Line::new(from, to, speed, p.accel_m_s2).with_jerk(p.jerk_m_s3)
     }
 
+    /// The take-off's climb (and the Return's) straight up from `from` to `down` (NED, m): at
+    /// `MPC_TKO_SPEED`, reached over `MPC_TKO_RAMP_T`, jerk-limited.
+    pub(super) fn climb(&self, from: Vector3<f64>, down: f64) -> Line {
+        let p = self.params;
+        let to = Vector3::new(from.x, from.y, down);
+        Line::new(from, to, p.takeoff_speed_m_s, p.takeoff_accel_m_s2()).with_jerk(p.jerk_m_s3)
+    }
+
     /// The heading of automatic flight, turned towards `goal` (or the `CONDITION_YAW` goal) at
     /// most at `MPC_YAWRAUTO_MAX` (or the command's rate).
     pub(super) fn slew_yaw(&mut self, goal: Option<f64>, i: &CommanderInput, dt: f64) -> f64 {

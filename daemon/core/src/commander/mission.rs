@@ -239,15 +239,7 @@ impl MissionFlight {
                 _ => home.z - p.takeoff_alt_m,
             };
             let from = Vector3::new(i.pos_ned_m.x, i.pos_ned_m.y, home.z);
-            self.line = Some(
-                Line::new(
-                    from,
-                    Vector3::new(from.x, from.y, down),
-                    p.takeoff_speed_m_s,
-                    p.takeoff_accel_m_s2(),
-                )
-                .with_jerk(p.jerk_m_s3),
-            );
+            self.line = Some(f.climb(from, down));
             f.landed = LandedState::Takeoff;
             return Some(Stage::Takeoff);
         }

@@ -49,11 +49,7 @@ impl Rtl {
             match self.stage {
                 RtlStage::Climb => {
                     let up_to = (home.z - p.rtl_return_alt_m).min(i.pos_ned_m.z);
-                    let line = self.line.get_or_insert_with(|| {
-                        let to = Vector3::new(i.pos_ned_m.x, i.pos_ned_m.y, up_to);
-                        Line::new(i.pos_ned_m, to, p.takeoff_speed_m_s, p.takeoff_accel_m_s2())
-                            .with_jerk(p.jerk_m_s3)
-                    });
+                    let line = self.line.get_or_insert_with(|| f.climb(i.pos_ned_m, up_to));
                     let (sp, arrived) = line.step(dt, yaw);
                     if !arrived {
                         return sp;

@@ -60,15 +60,7 @@ impl FlightTask for Takeoff {
                     i.pos_ned_m
                 };
                 f.landed = LandedState::Takeoff;
-                self.line.insert(
-                    Line::new(
-                        from,
-                        Vector3::new(from.x, from.y, target_down),
-                        p.takeoff_speed_m_s,
-                        p.takeoff_accel_m_s2(),
-                    )
-                    .with_jerk(p.jerk_m_s3),
-                )
+                self.line.insert(f.climb(from, target_down))
             }
         };
         let (sp, arrived) = line.step(t.dt, t.yaw);
