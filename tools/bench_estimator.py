@@ -14,8 +14,12 @@ inclination RMSE per trial and the means.
 Then the replay of a log that does not start at rest: every trial is cut at 20, 40, 60 and 80 %
 of its motion and replayed from there (the tilt/heading filter, and VQF on the same cut), and the
 time each takes to converge is measured against the truth: until the inclination error stays
-within 2° (and the total error within 5°) for 5 s. --json writes the figures for tests. Needs
-numpy and vqf (tests/requirements.txt).
+within 2° (and the total error within 5°) for 5 s.
+
+Then the recovery from a large error at rest: 5 s into each trial's last rest, one gyro sample
+turns the estimate by 10°, 45°, 90° or 179° (a gyro that saturated or glitched), and the time
+until the errors stay within the same limits is measured, for both. --json writes the figures
+for tests. Needs numpy and vqf (tests/requirements.txt).
 """
 import argparse
 import concurrent.futures
@@ -114,6 +118,49 @@ def convergence(autopilot, params, trial_csv, tmp):
     return out
 
 
+# The glitches at rest (deg), about one axis off every body axis.
+GLITCHES_DEG = (10.0, 45.0, 90.0, 179.0)
+GLITCH_AXIS = np.array([1.0, 0.5, 0.2]) / np.linalg.norm([1.0, 0.5, 0.2])
+
+
+def glitch_recovery(autopilot, params, trial_csv, tmp):
+    """Recovery times (s) from a gyro glitch 5 s into the trial's last rest, by glitch size:
+    {who: {deg: {"inclination": s, "total": s}}}."""
+    with open(trial_csv) as f:
+        header, *lines = f.read().splitlines()
+    d = np.genfromtxt(trial_csv, delimiter=",", names=True)
+    quat = lambda x: np.stack([x[k] for k in ("qw", "qx", "qy", "qz")], 1)
+    moving = np.flatnonzero(d["movement"] == 1)
+    g = moving[-1] + 1 + int(5.0 / float(np.median(np.diff(d["t"]))))
+    cols = header.split(",")
+    gyro = [cols.index(c) for c in ("gx", "gy", "gz")]
+    truth = quat(d)[g:]
+    known = np.isfinite(truth[:, 0])
+    out = {who: {} for who in ("tilt_heading", "vqf")}
+    for deg in GLITCHES_DEG:
+        row = lines[g].split(",")
+        turn = GLITCH_AXIS * math.radians(deg) / (d["t"][g] - d["t"][g - 1])
+        for k, c in enumerate(gyro):
+            row[c] = f"{float(row[c]) + float(turn[k]):.9g}"
+        glitched = os.path.join(tmp, "glitched.csv")
+        with open(glitched, "w") as f:
+            f.write("\n".join([header] + lines[:g] + [",".join(row)] + lines[g + 1:]) + "\n")
+        for who in out:
+            est_csv = os.path.join(tmp, f"glitched_{who}.csv")
+            if who == "vqf":
+                run_vqf(glitched, est_csv)
+            else:
+                subprocess.run([autopilot, "replay", "--input", glitched, "--output", est_csv,
+                                "--params", params], check=True)
+            e = np.genfromtxt(est_csv, delimiter=",", names=True)
+            after = e["t"] >= d["t"][g]
+            errors = {k: np.degrees(v) for k, v in
+                      broad_score.error_angles(quat(e)[after][known], truth[known]).items()}
+            out[who][deg] = {k: settling_time(e["t"][after][known], errors[k], limit)
+                             for k, limit in CONVERGED.items()}
+    return out
+
+
 def score(trial_gz, est_csv):
     r = broad_score.score(trial_gz, est_csv)
     return {k: r[k + "_rmse_deg"] for k in ("total", "heading", "inclination")}
@@ -139,6 +186,7 @@ def bench_trial(job):
     run_vqf(trial, os.path.join(tmp, "vqf.csv"))
     row["vqf"] = score(trial_gz, os.path.join(tmp, "vqf.csv"))
     row["convergence_s"] = convergence(autopilot, params["tilt_heading"], trial, tmp)
+    row["glitch_s"] = glitch_recovery(autopilot, params["tilt_heading"], trial, tmp)
     os.remove(trial)
     return row
 
@@ -210,9 +258,21 @@ def main():
         cells = [f"{summary[who][k]['median']:.1f} / {summary[who][k]['p75']:.1f} / "
                  f"{summary[who][k]['max']:.1f}" for k in CONVERGED]
         print(f"| {name} | " + " | ".join(cells) + " |")
+    glitch = {who: {deg: {k: [r["glitch_s"][who][deg][k] for r in rows] for k in CONVERGED}
+                    for deg in GLITCHES_DEG} for who in ("tilt_heading", "vqf")}
+    print(f"\nA gyro glitch 5 s into each trial's last rest ({len(rows)} trials): seconds until "
+          f"the inclination error stays within {CONVERGED['inclination']:.0f}° and the total "
+          f"within {CONVERGED['total']:.0f}° for {HOLD_S:.0f} s; median / largest")
+    print("| glitch | tilt/heading (1): inclination | total | VQF: inclination | total |")
+    print("|---|---:|---:|---:|---:|")
+    for deg in GLITCHES_DEG:
+        cells = [f"{np.median(v):.1f} / {np.max(v):.1f}"
+                 for who in ("tilt_heading", "vqf") for v in glitch[who][deg].values()]
+        print(f"| {deg:.0f}° | " + " | ".join(cells) + " |")
     if a.json:
         with open(a.json, "w") as f:
-            json.dump({"trials": rows, "mean": mean, "convergence_s": summary}, f, indent=1)
+            json.dump({"trials": rows, "mean": mean, "convergence_s": summary,
+                       "glitch_s": glitch}, f, indent=1)
 
 
 if __name__ == "__main__":

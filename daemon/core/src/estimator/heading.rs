@@ -93,8 +93,10 @@ pub struct HeadingCorrector {
     last_gain: f64,
     /// A clean field's heading this far from the estimate for [`RESET_AFTER_S`] resets it (rad).
     reset_limit: f64,
-    /// How long the clean field has been that far (s).
+    /// How long the clean field has been that far (s), and the error low-passed over
+    /// [`RESET_AFTER_S`] / 3 (rad): one sample's noise is several degrees.
     far_s: f64,
+    error_lp: f64,
     resets: u64,
     last_reset: f64,
 }
@@ -126,6 +128,7 @@ impl HeadingCorrector {
             last_gain: 0.0,
             reset_limit: std::f64::consts::PI,
             far_s: 0.0,
+            error_lp: 0.0,
             resets: 0,
             last_reset: 0.0,
         }
@@ -253,17 +256,19 @@ impl HeadingCorrector {
             reference.approach(&shape, (dt / s.reference_tau_s).min(1.0));
             // A clean field far from the heading for a second: the heading was wrong (a gyro
             // that saturated, a tilt reset), not the field. Taken at once, not crept towards.
-            self.far_s = if error.abs() > self.reset_limit {
+            self.error_lp += wrap(error - self.error_lp) * (3.0 * dt / RESET_AFTER_S).min(1.0);
+            self.far_s = if self.error_lp.abs() > self.reset_limit {
                 self.far_s + dt
             } else {
                 0.0
             };
             if self.far_s >= RESET_AFTER_S && self.samples > 0.0 {
-                self.far_s = 0.0;
+                let step = self.error_lp;
+                (self.far_s, self.error_lp) = (0.0, 0.0);
                 self.resets += 1;
-                self.last_reset = error;
-                self.delta = target;
-                return Some(error);
+                self.last_reset = step;
+                self.delta = wrap(self.delta + step);
+                return Some(step);
             }
         }
         self.samples += 1.0;

@@ -145,7 +145,7 @@ pub const BIAS_SETTLED_RAD_S: f64 = 0.1 * std::f64::consts::PI / 180.0;
 
 /// A clean field's heading this far from the estimate for a second resets it, disarmed and armed
 /// (rad), within [`UNSEEN_TURN_S`] of a sign that the gyro missed a turn.
-const HEADING_RESET_RAD: f64 = 5.0 * std::f64::consts::PI / 180.0;
+const HEADING_RESET_RAD: f64 = 2.5 * std::f64::consts::PI / 180.0;
 const HEADING_RESET_ARMED_RAD: f64 = 30.0 * std::f64::consts::PI / 180.0;
 /// How long after a tilt reset or a rate at the gyro's range the heading may be reset (s).
 const UNSEEN_TURN_S: f64 = 10.0;
