@@ -255,6 +255,8 @@ pub struct GroundStation {
     /// The mission progress last shown (current item, state, items reached).
     mission_shown: Option<(u16, flight_core::mission::MissionState)>,
     reached_shown: u32,
+    /// The sample time (s) of the IMU message last streamed, by link and message.
+    imu_sent: Vec<((LinkId, u32), f64)>,
     /// When MISSION_CURRENT is next due (s).
     mission_current_next_s: f64,
     /// What has been said of the calibrations.
@@ -292,6 +294,7 @@ impl GroundStation {
             missions: mission::Missions::default(),
             mission_shown: None,
             reached_shown: 0,
+            imu_sent: Vec::new(),
             mission_current_next_s: 0.0,
             cal_said: Default::default(),
             reboot_allowed: true,
@@ -448,6 +451,16 @@ impl GroundStation {
             }
         }
         for (link, id) in self.rates.due(now_s) {
+            if [HIGHRES_IMU_DATA::ID, SCALED_IMU_DATA::ID].contains(&id) {
+                // One IMU sample per message, as PX4 sends them on new data: a slot that comes
+                // before the next sample (a vehicle slower than the wall clock) is skipped.
+                let sent = &mut self.imu_sent;
+                match sent.iter_mut().find(|s| s.0 == (link, id)) {
+                    Some(s) if s.1 == t.t_s => continue,
+                    Some(s) => s.1 = t.t_s,
+                    None => sent.push(((link, id), t.t_s)),
+                }
+            }
             let m = if id == HEARTBEAT_DATA::ID {
                 Some(streams::heartbeat(t, self.mav_type))
             } else {

@@ -199,6 +199,56 @@ fn heartbeats_show_px4_modes_and_follow_a_change_at_once() {
     assert_eq!(hb[0].system_status, MavState::MAV_STATE_ACTIVE);
 }
 
+/// An IMU stream faster than the samples come (a vehicle slower than the wall clock) sends each
+/// sample once, not the last one again.
+#[test]
+fn an_imu_stream_sends_each_sample_once() {
+    let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
+    let mut t = telemetry(false, FlightMode::Loiter);
+    t.sample = Some(flight_core::core::SensorSample::imu(
+        nalgebra::Vector3::zeros(),
+        nalgebra::Vector3::new(0.0, 0.0, -9.81),
+    ));
+    // Polled at 250 Hz; a new sample at every poll (`every` 1) or every other one (2).
+    let run = |g: &mut GroundStation, t: &mut Telemetry, polls: u64, every: u64| {
+        let mut sent = Vec::new();
+        for _ in 0..polls {
+            let k = t.frames + 1;
+            if k.is_multiple_of(every) {
+                t.t_s += 0.004 * every as f64;
+                if let Some(s) = t.sample.as_mut() {
+                    s.t_usec = (t.t_s * 1e6) as u64;
+                }
+            }
+            t.frames = k;
+            let mut out = Outbox::default();
+            g.poll(k as f64 * 0.004, t, &mut out);
+            for (_, m) in &out.streamed {
+                if let Outgoing::Message(MavMessage::HIGHRES_IMU(m)) = m {
+                    sent.push(m.time_usec);
+                }
+            }
+        }
+        sent
+    };
+    // The sample rate is measured first (a sensor stream may go up to it).
+    run(&mut g, &mut t, 250, 1);
+    let mut out = Outbox::default();
+    let set = command_long(
+        MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
+        [HIGHRES_IMU_DATA::ID as f32, 4_000.0, 0., 0., 0., 0., 0.],
+        (1, 1),
+    );
+    g.on_message(&gcs_header(), &set, &t, &mut out);
+    assert_eq!(acks(&out)[0].result, MavResult::MAV_RESULT_ACCEPTED);
+    // Then the samples slow to half the stream's rate (a loaded machine).
+    let sent = run(&mut g, &mut t, 500, 2);
+    let mut distinct = sent.clone();
+    distinct.dedup();
+    assert!(sent.len() >= 240, "{}", sent.len());
+    assert_eq!(distinct.len(), sent.len(), "a sample sent twice");
+}
+
 #[test]
 fn streams_run_at_their_rates_and_can_be_changed_or_stopped_on_one_link_only() {
     let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
