@@ -18,8 +18,12 @@ within 2° (and the total error within 5°) for 5 s.
 
 Then the recovery from a large error at rest: 5 s into each trial's last rest, one gyro sample
 turns the estimate by 10°, 45°, 90° or 179° (a gyro that saturated or glitched), and the time
-until the errors stay within the same limits is measured, for both. --json writes the figures
-for tests. Needs numpy and vqf (tests/requirements.txt).
+until the errors stay within the same limits is measured, for both.
+
+And without the magnetometer: every trial replayed with its field removed, VQF's 6-axis
+estimate beside, the heading's drift scored against the truth after taking out the offset of its
+first second (with no heading reference the start is arbitrary), and the inclination as before.
+--json writes the figures for tests. Needs numpy and vqf (tests/requirements.txt).
 """
 import argparse
 import concurrent.futures
@@ -161,6 +165,57 @@ def glitch_recovery(autopilot, params, trial_csv, tmp):
     return out
 
 
+def no_magnetometer(autopilot, params, trial_csv, tmp):
+    """The trial without its magnetometer, ours and VQF's 6-axis estimate: {who: {"drift_deg":
+    the heading error at the end, "heading_rms_deg", "inclination_rms_deg"}}, the heading's
+    offset over the first second taken out."""
+    with open(trial_csv) as f:
+        header, *lines = f.read().splitlines()
+    cols = header.split(",")
+    mag = [cols.index(c) for c in ("mx", "my", "mz")]
+    blind = os.path.join(tmp, "no_mag.csv")
+    with open(blind, "w") as f:
+        f.write(header + "\n")
+        for line in lines:
+            row = line.split(",")
+            for c in mag:
+                row[c] = "nan"
+            f.write(",".join(row) + "\n")
+    d = np.genfromtxt(trial_csv, delimiter=",", names=True)
+    quat = lambda x: np.stack([x[k] for k in ("qw", "qx", "qy", "qz")], 1)
+    truth = quat(d)
+    known = np.isfinite(truth[:, 0])
+    t = d["t"][known]
+    out = {}
+    for who in ("tilt_heading", "vqf"):
+        est_csv = os.path.join(tmp, f"no_mag_{who}.csv")
+        if who == "vqf":
+            v = VQF(float(np.median(np.diff(d["t"]))))
+            col = lambda *k: np.ascontiguousarray(np.stack([d[c] for c in k], 1))
+            q = quat_mul(NED_FROM_ENU, v.updateBatch(col("gx", "gy", "gz"),
+                                                     col("ax", "ay", "az"))["quat6D"])
+        else:
+            subprocess.run([autopilot, "replay", "--input", blind, "--output", est_csv,
+                            "--params", params], check=True)
+            q = quat(np.genfromtxt(est_csv, delimiter=",", names=True))
+        a, b = q[known], truth[known]
+        # The signed heading error: the z part of a ⊗ b⁻¹ over its scalar part.
+        w = np.sum(a * b, 1)
+        z = -a[:, 0] * b[:, 3] + a[:, 3] * b[:, 0] - a[:, 1] * b[:, 2] + a[:, 2] * b[:, 1]
+        heading = np.degrees(2 * np.arctan(z / w))
+        # From the estimate's first sample (ours waits for its alignment, a second at rest).
+        ok = np.isfinite(heading) & (t >= t[np.isfinite(heading)][0])
+        heading, tt = heading[ok], t[ok]
+        heading -= np.mean(heading[tt < tt[0] + 1.0])
+        heading = (heading + 180.0) % 360.0 - 180.0
+        moving = (d["movement"][known] == 1) & ok
+        incl = np.degrees(broad_score.error_angles(a[moving], b[moving])["inclination"])
+        out[who] = {"drift_deg": float(np.mean(heading[tt > tt[-1] - 1.0])),
+                    "heading_rms_deg": float(np.sqrt(np.mean(heading ** 2))),
+                    "inclination_rms_deg": float(np.sqrt(np.mean(incl ** 2)))}
+    return out
+
+
 def score(trial_gz, est_csv):
     r = broad_score.score(trial_gz, est_csv)
     return {k: r[k + "_rmse_deg"] for k in ("total", "heading", "inclination")}
@@ -187,6 +242,7 @@ def bench_trial(job):
     row["vqf"] = score(trial_gz, os.path.join(tmp, "vqf.csv"))
     row["convergence_s"] = convergence(autopilot, params["tilt_heading"], trial, tmp)
     row["glitch_s"] = glitch_recovery(autopilot, params["tilt_heading"], trial, tmp)
+    row["no_mag"] = no_magnetometer(autopilot, params["tilt_heading"], trial, tmp)
     os.remove(trial)
     return row
 
@@ -269,10 +325,23 @@ def main():
         cells = [f"{np.median(v):.1f} / {np.max(v):.1f}"
                  for who in ("tilt_heading", "vqf") for v in glitch[who][deg].values()]
         print(f"| {deg:.0f}° | " + " | ".join(cells) + " |")
+    print(f"\nWithout the magnetometer ({len(rows)} trials; the heading's first-second offset "
+          "taken out): heading drift at the end, heading RMS, inclination RMS (deg); mean of |drift|")
+    print("| trial | tilt/heading (1) | VQF 6-axis |")
+    print("|---|---:|---:|")
+    cell = lambda e: (f"{e['drift_deg']:+.1f} / {e['heading_rms_deg']:.1f} / "
+                      f"{e['inclination_rms_deg']:.2f}")
+    for r in rows:
+        print(f"| {r['trial']} | " + " | ".join(cell(r["no_mag"][w])
+                                                for w in ("tilt_heading", "vqf")) + " |")
+    no_mag = {who: {k: float(np.mean([abs(r["no_mag"][who][k]) for r in rows]))
+                    for k in ("drift_deg", "heading_rms_deg", "inclination_rms_deg")}
+              for who in ("tilt_heading", "vqf")}
+    print("| **mean** | " + " | ".join(cell(no_mag[w]) for w in ("tilt_heading", "vqf")) + " |")
     if a.json:
         with open(a.json, "w") as f:
             json.dump({"trials": rows, "mean": mean, "convergence_s": summary,
-                       "glitch_s": glitch}, f, indent=1)
+                       "glitch_s": glitch, "no_mag": no_mag}, f, indent=1)
 
 
 if __name__ == "__main__":

@@ -151,6 +151,9 @@ pub struct AttitudeStatus {
 /// alone, against the magnetic field the estimate itself predicts, so the heading is the gyro's.
 pub const MAG_SILENT_S: f64 = 0.2;
 
+/// No magnetometer sample at all this long (s): the tilt/heading filter aligns without one.
+pub const MAG_ABSENT_S: f64 = 1.0;
+
 /// Smallest and largest time step accepted (s); outside, the step is clamped and counted.
 pub const DT_RANGE_S: (f64, f64) = (1.25e-4, 0.02);
 
@@ -472,9 +475,11 @@ impl AttitudeEstimator {
         let fs = filter.status();
         self.status.innovation_rad = fs.tilt_correction_rad;
         self.status.tilt_heading = fs;
+        // Aligned once the heading is known, or at once without a magnetometer at all (the
+        // heading then starts where the gyro does: VQF's 6-axis estimate).
         if !self.status.aligned
             && self.status.samples >= u64::from(self.params.align_samples)
-            && filter.heading_known()
+            && (filter.heading_known() || self.since_mag_s > MAG_ABSENT_S)
         {
             self.status.aligned = true;
         }

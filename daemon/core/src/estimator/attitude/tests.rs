@@ -597,3 +597,32 @@ fn the_first_rest_takes_the_bias_and_restarts_tilt_and_heading() {
         assert!(heading <= tilt * inclination.tan() + 0.2f64.to_radians());
     }
 }
+
+/// A vehicle with no magnetometer at all aligns after a second without one: its tilt from the
+/// accelerometer, its heading where the gyro starts it.
+#[test]
+fn without_any_magnetometer_the_tilt_heading_filter_aligns() {
+    let mut est = AttitudeEstimator::new(&crate::params::AttitudeParams::default());
+    let tilted = UnitQuaternion::from_euler_angles(0.2, -0.1, 0.0);
+    let accel = tilted.inverse_transform_vector(&Vector3::new(0.0, 0.0, -crate::GRAVITY_M_S2));
+    let mut last = None;
+    for _ in 0..(3.0 / 0.004) as usize {
+        let input = AttitudeInput {
+            gyro: Vector3::zeros(),
+            accel,
+            mag: None,
+            accel_ned_hint: None,
+            vel_ned_hint: None,
+            thrust_fraction: 0.0,
+            armed: false,
+        };
+        last = est.update(&input, 0.004);
+    }
+    let e = last.expect("aligned without a magnetometer");
+    assert!(e.valid);
+    let (roll, pitch, _) = e.q.euler_angles();
+    assert!(
+        (roll - 0.2).abs() < 0.01 && (pitch + 0.1).abs() < 0.01,
+        "{roll} {pitch}"
+    );
+}
