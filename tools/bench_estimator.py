@@ -75,6 +75,16 @@ def run_vqf(trial_csv, out_csv):
                comments="", fmt="%.9f")
 
 
+def estimate(who, autopilot, params, trial_csv, est_csv):
+    """The estimate of `who` (the tilt/heading filter or VQF) over the trial: its CSV's columns."""
+    if who == "vqf":
+        run_vqf(trial_csv, est_csv)
+    else:
+        subprocess.run([autopilot, "replay", "--input", trial_csv, "--output", est_csv,
+                        "--params", params], check=True)
+    return np.genfromtxt(est_csv, delimiter=",", names=True)
+
+
 # Where the convergence runs cut the motion, and what converged means (deg, and for how long).
 CUTS = (0.2, 0.4, 0.6, 0.8)
 CONVERGED = {"inclination": 2.0, "total": 5.0}
@@ -108,13 +118,7 @@ def convergence(autopilot, params, trial_csv, tmp):
         truth = quat(d)[cut:]
         known = np.isfinite(truth[:, 0])
         for who in out:
-            est_csv = os.path.join(tmp, f"cut_{who}.csv")
-            if who == "vqf":
-                run_vqf(cut_csv, est_csv)
-            else:
-                subprocess.run([autopilot, "replay", "--input", cut_csv, "--output", est_csv,
-                                "--params", params], check=True)
-            e = np.genfromtxt(est_csv, delimiter=",", names=True)
+            e = estimate(who, autopilot, params, cut_csv, os.path.join(tmp, f"cut_{who}.csv"))
             errors = {k: np.degrees(v) for k, v in
                       broad_score.error_angles(quat(e)[known], truth[known]).items()}
             for k, limit in CONVERGED.items():
@@ -150,13 +154,8 @@ def glitch_recovery(autopilot, params, trial_csv, tmp):
         with open(glitched, "w") as f:
             f.write("\n".join([header] + lines[:g] + [",".join(row)] + lines[g + 1:]) + "\n")
         for who in out:
-            est_csv = os.path.join(tmp, f"glitched_{who}.csv")
-            if who == "vqf":
-                run_vqf(glitched, est_csv)
-            else:
-                subprocess.run([autopilot, "replay", "--input", glitched, "--output", est_csv,
-                                "--params", params], check=True)
-            e = np.genfromtxt(est_csv, delimiter=",", names=True)
+            e = estimate(who, autopilot, params, glitched,
+                         os.path.join(tmp, f"glitched_{who}.csv"))
             after = e["t"] >= d["t"][g]
             errors = {k: np.degrees(v) for k, v in
                       broad_score.error_angles(quat(e)[after][known], truth[known]).items()}
