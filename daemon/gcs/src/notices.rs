@@ -91,28 +91,28 @@ impl Notices {
         let Some(r) = t.output.and_then(|o| o.attitude).map(|a| a.reset) else {
             return;
         };
-        // The counts start again with the vehicle (a sensor source that restarted).
-        self.tilt_resets = self.tilt_resets.min(r.tilt);
-        self.heading_resets = self.heading_resets.min(r.heading);
-        if r.tilt > self.tilt_resets {
-            self.tilt_resets = r.tilt;
-            out.say(
-                MavSeverity::MAV_SEVERITY_WARNING,
-                &format!(
-                    "attitude estimate reset: tilt was {:.0} deg off",
-                    r.tilt_rad.to_degrees()
-                ),
-            );
-        }
-        if r.heading > self.heading_resets {
-            self.heading_resets = r.heading;
-            out.say(
-                MavSeverity::MAV_SEVERITY_WARNING,
-                &format!(
-                    "attitude estimate reset: heading was {:.0} deg off",
-                    r.heading_rad.to_degrees()
-                ),
-            );
+        let kinds = [
+            ("tilt", r.tilt, r.tilt_rad, &mut self.tilt_resets),
+            (
+                "heading",
+                r.heading,
+                r.heading_rad,
+                &mut self.heading_resets,
+            ),
+        ];
+        for (what, count, size_rad, said) in kinds {
+            // The counts start again with the vehicle (a sensor source that restarted).
+            *said = (*said).min(count);
+            if count > *said {
+                *said = count;
+                out.say(
+                    MavSeverity::MAV_SEVERITY_WARNING,
+                    &format!(
+                        "attitude estimate reset: {what} was {:.0} deg off",
+                        size_rad.to_degrees()
+                    ),
+                );
+            }
         }
     }
 }

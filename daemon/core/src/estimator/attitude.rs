@@ -8,6 +8,7 @@
 //! rejection of degenerate vectors, and counters for all of it.
 
 use super::observer::AttitudeObserver;
+pub use super::tilt_heading::EstimateReset;
 use super::tilt_heading::{TiltHeadingFilter, TiltHeadingStatus};
 use super::wahba::{ObservationError, VectorObservation, quest};
 use crate::GRAVITY_M_S2;
@@ -99,19 +100,6 @@ pub struct AttitudeEstimate {
     /// observer takes it at the alignment; the tilt/heading filter once its uncertainty is
     /// below 0.1°/s (a rest of 1.5 s, or learning in motion).
     pub bias_settled: bool,
-}
-
-/// The resets of the attitude estimate so far.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct EstimateReset {
-    /// Tilt resets.
-    pub tilt: u64,
-    /// The last tilt reset's size (rad).
-    pub tilt_rad: f64,
-    /// Heading resets.
-    pub heading: u64,
-    /// The last heading reset's size (rad, signed).
-    pub heading_rad: f64,
 }
 
 /// Counters and health of the attitude estimator.
@@ -266,15 +254,8 @@ impl AttitudeEstimator {
                 gyro_bias: f.bias(),
                 valid: self.status.since_correction_s <= self.params.max_uncorrected_s,
                 bias_settled: f.bias_settled(),
-                reset: {
-                    let st = f.status();
-                    EstimateReset {
-                        tilt: st.tilt_resets,
-                        tilt_rad: st.last_tilt_reset_rad,
-                        heading: st.heading_resets,
-                        heading_rad: st.last_heading_reset_rad,
-                    }
-                },
+                // As this sample's update left them (`status.tilt_heading`, not worked out again).
+                reset: self.status.tilt_heading.reset,
             });
         }
         let o = self.observer.as_ref()?;

@@ -101,14 +101,22 @@ pub struct TiltHeadingStatus {
     pub tilt_correction_rad: f64,
     /// Angle between the last magnetic heading and the estimate (rad).
     pub heading_error_rad: f64,
-    /// Times the tilt was taken from a steady accelerometer at once (`recovery.rs`).
-    pub tilt_resets: u64,
+    /// The tilt taken from a steady accelerometer at once (`recovery.rs`), the heading from a
+    /// clean magnetometer: how often, and the last ones' sizes.
+    pub reset: EstimateReset,
+}
+
+/// The resets of the attitude estimate so far.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct EstimateReset {
+    /// Tilt resets.
+    pub tilt: u64,
     /// The last tilt reset's size (rad).
-    pub last_tilt_reset_rad: f64,
-    /// Times the heading was taken from a clean magnetometer at once.
-    pub heading_resets: u64,
+    pub tilt_rad: f64,
+    /// Heading resets.
+    pub heading: u64,
     /// The last heading reset's size (rad, signed).
-    pub last_heading_reset_rad: f64,
+    pub heading_rad: f64,
 }
 
 /// The filter.
@@ -253,8 +261,11 @@ impl TiltHeadingFilter {
             hard_iron_fits: self.hard_iron.accepted(),
             mag_disturbed: self.heading.disturbed_samples(),
             mag_new_reference: self.heading.new_references(),
-            heading_resets: self.heading.resets().0,
-            last_heading_reset_rad: self.heading.resets().1,
+            reset: EstimateReset {
+                heading: self.heading.resets().0,
+                heading_rad: self.heading.resets().1,
+                ..self.status.reset
+            },
             ..self.status
         }
     }
@@ -345,8 +356,8 @@ impl TiltHeadingFilter {
                 self.vel_accel_lp.reset_to(r.accel_ned);
                 accel_lp = r.accel_ned;
             }
-            self.status.tilt_resets += 1;
-            self.status.last_tilt_reset_rad = r.error_rad;
+            self.status.reset.tilt += 1;
+            self.status.reset.tilt_rad = r.error_rad;
             self.unseen_turn_s = UNSEEN_TURN_S;
         }
         let v = self.q_tilt * lp - self.heading.rotation().inverse() * accel_lp;

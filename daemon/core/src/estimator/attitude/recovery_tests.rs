@@ -76,7 +76,7 @@ fn glitch_at_rest(
             heading_ok = since;
         }
     }
-    let resets = est.status().tilt_heading.tilt_resets;
+    let resets = est.status().tilt_heading.reset.tilt;
     (tilt_ok, heading_ok, resets)
 }
 
