@@ -113,6 +113,8 @@ pub struct FlightCore {
     learn_disturbance: bool,
     ground_contact: GroundContact,
     last_t_usec: Option<u64>,
+    /// The attitude estimate's tilt resets seen so far.
+    tilt_resets: u64,
     flying: bool,
     /// The position loop's last output, the time since it ran (s), and the time since its
     /// schedule last fell due (s; negative: it ran early, within half a sample).
@@ -181,6 +183,7 @@ impl FlightCore {
             learn_disturbance: false,
             ground_contact: GroundContact::None,
             last_t_usec: None,
+            tilt_resets: 0,
             flying: false,
             position_output: None,
             since_position_s: 0.0,
@@ -469,13 +472,24 @@ impl FlightCore {
                 accel: s.accel,
                 mag: s.mag,
                 accel_ned_hint: hint,
-                vel_ned_hint: before.horizontal_valid.then_some(before.vel_ned_m_s),
+                // Continuous: its differences are the vehicle's acceleration.
+                vel_ned_hint: before
+                    .horizontal_valid
+                    .then_some(before.vel_ned_m_s - before.vel_resets_ned_m_s),
+                gps_vel: s.gps.and_then(|g| self.translation.gps_velocity(&g)),
                 thrust_fraction: self.thrust_fraction(),
                 armed,
             },
             raw_dt,
         );
         if let Some(a) = &att {
+            if a.reset.tilt != self.tilt_resets {
+                // What was learned through the wrong tilt is wrong too: the velocity and
+                // accelerometer bias integrated through it, the outside force it caused.
+                self.tilt_resets = a.reset.tilt;
+                self.translation.forget_tilt_error();
+                self.disturbance.reset();
+            }
             self.translation.predict(s.t_usec, &s.accel, &a.q, dt);
         }
         if let Some(g) = &s.gps {

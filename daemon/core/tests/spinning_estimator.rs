@@ -10,7 +10,7 @@
 mod spinning_hover;
 
 use flight_core::core::SensorSample;
-use flight_core::estimator::tilt_heading::{TiltHeadingFilter, TiltHeadingSettings};
+use flight_core::estimator::tilt_heading::{FilterInput, TiltHeadingFilter, TiltHeadingSettings};
 use flight_core::sensors::imu_correction::{ImuCalParams, ImuCorrection};
 use nalgebra::Vector3;
 use sitl_core::sensors::{SensorConfig, SensorPreset};
@@ -34,7 +34,15 @@ fn tilt_errors_deg(lever_arm_off: bool) -> (f64, f64) {
     let mut filter = TiltHeadingFilter::new(TiltHeadingSettings::default());
     for _ in 0..2500 {
         let at_rest = q0.inverse_transform_vector(&-g);
-        filter.update(&Vector3::zeros(), &at_rest, None, None, false, 0.004);
+        let input = FilterInput {
+            gyro: Vector3::zeros(),
+            accel: at_rest,
+            mag: None,
+            vel_ned: None,
+            gps_vel: None,
+            armed: false,
+        };
+        filter.update(&input, 0.004);
     }
     let arm = if lever_arm_off {
         flight.airframe.imu_position_frd_m
@@ -55,14 +63,15 @@ fn tilt_errors_deg(lever_arm_off: bool) -> (f64, f64) {
         ));
         let truth = flight.sim.truth().body;
         let velocity = truth.vel_ned_m_s;
-        filter.update(
-            &sample.gyro,
-            &sample.accel,
-            None,
-            Some(&velocity),
-            true,
-            0.004,
-        );
+        let input = FilterInput {
+            gyro: sample.gyro,
+            accel: sample.accel,
+            mag: None,
+            vel_ned: Some(velocity),
+            gps_vel: None,
+            armed: true,
+        };
+        filter.update(&input, 0.004);
         let down_true = truth.q_ned_from_frd.inverse_transform_vector(&g);
         let down_estimated = filter.attitude().inverse_transform_vector(&g);
         let error = down_true.angle(&down_estimated).to_degrees();

@@ -8,8 +8,9 @@
 //! rejection of degenerate vectors, and counters for all of it.
 
 use super::observer::AttitudeObserver;
+pub use super::tilt_heading::DelayedVelocity;
 pub use super::tilt_heading::EstimateReset;
-use super::tilt_heading::{TiltHeadingFilter, TiltHeadingStatus};
+use super::tilt_heading::{FilterInput, TiltHeadingFilter, TiltHeadingStatus};
 use super::wahba::{ObservationError, VectorObservation, quest};
 use crate::GRAVITY_M_S2;
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
@@ -73,6 +74,9 @@ pub struct AttitudeInput {
     /// The vehicle's velocity in NED (m/s), when the position estimator knows it (the
     /// tilt/heading filter).
     pub vel_ned_hint: Option<Vector3<f64>>,
+    /// A GPS velocity that arrived with this sample, and its age (the tilt/heading filter checks
+    /// its tilt against it in flight).
+    pub gps_vel: Option<DelayedVelocity>,
     /// The rotors' mean thrust fraction `(ω/ω_max)²` (0 when unknown or disarmed): the motor
     /// currents' field `CAL_MAG0_[XYZ]COMP` times it is taken off the calibrated field.
     pub thrust_fraction: f64,
@@ -440,12 +444,18 @@ impl AttitudeEstimator {
         let hint = input
             .vel_ned_hint
             .filter(|v| v.iter().all(|x| x.is_finite()));
+        let gps_vel = input
+            .gps_vel
+            .filter(|g| g.vel_ned_m_s.iter().all(|x| x.is_finite()) && g.age_s.is_finite());
         filter.update(
-            &input.gyro,
-            &input.accel,
-            mag.as_ref(),
-            hint.as_ref(),
-            input.armed,
+            &FilterInput {
+                gyro: input.gyro,
+                accel: input.accel,
+                mag,
+                vel_ned: hint,
+                gps_vel,
+                armed: input.armed,
+            },
             dt,
         );
         // The accelerometer corrects the tilt on every sample.

@@ -2,6 +2,7 @@
 
 pub mod attitude;
 pub mod bias;
+pub mod gps_tilt;
 pub mod hard_iron;
 pub mod heading;
 pub mod lowpass;

@@ -10,8 +10,9 @@
 //! acceleration with it. When that fast vector has held its direction in the gyro frame (within
 //! 1°) for 0.4 s, its length is gravity's (within 5 %), and it points away from the vertical by
 //! more than the limit, the slow low-passes are reset to it: the tilt is the accelerometer's at
-//! the next correction. The limit is 2° disarmed and still (the gyro, low-passed the same way,
-//! below 1°/s for the last 0.4 s); 5° disarmed when not (a vehicle on its feet rocking in a gusty wind, whose
+//! the next correction. Disarmed, the vehicle's acceleration is taken as zero (it stands or is
+//! held; the steadiness rejects a hand's motion). The limit is 2° disarmed and still (the gyro, low-passed the same way, below 1°/s
+//! for the last 0.4 s); 5° disarmed when not (a vehicle on its feet rocking in a gusty wind, whose
 //! accelerometer is off the vertical by 2–3° as it rocks); 10° armed, where gusts and the
 //! velocity's lag make the accelerometer less exact. A steady vector in the gyro frame means no rotation the gyro missed and no
 //! acceleration the position estimate did not know: a vehicle at rest, a steady hover, a steady
@@ -128,7 +129,15 @@ impl TiltRecovery {
             return None;
         }
         let f = self.specific_force.value();
-        let a = self.accel_ned.value();
+        let still = self.still_s >= STEADY_S;
+        // Disarmed, the vehicle stands or is held: the known acceleration, differences of a
+        // GPS-corrected velocity, is only the corrections' noise there (a 0.2 m/s GPS makes
+        // 2–3° of it through the fast low-pass), and a steady accelerometer is gravity.
+        let a = if armed {
+            self.accel_ned.value()
+        } else {
+            Vector3::zeros()
+        };
         let v = q_tilt * f - heading.inverse() * a;
         if (v.norm() - GRAVITY_M_S2).abs() > GRAVITY_TOLERANCE * GRAVITY_M_S2 {
             return None;
@@ -136,7 +145,7 @@ impl TiltRecovery {
         let error = v.angle(&Vector3::new(0.0, 0.0, -1.0));
         let limit = if armed {
             RESET_ARMED_RAD
-        } else if self.still_s >= STEADY_S {
+        } else if still {
             RESET_STILL_RAD
         } else {
             RESET_DISARMED_RAD

@@ -134,6 +134,7 @@ impl Replay {
             mag: s.mag,
             accel_ned_hint: None,
             vel_ned_hint: None,
+            gps_vel: None,
             thrust_fraction: 0.0,
             armed: false,
         };

@@ -27,6 +27,8 @@
 //! `q = q_heading ⊗ q_tilt ⊗ q_gyro`.
 
 use super::bias::{BiasEstimator, BiasSettings};
+pub use super::gps_tilt::DelayedVelocity;
+use super::gps_tilt::GpsTiltCheck;
 use super::hard_iron::{HardIronEstimator, HardIronSettings};
 use super::heading::{HeadingCorrector, HeadingSettings};
 use super::lowpass::LowPass;
@@ -119,6 +121,24 @@ pub struct EstimateReset {
     pub heading_rad: f64,
 }
 
+/// One sample of the filter's sensors.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FilterInput {
+    /// Gyro, FRD (rad/s).
+    pub gyro: Vector3<f64>,
+    /// Specific force, FRD (m/s²).
+    pub accel: Vector3<f64>,
+    /// The calibrated magnetic field, if a new one came.
+    pub mag: Option<Vector3<f64>>,
+    /// The vehicle's NED velocity, if the position estimator knows it (GPS-corrected, so not
+    /// this attitude's own acceleration).
+    pub vel_ned: Option<Vector3<f64>>,
+    /// A GPS velocity, if one arrived (made without any attitude).
+    pub gps_vel: Option<DelayedVelocity>,
+    /// Whether the motors are armed.
+    pub armed: bool,
+}
+
 /// The filter.
 #[derive(Debug, Clone)]
 pub struct TiltHeadingFilter {
@@ -135,6 +155,8 @@ pub struct TiltHeadingFilter {
     rest: RestDetector,
     /// The tilt's recovery from errors made faster than the low-pass fades them.
     recovery: TiltRecovery,
+    /// The tilt against the GPS's velocity in flight.
+    gps_check: GpsTiltCheck,
     hard_iron: HardIronEstimator,
     /// Time since the last magnetometer sample (s).
     since_mag_s: f64,
@@ -178,6 +200,7 @@ impl TiltHeadingFilter {
                 ..RestThresholds::default()
             }),
             recovery: TiltRecovery::default(),
+            gps_check: GpsTiltCheck::default(),
             hard_iron: HardIronEstimator::new(settings.hard_iron),
             since_mag_s: 0.0,
             unseen_turn_s: 0.0,
@@ -220,6 +243,7 @@ impl TiltHeadingFilter {
         self.vel_accel_lp.clear();
         self.last_vel = None;
         self.recovery.clear();
+        self.gps_check.clear();
         self.bias.restart_tilt();
         self.running_s = 0.0;
     }
@@ -275,19 +299,18 @@ impl TiltHeadingFilter {
         self.hard_iron.offset()
     }
 
-    /// One sample: gyro and specific force (FRD), the calibrated magnetic field if a new one came,
-    /// the vehicle's NED velocity if the position estimator knows it (GPS-corrected, so not
-    /// this attitude's own acceleration), whether the motors are armed, after `dt` seconds.
-    /// Inputs must be finite.
-    pub fn update(
-        &mut self,
-        gyro: &Vector3<f64>,
-        accel: &Vector3<f64>,
-        mag: Option<&Vector3<f64>>,
-        vel_ned: Option<&Vector3<f64>>,
-        armed: bool,
-        dt: f64,
-    ) {
+    /// One sample after `dt` seconds. Inputs must be finite.
+    pub fn update(&mut self, input: &FilterInput, dt: f64) {
+        let FilterInput {
+            gyro,
+            accel,
+            mag,
+            vel_ned,
+            gps_vel,
+            armed,
+        } = input;
+        let (gyro, accel, mag, vel_ned, armed) =
+            (gyro, accel, mag.as_ref(), vel_ned.as_ref(), *armed);
         let s = self.settings;
         // Gyro: Castillo (101), (104).
         let bias = self.bias.bias();
@@ -342,13 +365,15 @@ impl TiltHeadingFilter {
         let f = self.q_gyro * accel;
         self.recovery
             .update(&f, known_accel.as_ref(), &(gyro - bias), dt);
+        self.gps_check.update(&f, gps_vel.as_ref(), dt);
         let mut lp = self.accel_lp.update(&f, dt);
         let mut accel_lp = accel_lp;
         // An error made faster than the low-pass fades it (`recovery.rs`): the low-passes start
         // again at the steady accelerometer's values, so the tilt is its at once.
         let reset = self
             .recovery
-            .check(&self.q_tilt, &self.heading.rotation(), armed);
+            .check(&self.q_tilt, &self.heading.rotation(), armed)
+            .or_else(|| self.gps_check.check(&self.q_tilt, &self.heading.rotation()));
         if let Some(r) = reset {
             self.accel_lp.reset_to(r.specific_force);
             lp = r.specific_force;

@@ -11,6 +11,7 @@
 //! The origin (and home) is the first good fix; the barometer's reference is the mean of its
 //! first second of samples, so altitude is relative to where the vehicle started.
 
+use super::gps_tilt::DelayedVelocity;
 use crate::math::geo::{LatLonAlt, LocalFrame};
 use nalgebra::{UnitQuaternion, Vector3};
 use std::collections::VecDeque;
@@ -76,6 +77,9 @@ pub struct TranslationEstimate {
     pub pos_ned_m: Vector3<f64>,
     /// Velocity NED (m/s).
     pub vel_ned_m_s: Vector3<f64>,
+    /// The steps the velocity took at resets, summed (m/s): the velocity less it is continuous
+    /// (PX4's `vxy_reset_delta`, summed).
+    pub vel_resets_ned_m_s: Vector3<f64>,
     /// Acceleration NED (m/s²), the attitude estimator's hint.
     pub accel_ned_m_s2: Vector3<f64>,
     /// Horizontal position is usable: origin set and GPS fresh. The local frame is anchored at the
@@ -121,6 +125,10 @@ pub struct TranslationEstimator {
     pos: Vector3<f64>,
     vel: Vector3<f64>,
     bias: Vector3<f64>,
+    /// The next GPS velocity is taken whole ([`Self::forget_tilt_error`]).
+    take_next_gps_velocity: bool,
+    /// The steps those resets made, summed.
+    vel_resets: Vector3<f64>,
     accel: Vector3<f64>,
     history: VecDeque<Snapshot>,
     /// The barometer's reference level: the mean of its first [`BARO_REF_SAMPLES`] samples
@@ -142,6 +150,8 @@ impl TranslationEstimator {
             pos: Vector3::zeros(),
             vel: Vector3::zeros(),
             bias: Vector3::zeros(),
+            take_next_gps_velocity: false,
+            vel_resets: Vector3::zeros(),
             accel: Vector3::zeros(),
             history: VecDeque::with_capacity(HISTORY),
             baro_ref: (0.0, 0),
@@ -163,6 +173,25 @@ impl TranslationEstimator {
             accel_bias: self.bias.into(),
             ..self.status
         }
+    }
+
+    /// A GPS solution's velocity and age, if the filter would take the solution (a 3D fix,
+    /// accurate enough): the attitude estimator checks its tilt against it.
+    pub fn gps_velocity(&self, gps: &GpsMeasurement) -> Option<DelayedVelocity> {
+        (gps.fix_type >= 3 && gps.h_acc_m <= self.params.gps_max_h_acc_m).then_some(
+            DelayedVelocity {
+                vel_ned_m_s: gps.vel_ned_m_s,
+                age_s: self.params.gps_delay_s,
+            },
+        )
+    }
+
+    /// The attitude was reset: what was integrated through its error is dropped. The
+    /// accelerometer bias took the error's `g·δ`; the velocity lags the GPS's, so the next GPS
+    /// velocity is taken whole (as EKF2 resets its velocity to the GNSS's after a yaw reset).
+    pub fn forget_tilt_error(&mut self) {
+        self.bias = Vector3::zeros();
+        self.take_next_gps_velocity = true;
     }
 
     /// The local frame (origin), once set.
@@ -276,9 +305,13 @@ impl TranslationEstimator {
         self.status.gps_innovation_m = e.xy().norm();
         self.correct([true, true, false], &e, self.params.tau_xy_s, interval);
         let ev = gps.vel_ned_m_s - then.vel;
-        let kv = (interval / self.params.tau_vel_s).min(1.0);
-        self.vel.x += kv * ev.x;
-        self.vel.y += kv * ev.y;
+        let ev = Vector3::new(ev.x, ev.y, 0.0);
+        if std::mem::take(&mut self.take_next_gps_velocity) {
+            self.vel += ev;
+            self.vel_resets += ev;
+        } else {
+            self.vel += ev * (interval / self.params.tau_vel_s).min(1.0);
+        }
         self.status.gps_fused += 1;
     }
 
@@ -312,6 +345,7 @@ impl TranslationEstimator {
         TranslationEstimate {
             pos_ned_m: self.pos,
             vel_ned_m_s: self.vel,
+            vel_resets_ned_m_s: self.vel_resets,
             accel_ned_m_s2: self.accel,
             horizontal_valid: self.frame.is_some()
                 && fresh(self.last_gps_usec, self.params.gps_timeout_s),

@@ -70,6 +70,7 @@ fn fly(params: &AttitudeParams, duration_s: f64) -> BiasRun {
             mag: (f.fields_updated & fields::MAG != 0).then_some(f.mag_frd_gauss),
             accel_ned_hint: Some(a_ned),
             vel_ned_hint: Some(vel),
+            gps_vel: None,
             thrust_fraction: 0.0,
             armed: true,
         };

@@ -55,6 +55,7 @@ fn glitch_at_rest(
             mag: (f.fields_updated & fields::MAG != 0).then_some(f.mag_frd_gauss),
             accel_ned_hint: armed.then_some(Vector3::zeros()),
             vel_ned_hint: armed.then_some(Vector3::zeros()),
+            gps_vel: None,
             thrust_fraction: 0.0,
             armed,
         };

@@ -143,6 +143,7 @@ fn fly_mag_off(
                 .then_some(f.mag_frd_gauss),
             accel_ned_hint: with_hint.then_some(a_ned),
             vel_ned_hint: with_hint.then_some(vel),
+            gps_vel: None,
             thrust_fraction: 0.0,
             armed: t_fly > 0.0,
         };
@@ -372,6 +373,7 @@ fn recovers_from_173_degrees(params: &AttitudeParams, within_s: f64) {
         mag: Some(q_true.inverse() * field),
         accel_ned_hint: None,
         vel_ned_hint: None,
+        gps_vel: None,
         thrust_fraction: 0.0,
         armed: false,
     };
@@ -432,6 +434,7 @@ fn bad_samples_are_counted_not_flown() {
         mag: Some(AttitudeParams::default().earth_field_ned()),
         accel_ned_hint: None,
         vel_ned_hint: None,
+        gps_vel: None,
         thrust_fraction: 0.0,
         armed: false,
     };
@@ -496,6 +499,7 @@ fn a_gap_in_the_samples_takes_the_next_measurement_as_it_is() {
         mag: Some(q.inverse() * field),
         accel_ned_hint: None,
         vel_ned_hint: None,
+        gps_vel: None,
         thrust_fraction: 0.0,
         armed: false,
     };
@@ -556,6 +560,7 @@ fn the_first_rest_takes_the_bias_and_restarts_tilt_and_heading() {
                 mag: (f.fields_updated & fields::MAG != 0).then_some(f.mag_frd_gauss),
                 accel_ned_hint: None,
                 vel_ned_hint: None,
+                gps_vel: None,
                 thrust_fraction: 0.0,
                 armed: false,
             };
@@ -613,6 +618,7 @@ fn without_any_magnetometer_the_tilt_heading_filter_aligns() {
             mag: None,
             accel_ned_hint: None,
             vel_ned_hint: None,
+            gps_vel: None,
             thrust_fraction: 0.0,
             armed: false,
         };
