@@ -504,6 +504,8 @@ impl Autopilot {
             vel_ned_m_s: tr.vel_ned_m_s,
             yaw_rad: e.attitude.map_or(0.0, |a| a.q.euler_angles().2),
             hover_thrust: p.mass_kg * crate::GRAVITY_M_S2 / p.max_thrust_n.max(1e-9),
+            thrust: self.core.thrust_fraction(),
+            imu_still: e.attitude.is_some_and(|a| a.imu_still),
             origin: tr.origin,
             health: Health {
                 attitude_valid,

@@ -389,8 +389,9 @@ impl FlightCore {
     }
 
     /// The rotors' mean thrust fraction over the interval just sampled (0 when they were not
-    /// driven): what the motor currents' magnetic field scales with.
-    fn thrust_fraction(&self) -> f64 {
+    /// driven): what the motor currents' magnetic field scales with, and what a land detector
+    /// watches.
+    pub fn thrust_fraction(&self) -> f64 {
         let max = self.config.position.max_thrust_n;
         match &self.last_mix {
             Some(m) if max > 0.0 => m.thrust_n.iter().sum::<f64>() / max,

@@ -61,6 +61,11 @@ pub struct CommanderInput {
     /// Thrust that holds the vehicle up, as a fraction of its full thrust (PX4's
     /// `MPC_THR_HOVER`): the centre of the throttle stick in the stick-to-attitude modes.
     pub hover_thrust: f64,
+    /// The thrust the rotors were last told, as the same fraction.
+    pub thrust: f64,
+    /// The IMU alone shows the vehicle still, whatever the estimate (see
+    /// [`crate::estimator::attitude::AttitudeEstimate::imu_still`]).
+    pub imu_still: bool,
     /// The estimate's local origin (where NED is anchored), once the GPS has set it: what
     /// mission coordinates are resolved against.
     pub origin: Option<LatLonAlt>,

@@ -23,6 +23,9 @@ pub(super) struct Landing {
     touchdown: Touchdown,
 }
 
+/// The thrust below which a still vehicle is on the ground, as a fraction of the hover's.
+const LOW_THRUST: f64 = 0.6;
+
 impl Landing {
     /// A landing over `north_east_m`.
     pub(super) fn over(north_east_m: (f64, f64)) -> Self {
@@ -64,8 +67,13 @@ impl Landing {
             (0.15, MAYBE_LANDED_S)
         };
         self.descended |= i.vel_ned_m_s.z > 0.5 * speed;
-        let stopped =
-            self.descended && i.vel_ned_m_s.z.abs() < still_m_s && down - i.pos_ned_m.z > 0.5;
+        // Stopped by the estimate (its vertical speed), or by the IMU alone whatever the
+        // estimate says: still, with the thrust well below a hover's (PX4's low-thrust test).
+        // A steady descent is still to an IMU too, but it takes a hover's thrust.
+        let imu_stopped = i.imu_still && i.thrust < LOW_THRUST * i.hover_thrust;
+        let stopped = self.descended
+            && (i.vel_ned_m_s.z.abs() < still_m_s || imu_stopped)
+            && down - i.pos_ned_m.z > 0.5;
         self.touchdown
             .check_staged(f, stopped, i.t_s, maybe_landed_s);
         PositionSetpoint {

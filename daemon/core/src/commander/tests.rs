@@ -13,6 +13,8 @@ fn input(t: f64, down: f64, vd: f64) -> CommanderInput {
         vel_ned_m_s: Vector3::new(0.0, 0.0, vd),
         yaw_rad: 0.0,
         hover_thrust: 0.5,
+        thrust: 0.5,
+        imu_still: false,
         origin: None,
         health: Health::default(),
     }
@@ -163,6 +165,41 @@ fn armed_on_the_ground_and_left_there_disarms() {
     assert!(c.armed());
     let (_, armed) = step(&mut c, &input(10.0, 0.0, 0.0));
     assert!(!armed && !c.armed(), "COM_DISARM_PRFLT");
+}
+
+/// A landing whose estimate is wrong (its vertical speed reads 0.3 m/s down, as with a tilted
+/// estimate on the ground): the IMU's stillness and a thrust well below a hover's land it; a
+/// still IMU at a hover's thrust (a steady descent) does not.
+#[test]
+fn a_landing_is_detected_by_the_imu_whatever_the_estimate_says() {
+    for (thrust, lands) in [(0.1, true), (0.5, false)] {
+        let mut c = ready();
+        c.takeoff(None).unwrap();
+        c.arm(false).unwrap();
+        step(&mut c, &input(0.1, 0.0, 0.0));
+        step(&mut c, &input(5.0, -5.0, 0.0));
+        c.set_mode(FlightMode::Land).unwrap();
+        step(&mut c, &input(5.1, -5.0, 0.0));
+        let mut t = 5.1;
+        while t < 12.0 {
+            t += 0.1;
+            step(&mut c, &input(t, -5.0 + 0.7 * (t - 5.1), 0.7)); // descending
+        }
+        let touch = t;
+        while t < touch + 10.0 && c.armed() {
+            t += 0.1;
+            let i = CommanderInput {
+                thrust,
+                imu_still: true,
+                ..input(t, 0.0, 0.3)
+            };
+            step(&mut c, &i);
+        }
+        assert_eq!(!c.armed(), lands, "thrust {thrust}: disarmed at {t:.1} s");
+        if lands {
+            assert!(t - touch < 2.5, "landed {:.1} s after the touch", t - touch);
+        }
+    }
 }
 
 #[test]
@@ -431,6 +468,8 @@ fn at(t: f64, pos: Vector3<f64>, vel: Vector3<f64>, yaw: f64) -> CommanderInput 
         vel_ned_m_s: vel,
         yaw_rad: yaw,
         hover_thrust: 0.5,
+        thrust: 0.5,
+        imu_still: false,
         origin: None,
         health: Health::default(),
     }
@@ -556,6 +595,8 @@ fn stabilized_turns_sticks_into_attitude_and_thrust() {
     let z = Vector3::zeros();
     let hover = |t, pos, yaw| CommanderInput {
         hover_thrust: 0.4,
+        thrust: 0.4,
+        imu_still: false,
         origin: None,
         ..at(t, pos, z, yaw)
     };

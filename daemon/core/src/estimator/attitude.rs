@@ -104,6 +104,10 @@ pub struct AttitudeEstimate {
     /// observer takes it at the alignment; the tilt/heading filter once its uncertainty is
     /// below 0.1°/s (a rest of 1.5 s, or learning in motion).
     pub bias_settled: bool,
+    /// The IMU alone shows the vehicle still (rate, and the specific force's direction and
+    /// length, steady for 0.4 s): what a land detector may trust when the estimate is wrong.
+    /// The tilt/heading filter only; `false` from Castillo's observer.
+    pub imu_still: bool,
 }
 
 /// Counters and health of the attitude estimator.
@@ -258,6 +262,7 @@ impl AttitudeEstimator {
                 gyro_bias: f.bias(),
                 valid: self.status.since_correction_s <= self.params.max_uncorrected_s,
                 bias_settled: f.bias_settled(),
+                imu_still: f.imu_still(),
                 // As this sample's update left them (`status.tilt_heading`, not worked out again).
                 reset: self.status.tilt_heading.reset,
             });
@@ -269,6 +274,7 @@ impl AttitudeEstimator {
             gyro_bias: o.bias,
             valid: self.status.since_correction_s <= self.params.max_uncorrected_s,
             bias_settled: true,
+            imu_still: false,
             reset: EstimateReset::default(),
         })
     }

@@ -116,6 +116,16 @@ impl TiltRecovery {
         }
     }
 
+    /// The IMU alone shows the vehicle still, whatever the estimate: the rate below 1°/s and the
+    /// specific force steady (its direction within 1°) at gravity's length (within 5 %) for the
+    /// last 0.4 s. A vehicle on the ground; also a calm hover (thrust tells them apart).
+    pub fn still(&self) -> bool {
+        let length = self.specific_force.value().norm();
+        self.still_s >= STEADY_S
+            && self.steady_s >= STEADY_S
+            && (length - GRAVITY_M_S2).abs() <= GRAVITY_TOLERANCE * GRAVITY_M_S2
+    }
+
     /// The reset to make now, if any: the tilt `q_tilt` (gyro frame → level) and the heading
     /// `heading` (level → NED) turn the fast vector away from the vertical by more than the
     /// limit for `armed`, and it is steady and gravity's length.

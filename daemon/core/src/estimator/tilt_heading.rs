@@ -248,6 +248,11 @@ impl TiltHeadingFilter {
         self.running_s = 0.0;
     }
 
+    /// The IMU alone shows the vehicle still (`TiltRecovery::still`).
+    pub fn imu_still(&self) -> bool {
+        self.recovery.still()
+    }
+
     /// Whether the magnetic heading has been corrected at all.
     pub fn heading_known(&self) -> bool {
         self.heading.started()
