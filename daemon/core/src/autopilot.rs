@@ -226,6 +226,10 @@ impl Autopilot {
     /// Flies with new parameters from the next step on (a ground station's PARAM_SET); the
     /// estimates, integrators and the flight in progress are kept.
     pub fn set_params(&mut self, params: &FlightParams) {
+        if params.imu != self.params.imu {
+            // A new calibration: what was learned in flight through the old one is wrong.
+            self.core.forget_accel_bias();
+        }
         self.params = params.clone();
         self.core
             .set_config(FlightCoreConfig::from_params(params, &self.airframe));

@@ -388,6 +388,12 @@ impl FlightCore {
         self.position.set_disturbance(wind_share + planned);
     }
 
+    /// Forgets the accelerometer bias learned in flight (the accelerometer's calibration
+    /// changed).
+    pub fn forget_accel_bias(&mut self) {
+        self.attitude.forget_accel_bias();
+    }
+
     /// The rotors' mean thrust fraction over the interval just sampled (0 when they were not
     /// driven): what the motor currents' magnetic field scales with, and what a land detector
     /// watches.
@@ -491,7 +497,9 @@ impl FlightCore {
                 self.translation.forget_tilt_error();
                 self.disturbance.reset();
             }
-            self.translation.predict(s.t_usec, &s.accel, &a.q, dt);
+            // The accelerometer's bias learned in flight is the position estimator's too.
+            let accel = s.accel - a.accel_bias;
+            self.translation.predict(s.t_usec, &accel, &a.q, dt);
         }
         if let Some(g) = &s.gps {
             self.translation.fuse_gps(s.t_usec, g);

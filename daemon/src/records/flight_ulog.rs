@@ -332,12 +332,14 @@ impl FlightUlog {
         }
         if self.due(id::ESTIMATOR_STATUS, t) {
             let bias = est.attitude.map_or([f64::NAN; 3], |a| a.gyro_bias.into());
+            let accel_bias = est.attitude.map_or([f64::NAN; 3], |a| a.accel_bias.into());
             let h_acc = s.gps.map_or(f64::NAN, |g| g.h_acc_m);
             // PX4's health bits: velocity, horizontal position, height.
             let health = ((tr.horizontal_valid as u8) * 0b011) | ((tr.vertical_valid as u8) << 2);
             let row = UlogRow::at(t)
                 .u64(t)
                 .f32s(&bias)
+                .f32s(&accel_bias)
                 .f32(h_acc)
                 .f32(0.0)
                 .u8(health)

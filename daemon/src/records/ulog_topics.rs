@@ -183,6 +183,8 @@ pub(super) const ESTIMATOR_STATUS: Format = topic(
         field(U64, "timestamp"),
         field(U64, "timestamp_sample"),
         array(F32, 3, "gyro_bias"),
+        // PX4 logs it in `estimator_sensor_bias`: the accelerometer's bias learned in flight.
+        array(F32, 3, "accel_bias"),
         field(F32, "pos_horiz_accuracy"),
         field(F32, "time_slip"),
         field(U8, "health_flags"),

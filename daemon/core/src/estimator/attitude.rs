@@ -94,6 +94,9 @@ pub struct AttitudeEstimate {
     pub rate: Vector3<f64>,
     /// Gyro bias estimate (rad/s).
     pub gyro_bias: Vector3<f64>,
+    /// Accelerometer bias estimate (m/s², body frame; zero until GPS windows with turns between
+    /// them have shown it, and from Castillo's observer).
+    pub accel_bias: Vector3<f64>,
     /// Whether the estimate can be flown on: aligned, and corrected recently enough.
     pub valid: bool,
     /// The last reset of the estimate (the tilt or heading taken afresh from a steady
@@ -243,6 +246,13 @@ impl AttitudeEstimator {
         }
     }
 
+    /// Forgets the accelerometer bias learned in flight (a new calibration).
+    pub fn forget_accel_bias(&mut self) {
+        if let Some(f) = self.filter.as_mut() {
+            f.forget_accel_bias();
+        }
+    }
+
     /// Forgets everything: the next samples align again.
     pub fn reset(&mut self) {
         *self = Self::new(&self.params);
@@ -260,6 +270,7 @@ impl AttitudeEstimator {
                 q: f.attitude(),
                 rate: gyro - f.bias(),
                 gyro_bias: f.bias(),
+                accel_bias: f.accel_bias().0,
                 valid: self.status.since_correction_s <= self.params.max_uncorrected_s,
                 bias_settled: f.bias_settled(),
                 imu_still: f.imu_still(),
@@ -272,6 +283,7 @@ impl AttitudeEstimator {
             q: crate::math::quat::shortest(&o.q),
             rate: o.rate(gyro),
             gyro_bias: o.bias,
+            accel_bias: Vector3::zeros(),
             valid: self.status.since_correction_s <= self.params.max_uncorrected_s,
             bias_settled: true,
             imu_still: false,

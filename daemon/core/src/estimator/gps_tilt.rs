@@ -19,7 +19,7 @@
 
 use super::recovery::TiltReset;
 use crate::GRAVITY_M_S2;
-use nalgebra::{UnitQuaternion, Vector3};
+use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use std::collections::VecDeque;
 
 /// A GPS velocity, and how old it is when it arrives (s).
@@ -43,28 +43,55 @@ const RESET_RAD: f64 = 10.0 * std::f64::consts::PI / 180.0;
 const HALVES_AGREE_RAD: f64 = 3.0 * std::f64::consts::PI / 180.0;
 const HALVES_AGREE_FRACTION: f64 = 0.2;
 
-/// A GPS solution with the integral of the specific force at its time.
+/// The integrals the windows are made of, at one time: of the specific force and of the gyro
+/// frame's rotation from the body.
+#[derive(Debug, Clone, Copy)]
+struct Integrals {
+    force: Vector3<f64>,
+    rotation: Matrix3<f64>,
+}
+
+impl Integrals {
+    fn lerp(&self, other: &Self, w: f64) -> Self {
+        Self {
+            force: self.force + (other.force - self.force) * w,
+            rotation: self.rotation + (other.rotation - self.rotation) * w,
+        }
+    }
+}
+
+/// A GPS solution with the integrals at its time.
 #[derive(Debug, Clone, Copy)]
 struct Fix {
     t_s: f64,
     vel: Vector3<f64>,
-    force_integral: Vector3<f64>,
+    integrals: Integrals,
 }
 
-/// One half of the window: the mean specific force (gyro frame) and the GPS's mean
-/// acceleration (NED) over it.
-#[derive(Debug, Clone, Copy)]
-struct Half {
-    force: Vector3<f64>,
-    accel: Vector3<f64>,
+/// A stretch between two GPS solutions: the mean specific force (gyro frame), the mean
+/// rotation from the body to the gyro frame, and the GPS's mean acceleration (NED) over it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GpsWindow {
+    /// Mean specific force, gyro frame (m/s²).
+    pub force: Vector3<f64>,
+    /// Mean rotation matrix, gyro frame from body.
+    pub rotation: Matrix3<f64>,
+    /// The GPS's mean acceleration, NED (m/s²).
+    pub accel: Vector3<f64>,
+    /// Its length (s).
+    pub duration_s: f64,
 }
 
-impl Half {
+type Half = GpsWindow;
+
+impl GpsWindow {
     fn between(a: &Fix, b: &Fix) -> Option<Self> {
         let t = b.t_s - a.t_s;
         (t > 0.0).then(|| Self {
-            force: (b.force_integral - a.force_integral) / t,
+            force: (b.integrals.force - a.integrals.force) / t,
+            rotation: (b.integrals.rotation - a.integrals.rotation) / t,
             accel: (b.vel - a.vel) / t,
+            duration_s: t,
         })
     }
 
@@ -89,9 +116,9 @@ impl Half {
 #[derive(Debug, Clone, Default)]
 pub struct GpsTiltCheck {
     t_s: f64,
-    force_integral: Vector3<f64>,
-    /// The integral at each step of the last [`MAX_AGE_S`].
-    steps: VecDeque<(f64, Vector3<f64>)>,
+    integrals: Option<Integrals>,
+    /// The integrals at each step of the last [`MAX_AGE_S`].
+    steps: VecDeque<(f64, Integrals)>,
     fixes: VecDeque<Fix>,
     /// The newest window's halves, when a solution completed one.
     halves: Option<(Half, Half)>,
@@ -105,11 +132,26 @@ impl GpsTiltCheck {
         self.halves = None;
     }
 
-    /// One sample: the specific force in the gyro frame, and a GPS velocity if one arrived.
-    pub fn update(&mut self, f_gyro_frame: &Vector3<f64>, gps: Option<&DelayedVelocity>, dt: f64) {
+    /// One sample: the specific force in the gyro frame, the gyro frame's rotation from the
+    /// body, and a GPS velocity if one arrived.
+    pub fn update(
+        &mut self,
+        f_gyro_frame: &Vector3<f64>,
+        gyro_from_body: &Matrix3<f64>,
+        gps: Option<&DelayedVelocity>,
+        dt: f64,
+    ) {
         self.t_s += dt;
-        self.force_integral += f_gyro_frame * dt;
-        self.steps.push_back((self.t_s, self.force_integral));
+        let last = self.integrals.unwrap_or(Integrals {
+            force: Vector3::zeros(),
+            rotation: Matrix3::zeros(),
+        });
+        let now = Integrals {
+            force: last.force + f_gyro_frame * dt,
+            rotation: last.rotation + gyro_from_body * dt,
+        };
+        self.integrals = Some(now);
+        self.steps.push_back((self.t_s, now));
         while self
             .steps
             .front()
@@ -121,13 +163,13 @@ impl GpsTiltCheck {
         let Some(g) = gps.filter(|g| (0.0..=MAX_AGE_S).contains(&g.age_s)) else {
             return;
         };
-        let Some(force_integral) = self.integral_at(self.t_s - g.age_s) else {
+        let Some(integrals) = self.integrals_at(self.t_s - g.age_s) else {
             return;
         };
         let fix = Fix {
             t_s: self.t_s - g.age_s,
             vel: g.vel_ned_m_s,
-            force_integral,
+            integrals,
         };
         if self.fixes.back().is_some_and(|last| fix.t_s <= last.t_s) {
             return;
@@ -152,15 +194,29 @@ impl GpsTiltCheck {
         }
     }
 
-    /// The integral of the specific force at `t_s`, interpolated between the steps.
-    fn integral_at(&self, t_s: f64) -> Option<Vector3<f64>> {
+    /// The integrals at `t_s`, interpolated between the steps.
+    fn integrals_at(&self, t_s: f64) -> Option<Integrals> {
         let i = self.steps.partition_point(|(t, _)| *t < t_s);
         let (t1, s1) = *self.steps.get(i)?;
         let Some(&(t0, s0)) = i.checked_sub(1).and_then(|j| self.steps.get(j)) else {
             return (t1 - t_s < 1e-9).then_some(s1);
         };
-        let w = ((t_s - t0) / (t1 - t0)).clamp(0.0, 1.0);
-        Some(s0 + (s1 - s0) * w)
+        Some(s0.lerp(&s1, ((t_s - t0) / (t1 - t0)).clamp(0.0, 1.0)))
+    }
+
+    /// The time (s) and the integral of the gyro frame's rotation from the body so far.
+    pub fn rotation_integral(&self) -> (f64, Matrix3<f64>) {
+        (
+            self.t_s,
+            self.integrals.map_or(Matrix3::zeros(), |i| i.rotation),
+        )
+    }
+
+    /// The whole window a GPS solution completed at this sample (about a second), if one did.
+    pub fn window(&self) -> Option<GpsWindow> {
+        self.halves?;
+        let (first, last) = (self.fixes.front()?, self.fixes.back()?);
+        GpsWindow::between(first, last)
     }
 
     /// The reset to make now, if the window a GPS solution just completed shows a tilt error
@@ -204,7 +260,7 @@ mod tests {
                 vel_ned_m_s: velocity(t - 0.1),
                 age_s: 0.1,
             });
-            c.update(&f, gps.as_ref(), dt);
+            c.update(&f, &Matrix3::identity(), gps.as_ref(), dt);
             let level = UnitQuaternion::identity();
             if let Some(r) = c.check(&level, &level) {
                 found.push((t, r.error_rad.to_degrees()));

@@ -1,5 +1,6 @@
 //! State estimation: attitude (q-method + nonlinear observer) and, later, translation.
 
+pub mod accel_bias;
 pub mod attitude;
 pub mod bias;
 pub mod gps_tilt;

@@ -26,6 +26,7 @@
 //!
 //! `q = q_heading ⊗ q_tilt ⊗ q_gyro`.
 
+use super::accel_bias::AccelBiasEstimator;
 use super::bias::{BiasEstimator, BiasSettings};
 pub use super::gps_tilt::DelayedVelocity;
 use super::gps_tilt::GpsTiltCheck;
@@ -157,6 +158,9 @@ pub struct TiltHeadingFilter {
     recovery: TiltRecovery,
     /// The tilt against the GPS's velocity in flight.
     gps_check: GpsTiltCheck,
+    /// The accelerometer's bias, from the same windows, and the time since it took one (s).
+    accel_bias: AccelBiasEstimator,
+    since_accel_window_s: f64,
     hard_iron: HardIronEstimator,
     /// Time since the last magnetometer sample (s).
     since_mag_s: f64,
@@ -172,6 +176,10 @@ pub struct TiltHeadingFilter {
 /// The gyro bias is known well enough to take off once its standard deviation is below this
 /// (rad/s): 0.1°/s, a tilt lag of 0.3° through the 3 s accelerometer low-pass.
 pub const BIAS_SETTLED_RAD_S: f64 = 0.1 * std::f64::consts::PI / 180.0;
+
+/// How often a GPS window measures the accelerometer's bias (s): windows a second long that
+/// do not overlap.
+const ACCEL_WINDOW_S: f64 = 1.0;
 
 /// A clean field's heading this far from the estimate for a second resets it, disarmed and armed
 /// (rad), within [`UNSEEN_TURN_S`] of a sign that the gyro missed a turn.
@@ -201,6 +209,8 @@ impl TiltHeadingFilter {
             }),
             recovery: TiltRecovery::default(),
             gps_check: GpsTiltCheck::default(),
+            accel_bias: AccelBiasEstimator::default(),
+            since_accel_window_s: 0.0,
             hard_iron: HardIronEstimator::new(settings.hard_iron),
             since_mag_s: 0.0,
             unseen_turn_s: 0.0,
@@ -224,6 +234,16 @@ impl TiltHeadingFilter {
         quat::shortest(&(self.heading.rotation() * self.q_tilt * self.q_gyro))
     }
 
+    /// The accelerometer-bias estimate (m/s², body frame) and its standard deviation.
+    pub fn accel_bias(&self) -> (Vector3<f64>, Vector3<f64>) {
+        (self.accel_bias.bias(), self.accel_bias.sigma())
+    }
+
+    /// Forgets the accelerometer bias learned in flight (a new calibration).
+    pub fn forget_accel_bias(&mut self) {
+        self.accel_bias = AccelBiasEstimator::default();
+    }
+
     /// The gyro-bias estimate (rad/s).
     pub fn bias(&self) -> Vector3<f64> {
         self.bias.bias()
@@ -244,6 +264,7 @@ impl TiltHeadingFilter {
         self.last_vel = None;
         self.recovery.clear();
         self.gps_check.clear();
+        self.accel_bias.forget_error();
         self.bias.restart_tilt();
         self.running_s = 0.0;
     }
@@ -314,8 +335,9 @@ impl TiltHeadingFilter {
             gps_vel,
             armed,
         } = input;
-        let (gyro, accel, mag, vel_ned, armed) =
-            (gyro, accel, mag.as_ref(), vel_ned.as_ref(), *armed);
+        // The accelerometer's bias learned in flight is taken off first (`accel_bias.rs`).
+        let accel = &(accel - self.accel_bias.bias());
+        let (gyro, mag, vel_ned, armed) = (gyro, mag.as_ref(), vel_ned.as_ref(), *armed);
         let s = self.settings;
         // Gyro: Castillo (101), (104).
         let bias = self.bias.bias();
@@ -370,7 +392,28 @@ impl TiltHeadingFilter {
         let f = self.q_gyro * accel;
         self.recovery
             .update(&f, known_accel.as_ref(), &(gyro - bias), dt);
-        self.gps_check.update(&f, gps_vel.as_ref(), dt);
+        self.gps_check.update(
+            &f,
+            self.q_gyro.to_rotation_matrix().matrix(),
+            gps_vel.as_ref(),
+            dt,
+        );
+        self.since_accel_window_s += dt;
+        if let Some(w) = self.gps_check.window()
+            && self.since_accel_window_s >= ACCEL_WINDOW_S
+        {
+            self.since_accel_window_s = 0.0;
+            let applied = self.accel_bias.bias();
+            let (t_s, integral) = self.gps_check.rotation_integral();
+            self.accel_bias.update(
+                &w,
+                &self.q_tilt,
+                &self.heading.rotation(),
+                (t_s, &integral),
+                &self.bias.bias(),
+                &applied,
+            );
+        }
         let mut lp = self.accel_lp.update(&f, dt);
         let mut accel_lp = accel_lp;
         // An error made faster than the low-pass fades it (`recovery.rs`): the low-passes start
@@ -387,6 +430,7 @@ impl TiltHeadingFilter {
                 accel_lp = r.accel_ned;
             }
             self.status.reset.tilt += 1;
+            self.accel_bias.forget_error();
             self.status.reset.tilt_rad = r.error_rad;
             self.unseen_turn_s = UNSEEN_TURN_S;
         }

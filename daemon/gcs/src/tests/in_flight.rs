@@ -444,8 +444,10 @@ fn an_attitude_estimate_reset_is_said_once() {
         q: nalgebra::UnitQuaternion::identity(),
         rate: nalgebra::Vector3::zeros(),
         gyro_bias: nalgebra::Vector3::zeros(),
+        accel_bias: nalgebra::Vector3::zeros(),
         valid: true,
         bias_settled: true,
+        imu_still: false,
         reset,
     };
     let mut out = Outbox::default();
