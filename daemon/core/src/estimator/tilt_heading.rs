@@ -23,6 +23,11 @@
 //! - **Gyro bias**: a Kalman filter (`bias.rs`) fed at rest by the mean rate (`rest.rs`) and in
 //!   motion by the tilt and heading corrections through a model of the filters that made them,
 //!   so a drifting bias is tracked in flight.
+//! - **Recovery**: an error made faster than the low-pass fades it is taken at once from a
+//!   steady accelerometer (`recovery.rs`) or, in flight, from the GPS's velocity
+//!   (`gps_tilt.rs`).
+//! - **Accelerometer bias**: learned in flight from the same GPS windows once turns have shown
+//!   it (`accel_bias.rs`), and taken off the specific force before everything else.
 //!
 //! `q = q_heading ⊗ q_tilt ⊗ q_gyro`.
 
