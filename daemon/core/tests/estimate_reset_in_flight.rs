@@ -6,11 +6,10 @@
 #![allow(clippy::unwrap_used, missing_docs)]
 
 use airframe::MAX_ROTORS;
-use flight_core::autopilot::{AutoFlight, Autopilot, StepInputs};
-use flight_core::params::FlightParams;
+use flight_core::autopilot::StepInputs;
 use nalgebra::{UnitQuaternion, Vector3};
 use sitl_core::sensors::{SensorConfig, SensorPreset};
-use sitl_core::sim::{SimConfig, Simulator};
+use sitl_core::sim::SimConfig;
 
 mod common;
 use common::airframe;
@@ -42,14 +41,7 @@ fn fly(seed: u64, sensors: SensorConfig, glitch: bool) -> Outcome {
         sensors,
         ..SimConfig::default()
     };
-    let mut sim = Simulator::new(&a, config, sitl_core::BodyState::default()).unwrap();
-    let mut params = FlightParams::default();
-    params.attitude.mag_calibration_id = flight_core::sensors::mag_check::SIMULATED_MAG_ID;
-    let auto = AutoFlight {
-        takeoff_m: 10.0,
-        hover_s: 60.0,
-    };
-    let mut autopilot = Autopilot::new(&a, &params, Some(auto)).unwrap();
+    let (mut sim, mut autopilot) = common::auto_flight(&a, config, 10.0, 60.0);
     let mut commands = [0.0; MAX_ROTORS];
     let glitch_at = 30.0;
     let turn = Vector3::new(1.0, 0.5, 0.0).normalize() * 30f64.to_radians();

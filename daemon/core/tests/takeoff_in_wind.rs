@@ -5,11 +5,9 @@
 #![allow(clippy::unwrap_used, missing_docs)]
 
 use airframe::MAX_ROTORS;
-use flight_core::autopilot::{AutoFlight, Autopilot};
-use flight_core::params::FlightParams;
 use nalgebra::Vector3;
 use sitl_core::environment::WindConfig;
-use sitl_core::sim::{SimConfig, Simulator};
+use sitl_core::sim::SimConfig;
 
 mod common;
 use common::airframe;
@@ -39,14 +37,7 @@ fn take_off_in_wind(seed: u64) -> Takeoff {
         },
         ..SimConfig::default()
     };
-    let mut sim = Simulator::new(&a, cfg, sitl_core::BodyState::default()).unwrap();
-    let mut params = FlightParams::default();
-    params.attitude.mag_calibration_id = flight_core::sensors::mag_check::SIMULATED_MAG_ID;
-    let auto = AutoFlight {
-        takeoff_m: 10.0,
-        hover_s: 60.0,
-    };
-    let mut autopilot = Autopilot::new(&a, &params, Some(auto)).unwrap();
+    let (mut sim, mut autopilot) = common::auto_flight(&a, cfg, 10.0, 60.0);
     let mut commands = [0.0; MAX_ROTORS];
     let mut out = Takeoff::default();
     let start = sim.truth().body.pos_ned_m;

@@ -6,11 +6,9 @@
 #![allow(clippy::unwrap_used, missing_docs)]
 
 use airframe::MAX_ROTORS;
-use flight_core::autopilot::{AutoFlight, Autopilot};
-use flight_core::params::FlightParams;
 use nalgebra::{UnitQuaternion, Vector3};
 use sitl_core::environment::WindConfig;
-use sitl_core::sim::{SimConfig, Simulator};
+use sitl_core::sim::SimConfig;
 
 mod common;
 use common::{DECIMATION, airframe};
@@ -45,14 +43,7 @@ fn land_in_wind(seed: u64) -> Landing {
         ..SimConfig::default()
     };
     let dt = cfg.dt_s;
-    let mut sim = Simulator::new(&a, cfg, sitl_core::BodyState::default()).unwrap();
-    let mut params = FlightParams::default();
-    params.attitude.mag_calibration_id = flight_core::sensors::mag_check::SIMULATED_MAG_ID;
-    let auto = AutoFlight {
-        takeoff_m: 5.0,
-        hover_s: 10.0,
-    };
-    let mut autopilot = Autopilot::new(&a, &params, Some(auto)).unwrap();
+    let (mut sim, mut autopilot) = common::auto_flight(&a, cfg, 5.0, 10.0);
     let mut commands = [0.0; MAX_ROTORS];
     let mut out = Landing::default();
     let mut touch_at: Option<f64> = None;

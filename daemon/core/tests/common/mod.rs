@@ -18,6 +18,26 @@ pub fn airframe(name: &str) -> airframe::Airframe {
     }
 }
 
+/// The simulator on `config` with `airframe` on the ground, and the whole autopilot on default
+/// parameters (the simulated magnetometer taken as calibrated) that takes off to `takeoff_m`
+/// by itself, hovers `hover_s` and lands.
+#[allow(dead_code)] // not every test crate sharing this module flies an automatic flight
+pub fn auto_flight(
+    airframe: &airframe::Airframe,
+    config: sitl_core::sim::SimConfig,
+    takeoff_m: f64,
+    hover_s: f64,
+) -> (Simulator, flight_core::autopilot::Autopilot) {
+    let sim = Simulator::new(airframe, config, sitl_core::BodyState::default())
+        .expect("the simulator starts");
+    let mut params = flight_core::params::FlightParams::default();
+    params.attitude.mag_calibration_id = flight_core::sensors::mag_check::SIMULATED_MAG_ID;
+    let auto = flight_core::autopilot::AutoFlight { takeoff_m, hover_s };
+    let autopilot = flight_core::autopilot::Autopilot::new(airframe, &params, Some(auto))
+        .expect("the autopilot starts");
+    (sim, autopilot)
+}
+
 /// One control interval of the whole autopilot: physics under `commands`, the sample (its ESC
 /// telemetry dropped unless `esc_telemetry`) stepped, and `commands` replaced by the answer's.
 #[allow(dead_code)] // not every test crate sharing this module flies the whole autopilot
