@@ -4,6 +4,7 @@ sitl + autopilot pairs as separate processes (`-i N`), each its own MAVLink syst
 import math
 import os
 import signal
+import random
 import socket
 import subprocess
 import threading
@@ -17,14 +18,21 @@ COUNT = 10
 
 
 def free_udp_ports(n):
-    """The first of `n` consecutive free UDP ports (held while they are checked)."""
+    """The first of `n` consecutive free UDP ports (held while they are checked), below the
+    kernel's ephemeral range: there, a port free now could be given to any socket bound to port 0
+    before the vehicle that is to use it starts (the vehicles' own ground-station sockets among
+    them; one once took autopilot 0's simulator port)."""
+    try:
+        with open("/proc/sys/net/ipv4/ip_local_port_range") as f:
+            ephemeral = int(f.read().split()[0])
+    except (OSError, ValueError, IndexError):
+        ephemeral = 32768
+    rng = random.Random()
     for _ in range(50):
-        first = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        first.bind(("127.0.0.1", 0))
-        base = first.getsockname()[1]
-        held = [first]
+        base = rng.randrange(10000, ephemeral - n)
+        held = []
         try:
-            for p in range(base + 1, base + n):
+            for p in range(base, base + n):
                 s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
                 held.append(s)
                 s.bind(("127.0.0.1", p))
