@@ -43,6 +43,8 @@ const WALK_GYRO: f64 = 1e-4;
 /// and the rotors' vibration averaged over it; the innovations in a realistic-sensor flight
 /// spread about this much.
 const SIGMA_WINDOW: f64 = 0.1;
+/// A window is taken this often (s): windows a second long that do not overlap.
+const WINDOW_EVERY_S: f64 = 1.0;
 /// A window whose innovation is beyond this (χ², 3 degrees of freedom, 99.9 %) is not fused.
 const GATE_CHI2: f64 = 16.3;
 /// A bias component is taken off once its standard deviation is below this (m/s²; 0.2°).
@@ -68,8 +70,10 @@ pub struct AccelBiasEstimator {
     /// it since; the integral of the gyro frame's rotation from the body and the gyro bias
     /// taken off, to know how far an error of that bias turned it.
     last: Option<Last>,
-    fused: u64,
-    rejected: u64,
+    /// When the last window was taken (s, the windows' clock).
+    last_window_s: f64,
+    /// The bias taken off the accelerometer: [`Self::bias`], as the last window left it.
+    applied: Vector3<f64>,
 }
 
 impl Default for AccelBiasEstimator {
@@ -78,8 +82,8 @@ impl Default for AccelBiasEstimator {
             x: State::zeros(),
             p: Covariance::zeros(),
             last: None,
-            fused: 0,
-            rejected: 0,
+            last_window_s: 0.0,
+            applied: Vector3::zeros(),
         };
         e.forget_error();
         for i in 3..6 {
@@ -92,8 +96,19 @@ impl Default for AccelBiasEstimator {
 impl AccelBiasEstimator {
     /// The bias to take off the accelerometer (body frame, m/s²): the components learned
     /// ([`LEARNED_SIGMA`]); one the flight has not shown stays at zero, not at whatever share of
-    /// the tilt's error its prior would give it.
+    /// the tilt's error its prior would give it. It changes only at a window.
     pub fn bias(&self) -> Vector3<f64> {
+        self.applied
+    }
+
+    /// Whether a window is due at `t_s` (the windows' clock): one every [`WINDOW_EVERY_S`], so
+    /// that they do not overlap.
+    pub fn due(&self, t_s: f64) -> bool {
+        t_s - self.last_window_s >= WINDOW_EVERY_S
+    }
+
+    /// The learned components of the estimate, limited.
+    fn learned(&self) -> Vector3<f64> {
         let sigma = self.sigma();
         let b = Vector3::from_fn(|i, _| {
             if sigma[i] <= LEARNED_SIGMA {
@@ -109,11 +124,6 @@ impl AccelBiasEstimator {
     /// The bias's standard deviation per body axis (m/s²).
     pub fn sigma(&self) -> Vector3<f64> {
         Vector3::new(self.p[(3, 3)], self.p[(4, 4)], self.p[(5, 5)]).map(f64::sqrt)
-    }
-
-    /// Windows fused and refused so far.
-    pub fn counts(&self) -> (u64, u64) {
-        (self.fused, self.rejected)
     }
 
     /// The estimate's error is unknown again (it was reset, or started again): it and the gyro
@@ -135,9 +145,7 @@ impl AccelBiasEstimator {
 
     /// A GPS window, with the tilt `q_tilt` (gyro frame → level) and heading `heading` (level →
     /// NED) as they are now, the time and the integral of the gyro frame's rotation from the
-    /// body so far (`GpsTiltCheck::rotation_integral`), the gyro bias taken off now, and the
-    /// accelerometer bias that was taken off over it.
-    #[allow(clippy::too_many_arguments)] // the filter's state at this sample, each its own
+    /// body so far (`GpsTiltCheck::rotation_integral`), and the gyro bias taken off now.
     pub fn update(
         &mut self,
         w: &GpsWindow,
@@ -145,8 +153,9 @@ impl AccelBiasEstimator {
         heading: &UnitQuaternion<f64>,
         (t_s, rotation_integral): (f64, &Matrix3<f64>),
         gyro_bias: &Vector3<f64>,
-        applied: &Vector3<f64>,
     ) {
+        self.last_window_s = t_s;
+        let applied = self.applied;
         let estimate = heading * q_tilt;
         if let Some(last) = self.last {
             // The error moves by what the filters turned the estimate since the last window,
@@ -192,7 +201,6 @@ impl AccelBiasEstimator {
             return;
         };
         if (innovation.transpose() * s_inv * innovation)[0] > GATE_CHI2 {
-            self.rejected += 1;
             return;
         }
         let k = self.p * h.transpose() * s_inv;
@@ -200,7 +208,7 @@ impl AccelBiasEstimator {
         // Joseph form: the covariance stays symmetric and positive.
         let i_kh = Covariance::identity() - k * h;
         self.p = i_kh * self.p * i_kh.transpose() + k * r * k.transpose();
-        self.fused += 1;
+        self.applied = self.learned();
     }
 }
 

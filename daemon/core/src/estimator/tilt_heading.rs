@@ -163,9 +163,8 @@ pub struct TiltHeadingFilter {
     recovery: TiltRecovery,
     /// The tilt against the GPS's velocity in flight.
     gps_check: GpsTiltCheck,
-    /// The accelerometer's bias, from the same windows, and the time since it took one (s).
+    /// The accelerometer's bias, from the same windows.
     accel_bias: AccelBiasEstimator,
-    since_accel_window_s: f64,
     hard_iron: HardIronEstimator,
     /// Time since the last magnetometer sample (s).
     since_mag_s: f64,
@@ -181,10 +180,6 @@ pub struct TiltHeadingFilter {
 /// The gyro bias is known well enough to take off once its standard deviation is below this
 /// (rad/s): 0.1°/s, a tilt lag of 0.3° through the 3 s accelerometer low-pass.
 pub const BIAS_SETTLED_RAD_S: f64 = 0.1 * std::f64::consts::PI / 180.0;
-
-/// How often a GPS window measures the accelerometer's bias (s): windows a second long that
-/// do not overlap.
-const ACCEL_WINDOW_S: f64 = 1.0;
 
 /// A clean field's heading this far from the estimate for a second resets it, disarmed and armed
 /// (rad), within [`UNSEEN_TURN_S`] of a sign that the gyro missed a turn.
@@ -215,7 +210,6 @@ impl TiltHeadingFilter {
             recovery: TiltRecovery::default(),
             gps_check: GpsTiltCheck::default(),
             accel_bias: AccelBiasEstimator::default(),
-            since_accel_window_s: 0.0,
             hard_iron: HardIronEstimator::new(settings.hard_iron),
             since_mag_s: 0.0,
             unseen_turn_s: 0.0,
@@ -403,20 +397,16 @@ impl TiltHeadingFilter {
             gps_vel.as_ref(),
             dt,
         );
-        self.since_accel_window_s += dt;
-        if let Some(w) = self.gps_check.window()
-            && self.since_accel_window_s >= ACCEL_WINDOW_S
+        let (t_s, integral) = self.gps_check.rotation_integral();
+        if self.accel_bias.due(t_s)
+            && let Some(w) = self.gps_check.window()
         {
-            self.since_accel_window_s = 0.0;
-            let applied = self.accel_bias.bias();
-            let (t_s, integral) = self.gps_check.rotation_integral();
             self.accel_bias.update(
                 &w,
                 &self.q_tilt,
                 &self.heading.rotation(),
                 (t_s, &integral),
                 &self.bias.bias(),
-                &applied,
             );
         }
         let mut lp = self.accel_lp.update(&f, dt);

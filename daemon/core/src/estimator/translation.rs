@@ -175,15 +175,27 @@ impl TranslationEstimator {
         }
     }
 
-    /// A GPS solution's velocity and age, if the filter would take the solution (a 3D fix,
-    /// accurate enough): the attitude estimator checks its tilt against it.
+    /// Whether the filter takes a GPS solution: a 3D fix, finite, accurate enough.
+    fn accepts(&self, gps: &GpsMeasurement) -> bool {
+        let finite = [
+            gps.position.lat_deg,
+            gps.position.lon_deg,
+            gps.position.alt_m,
+            gps.h_acc_m,
+        ]
+        .iter()
+        .all(|x| x.is_finite())
+            && gps.vel_ned_m_s.iter().all(|x| x.is_finite());
+        gps.fix_type >= 3 && finite && gps.h_acc_m <= self.params.gps_max_h_acc_m
+    }
+
+    /// A GPS solution's velocity and age, if the filter takes the solution: the attitude
+    /// estimator checks its tilt against it.
     pub fn gps_velocity(&self, gps: &GpsMeasurement) -> Option<DelayedVelocity> {
-        (gps.fix_type >= 3 && gps.h_acc_m <= self.params.gps_max_h_acc_m).then_some(
-            DelayedVelocity {
-                vel_ned_m_s: gps.vel_ned_m_s,
-                age_s: self.params.gps_delay_s,
-            },
-        )
+        self.accepts(gps).then_some(DelayedVelocity {
+            vel_ned_m_s: gps.vel_ned_m_s,
+            age_s: self.params.gps_delay_s,
+        })
     }
 
     /// The attitude was reset: what was integrated through its error is dropped. The
@@ -264,16 +276,7 @@ impl TranslationEstimator {
 
     /// Fuses a GPS solution delivered at `t_usec` (older by `gps_delay_s`).
     pub fn fuse_gps(&mut self, t_usec: u64, gps: &GpsMeasurement) {
-        let finite = [
-            gps.position.lat_deg,
-            gps.position.lon_deg,
-            gps.position.alt_m,
-            gps.h_acc_m,
-        ]
-        .iter()
-        .all(|x| x.is_finite())
-            && gps.vel_ned_m_s.iter().all(|x| x.is_finite());
-        if gps.fix_type < 3 || !finite || gps.h_acc_m > self.params.gps_max_h_acc_m {
+        if !self.accepts(gps) {
             self.status.gps_rejected += 1;
             return;
         }
