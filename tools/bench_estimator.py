@@ -22,7 +22,9 @@ until the errors stay within the same limits is measured, for both.
 
 Then a start in motion with a MEMS gyro's turn-on bias: the same cuts, 1.2°/s added to each
 gyro axis, ours and VQF on the same file: the largest error from 5 s to 10 s and the RMS from
-10 s on.
+10 s on. And the same on synthetic multirotor flights in a clean field
+(tools/synthetic_flight.py: hover with oscillations, 60° banks, 450°/s spins, a turn; no rest),
+where the magnetometer can show what BROAD's indoor field cannot.
 
 And without the magnetometer: every trial replayed with its field removed, VQF's 6-axis
 estimate beside, the heading's drift scored against the truth after taking out the offset of its
@@ -45,6 +47,7 @@ from vqf import VQF
 
 import broad
 import broad_score
+import synthetic_flight
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # The site's field (BROAD README: medians over the undisturbed rest phases; truth referenced to
@@ -171,6 +174,30 @@ def biased_start(autopilot, params, trial_csv, tmp):
     return out
 
 
+# The synthetic flights' seeds (tools/synthetic_flight.py).
+SYNTHETIC_SEEDS = range(1, 7)
+
+
+def synthetic_start(autopilot, params, tmp):
+    """The synthetic flights in a clean field, started in motion with the gyro biased by
+    START_BIAS_DEG_S: for the tilt/heading filter and VQF, {who: {"worst_5_10_deg": [...],
+    "rms_10_deg": [...]}} (total error), one per seed."""
+    quat = lambda x: np.stack([x[k] for k in ("qw", "qx", "qy", "qz")], 1)
+    out = {who: {"worst_5_10_deg": [], "rms_10_deg": []} for who in ("tilt_heading", "vqf")}
+    for seed in SYNTHETIC_SEEDS:
+        path = os.path.join(tmp, f"synthetic_{seed}.csv")
+        synthetic_flight.write(path, synthetic_flight.flight(seed, START_BIAS_DEG_S))
+        d = np.genfromtxt(path, delimiter=",", names=True)
+        for who in out:
+            e = estimate(who, autopilot, params, path, os.path.join(tmp, f"synthetic_{who}.csv"))
+            total = np.degrees(broad_score.error_angles(quat(e), quat(d))["total"])
+            total = np.where(np.isfinite(total), total, 180.0)
+            t = e["t"] - e["t"][0]
+            out[who]["worst_5_10_deg"].append(float(np.max(total[(t >= 5.0) & (t < 10.0)])))
+            out[who]["rms_10_deg"].append(float(np.sqrt(np.mean(total[t >= 10.0] ** 2))))
+    return out
+
+
 # The glitches at rest (deg), about one axis off every body axis.
 GLITCHES_DEG = (10.0, 45.0, 90.0, 179.0)
 GLITCH_AXIS = np.array([1.0, 0.5, 0.2]) / np.linalg.norm([1.0, 0.5, 0.2])
@@ -292,6 +319,16 @@ def bench_trial(job):
     return row
 
 
+def params_file(tmp, params, mode):
+    """A parameter file for ATT_MODE `mode` in tmp: `params` (a file) or the site's field only."""
+    base = open(params).read() if params else \
+        "[attitude]\n" + "".join(f"{k} = {v}\n" for k, v in SITE.items())
+    path = os.path.join(tmp, f"mode_{mode}.toml")
+    with open(path, "w") as f:
+        f.write(base.replace("[attitude]\n", f"[attitude]\nmode = {mode}\n", 1))
+    return path
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--autopilot", default=os.path.join(ROOT, "target", "release", "autopilot"))
@@ -314,13 +351,7 @@ def main():
         sys.exit(f"{a.autopilot}: not found; build it (cargo build --release -p autopilot)")
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
-        base = open(a.params).read() if a.params else \
-            "[attitude]\n" + "".join(f"{k} = {v}\n" for k, v in SITE.items())
-        params = {}
-        for who, mode in MODES.items():
-            params[who] = os.path.join(tmp, f"{who}.toml")
-            with open(params[who], "w") as f:
-                f.write(base.replace("[attitude]\n", f"[attitude]\nmode = {mode}\n", 1))
+        params = {who: params_file(tmp, a.params, mode) for who, mode in MODES.items()}
         # The trials are independent: two at a time (the machines this runs on have two
         # cores; each replay is one process).
         jobs = [(a.autopilot, os.path.join(a.trials, name), params, tmp)
@@ -370,6 +401,18 @@ def main():
         w, r = start[who]["worst_5_10_deg"], start[who]["rms_10_deg"]
         print(f"| {name} | {np.median(w):.2f} / {np.max(w):.2f} | "
               f"{np.mean(r):.2f} / {np.max(r):.2f} |")
+    with tempfile.TemporaryDirectory() as tmp:
+        synthetic = synthetic_start(a.autopilot, params_file(tmp, a.params, MODES["tilt_heading"]),
+                                    tmp)
+    print(f"\nThe same start in motion on synthetic multirotor flights in a clean field "
+          f"(tools/synthetic_flight.py, seeds {SYNTHETIC_SEEDS.start}–{SYNTHETIC_SEEDS.stop - 1}): "
+          "the largest total error from 5 s to 10 s and the RMS total error from 10 s on, deg")
+    print("| | error 5–10 s, by seed | largest | RMS from 10 s, by seed | mean |")
+    print("|---|---|---:|---|---:|")
+    for who, name in (("tilt_heading", "tilt/heading (1)"), ("vqf", "VQF")):
+        w, r = synthetic[who]["worst_5_10_deg"], synthetic[who]["rms_10_deg"]
+        print(f"| {name} | {' '.join(f'{x:.2f}' for x in w)} | {max(w):.2f} | "
+              f"{' '.join(f'{x:.2f}' for x in r)} | {np.mean(r):.2f} |")
     glitch = {who: {deg: {k: [r["glitch_s"][who][deg][k] for r in rows] for k in CONVERGED}
                     for deg in GLITCHES_DEG} for who in ("tilt_heading", "vqf")}
     print(f"\nA gyro glitch 5 s into each trial's last rest ({len(rows)} trials): seconds until "
@@ -397,7 +440,7 @@ def main():
     if a.json:
         with open(a.json, "w") as f:
             json.dump({"trials": rows, "mean": mean, "convergence_s": summary,
-                       "biased_start": start,
+                       "biased_start": start, "synthetic_start": synthetic,
                        "glitch_s": glitch, "no_mag": no_mag}, f, indent=1)
 
 

@@ -30,6 +30,8 @@ const SIGMA_HEADING: f64 = 0.05;
 const HEADING_NOISE_RATIO: f64 = 1.0;
 /// Initial standard deviation of the bias (rad/s): a MEMS gyro's turn-on bias, about 1°/s.
 const SIGMA_INITIAL: f64 = 0.0175;
+/// The smallest standard deviation a fit of a start in motion is taken with (rad/s): 0.2°/s.
+const FIT_SIGMA_FLOOR: f64 = 0.2 * std::f64::consts::PI / 180.0;
 
 /// Settings of the bias filter.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -96,6 +98,13 @@ impl BiasEstimator {
         self.bias = bias;
     }
 
+    /// The standard deviation of the estimate about the level frame's vertical (rad/s), given
+    /// `level_from_body`.
+    pub fn vertical_sigma(&self, level_from_body: &Rotation3<f64>) -> f64 {
+        let r_z = level_from_body.matrix().row(2).transpose();
+        r_z.dot(&(self.p * r_z)).max(0.0).sqrt()
+    }
+
     /// The largest standard deviation of the estimate (rad/s).
     pub fn sigma(&self) -> f64 {
         self.p.diagonal().max().sqrt()
@@ -159,6 +168,28 @@ impl BiasEstimator {
         };
         let sigma = self.rest_sigma();
         self.p = Matrix3::from_diagonal_element(sigma * sigma / duration_s.max(1e-3));
+    }
+
+    /// A start in motion fitted the bias (`motion_start.rs`): it is the estimate, with the fit's
+    /// covariance (no tighter than [`FIT_SIGMA_FLOOR`]: the fit takes the vehicle's
+    /// accelerations for white noise, which they are not).
+    pub fn take_fit(&mut self, bias: &Vector3<f64>, covariance: &Matrix3<f64>) {
+        let n = bias.norm();
+        self.bias = if n > self.settings.limit_rad_s {
+            bias * (self.settings.limit_rad_s / n)
+        } else {
+            *bias
+        };
+        // Each principal direction between the floor and the initial uncertainty: a direction
+        // the fit could not see (about the field, in a hover) stays as wide as it started.
+        let eig = ((covariance + covariance.transpose()) * 0.5).symmetric_eigen();
+        let clipped = eig.eigenvalues.map(|v| {
+            v.clamp(
+                FIT_SIGMA_FLOOR * FIT_SIGMA_FLOOR,
+                SIGMA_INITIAL * SIGMA_INITIAL,
+            )
+        });
+        self.p = eig.eigenvectors * Matrix3::from_diagonal(&clipped) * eig.eigenvectors.transpose();
     }
 
     /// At rest: the mean rate measures the bias directly.

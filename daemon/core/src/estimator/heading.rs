@@ -99,11 +99,16 @@ pub struct HeadingCorrector {
     error_lp: f64,
     resets: u64,
     last_reset: f64,
+    /// The time constant the heading's drift allows (s): see [`Self::set_drift`].
+    drift_tau_s: f64,
 }
 
 /// How long a clean field must stay further than the reset limit from the heading before the
 /// heading is taken from it at once (s).
 pub const RESET_AFTER_S: f64 = 1.0;
+
+/// The heading error an unknown drift may make before the field corrects it (rad): 0.5°.
+pub const DRIFT_ALLOWANCE_RAD: f64 = 0.5 * PI / 180.0;
 
 /// `x` wrapped to [−π, π).
 fn wrap(x: f64) -> f64 {
@@ -131,6 +136,7 @@ impl HeadingCorrector {
             error_lp: 0.0,
             resets: 0,
             last_reset: 0.0,
+            drift_tau_s: f64::INFINITY,
         }
     }
 
@@ -146,10 +152,29 @@ impl HeadingCorrector {
         self.samples = 0.0;
     }
 
+    /// Takes the heading of a field `m` in the level frame, averaged elsewhere over `samples`
+    /// measurements (a fit of the start): the running mean goes on from there.
+    pub fn take_field(&mut self, m: &Vector3<f64>, samples: f64) {
+        if m.x.hypot(m.y) < 0.05 * m.norm() {
+            return;
+        }
+        self.delta = wrap(self.settings.declination_rad - m.y.atan2(m.x));
+        self.samples = samples.max(1.0);
+        (self.far_s, self.error_lp) = (0.0, 0.0);
+    }
+
     /// A clean field's heading further than `limit` (rad) from the estimate for
     /// [`RESET_AFTER_S`] resets the heading to it.
     pub fn set_reset_limit(&mut self, limit: f64) {
         self.reset_limit = limit;
+    }
+
+    /// The uncertainty of the heading's drift rate (rad/s, the gyro bias about the vertical):
+    /// the correction is no slower than it takes that drift to make [`DRIFT_ALLOWANCE_RAD`] of
+    /// error. A gyro whose bias is not yet known (a start in motion) is held to the field
+    /// closely; once it is, the correction is as slow as `tau_s` asks.
+    pub fn set_drift(&mut self, sigma_rad_s: f64) {
+        self.drift_tau_s = DRIFT_ALLOWANCE_RAD / sigma_rad_s.max(1e-9);
     }
 
     /// Heading resets so far, and the last one's size (rad).
@@ -272,7 +297,7 @@ impl HeadingCorrector {
             }
         }
         self.samples += 1.0;
-        self.k_nominal = dt / s.tau_s;
+        self.k_nominal = dt / s.tau_s.min(self.drift_tau_s);
         let k = self.k_nominal.max(1.0 / self.samples).min(1.0);
         self.last_gain = k;
         let step = k * error;

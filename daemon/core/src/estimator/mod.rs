@@ -7,6 +7,7 @@ pub mod gps_tilt;
 pub mod hard_iron;
 pub mod heading;
 pub mod lowpass;
+pub mod motion_start;
 pub mod observer;
 pub mod recovery;
 pub mod replay;

@@ -38,6 +38,7 @@ use super::gps_tilt::GpsTiltCheck;
 use super::hard_iron::{HardIronEstimator, HardIronSettings};
 use super::heading::{HeadingCorrector, HeadingSettings};
 use super::lowpass::LowPass;
+use super::motion_start::{MotionStart, MotionStartFit};
 use super::recovery::TiltRecovery;
 use super::rest::{RestDetector, RestThresholds};
 use crate::GRAVITY_M_S2;
@@ -112,6 +113,8 @@ pub struct TiltHeadingStatus {
     /// The tilt taken from a steady accelerometer at once (`recovery.rs`), the heading from a
     /// clean magnetometer: how often, and the last ones' sizes.
     pub reset: EstimateReset,
+    /// The bias and attitude were fitted to the first seconds of a start in motion.
+    pub started_in_motion: bool,
 }
 
 /// The resets of the attitude estimate so far.
@@ -174,6 +177,8 @@ pub struct TiltHeadingFilter {
     running_s: f64,
     /// The first rest has set the bias and restarted the tilt and heading.
     rest_aligned: bool,
+    /// The fit of a start in motion, until the first rest or its end.
+    motion_start: MotionStartFit,
     status: TiltHeadingStatus,
 }
 
@@ -215,6 +220,7 @@ impl TiltHeadingFilter {
             unseen_turn_s: 0.0,
             running_s: 0.0,
             rest_aligned: false,
+            motion_start: MotionStartFit::default(),
             status: TiltHeadingStatus::default(),
         }
     }
@@ -304,6 +310,37 @@ impl TiltHeadingFilter {
         self.bias.restart_tilt_at(&self.q_gyro.to_rotation_matrix());
     }
 
+    /// A start in motion fitted (`motion_start.rs`): its bias is taken, the tilt starts again
+    /// from its frame and the heading from its field, with the low-passes steady there (the
+    /// vehicle's acceleration low-passed as it was).
+    fn align_in_motion(&mut self, fit: &MotionStart, integrated_bias: &Vector3<f64>) {
+        self.bias.take_fit(
+            &(integrated_bias + fit.bias_correction),
+            &fit.bias_covariance,
+        );
+        let up = Vector3::new(0.0, 0.0, -1.0);
+        let start = UnitQuaternion::from_rotation_matrix(&fit.start_from_body);
+        let level_from_start =
+            UnitQuaternion::rotation_between(&fit.up, &up).unwrap_or_else(UnitQuaternion::identity);
+        let (vel_accel_lp, last_vel) = (self.vel_accel_lp, self.last_vel);
+        self.start_at(level_from_start * start);
+        self.heading
+            .take_field(&(level_from_start * fit.field), fit.field_samples);
+        (self.vel_accel_lp, self.last_vel) = (vel_accel_lp, last_vel);
+        let accel = if self.vel_accel_lp.started() {
+            self.vel_accel_lp.value()
+        } else {
+            Vector3::zeros()
+        };
+        self.accel_lp
+            .reset_to(up * GRAVITY_M_S2 + self.heading.rotation().inverse() * accel);
+        self.bias.restart_tilt_at(&self.q_gyro.to_rotation_matrix());
+        // The tilt starts steady, but at the window's mean acceleration: one time constant to
+        // settle (not two, as from a first sample) before its corrections are taken for drift.
+        self.running_s = self.settings.tau_acc_s;
+        self.status.started_in_motion = true;
+    }
+
     /// Counters.
     pub fn status(&self) -> TiltHeadingStatus {
         TiltHeadingStatus {
@@ -388,6 +425,19 @@ impl TiltHeadingFilter {
                 Vector3::zeros()
             }
         };
+        // A start in motion: the first seconds fitted at once (at rest, the rest's mean wins).
+        if self.rest_aligned {
+            self.motion_start.abandon();
+        } else {
+            let q = self.attitude();
+            let known = known_accel.as_ref().map(|a| (a, &q));
+            if let Some(fit) = self
+                .motion_start
+                .update(&(gyro - bias), accel, known, mag, dt)
+            {
+                self.align_in_motion(&fit, &bias);
+            }
+        }
         let f = self.q_gyro * accel;
         self.recovery
             .update(&f, known_accel.as_ref(), &(gyro - bias), dt);
@@ -474,6 +524,16 @@ impl TiltHeadingFilter {
                     (true, false) => HEADING_RESET_RAD,
                     (true, true) => HEADING_RESET_ARMED_RAD,
                 });
+            // After a start in motion the field has shown itself clean (`motion_start.rs`), and
+            // the bias about the vertical is the part the fit saw least: the heading holds to
+            // the field until it is learned. Elsewhere (indoors, near steel) a field followed
+            // that closely brings its disturbances into the heading.
+            if self.status.started_in_motion {
+                self.heading.set_drift(
+                    self.bias
+                        .vertical_sigma(&level_from_body.to_rotation_matrix()),
+                );
+            }
             let resets = self.heading.resets().0;
             if let Some(step) = self.heading.update(&(level_from_body * m), dt) {
                 self.status.heading_error_rad = self.heading.last_error();
