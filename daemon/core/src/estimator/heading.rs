@@ -173,8 +173,13 @@ impl HeadingCorrector {
     /// the correction is no slower than it takes that drift to make [`DRIFT_ALLOWANCE_RAD`] of
     /// error. A gyro whose bias is not yet known (a start in motion) is held to the field
     /// closely; once it is, the correction is as slow as `tau_s` asks.
+    /// Zero: no drift to hold against.
     pub fn set_drift(&mut self, sigma_rad_s: f64) {
-        self.drift_tau_s = DRIFT_ALLOWANCE_RAD / sigma_rad_s.max(1e-9);
+        self.drift_tau_s = if sigma_rad_s > 0.0 {
+            DRIFT_ALLOWANCE_RAD / sigma_rad_s
+        } else {
+            f64::INFINITY
+        };
     }
 
     /// Heading resets so far, and the last one's size (rad).

@@ -179,6 +179,9 @@ pub struct TiltHeadingFilter {
     rest_aligned: bool,
     /// The fit of a start in motion, until the first rest or its end.
     motion_start: MotionStartFit,
+    /// After a fitted start, the heading is held to the field until the bias about the vertical
+    /// is known ([`BIAS_SETTLED_RAD_S`]).
+    heading_held: bool,
     status: TiltHeadingStatus,
 }
 
@@ -221,6 +224,7 @@ impl TiltHeadingFilter {
             running_s: 0.0,
             rest_aligned: false,
             motion_start: MotionStartFit::default(),
+            heading_held: false,
             status: TiltHeadingStatus::default(),
         }
     }
@@ -339,6 +343,7 @@ impl TiltHeadingFilter {
         // settle (not two, as from a first sample) before its corrections are taken for drift.
         self.running_s = self.settings.tau_acc_s;
         self.status.started_in_motion = true;
+        self.heading_held = true;
     }
 
     /// Counters.
@@ -428,7 +433,7 @@ impl TiltHeadingFilter {
         // A start in motion: the first seconds fitted at once (at rest, the rest's mean wins).
         if self.rest_aligned {
             self.motion_start.abandon();
-        } else {
+        } else if !self.motion_start.done() {
             let q = self.attitude();
             let known = known_accel.as_ref().map(|a| (a, &q));
             if let Some(fit) = self
@@ -526,13 +531,15 @@ impl TiltHeadingFilter {
                 });
             // After a start in motion the field has shown itself clean (`motion_start.rs`), and
             // the bias about the vertical is the part the fit saw least: the heading holds to
-            // the field until it is learned. Elsewhere (indoors, near steel) a field followed
+            // the field until it is learned (then `tau_s` again). Elsewhere (indoors, near steel) a field followed
             // that closely brings its disturbances into the heading.
-            if self.status.started_in_motion {
-                self.heading.set_drift(
-                    self.bias
-                        .vertical_sigma(&level_from_body.to_rotation_matrix()),
-                );
+            if self.heading_held {
+                let sigma = self
+                    .bias
+                    .vertical_sigma(&level_from_body.to_rotation_matrix());
+                self.heading_held = sigma > BIAS_SETTLED_RAD_S;
+                self.heading
+                    .set_drift(if self.heading_held { sigma } else { 0.0 });
             }
             let resets = self.heading.resets().0;
             if let Some(step) = self.heading.update(&(level_from_body * m), dt) {
