@@ -317,7 +317,10 @@ impl TiltHeadingFilter {
     /// A start in motion fitted (`motion_start.rs`): its bias is taken, the tilt starts again
     /// from its frame and the heading from its field, with the low-passes steady there (the
     /// vehicle's acceleration low-passed as it was).
+    /// The estimate jumps: that is said as a tilt reset, so what was learned through the
+    /// estimate before it (the position estimator's velocity and bias) is forgotten too.
     fn align_in_motion(&mut self, fit: &MotionStart, integrated_bias: &Vector3<f64>) {
+        let before = self.attitude();
         self.bias.take_fit(
             &(integrated_bias + fit.bias_correction),
             &fit.bias_covariance,
@@ -344,6 +347,9 @@ impl TiltHeadingFilter {
         self.running_s = self.settings.tau_acc_s;
         self.status.started_in_motion = true;
         self.heading_held = true;
+        let down = |q: UnitQuaternion<f64>| q * Vector3::z();
+        self.status.reset.tilt += 1;
+        self.status.reset.tilt_rad = down(before).angle(&down(self.attitude()));
     }
 
     /// Counters.
