@@ -213,7 +213,8 @@ fn report(name: &str, seed: u64, s: &Scores) {
 /// The estimator for real sensors on the realistic preset, three seeds, Castillo's observer
 /// beside it: hover tilt RMS ≤ 0.3° and heading RMS ≤ 1°; a magnet during the hover, heading
 /// error ≤ 3° and tilt ≤ 0.3°; a 45° banked orbit at 10 m/s, tilt RMS ≤ 1°; the hover after the
-/// orbit, tilt RMS ≤ 0.2°. The tilt bounds hold over the three seeds pooled, the others on each.
+/// orbit, tilt RMS ≤ 0.15° on each seed. The first two tilt bounds hold over the three seeds
+/// pooled, the others on each.
 /// A seed's first hover tilt is its accelerometer's horizontal bias over g (which nothing
 /// separates from the tilt in a hover at one heading) plus at most 0.15°: seed 3's bias alone
 /// is 0.35°. The orbit's turns show the bias; the hover after it is below that floor.
@@ -233,7 +234,9 @@ fn realistic_sensors_hover_magnet_and_banked_orbit() {
         assert!(s.orbit_tilt_deg <= 1.0, "{s:?}");
         // The orbit's turns have shown the accelerometer's bias (`accel_bias.rs`): the hover
         // after it is no longer held at the bias's floor (seed 3: 0.33° before, 0.34° floor).
-        assert!(s.hover_after_tilt_deg <= 0.2, "{s:?}");
+        // The gyro's bias walked during the orbit's fast turn, where it cannot be learned (seed
+        // 2: 0.11°/s); the steady hover's shorter low-pass keeps its lag small.
+        assert!(s.hover_after_tilt_deg <= 0.15, "{s:?}");
     }
     println!(
         "tilt/heading, three seeds: hover tilt RMS {:.2} deg, with the magnet {:.2} deg",

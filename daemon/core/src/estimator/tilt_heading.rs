@@ -193,6 +193,10 @@ pub const BIAS_SETTLED_RAD_S: f64 = 0.1 * std::f64::consts::PI / 180.0;
 /// (rad), within [`UNSEEN_TURN_S`] of a sign that the gyro missed a turn.
 const HEADING_RESET_RAD: f64 = 2.5 * std::f64::consts::PI / 180.0;
 const HEADING_RESET_ARMED_RAD: f64 = 30.0 * std::f64::consts::PI / 180.0;
+/// Steady flight: the vehicle's low-passed acceleration below this (m/s²); the accelerometer's
+/// time constant is then this fraction of `tau_acc_s`.
+const STEADY_ACCEL_M_S2: f64 = 0.5;
+const STEADY_TAU_FRACTION: f64 = 2.0 / 3.0;
 /// How long after a tilt reset or a rate at the gyro's range the heading may be reset (s).
 const UNSEEN_TURN_S: f64 = 10.0;
 /// A rate this high is at the range of a MEMS gyro (2000°/s) or beyond it: the gyro may have
@@ -428,6 +432,22 @@ impl TiltHeadingFilter {
             self.last_vel = Some(*vel);
             a
         });
+        // In steady flight, the vehicle's acceleration known and small, the accelerometer is
+        // gravity, its bias and its noise: a shorter low-pass lets an error of the gyro's bias
+        // (one that walked while a fast turn kept it from being learned) lag the tilt less. The
+        // bias model's low-pass is the same operator, so it changes with it.
+        let steady = known_accel.is_some()
+            && self.vel_accel_lp.started()
+            && self.vel_accel_lp.value().norm() < STEADY_ACCEL_M_S2;
+        let tau = s.tau_acc_s * if steady { STEADY_TAU_FRACTION } else { 1.0 };
+        if self.accel_lp.tau_s() != tau {
+            self.accel_lp.set_tau_s(tau);
+            self.vel_accel_lp.set_tau_s(tau);
+            self.bias.set_settings(BiasSettings {
+                tau_acc_s: tau,
+                ..s.bias_settings()
+            });
+        }
         let accel_lp = match known_accel {
             Some(a) => self.vel_accel_lp.update(&a, dt),
             None => {
