@@ -38,7 +38,7 @@ pub enum Spin {
 }
 
 impl Spin {
-    /// Sign of the reaction torque about body z: +1 for ccw, −1 for cw (ARCHITECTURE.md).
+    /// Sign of the reaction torque about body z: +1 for ccw, −1 for cw (docs/conventions.md).
     pub fn sign(self) -> f64 {
         match self {
             Spin::Ccw => 1.0,
@@ -346,7 +346,8 @@ impl Airframe {
     }
 
     /// The effectiveness matrix `B` (4 × N) from rotor thrusts `T_i` to the body wrench
-    /// `[F_z, M_x, M_y, M_z]` (FRD): column i is `[−1, −y_i, x_i, ±c_i]` (ARCHITECTURE.md).
+    /// `[F_z, M_x, M_y, M_z]` (FRD): column i is `[−1, −y_i, x_i, ±c_i]`
+    /// (docs/conventions.md).
     pub fn effectiveness(&self) -> DMatrix<f64> {
         DMatrix::from_fn(4, self.rotors.len(), |row, i| {
             let r = &self.rotors[i];

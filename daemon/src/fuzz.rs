@@ -1,4 +1,4 @@
-//! Fuzz targets for everything a peer can reach (issue 9): random payloads for every message of
+//! Fuzz targets for everything a peer can reach: random payloads for every message of
 //! the dialect, parsed by the `mavlink` crate as a received frame would be, handed to the
 //! ground-station protocol and to the vehicle (its HIL sensor input and the commands the
 //! protocol passes on), with payloads biased toward the values that break code: NaN, ±inf,

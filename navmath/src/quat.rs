@@ -1,7 +1,7 @@
 //! Quaternion algebra for the flight core and the simulator's integrators, on nalgebra's
 //! Hamilton, scalar-first quaternions.
 //!
-//! Convention (ARCHITECTURE.md): `q_ned_from_frd` rotates body (FRD) vectors into the world
+//! Convention (docs/conventions.md): `q_ned_from_frd` rotates body (FRD) vectors into the world
 //! (NED), `v_ned = q ⊗ (0, v_frd) ⊗ q*`; kinematics `q̇ = ½ q ⊗ (0, ω_frd)` (Castillo (48),
 //! Lewis (4.45)).
 

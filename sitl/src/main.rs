@@ -1,6 +1,6 @@
 //! `sitl`: the multirotor simulator process.
 //!
-//! Runs the physics and sensors of `sitl-core` behind the MAVLink HIL link of ARCHITECTURE.md:
+//! Runs the physics and sensors of `sitl-core` behind the MAVLink HIL link of docs/conventions.md:
 //! sends `HIL_SENSOR`, `HIL_GPS`, `ESC_STATUS` and `HIL_STATE_QUATERNION` to the autopilot's UDP
 //! port (or over a serial line, or to PX4 connected over TCP) and steps physics on its
 //! `HIL_ACTUATOR_CONTROLS`, in lockstep (default) or real time. With

@@ -1,7 +1,7 @@
 """The simulator's HIL messages as pymavlink, an independent MAVLink implementation, decodes them.
 
 pymavlink plays the autopilot: it answers every HIL_SENSOR with HIL_ACTUATOR_CONTROLS in lockstep,
-and checks that every field carries what ARCHITECTURE.md says, in the units MAVLink defines.
+and checks that every field carries what docs/conventions.md says, in the units MAVLink defines.
 """
 
 import math

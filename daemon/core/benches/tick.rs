@@ -1,5 +1,5 @@
 //! One flight-core tick: attitude and translation estimators, position, attitude and rate
-//! loops, mixer. Target (issue 3): ≤ 2 µs for quad_x and dodeca.
+//! loops, mixer. Target: ≤ 2 µs for quad_x and dodeca.
 //!
 //! Measured in closed loop: the simulator flies the vehicle (a hover at 5 m) so every stage sees
 //! realistic inputs; only `FlightCore::step` is timed. Also a quad's tick spinning on three

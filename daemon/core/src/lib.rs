@@ -2,7 +2,7 @@
 //!
 //! No sockets, no runtime, no clock reads: every stage is a struct with an `update`/`step`
 //! function of its inputs and the sample time. Conventions (NED/FRD, Hamilton quaternions
-//! `q_ned_from_frd`, SI units) are those of `ARCHITECTURE.md`.
+//! `q_ned_from_frd`, SI units) are those of `docs/conventions.md`.
 
 pub mod autopilot;
 pub mod commander;

@@ -2,7 +2,7 @@
 //!
 //! The effectiveness matrix B (4 × N) maps rotor thrusts to `[F_z, M_x, M_y, M_z]` (FRD), built
 //! here from the airframe geometry: column i is `[−1, −y_i, x_i, ±K_Q D/K_T]` (Lewis (4.31),
-//! (4.34); ARCHITECTURE.md signs). Allocation is the pseudo-inverse `T = B⁺ w`, which for the
+//! (4.34); docs/conventions.md signs). Allocation is the pseudo-inverse `T = B⁺ w`, which for the
 //! "+" quad is Lewis's closed-form inverse (4.35)–(4.38).
 //!
 //! Saturation (Lewis section 7 asks which axis to give up): roll and pitch first, then collective

@@ -471,7 +471,7 @@ fn attitude_and_rate_targets_are_flown_without_the_position_loop() {
     assert!(far < 0.3, "back home: {far:.2} m off the hover point");
 }
 
-/// Cross-track error along a mission's legs at 5 m/s (issue 6): `quad_x` flies a take-off and a
+/// Cross-track error along a mission's legs at 5 m/s: `quad_x` flies a take-off and a
 /// 40 m square at 10 m through the commander's Mission mode, in still air and in a 10 m/s
 /// crosswind-and-headwind with light Dryden turbulence. Scored against the simulator's truth
 /// with the GPS's wander taken out (the autopilot's own part: estimation and control; the
@@ -589,7 +589,7 @@ fn mission_legs_at_5_m_s_track_the_straight_line() {
     }
 }
 
-/// Offboard position hold (issue 6): `quad_x` in Offboard, a ground-station script streaming one
+/// Offboard position hold: `quad_x` in Offboard, a ground-station script streaming one
 /// position set-point 5 m up at 20 Hz (as MAVSDK does), three seeds, still air. Scored over 40 s
 /// after 20 s to settle: the control part (estimate to set-point), and the whole of the
 /// autopilot's part (truth, with the GPS receiver's wander taken out, to set-point; horizontal,
@@ -668,7 +668,7 @@ fn offboard_position_hold_in_still_air() {
 }
 
 /// Hover in a 10 m/s wind with light Dryden turbulence (W20 7.7 m/s), `quad_x`, three seeds:
-/// issue 7's target, horizontal RMS (truth from the take-off spot, GPS wander included) ≤ 1 m.
+/// the target, horizontal RMS (truth from the take-off spot, GPS wander included) ≤ 1 m.
 /// The drag needs ~3.7 m/s² of the velocity loop (22° of tilt), more than a gust-free hover's
 /// `MPC_ACC_HOR_MAX` share: the integral carries it, bounded by the tilt limit and `MPC_I_MAX`.
 #[test]
@@ -795,7 +795,7 @@ fn lose_motors(
     r
 }
 
-/// Issue 7's targets: one rotor cut in hover and in forward flight at 5 m/s — every rotor in
+/// The targets: one rotor cut in hover and in forward flight at 5 m/s — every rotor in
 /// turn — `hexa_x`, `octa_x` and `dodeca` lose ≤ 1 m of altitude and stay within 2 m of the
 /// track they flew; the `dodeca` also with two non-adjacent rotors out. The failure is found within
 /// 0.25 s and it is the right rotor.
@@ -927,7 +927,7 @@ fn twist(name: &str, use_pid: bool, roll_accel: f64, length_s: f64, seed: u64) -
     }
 }
 
-/// ArduPilot's twist test (issue 7): 40 rad/s² about roll for 3 s in hover; roll must stay within
+/// ArduPilot's twist test: 40 rad/s² about roll for 3 s in hover; roll must stay within
 /// 10° (ArduPilot's own test allows 20°), every airframe, the ADRC rate loop (the default). The
 /// disturbance was felt: the mixer spent a roll moment equal and opposite to it while it acted,
 /// and the body moved before the loop caught it. Then the disturbance rejection of the ADRC rate

@@ -1,7 +1,7 @@
 //! Physics speed: one step (rigid body + rotors + battery + air + all sensors) per integrator for
 //! quad_x and dodeca, and 60 s of flight at 1 kHz in-process.
 //!
-//! Targets (issue 2): an RK4 step of the twelve-rotor with all sensors ≤ 1 µs; 60 s at 1 kHz < 60 ms.
+//! Targets: an RK4 step of the twelve-rotor with all sensors ≤ 1 µs; 60 s at 1 kHz < 60 ms.
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use nalgebra::Vector3;

@@ -1,7 +1,7 @@
-//! JSBSim as a physics back-end (issue 8), the pure part: the multirotor model JSBSim loads,
-//! the request that steps it, the state it answers and that state in the SI/NED/FRD truth of
-//! ARCHITECTURE.md. The process (JSBSim in-process in a small Python bridge) and its UDP link live
-//! in the `sitl` binary; everything here is testable without JSBSim.
+//! JSBSim as a physics back-end, the pure part: the multirotor model JSBSim loads, the request
+//! that steps it, the state it answers and that state in the SI/NED/FRD truth of
+//! docs/conventions.md. The process (JSBSim in-process in a small Python bridge) and its UDP link
+//! live in the `sitl` binary; everything here is testable without JSBSim.
 //!
 //! The model carries only mass, inertia, ground contact and one body force and one yaw moment
 //! per rotor (plus one aerodynamic force and moment): rotors, motors and drag stay our Rust

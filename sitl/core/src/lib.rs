@@ -4,7 +4,7 @@
 //! Everything here is pure and deterministic: plain structs with `step` functions, no I/O, no
 //! clock reads, randomness only from seeded streams. The `sitl` binary puts it behind a MAVLink
 //! HIL link. Conventions (frames NED/FRD, Hamilton quaternions `q_ned_from_frd`, SI units) are
-//! those of `ARCHITECTURE.md`.
+//! those of `docs/conventions.md`.
 
 /// Airframe descriptions (the shared `airframe` crate).
 pub mod airframe {

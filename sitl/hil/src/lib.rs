@@ -1,5 +1,5 @@
-//! The HIL wire protocol of ARCHITECTURE.md: MAVLink 2 messages between simulator and autopilot,
-//! shared by the `sitl` process, the autopilot's sensor links and its embedded simulator.
+//! The HIL wire protocol of docs/conventions.md: MAVLink 2 messages between simulator and
+//! autopilot, shared by the `sitl` process, the autopilot's sensor links and its embedded simulator.
 //!
 //! Encoding turns a [`SensorFrame`] and the truth into `HIL_SENSOR`, `HIL_GPS`, `ESC_STATUS` and
 //! `HIL_STATE_QUATERNION`; decoding splits a datagram into frames, counting every malformed one.

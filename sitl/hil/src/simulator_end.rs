@@ -23,7 +23,7 @@ const HAND_PATIENCE_S: f64 = 0.5;
 const TUMBLE_MAX_S: f64 = 600.0;
 
 /// One exchange after another: the sensor frame of time k goes out, the answer to it comes in,
-/// then physics steps over the exchange interval with that answer (ARCHITECTURE.md lockstep).
+/// then physics steps over the exchange interval with that answer (docs/conventions.md lockstep).
 pub struct SimulatorEnd {
     sim: Simulator,
     acc: Accumulator,

@@ -1,4 +1,4 @@
-"""JSBSim in-process, stepped in lockstep over UDP by `sitl --physics jsbsim` (issue 8).
+"""JSBSim in-process, stepped in lockstep over UDP by `sitl --physics jsbsim`.
 
 `sitl` writes this file, the model and its start file to a temporary root and runs it with a
 Python that has the pinned PyPI `jsbsim`. It loads the model through JSBSim's Python API, binds

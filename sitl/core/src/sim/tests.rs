@@ -133,7 +133,7 @@ fn run(sim: &mut Simulator, u: &[f64], steps: usize) {
 }
 
 /// Sign conventions: front rotors faster → nose up (positive pitch rate); left faster → roll right;
-/// ccw rotors faster → yaw right (ARCHITECTURE.md: a ccw rotor's reaction torque is +z).
+/// ccw rotors faster → yaw right (docs/conventions.md: a ccw rotor's reaction torque is +z).
 #[test]
 fn differential_thrust_turns_the_way_the_conventions_say() {
     // quad_x: 1 front-right ccw, 2 rear-left ccw, 3 front-left cw, 4 rear-right cw.
