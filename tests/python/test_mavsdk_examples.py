@@ -122,6 +122,8 @@ def test_do_orbit_circles_its_centre_in_the_wind_then_stops_after_its_turns(tmp_
         home = await first(drone.telemetry.home(), lambda h: True, 5)
         await drone.action.arm()
         await drone.action.takeoff()
+        # In the air first: the mode stream's first value can be the Hold of before the take-off.
+        await first(drone.telemetry.in_air(), bool, 20)
         await first(drone.telemetry.flight_mode(), lambda m: m == FlightMode.HOLD, 40)
         lat, lon = offset(home.latitude_deg, home.longitude_deg, 15.0, 0.0)
         await drone.action.do_orbit(radius_m=10, velocity_ms=5,
@@ -401,6 +403,8 @@ def test_follow_me_keeps_its_distance_from_a_target_walking_a_square(tmp_path):
         assert (got.follow_distance_m, got.follow_angle_deg) == (8.0, 180.0), got
         await drone.action.arm()
         await drone.action.takeoff()
+        # In the air first: the mode stream's first value can be the Hold of before the take-off.
+        await first(drone.telemetry.in_air(), bool, 20)
         await first(drone.telemetry.flight_mode(), lambda m: m == FlightMode.HOLD, 40)
         sim_s = lambda: watcher.messages("HIL_STATE_QUATERNION")[-1].time_usec * 1e-6  # noqa
         rng = random.Random(7)
