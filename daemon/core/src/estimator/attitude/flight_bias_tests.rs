@@ -88,15 +88,6 @@ fn fly(params: &AttitudeParams, duration_s: f64, bias: fn(f64) -> Vector3<f64>) 
         let err = e.q.angle_to(&q);
         attitude_error_deg.push((t, err.to_degrees()));
         tilt_resets = e.reset.tilt;
-        if k % 25 == 0 && t < 12.0 {
-            let tilt = (e.q * Vector3::z()).angle(&(q * Vector3::z()));
-            eprintln!(
-                "DBGT {t:.1} tot {:.2} tilt {:.2} bias {:?}",
-                err.to_degrees(),
-                tilt.to_degrees(),
-                e.gyro_bias.map(f64::to_degrees)
-            );
-        }
         if t > 10.0 {
             sum_sq += err * err;
             n += 1;
