@@ -122,9 +122,30 @@ pub struct MotionStart {
     pub field_samples: f64,
 }
 
+/// One sample for the fit.
+#[derive(Debug, Clone, Copy)]
+pub struct FitSample<'a> {
+    /// The filter's gyro frame from the body after this sample (`q_gyro`: the gyro integrated
+    /// with the bias it had).
+    pub gyro_frame: &'a UnitQuaternion<f64>,
+    /// The rate less that bias (rad/s).
+    pub rate: &'a Vector3<f64>,
+    /// The specific force (body, m/s²).
+    pub accel: &'a Vector3<f64>,
+    /// The vehicle's acceleration (NED, m/s²), where the position estimator knows it.
+    pub known_accel: Option<&'a Vector3<f64>>,
+    /// The attitude estimated so far, while [`MotionStartFit::wants_estimate`].
+    pub estimate: Option<UnitQuaternion<f64>>,
+    /// The field, if one came.
+    pub mag: Option<&'a Vector3<f64>>,
+}
+
 /// The fit's accumulator.
 #[derive(Debug, Clone)]
 pub struct MotionStartFit {
+    /// The start frame from the gyro frame (the first sample's), and the start frame from the
+    /// body now.
+    start_from_gyro: Option<UnitQuaternion<f64>>,
     r: Rotation3<f64>,
     j: Matrix3<f64>,
     mag: Normal,
@@ -145,6 +166,7 @@ pub struct MotionStartFit {
 impl Default for MotionStartFit {
     fn default() -> Self {
         Self {
+            start_from_gyro: None,
             r: Rotation3::identity(),
             j: Matrix3::zeros(),
             mag: Normal::new(),
@@ -171,35 +193,40 @@ impl MotionStartFit {
         self.done = true;
     }
 
-    /// One sample: the rate less the bias the filter integrates with (rad/s), the specific force
-    /// (body), the field if one came, `dt` seconds after the previous sample. `known`: the
-    /// vehicle's acceleration (NED), where the position estimator knows it, and the attitude
-    /// estimated so far. Returns the fit once [`FIT_S`] have been collected and its model held.
-    pub fn update(
-        &mut self,
-        rate: &Vector3<f64>,
-        accel: &Vector3<f64>,
-        known: Option<(&Vector3<f64>, &UnitQuaternion<f64>)>,
-        mag: Option<&Vector3<f64>>,
-        dt: f64,
-    ) -> Option<MotionStart> {
+    /// Whether the fit needs the attitude estimated so far: until it has taken NED from the
+    /// start frame, with the first known acceleration.
+    pub fn wants_estimate(&self) -> bool {
+        self.ned_from_start.is_none()
+    }
+
+    /// One sample, `dt` seconds after the previous one. Returns the fit once [`FIT_S`] have been
+    /// collected and its model held.
+    pub fn update(&mut self, sample: &FitSample, dt: f64) -> Option<MotionStart> {
         if self.done || dt <= 0.0 {
             return None;
         }
-        self.r *= Rotation3::new(rate * dt);
+        // The filter's gyro frame is the gyro integrated already: the start frame is its first.
+        let start_from_gyro = *self
+            .start_from_gyro
+            .get_or_insert_with(|| sample.gyro_frame.inverse());
+        self.r = (start_from_gyro * sample.gyro_frame).to_rotation_matrix();
         self.j += self.r.matrix() * dt;
-        self.rate_sq += rate.norm_squared() * dt;
+        self.rate_sq += sample.rate.norm_squared() * dt;
         self.elapsed_s += dt;
         self.since_mag_s += dt;
         // The known acceleration is taken off in the start frame through one fixed estimate of
         // NED from it (the first): its error is a constant turn of the acceleration, where the
         // estimate of each moment would carry the very drift the fit measures.
-        let mut f = self.r * accel;
-        if let Some((a_ned, q)) = known {
-            let start_to_ned = *self
-                .ned_from_start
-                .get_or_insert_with(|| q * UnitQuaternion::from_rotation_matrix(&self.r.inverse()));
-            f -= start_to_ned.inverse() * a_ned;
+        let mut f = self.r * sample.accel;
+        if let Some(a_ned) = sample.known_accel {
+            if self.ned_from_start.is_none() {
+                self.ned_from_start = sample
+                    .estimate
+                    .map(|q| q * UnitQuaternion::from_rotation_matrix(&self.r.inverse()));
+            }
+            if let Some(ned_from_start) = self.ned_from_start {
+                f -= ned_from_start.inverse() * a_ned;
+            }
         }
         // A body-fixed accelerometer bias turns with the body in the start frame, as a gyro
         // bias's drift would: it is an unknown too, or the fit takes it for one.
@@ -208,7 +235,7 @@ impl MotionStartFit {
             self.accel
                 .add(3, &u, &self.j, Some(&r), dt / (SIGMA_ACCEL * SIGMA_ACCEL));
         }
-        if let Some(u) = mag.and_then(unit) {
+        if let Some(u) = sample.mag.and_then(unit) {
             let w = std::mem::take(&mut self.since_mag_s) / (SIGMA_MAG * SIGMA_MAG);
             let u = self.r * u;
             if let Some(last) = self.last_field.replace(u) {
@@ -283,8 +310,9 @@ fn unit(v: &Vector3<f64>) -> Option<Vector3<f64>> {
 mod tests {
     use super::*;
 
-    /// Flies a body at `rate(t)` through a field `field(t)` (start frame) under gravity for the
-    /// fit's window, its gyro biased by `bias`: the fit, and the true start frame from the body.
+    /// Flies a body at `rate(t)` through a field `field(t)` (NED) under gravity for the fit's
+    /// window, its gyro biased by `bias`: the fit, and the true start frame (the first sample's)
+    /// from the body at the end.
     fn fly(
         rate: impl Fn(f64) -> Vector3<f64>,
         field: impl Fn(f64) -> Vector3<f64>,
@@ -292,17 +320,26 @@ mod tests {
     ) -> (Option<MotionStart>, Rotation3<f64>) {
         let dt = 0.005;
         let mut fit = MotionStartFit::default();
-        let mut truth = Rotation3::identity();
-        let mut found = None;
+        let (mut truth, mut gyro_frame) = (Rotation3::identity(), UnitQuaternion::identity());
+        let (mut found, mut start) = (None, None);
         for k in 0..((FIT_S / dt) as usize + 1) {
             let t = k as f64 * dt;
             truth *= Rotation3::new(rate(t) * dt);
-            let accel = truth.inverse() * Vector3::new(0.0, 0.0, -9.81);
-            let mag = truth.inverse() * field(t);
-            found = found.or(fit.update(&(rate(t) + bias), &accel, None, Some(&mag), dt));
+            let measured = rate(t) + bias;
+            gyro_frame *= UnitQuaternion::from_scaled_axis(measured * dt);
+            let sample = FitSample {
+                gyro_frame: &gyro_frame,
+                rate: &measured,
+                accel: &(truth.inverse() * Vector3::new(0.0, 0.0, -9.81)),
+                known_accel: None,
+                estimate: None,
+                mag: Some(&(truth.inverse() * field(t))),
+            };
+            found = found.or(fit.update(&sample, dt));
+            start.get_or_insert(truth);
         }
         assert!(fit.done());
-        (found, truth)
+        (found, start.unwrap_or(truth).inverse() * truth)
     }
 
     /// A body turning in a constant field under gravity, its gyro biased: the fit finds the bias
@@ -324,7 +361,9 @@ mod tests {
         );
         let angle = (start.start_from_body * truth.inverse()).angle();
         assert!(angle < 0.7f64.to_radians(), "{}", angle.to_degrees());
-        assert!((start.up - Vector3::new(0.0, 0.0, -1.0)).norm() < 0.01);
+        // Up in the start frame: the first sample's frame, turned by its first step.
+        let up = (truth * start.start_from_body.inverse()).inverse() * Vector3::new(0.0, 0.0, -1.0);
+        assert!((start.up - up).norm() < 0.01, "{:?} {:?}", start.up, up);
     }
 
     /// A field that changes while the body turns (a magnet passing) refuses the fit.

@@ -38,7 +38,7 @@ use super::gps_tilt::GpsTiltCheck;
 use super::hard_iron::{HardIronEstimator, HardIronSettings};
 use super::heading::{HeadingCorrector, HeadingSettings};
 use super::lowpass::LowPass;
-use super::motion_start::{MotionStart, MotionStartFit};
+use super::motion_start::{FitSample, MotionStart, MotionStartFit};
 use super::recovery::TiltRecovery;
 use super::rest::{RestDetector, RestThresholds};
 use crate::GRAVITY_M_S2;
@@ -460,12 +460,16 @@ impl TiltHeadingFilter {
         if self.rest_aligned {
             self.motion_start.abandon();
         } else if !self.motion_start.done() {
-            let q = self.attitude();
-            let known = known_accel.as_ref().map(|a| (a, &q));
-            if let Some(fit) = self
-                .motion_start
-                .update(&(gyro - bias), accel, known, mag, dt)
-            {
+            let sample = FitSample {
+                gyro_frame: &self.q_gyro,
+                rate: &(gyro - bias),
+                accel,
+                known_accel: known_accel.as_ref(),
+                estimate: (known_accel.is_some() && self.motion_start.wants_estimate())
+                    .then(|| self.attitude()),
+                mag,
+            };
+            if let Some(fit) = self.motion_start.update(&sample, dt) {
                 self.align_in_motion(&fit, &bias);
             }
         }
