@@ -165,13 +165,20 @@ def biased_start(autopilot, params, trial_csv, tmp):
         known = np.isfinite(truth[:, 0])
         for who in out:
             e = estimate(who, autopilot, params, cut_csv, os.path.join(tmp, f"biased_{who}.csv"))
-            total = np.degrees(broad_score.error_angles(quat(e)[known], truth[known])["total"])
-            t = e["t"][known] - e["t"][0]
-            # Ours has no estimate until it aligns: an unknown attitude counts as 180° off.
-            total = np.where(np.isfinite(total), total, 180.0)
-            out[who]["worst_5_10_deg"].append(float(np.max(total[(t >= 5.0) & (t < 10.0)])))
-            out[who]["rms_10_deg"].append(float(np.sqrt(np.mean(total[t >= 10.0] ** 2))))
+            score_start(out[who], e, truth, known)
     return out
+
+
+def score_start(out, e, truth, known):
+    """Appends to out["worst_5_10_deg"] and out["rms_10_deg"] the estimate e's largest total
+    error from 5 s to 10 s after its start and its RMS from 10 s on, against truth where known."""
+    quat = lambda x: np.stack([x[k] for k in ("qw", "qx", "qy", "qz")], 1)
+    total = np.degrees(broad_score.error_angles(quat(e)[known], truth[known])["total"])
+    t = e["t"][known] - e["t"][0]
+    # Ours has no estimate until it aligns: an unknown attitude counts as 180° off.
+    total = np.where(np.isfinite(total), total, 180.0)
+    out["worst_5_10_deg"].append(float(np.max(total[(t >= 5.0) & (t < 10.0)])))
+    out["rms_10_deg"].append(float(np.sqrt(np.mean(total[t >= 10.0] ** 2))))
 
 
 # The synthetic flights' seeds (tools/synthetic_flight.py).
@@ -190,11 +197,7 @@ def synthetic_start(autopilot, params, tmp):
         d = np.genfromtxt(path, delimiter=",", names=True)
         for who in out:
             e = estimate(who, autopilot, params, path, os.path.join(tmp, f"synthetic_{who}.csv"))
-            total = np.degrees(broad_score.error_angles(quat(e), quat(d))["total"])
-            total = np.where(np.isfinite(total), total, 180.0)
-            t = e["t"] - e["t"][0]
-            out[who]["worst_5_10_deg"].append(float(np.max(total[(t >= 5.0) & (t < 10.0)])))
-            out[who]["rms_10_deg"].append(float(np.sqrt(np.mean(total[t >= 10.0] ** 2))))
+            score_start(out[who], e, quat(d), np.ones(len(d), bool))
     return out
 
 
