@@ -206,7 +206,7 @@ fn an_arm_right_after_a_fence_upload_meets_the_new_fence() {
         .autopilot
         .command(AutopilotCommand::Arm { force: false })
         .unwrap_err();
-    assert!(refused.0.contains("geofence"), "{refused}");
+    assert!(refused.to_string().contains("geofence"), "{refused}");
     // Around the vehicle: allowed at once too.
     let around = GeoZone::Circle {
         inclusion: true,

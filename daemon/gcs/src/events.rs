@@ -10,8 +10,9 @@
 
 use crate::telemetry::Telemetry;
 use crate::{GroundStation, Outbox};
-use flight_core::commander::{FlightMode, LandedState};
+use flight_core::commander::{ArmingDenial, FlightMode, LandedState};
 use flight_core::safety::failsafe::{CONDITIONS, Condition, FailsafeAction, SafetyEvent};
+use flight_core::safety::preflight::PreflightCheck;
 use mavlink::MavHeader;
 use mavlink::dialects::common::*;
 use serde_json::{Map, Value, json};
@@ -157,95 +158,64 @@ pub const ACTIONS: [FailsafeAction; 8] = [
     FailsafeAction::Terminate,
 ];
 
-/// The arming checks an `arming_denied` names, by the start of the refusal's words (after
-/// "arming refused: "); the first, `other`, for any other reason.
-pub const ARMING_CHECKS: [(&str, &str, &str); 23] = [
-    ("", "other", "another reason (see the message)"),
-    (
-        "flight terminated",
-        "terminated",
-        "the flight was terminated: restart",
-    ),
-    ("IMU missing", "imu_lost", "IMU missing or frozen"),
-    ("motor ", "motor_failed", "a motor failed"),
-    ("tilted", "tilted", "tilted beyond COM_ARM_TILT"),
-    (
-        "battery at emergency",
-        "battery_emergency",
-        "battery at emergency level",
-    ),
-    ("battery low", "battery_low", "battery low"),
-    ("parameters invalid", "params_invalid", "parameters invalid"),
-    (
-        "attitude estimate not",
-        "attitude",
-        "attitude estimate not converged",
-    ),
-    (
-        "gyro bias",
-        "gyro_bias",
-        "gyro bias not settled: keep still",
-    ),
-    (
-        "position estimate",
-        "position",
-        "position estimate not valid",
-    ),
-    (
-        "altitude estimate",
-        "altitude",
-        "altitude estimate not valid",
-    ),
-    (
-        "magnetometer silent",
-        "mag_lost",
-        "magnetometer silent or frozen",
-    ),
-    (
-        "barometer silent",
-        "baro_lost",
-        "barometer silent or frozen",
-    ),
-    ("GPS silent", "gps_lost", "GPS silent or frozen"),
-    (
-        "magnetometer not calibrated",
-        "mag_uncalibrated",
-        "magnetometer not calibrated",
-    ),
-    (
-        "mag ",
-        "mag_field",
-        "magnetic field unlike the expected one",
-    ),
-    ("outside the geofence", "geofence", "outside the geofence"),
-    ("no sensor data", "no_sensors", "no sensor data yet"),
-    ("estimator not ready", "estimator", "estimator not ready"),
-    (
-        "not in a mode to start in",
-        "mode",
-        "not in a mode to start in",
-    ),
-    (
-        "no offboard set-points",
-        "offboard",
-        "no offboard set-points",
-    ),
-    (
-        "throttle stick",
-        "throttle",
-        "throttle stick not low (or above centre)",
-    ),
+/// The arming checks an `arming_denied` names (name, description): a refusal's value is its
+/// place here ([`arming_check`]); the first, `other`, for any other reason.
+pub const ARMING_CHECKS: [(&str, &str); 23] = [
+    ("other", "another reason (see the message)"),
+    ("terminated", "the flight was terminated: restart"),
+    ("imu_lost", "IMU missing or frozen"),
+    ("motor_failed", "a motor failed"),
+    ("tilted", "tilted beyond COM_ARM_TILT"),
+    ("battery_emergency", "battery at emergency level"),
+    ("battery_low", "battery low"),
+    ("params_invalid", "parameters invalid"),
+    ("attitude", "attitude estimate not converged"),
+    ("gyro_bias", "gyro bias not settled: keep still"),
+    ("position", "position estimate not valid"),
+    ("altitude", "altitude estimate not valid"),
+    ("mag_lost", "magnetometer silent or frozen"),
+    ("baro_lost", "barometer silent or frozen"),
+    ("gps_lost", "GPS silent or frozen"),
+    ("mag_uncalibrated", "magnetometer not calibrated"),
+    ("mag_field", "magnetic field unlike the expected one"),
+    ("geofence", "outside the geofence"),
+    ("no_sensors", "no sensor data yet"),
+    ("estimator", "estimator not ready"),
+    ("mode", "not in a mode to start in"),
+    ("offboard", "no offboard set-points"),
+    ("throttle", "throttle stick not low (or above centre)"),
 ];
 
-/// The `arming_check_t` value of a refusal's words.
-pub fn arming_check(denial: &str) -> u8 {
-    let why = denial.strip_prefix("arming refused: ").unwrap_or(denial);
-    ARMING_CHECKS
-        .iter()
-        .enumerate()
-        .skip(1)
-        .find(|(_, (start, _, _))| why.starts_with(start))
-        .map_or(0, |(i, _)| i as u8)
+/// The `arming_check_t` value of an arming refusal: its place in [`ARMING_CHECKS`].
+pub fn arming_check(denial: &ArmingDenial) -> u8 {
+    use PreflightCheck as C;
+    match denial {
+        ArmingDenial::Check { check, .. } => match check {
+            C::Terminated => 1,
+            C::ImuLost => 2,
+            C::MotorFailed(_) => 3,
+            C::Tilted { .. } => 4,
+            C::BatteryEmergency(_) => 5,
+            C::BatteryLow(_) => 6,
+            C::ParamsInvalid(_) => 7,
+            C::AttitudeNotConverged => 8,
+            C::GyroBiasUnsettled => 9,
+            C::PositionInvalid => 10,
+            C::AltitudeInvalid => 11,
+            C::MagLost => 12,
+            C::BaroLost => 13,
+            C::GpsLost => 14,
+            C::MagUncalibrated => 15,
+            C::MagField(_) => 16,
+            C::Geofence => 17,
+            C::EstimatorNotReady => 19,
+        },
+        ArmingDenial::NoSensorData => 18,
+        ArmingDenial::ModeCannotStart(_) => 20,
+        ArmingDenial::NoOffboard => 21,
+        ArmingDenial::ThrottleAboveCentre | ArmingDenial::ThrottleNotLow => 22,
+        ArmingDenial::NeedsSticks(_) | ArmingDenial::Calibrating(_) | ArmingDenial::Mission(_) => 0,
+    }
 }
 
 /// An enum's value in the metadata: its position in its list.
@@ -441,7 +411,7 @@ impl GroundStation {
     }
 
     /// Arming refused for `why`.
-    pub(crate) fn arming_denied_event(&mut self, why: &str, out: &mut Outbox) {
+    pub(crate) fn arming_denied_event(&mut self, why: &ArmingDenial, out: &mut Outbox) {
         let ms = self.events_now_ms;
         let m = self
             .events
@@ -513,7 +483,7 @@ pub fn metadata_json() -> Value {
                 "namespace": "autopilot",
                 "enums": {
                     "arming_check_t": enum_of(
-                        entries(&mut ARMING_CHECKS.iter().map(|(_, n, d)| (n.to_string(), d.to_string()))),
+                        entries(&mut ARMING_CHECKS.iter().map(|(n, d)| (n.to_string(), d.to_string()))),
                         "why arming was refused"),
                     "failsafe_condition_t": enum_of(
                         entries(&mut CONDITIONS.iter().map(|c| (words(&c.to_string()), c.to_string()))),
@@ -534,6 +504,7 @@ pub fn metadata_json() -> Value {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use flight_core::safety::preflight::MagFieldCheck;
 
     fn header() -> MavHeader {
         MavHeader {
@@ -601,23 +572,20 @@ mod tests {
 
     #[test]
     fn arming_refusals_name_their_check_and_the_metadata_defines_every_event() {
-        assert_eq!(
-            arming_check("arming refused: tilted 40° (COM_ARM_TILT 30°)"),
-            4
-        );
-        assert_eq!(
-            arming_check("arming refused: magnetometer not calibrated"),
-            15
-        );
-        assert_eq!(
-            arming_check("arming refused: mag field 0.2 G, expected 0.5 G"),
-            16
-        );
-        assert_eq!(arming_check("arming refused: throttle stick not low"), 22);
-        assert_eq!(
-            arming_check("arming refused: POSCTL needs manual control"),
-            0
-        );
+        let check = |check| ArmingDenial::Check { check, more: 0 };
+        let tilted = PreflightCheck::Tilted {
+            tilt_deg: 40.0,
+            limit_deg: 30.0,
+        };
+        assert_eq!(arming_check(&check(tilted)), 4);
+        assert_eq!(arming_check(&check(PreflightCheck::MagUncalibrated)), 15);
+        let field = MagFieldCheck::Strength {
+            got: 0.2,
+            want: 0.5,
+        };
+        assert_eq!(arming_check(&check(PreflightCheck::MagField(field))), 16);
+        assert_eq!(arming_check(&ArmingDenial::ThrottleNotLow), 22);
+        assert_eq!(arming_check(&ArmingDenial::NeedsSticks("POSCTL")), 0);
         let m = metadata_json();
         let events = &m["components"]["1"]["event_groups"]["default"]["events"];
         for k in kinds::ALL {

@@ -322,14 +322,16 @@ impl GroundStation {
         result: Result<(), flight_core::commander::Denial>,
         out: &mut Outbox,
     ) {
-        let reason = result.err().map(|r| r.0);
-        let kind = reason
-            .as_ref()
-            .map(|r| r.replace(|c: char| c.is_ascii_digit(), ""));
-        if let Some(r) = reason.filter(|_| kind != self.follow_refusal_shown) {
-            out.say(MavSeverity::MAV_SEVERITY_WARNING, &r);
+        let reason = result.err();
+        let shown = &self.follow_refusal_shown;
+        let same = match (&reason, shown) {
+            (Some(r), Some(s)) => r.same_reason(s),
+            (r, s) => r.is_none() && s.is_none(),
+        };
+        if let Some(r) = reason.as_ref().filter(|_| !same) {
+            out.say(MavSeverity::MAV_SEVERITY_WARNING, &r.to_string());
         }
-        self.follow_refusal_shown = kind;
+        self.follow_refusal_shown = reason;
     }
 
     /// In Follow Target, says when the target's fixes stop (the vehicle holds behind its last

@@ -220,7 +220,7 @@ pub struct GroundStation {
     shell: shell::Shell,
     /// The follow target was last said to be lost; the last refusal of a fix said.
     follow_lost_shown: bool,
-    follow_refusal_shown: Option<String>,
+    follow_refusal_shown: Option<Denial>,
     /// The link of the message being handled.
     link: LinkId,
     /// One-off messages asked for (REQUEST_MESSAGE), sent on the next poll.
@@ -606,7 +606,7 @@ impl GroundStation {
             }
             Reply::Quiet => {
                 if let Err(reason) = result {
-                    out.say(MavSeverity::MAV_SEVERITY_WARNING, &reason);
+                    out.say(MavSeverity::MAV_SEVERITY_WARNING, &reason.to_string());
                 }
                 return;
             }
@@ -615,10 +615,10 @@ impl GroundStation {
         match result {
             Ok(()) => out.send(self.ack(to, MavResult::MAV_RESULT_ACCEPTED)),
             Err(reason) => {
-                if reason.starts_with("arming refused") {
-                    self.arming_denied_event(&reason, out);
+                if let Denial::Arming(why) = &reason {
+                    self.arming_denied_event(why, out);
                 }
-                self.deny(to, out, &reason)
+                self.deny(to, out, &reason.to_string())
             }
         }
     }

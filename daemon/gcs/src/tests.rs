@@ -123,7 +123,7 @@ fn every_command_gets_exactly_one_ack_addressed_to_the_requester() {
         reply: Reply::Ack,
     };
     let mut out = Outbox::default();
-    g.answered(to, Err("not now".into()), &mut out);
+    g.answered(to, Err(Denial::NoHome), &mut out);
     assert_eq!(acks(&out)[0].result, MavResult::MAV_RESULT_DENIED);
 }
 

@@ -322,14 +322,14 @@ pub async fn run(endpoints: Vec<EndpointSpec>, vehicle: Vehicle) -> Result<Optio
                 .try_send(LoopCommand::Autopilot(cmd, Some(tx)))
                 .is_err()
             {
-                let _ = answers_tx.try_send((to, Err("vehicle busy: try again".into())));
+                let _ = answers_tx.try_send((to, Err(Denial::Busy)));
                 continue;
             }
             let answers = answers_tx.clone();
             tokio::spawn(async move {
                 let result = match tokio::time::timeout(ANSWER_TIMEOUT, rx).await {
                     Ok(Ok(r)) => r,
-                    _ => Err("the control loop did not answer".into()),
+                    _ => Err(Denial::NoAnswer),
                 };
                 let _ = answers.send((to, result)).await;
             });

@@ -62,10 +62,10 @@ impl Autopilot {
     /// Refused armed, or while another calibration runs.
     fn may_calibrate(&self) -> Result<(), Denial> {
         if self.commander.status().armed {
-            return Err("calibration refused: disarm first".into());
+            return Err(Denial::CalibrationArmed);
         }
         if let Some(kind) = self.calibrating() {
-            return Err(format!("calibration refused: the {kind} calibration is running").into());
+            return Err(Denial::CalibrationRunning(kind));
         }
         Ok(())
     }

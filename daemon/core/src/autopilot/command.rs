@@ -3,7 +3,7 @@
 
 use super::Autopilot;
 use crate::commander::{
-    Denial, FlightMode, OffboardTarget, OrbitRequest, OrbitYaw, Sticks, TargetFix,
+    ArmingDenial, Denial, FlightMode, OffboardTarget, OrbitRequest, OrbitYaw, Sticks, TargetFix,
 };
 use crate::math::geo::{LatLonAlt, LocalFrame};
 use crate::mission::{MissionItem, MissionPoint, SpeedChange};
@@ -117,10 +117,16 @@ impl Autopilot {
                 | AutopilotCommand::StartMission(_)
         );
         if arming && let Some(kind) = self.calibrating() {
-            return Err(format!("arming refused: calibrating the {kind}").into());
+            return Err(ArmingDenial::Calibrating(kind).into());
         }
         let last = self.estimate();
         let origin = last.and_then(|o| o.translation.origin);
+        // What a command naming a place on the Earth needs: the estimate and its origin.
+        let global = |command| match (last, origin) {
+            (Some(out), Some(origin)) => Ok((out, origin)),
+            _ => Err(Denial::NoGlobalPosition { command }),
+        };
+        let target = |command| move |why| Denial::Target { command, why };
         let c_ = &mut self.commander;
         match c {
             AutopilotCommand::CalibrateMag => self.start_mag_calibration(),
@@ -135,19 +141,15 @@ impl Autopilot {
             AutopilotCommand::Takeoff(alt) => c_.takeoff(alt),
             AutopilotCommand::SetHome(p) => c_.set_home(p),
             AutopilotCommand::TakeoffAmsl(amsl_m) => {
-                let (Some(out), Some(origin)) = (last, origin) else {
-                    return Err("take-off refused: no global position yet".into());
-                };
+                let (out, origin) = global("take-off")?;
                 let home_down = c_.home().map_or(out.translation.pos_ned_m.z, |h| h.z);
                 let home_amsl = origin.alt_m - home_down;
                 let above_home = (amsl_m - home_amsl).max(c_.params().takeoff_alt_m);
                 c_.takeoff(Some(above_home))
             }
             AutopilotCommand::SetHomeGlobal(p) => {
-                let Some(origin) = origin else {
-                    return Err("home refused: no global position yet".into());
-                };
-                let home = global_to_ned(&p, &origin).map_err(|e| format!("home refused: {e}"))?;
+                let (_, origin) = global("home")?;
+                let home = global_to_ned(&p, &origin).map_err(target("home"))?;
                 c_.set_home(Some(home))
             }
             AutopilotCommand::Sticks(s) => {
@@ -155,10 +157,10 @@ impl Autopilot {
                 Ok(())
             }
             AutopilotCommand::InjectFailure(_) if !self.injection_enabled => {
-                Err(Refusal::Disabled.to_string().into())
+                Err(Refusal::Disabled.into())
             }
             AutopilotCommand::InjectFailure(i) => {
-                let said = self.injected.inject(i).map_err(|e| e.to_string())?;
+                let said = self.injected.inject(i)?;
                 tracing::warn!("{said}");
                 Ok(())
             }
@@ -207,21 +209,17 @@ impl Autopilot {
                 yaw_rad,
                 change_mode,
             } => {
-                let (Some(out), Some(origin)) = (last, origin) else {
-                    return Err("reposition refused: no global position yet".into());
-                };
-                check_point(&at).map_err(|e| format!("reposition refused: {e}"))?;
+                let (out, origin) = global("reposition")?;
+                check_point(&at).map_err(target("reposition"))?;
                 let home = c_.home().unwrap_or(out.translation.pos_ned_m);
                 // The parts left open stay NaN: the commander keeps them.
                 let target = at.to_ned(&origin, &home, &Vector3::repeat(f64::NAN));
                 c_.reposition(target, speed_m_s, yaw_rad, change_mode)
             }
             AutopilotCommand::FollowTarget { at, vel_ned_m_s } => {
-                let Some(origin) = origin else {
-                    return Err("follow target refused: no global position yet".into());
-                };
-                let pos = global_to_ned(&at, &origin)
-                    .map_err(|e| format!("follow target refused: {e}"))?;
+                let command = "follow target";
+                let (_, origin) = global(command)?;
+                let pos = global_to_ned(&at, &origin).map_err(target(command))?;
                 c_.follow_target_fix(TargetFix {
                     pos_ned_m: pos,
                     vel_ned_m_s,
@@ -234,10 +232,8 @@ impl Autopilot {
                 yaw,
                 turns,
             } => {
-                let (Some(out), Some(origin)) = (last, origin) else {
-                    return Err("orbit refused: no global position yet".into());
-                };
-                check_point(&center).map_err(|e| format!("orbit refused: {e}"))?;
+                let (out, origin) = global("orbit")?;
+                check_point(&center).map_err(target("orbit"))?;
                 let home = c_.home().unwrap_or(out.translation.pos_ned_m);
                 let c = center.to_ned(&origin, &home, &Vector3::repeat(f64::NAN));
                 c_.orbit(OrbitRequest {

@@ -3,8 +3,8 @@
 
 use super::stabilized::LOW_THROTTLE;
 use super::task::Task;
-use super::{Commander, CommanderInput, Denial, FlightMode, LandedState};
-use crate::safety::preflight::{PreflightFailure, PreflightInput, preflight};
+use super::{ArmingDenial, Commander, CommanderInput, Denial, FlightMode, LandedState};
+use crate::safety::preflight::{PreflightCheck, PreflightFailure, PreflightInput, preflight};
 
 impl Commander {
     /// Arms the motors. Refused while the estimator is not ready (unless `force`), in modes
@@ -17,35 +17,27 @@ impl Commander {
             FlightMode::Takeoff | FlightMode::Loiter => {}
             FlightMode::Mission => self
                 .mission_entry()
-                .map_err(|e| format!("arming refused: {e}"))?,
+                .map_err(|e| Denial::Arming(ArmingDenial::Mission(Box::new(e))))?,
             FlightMode::Posctl | FlightMode::Altctl => {
                 let Some(s) = self.fresh_sticks() else {
-                    return Err(format!(
-                        "arming refused: {} needs manual control (MANUAL_CONTROL)",
-                        self.mode.name()
-                    )
-                    .into());
+                    return Err(ArmingDenial::NeedsSticks(self.mode.name()).into());
                 };
                 if s.throttle > 0.5 + self.flight.params.stick_deadzone && !force {
-                    return Err("arming refused: throttle stick above centre".into());
+                    return Err(ArmingDenial::ThrottleAboveCentre.into());
                 }
             }
             FlightMode::Manual | FlightMode::Stabilized => {
                 let Some(s) = self.fresh_sticks() else {
-                    return Err(format!(
-                        "arming refused: {} needs manual control (MANUAL_CONTROL)",
-                        self.mode.name()
-                    )
-                    .into());
+                    return Err(ArmingDenial::NeedsSticks(self.mode.name()).into());
                 };
                 // The throttle is the thrust here: arming with it up would leap.
                 if s.throttle > LOW_THROTTLE && !force {
-                    return Err("arming refused: throttle stick not low".into());
+                    return Err(ArmingDenial::ThrottleNotLow.into());
                 }
             }
             FlightMode::Offboard => {
                 if self.fresh_offboard().is_none() {
-                    return Err("arming refused: no offboard set-points".into());
+                    return Err(ArmingDenial::NoOffboard.into());
                 }
             }
             FlightMode::Land
@@ -53,24 +45,18 @@ impl Commander {
             | FlightMode::Descend
             | FlightMode::Orbit
             | FlightMode::FollowTarget => {
-                return Err(format!(
-                    "arming refused: not in a mode to start in ({})",
-                    self.mode.name()
-                )
-                .into());
+                return Err(ArmingDenial::ModeCannotStart(self.mode.name()).into());
             }
         }
         let Some(i) = self.last else {
-            return Err("arming refused: no sensor data yet".into());
+            return Err(ArmingDenial::NoSensorData.into());
         };
         let mut failures = self.preflight_failures(&i);
         failures.retain(|f| !(force && f.skippable));
         if let Some(first) = failures.first() {
-            let more = match failures.len() {
-                1 => String::new(),
-                n => format!(" (and {} more)", n - 1),
-            };
-            return Err(format!("arming refused: {}{more}", first.text).into());
+            let more = failures.len() - 1;
+            let check = first.check.clone();
+            return Err(ArmingDenial::Check { check, more }.into());
         }
         let f = &mut self.flight;
         f.armed = true;
@@ -112,7 +98,7 @@ impl Commander {
         if !i.ready && self.mode.needs_position() && failures.is_empty() {
             // The caller's verdict on the estimate, when its parts are not known here.
             failures.push(PreflightFailure {
-                text: "estimator not ready (attitude or position invalid)".into(),
+                check: PreflightCheck::EstimatorNotReady,
                 skippable: true,
             });
         }

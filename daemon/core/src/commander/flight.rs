@@ -70,10 +70,13 @@ impl Flight {
         let pos = match pos_ned_m {
             Some(p) => p,
             None if i.ready => i.pos_ned_m,
-            None => return Err("home refused: position estimate not valid".into()),
+            None => return Err(Denial::PositionNotValid { command: "home" }),
         };
         if !pos.iter().all(|x| x.is_finite()) {
-            return Err("home refused: position not finite".into());
+            return Err(Denial::NotFinite {
+                command: "home",
+                what: "position not finite",
+            });
         }
         let yaw = self.home.map_or(i.yaw_rad, |h| h.1);
         self.home = Some((pos, yaw));
@@ -90,7 +93,7 @@ impl Flight {
     ) -> Result<(), Denial> {
         let speed_m_s = match change {
             SpeedChange::To(s) if s.is_finite() && s > 0.0 => Some(s),
-            SpeedChange::To(s) => return Err(format!("speed {s} m/s refused").into()),
+            SpeedChange::To(s) => return Err(Denial::Speed(s)),
             SpeedChange::Default => None,
             SpeedChange::Unchanged => return Ok(()),
         };

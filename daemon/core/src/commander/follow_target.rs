@@ -183,22 +183,28 @@ impl Commander {
                 .vel_ned_m_s
                 .is_none_or(|v| v.iter().all(|x| x.is_finite()));
         if !finite {
-            return Err("follow target refused: not a number".into());
+            return Err(Denial::NotFinite {
+                command: "follow target",
+                what: "not a number",
+            });
         }
         let here = self.last.map_or(fix.pos_ned_m, |i| i.pos_ned_m);
         let away = (fix.pos_ned_m.xy() - here.xy()).norm();
         if away > TARGET_RANGE_M {
-            return Err(format!(
-                "follow target refused: {away:.0} m away (at most {TARGET_RANGE_M:.0} m)"
-            )
-            .into());
+            return Err(Denial::TargetTooFar {
+                away_m: away,
+                max_m: TARGET_RANGE_M,
+            });
         }
         let home = self.flight.home.map_or(here, |h| h.0);
         let mut ne = fix.pos_ned_m;
         ne.z = f64::NAN; // its height is the target's, not a place to fly to
         self.target_limits()
             .check_target(&ne, &home)
-            .map_err(|e| format!("follow target refused: {e}"))?;
+            .map_err(|why| Denial::Target {
+                command: "follow target",
+                why,
+            })?;
         let rs = self.flight.params.follow_responsiveness;
         self.target.fix(&fix, self.now(), rs);
         Ok(())
@@ -214,10 +220,10 @@ impl Commander {
     pub(super) fn follow_entry(&mut self) -> Result<(), Denial> {
         let name = FlightMode::FollowTarget.name();
         if !self.flight.armed || self.flight.landed != LandedState::InAir {
-            return Err(format!("{name} refused: not flying").into());
+            return Err(Denial::NotFlying { command: name });
         }
         if self.last.and_then(|i| i.origin).is_none() {
-            return Err(format!("{name} refused: no global position yet").into());
+            return Err(Denial::NoGlobalPosition { command: name });
         }
         self.target.forget_if_stale(self.now());
         Ok(())

@@ -39,7 +39,7 @@ impl Commander {
         let run = &mut self.flight.mission;
         let n = run.items.len();
         if seq as usize >= n {
-            return Err(format!("mission item {seq} does not exist ({n} items)").into());
+            return Err(Denial::NoMissionItem { seq, count: n });
         }
         run.restart();
         run.current = seq as usize;
@@ -65,15 +65,15 @@ impl Commander {
     /// Whether Mission mode may be entered now, and the mission set up to start or resume.
     pub(super) fn mission_entry(&mut self) -> Result<(), Denial> {
         if self.flight.mission.items.is_empty() {
-            return Err("MISSION refused: no mission uploaded".into());
+            return Err(Denial::NoMission);
         }
         let Some((origin, here)) = self.last.and_then(|i| Some((i.origin?, i.pos_ned_m))) else {
-            return Err("MISSION refused: no global position yet".into());
+            return Err(Denial::NoGlobalPosition { command: "MISSION" });
         };
         let home = self.flight.home.map_or(here, |h| h.0);
         let items = &self.flight.mission.items;
         check_mission(items, &self.target_limits(), &origin, &home)
-            .map_err(|(k, e)| format!("MISSION refused: item {k}: {e}"))?;
+            .map_err(|(item, why)| Denial::MissionItem { item, why })?;
         if self.flight.mission.state == MissionState::Complete {
             self.flight.mission.restart();
         }
@@ -92,10 +92,16 @@ impl Commander {
         if !matches!(self.mode, FlightMode::Loiter | FlightMode::Mission)
             || self.flight.landed != LandedState::InAir
         {
-            return Err("yaw command refused: flying in Hold or Mission only".into());
+            return Err(Denial::WrongMode {
+                command: "yaw command",
+                needs: "flying in Hold or Mission only",
+            });
         }
         if !yaw_rad.is_finite() {
-            return Err("yaw command refused: angle not finite".into());
+            return Err(Denial::NotFinite {
+                command: "yaw command",
+                what: "angle not finite",
+            });
         }
         let rate = rate_rad_s.filter(|r| r.is_finite() && *r > 0.0);
         self.flight.yaw_goal = Some((wrap_pi(yaw_rad), rate));
@@ -113,16 +119,25 @@ impl Commander {
         change_mode: bool,
     ) -> Result<(), Denial> {
         let Some(i) = self.last else {
-            return Err("reposition refused: no position estimate yet".into());
+            return Err(Denial::NoPositionEstimate {
+                command: "reposition",
+            });
         };
         if !self.flight.armed || self.flight.landed != LandedState::InAir {
-            return Err("reposition refused: not flying".into());
+            return Err(Denial::NotFlying {
+                command: "reposition",
+            });
         }
         if !(change_mode || self.mode == FlightMode::Loiter) {
-            return Err("reposition refused: not in Hold (and no mode change asked)".into());
+            return Err(Denial::WrongMode {
+                command: "reposition",
+                needs: "not in Hold (and no mode change asked)",
+            });
         }
         if self.mode == FlightMode::Descend {
-            return Err("reposition refused: failsafe descent in progress".into());
+            return Err(Denial::FailsafeDescent {
+                command: "reposition",
+            });
         }
         let mut to = self.task.held().map_or(i.pos_ned_m, |h| h.0);
         for k in 0..3 {
@@ -134,7 +149,10 @@ impl Commander {
         let home = self.flight.home.map_or(i.pos_ned_m, |h| h.0);
         self.target_limits()
             .check_target(&target, &home)
-            .map_err(|e| format!("reposition refused: {e}"))?;
+            .map_err(|why| Denial::Target {
+                command: "reposition",
+                why,
+            })?;
         self.operator_takes_over()?;
         if let Some(s) = speed_m_s.filter(|s| s.is_finite() && *s > 0.0) {
             self.flight.speed_override = Some(s.min(20.0));

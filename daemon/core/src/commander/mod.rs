@@ -19,6 +19,7 @@
 //! [`crate::safety`] state machine on every update and carried out here (Hold, Return, Land,
 //! Descend, disarm); arming asks its [`crate::safety::preflight::preflight`] checks.
 
+pub use denial::{ArmingDenial, Denial};
 pub use follow_target::{STALE_S as FOLLOW_STALE_S, TargetEstimate, TargetFilter, TargetFix};
 pub use input::{CommanderInput, Health, OffboardTarget, Sticks};
 pub use orbit::{
@@ -109,32 +110,6 @@ pub enum LandedState {
     InAir,
     /// Descending to land.
     Landing,
-}
-
-/// Why a command was refused, in words for the operator (`STATUSTEXT`).
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("{0}")]
-pub struct Denial(pub String);
-
-impl From<String> for Denial {
-    fn from(s: String) -> Self {
-        Self(s)
-    }
-}
-
-impl std::ops::Deref for Denial {
-    type Target = str;
-
-    /// The words, to show or search.
-    fn deref(&self) -> &str {
-        &self.0
-    }
-}
-
-impl From<&str> for Denial {
-    fn from(s: &str) -> Self {
-        Self(s.to_owned())
-    }
 }
 
 /// The commander's state as telemetry shows it.
@@ -391,7 +366,7 @@ impl Commander {
             return Ok(());
         }
         if self.flight.landed != LandedState::OnGround && !force {
-            return Err("disarming refused: in the air (land first, or force)".into());
+            return Err(Denial::InAir);
         }
         self.disarmed();
         Ok(())
@@ -428,14 +403,16 @@ impl Commander {
             return Ok(());
         }
         if self.mode == FlightMode::Descend && self.flight.armed {
-            return Err("mode change refused: failsafe descent in progress".into());
+            return Err(Denial::FailsafeDescent {
+                command: "mode change",
+            });
         }
         self.operator_takes_over()?;
         match mode {
             FlightMode::Takeoff | FlightMode::Loiter | FlightMode::Land => {}
             FlightMode::Rtl => {
                 if self.flight.home.is_none() {
-                    return Err("RTL refused: no home position".into());
+                    return Err(Denial::NoHome);
                 }
             }
             FlightMode::Posctl
@@ -443,30 +420,25 @@ impl Commander {
             | FlightMode::Manual
             | FlightMode::Stabilized => {
                 if self.fresh_sticks().is_none() {
-                    return Err(format!(
-                        "{} refused: no manual control (MANUAL_CONTROL)",
-                        mode.name()
-                    )
-                    .into());
+                    return Err(Denial::NoManualControl(mode.name()));
                 }
             }
             FlightMode::Offboard => {
                 if self.fresh_offboard().is_none() {
-                    return Err(format!(
-                        "OFFBOARD refused: no set-point stream in the last {} s (COM_OF_LOSS_T)",
-                        self.flight.params.offboard_loss_s
-                    )
-                    .into());
+                    let loss_s = self.flight.params.offboard_loss_s;
+                    return Err(Denial::NoOffboardStream(loss_s));
                 }
             }
             FlightMode::Mission => self.mission_entry()?,
             // Chosen without a command: about where it is, with the defaults.
             FlightMode::Orbit => return self.orbit(OrbitRequest::default()),
             FlightMode::FollowTarget => self.follow_entry()?,
-            FlightMode::Descend => return Err("DESCEND is a failsafe, not a mode to select".into()),
+            FlightMode::Descend => return Err(Denial::FailsafeMode),
         }
         if mode == FlightMode::Takeoff && self.flight.armed && !self.ready() {
-            return Err("take-off refused: estimator not ready".into());
+            return Err(Denial::NotReady {
+                command: "take-off",
+            });
         }
         if mode == FlightMode::Takeoff && self.mode != FlightMode::Takeoff {
             // The mode selected by itself climbs to today's MIS_TAKEOFF_ALT.
@@ -480,7 +452,7 @@ impl Commander {
     /// unless it allows no take-over (then the command is refused).
     fn operator_takes_over(&mut self) -> Result<(), Denial> {
         if self.flight.armed && self.failsafe.0 > FailsafeAction::Warn {
-            self.safety.take_over()?;
+            self.safety.take_over().map_err(Denial::FailsafeActing)?;
             self.failsafe = (FailsafeAction::None, None);
         }
         Ok(())
@@ -492,7 +464,10 @@ impl Commander {
         let alt = alt_above_home_m.unwrap_or(self.flight.params.takeoff_alt_m);
         self.target_limits()
             .check_height(alt)
-            .map_err(|e| format!("take-off refused: {e}"))?;
+            .map_err(|why| Denial::Target {
+                command: "take-off",
+                why,
+            })?;
         if self.mode != FlightMode::Takeoff {
             self.set_mode(FlightMode::Takeoff)?;
         }
@@ -509,13 +484,16 @@ impl Commander {
     /// Sets home to `pos_ned_m` (or to the current position if `None`): near the vehicle.
     pub fn set_home(&mut self, pos_ned_m: Option<Vector3<f64>>) -> Result<(), Denial> {
         let Some(i) = self.last else {
-            return Err("home refused: no position estimate yet".into());
+            return Err(Denial::NoPositionEstimate { command: "home" });
         };
         if let Some(p) = pos_ned_m {
             let current = self.flight.home.map_or(i.pos_ned_m, |h| h.0);
             self.target_limits()
                 .check_home(&p, &i.pos_ned_m, &current)
-                .map_err(|e| format!("home refused: {e}"))?;
+                .map_err(|why| Denial::Target {
+                    command: "home",
+                    why,
+                })?;
         }
         self.flight.set_home(pos_ned_m, &i)
     }
@@ -641,6 +619,7 @@ impl Commander {
 
 mod arming;
 mod corner;
+mod denial;
 mod descend;
 mod failsafes;
 mod flight;

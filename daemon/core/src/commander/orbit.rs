@@ -253,13 +253,13 @@ impl Commander {
     /// range. A speed above the radius's bound `√(a r)` is lowered to it (as PX4 does).
     pub fn orbit(&mut self, req: OrbitRequest) -> Result<(), Denial> {
         let Some(i) = self.last else {
-            return Err("orbit refused: no position estimate yet".into());
+            return Err(Denial::NoPositionEstimate { command: "orbit" });
         };
         if !self.flight.armed || self.flight.landed != LandedState::InAir {
-            return Err("orbit refused: not flying".into());
+            return Err(Denial::NotFlying { command: "orbit" });
         }
         if self.mode == FlightMode::Descend {
-            return Err("orbit refused: failsafe descent in progress".into());
+            return Err(Denial::FailsafeDescent { command: "orbit" });
         }
         let p = self.flight.params;
         let current = match &self.task {
@@ -271,20 +271,21 @@ impl Commander {
             .or(current.as_ref().map(|o| o.status().radius_m));
         let signed = signed.unwrap_or(DEFAULT_ORBIT.0);
         if !(signed.is_finite() && (RADIUS_MIN_M..=p.orbit_radius_max_m).contains(&signed.abs())) {
-            return Err(format!(
-                "orbit refused: radius {signed} m outside {RADIUS_MIN_M}..{} m (MC_ORBIT_RAD_MAX)",
-                p.orbit_radius_max_m
-            )
-            .into());
+            return Err(Denial::OrbitRadius {
+                radius_m: signed,
+                min_m: RADIUS_MIN_M,
+                max_m: p.orbit_radius_max_m,
+            });
         }
         let speed = req
             .speed_m_s
             .or(current.as_ref().map(|o| o.speed_m_s))
             .unwrap_or(DEFAULT_ORBIT.1);
         if !(speed.is_finite() && speed > 0.0 && speed <= SPEED_MAX_M_S) {
-            return Err(
-                format!("orbit refused: speed {speed} m/s outside 0..{SPEED_MAX_M_S} m/s").into(),
-            );
+            return Err(Denial::OrbitSpeed {
+                speed_m_s: speed,
+                max_m_s: SPEED_MAX_M_S,
+            });
         }
         let radius = signed.abs();
         let bound = speed_bound_m_s(p.orbit_accel_m_s2, radius);
@@ -299,7 +300,10 @@ impl Commander {
             .unwrap_or(here.z);
         let center = Vector3::new(center_ne.x, center_ne.y, down);
         if !center.iter().all(|x| x.is_finite()) {
-            return Err("orbit refused: centre not finite".into());
+            return Err(Denial::NotFinite {
+                command: "orbit",
+                what: "centre not finite",
+            });
         }
         let home = self.flight.home.map_or(here, |h| h.0);
         // The circle's farthest point from home, not only its centre, within the limits.
@@ -309,7 +313,10 @@ impl Commander {
         let far = center + Vector3::new(out.x, out.y, 0.0) * radius;
         self.target_limits()
             .check_target(&far, &home)
-            .map_err(|e| format!("orbit refused: {e}"))?;
+            .map_err(|why| Denial::Target {
+                command: "orbit",
+                why,
+            })?;
         let yaw = req
             .yaw
             .or(current.as_ref().map(|o| o.yaw))

@@ -497,13 +497,13 @@ impl Safety {
 
     /// The operator asks for a mode change while failsafes act. Refused (with the reason) while
     /// a condition that allows no take-over acts; otherwise the acting conditions are overridden
-    /// (silent until they clear and trigger anew).
-    pub fn take_over(&mut self) -> Result<(), crate::commander::Denial> {
+    /// (silent until they clear and trigger anew). The refusal names the condition.
+    pub fn take_over(&mut self) -> Result<(), Condition> {
         if let Some(c) = self.active().into_iter().find(|&c| {
             let rule = self.params.rule(c, self.spinning);
             !rule.takeover && rule.action > FailsafeAction::Warn
         }) {
-            return Err(format!("mode change refused: failsafe in progress ({c})").into());
+            return Err(c);
         }
         for t in self.tracked.iter_mut().filter(|t| t.since_s.is_some()) {
             t.overridden = true;

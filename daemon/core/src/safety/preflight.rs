@@ -35,11 +35,115 @@ pub struct PreflightInput {
     pub terminated: bool,
 }
 
+/// One arming check that fails; `Display` gives its words for the operator.
+#[derive(Debug, Clone, PartialEq)]
+pub enum PreflightCheck {
+    /// A flight termination happened.
+    Terminated,
+    /// The IMU is missing or frozen.
+    ImuLost,
+    /// A motor (1-based) is marked failed.
+    MotorFailed(usize),
+    /// Tilted beyond `COM_ARM_TILT`.
+    Tilted {
+        /// The tilt (deg).
+        tilt_deg: f64,
+        /// `COM_ARM_TILT` (deg).
+        limit_deg: f64,
+    },
+    /// The battery is at its emergency level (charge left, fraction).
+    BatteryEmergency(f64),
+    /// The battery is below the level to arm at (charge left, fraction).
+    BatteryLow(f64),
+    /// The parameters contradict each other.
+    ParamsInvalid(String),
+    /// The attitude estimate has not converged.
+    AttitudeNotConverged,
+    /// The gyro bias is not known well enough yet.
+    GyroBiasUnsettled,
+    /// The mode flies on a position estimate that is not valid.
+    PositionInvalid,
+    /// The altitude estimate is not valid.
+    AltitudeInvalid,
+    /// The magnetometer is silent or frozen.
+    MagLost,
+    /// The barometer is silent or frozen.
+    BaroLost,
+    /// The GPS is silent or frozen (and the mode needs it).
+    GpsLost,
+    /// The magnetometer was never calibrated.
+    MagUncalibrated,
+    /// The field measured at rest is unlike the expected one.
+    MagField(MagFieldCheck),
+    /// Outside the geofence.
+    Geofence,
+    /// The estimate cannot be flown on, its parts unknown to the commander.
+    EstimatorNotReady,
+}
+
+/// Which property of the field at rest is off, and by how much.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MagFieldCheck {
+    /// Its strength (gauss) against `EKF2_MAG_CHK_STR`.
+    Strength {
+        /// Measured (G).
+        got: f64,
+        /// Expected (G).
+        want: f64,
+    },
+    /// Its inclination (deg) against `EKF2_MAG_CHK_INC`.
+    Inclination {
+        /// Measured (deg).
+        got: f64,
+        /// Expected (deg).
+        want: f64,
+    },
+}
+
+impl std::fmt::Display for PreflightCheck {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Terminated => write!(f, "flight terminated: restart the autopilot"),
+            Self::ImuLost => write!(f, "IMU missing or frozen"),
+            Self::MotorFailed(m) => write!(f, "motor {m} failed"),
+            Self::Tilted {
+                tilt_deg,
+                limit_deg,
+            } => write!(f, "tilted {tilt_deg:.0}° (COM_ARM_TILT {limit_deg:.0}°)"),
+            Self::BatteryEmergency(r) => {
+                write!(f, "battery at emergency level ({:.0} %)", r * 100.0)
+            }
+            Self::BatteryLow(r) => write!(f, "battery low ({:.0} %)", r * 100.0),
+            Self::ParamsInvalid(why) => write!(f, "parameters invalid: {why}"),
+            Self::AttitudeNotConverged => write!(f, "attitude estimate not converged"),
+            Self::GyroBiasUnsettled => {
+                write!(f, "gyro bias not settled: keep the vehicle still for 2 s")
+            }
+            Self::PositionInvalid => write!(f, "position estimate not valid (the mode needs it)"),
+            Self::AltitudeInvalid => write!(f, "altitude estimate not valid"),
+            Self::MagLost => write!(f, "magnetometer silent or frozen"),
+            Self::BaroLost => write!(f, "barometer silent or frozen"),
+            Self::GpsLost => write!(f, "GPS silent or frozen"),
+            Self::MagUncalibrated => write!(f, "magnetometer not calibrated"),
+            Self::MagField(MagFieldCheck::Strength { got, want }) => {
+                write!(f, "mag field {got:.2} G, expected {want:.2} G")
+            }
+            Self::MagField(MagFieldCheck::Inclination { got, want }) => {
+                write!(f, "mag inclination {got:.0}°, expected {want:.0}°")
+            }
+            Self::Geofence => write!(f, "outside the geofence"),
+            Self::EstimatorNotReady => {
+                write!(f, "estimator not ready (attitude or position invalid)")
+            }
+        }
+    }
+}
+
 /// One reason not to arm.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct PreflightFailure {
-    /// For the operator (`STATUSTEXT`, `COMMAND_ACK`).
-    pub text: String,
+    /// The check (its words for the operator: `STATUSTEXT`, `COMMAND_ACK`).
+    pub check: PreflightCheck,
     /// A forced arm may skip it.
     pub skippable: bool,
 }
@@ -49,26 +153,29 @@ pub struct PreflightFailure {
 /// geofence; never a missing IMU, a failed motor, a tilt beyond `COM_ARM_TILT`, an
 /// emergency-level battery or a terminated flight.
 pub fn preflight(i: &PreflightInput, p: &SafetyParams) -> Vec<PreflightFailure> {
+    use PreflightCheck as C;
     let mut v = Vec::new();
-    let mut fail = |text: String, skippable: bool| v.push(PreflightFailure { text, skippable });
+    let mut fail = |check: PreflightCheck, skippable: bool| {
+        v.push(PreflightFailure { check, skippable });
+    };
     if i.terminated {
-        fail("flight terminated: restart the autopilot".into(), false);
+        fail(C::Terminated, false);
     }
     if i.sensors_lost.imu {
-        fail("IMU missing or frozen".into(), false);
+        fail(C::ImuLost, false);
     }
     if let Some(m) = i.motor_failed {
-        fail(format!("motor {m} failed"), false);
+        fail(C::MotorFailed(m), false);
     }
     let (roll, pitch) = i.roll_pitch_rad;
     let tilt = (roll.cos() * pitch.cos()).clamp(-1.0, 1.0).acos();
     if i.attitude_valid && tilt > p.arm_tilt_deg.to_radians() {
+        let (tilt_deg, limit_deg) = (tilt.to_degrees(), p.arm_tilt_deg);
         fail(
-            format!(
-                "tilted {:.0}° (COM_ARM_TILT {:.0}°)",
-                tilt.to_degrees(),
-                p.arm_tilt_deg
-            ),
+            C::Tilted {
+                tilt_deg,
+                limit_deg,
+            },
             false,
         );
     }
@@ -79,78 +186,66 @@ pub fn preflight(i: &PreflightInput, p: &SafetyParams) -> Vec<PreflightFailure> 
             p.battery_low
         };
         if r < p.battery_emergency {
-            fail(
-                format!("battery at emergency level ({:.0} %)", r * 100.0),
-                false,
-            );
+            fail(C::BatteryEmergency(r), false);
         } else if r < min {
-            fail(format!("battery low ({:.0} %)", r * 100.0), true);
+            fail(C::BatteryLow(r), true);
         }
     }
     if let Some(why) = &i.params_invalid {
-        fail(format!("parameters invalid: {why}"), false);
+        fail(C::ParamsInvalid(why.clone()), false);
     }
     if !i.attitude_valid {
-        fail("attitude estimate not converged".into(), true);
+        fail(C::AttitudeNotConverged, true);
     } else if !i.gyro_bias_settled {
-        fail(
-            "gyro bias not settled: keep the vehicle still for 2 s".into(),
-            true,
-        );
+        fail(C::GyroBiasUnsettled, true);
     }
     if i.mode_needs_position && !i.position_valid {
-        fail(
-            "position estimate not valid (the mode needs it)".into(),
-            true,
-        );
+        fail(C::PositionInvalid, true);
     }
     if !i.altitude_valid {
-        fail("altitude estimate not valid".into(), true);
+        fail(C::AltitudeInvalid, true);
     }
-    for (lost, name) in [
-        (i.sensors_lost.mag, "magnetometer"),
-        (i.sensors_lost.baro, "barometer"),
-        (i.sensors_lost.gps && i.mode_needs_position, "GPS"),
+    for (lost, check) in [
+        (i.sensors_lost.mag, C::MagLost),
+        (i.sensors_lost.baro, C::BaroLost),
+        (i.sensors_lost.gps && i.mode_needs_position, C::GpsLost),
     ] {
         if lost {
-            fail(format!("{name} silent or frozen"), true);
+            fail(check, true);
         }
     }
     if !i.mag.calibrated {
-        fail("magnetometer not calibrated".into(), true);
+        fail(C::MagUncalibrated, true);
     }
     if let Some(m) = i.mag.measured.filter(|_| !i.sensors_lost.mag) {
         let e = i.mag.expected;
         // EKF2_MAG_CHK_STR and EKF2_MAG_CHK_INC (0: off).
         let checks = [
             (
-                m.strength_gauss,
-                e.strength_gauss,
+                MagFieldCheck::Strength {
+                    got: m.strength_gauss,
+                    want: e.strength_gauss,
+                },
+                m.strength_gauss - e.strength_gauss,
                 p.mag_strength_tolerance_gauss,
-                "field",
-                " G",
-                2,
             ),
             (
-                m.inclination_deg,
-                e.inclination_deg,
+                MagFieldCheck::Inclination {
+                    got: m.inclination_deg,
+                    want: e.inclination_deg,
+                },
+                m.inclination_deg - e.inclination_deg,
                 p.mag_inclination_tolerance_deg,
-                "inclination",
-                "°",
-                0,
             ),
         ];
-        for (got, want, tol, what, unit, digits) in checks {
-            if tol > 0.0 && (got - want).abs() > tol {
-                fail(
-                    format!("mag {what} {got:.digits$}{unit}, expected {want:.digits$}{unit}"),
-                    true,
-                );
+        for (check, off, tol) in checks {
+            if tol > 0.0 && off.abs() > tol {
+                fail(C::MagField(check), true);
             }
         }
     }
     if i.geofence_breached {
-        fail("outside the geofence".into(), true);
+        fail(C::Geofence, true);
     }
     v
 }

@@ -75,7 +75,7 @@ impl GroundStation {
                 Ok(c) => vehicle(out, to, c),
                 Err(why) => {
                     out.send(self.ack(to, MavResult::MAV_RESULT_UNSUPPORTED));
-                    out.say(MavSeverity::MAV_SEVERITY_WARNING, &why);
+                    out.say(MavSeverity::MAV_SEVERITY_WARNING, &why.to_string());
                 }
             },
             _ => out.send(self.ack(to, MavResult::MAV_RESULT_UNSUPPORTED)),
@@ -83,11 +83,23 @@ impl GroundStation {
     }
 }
 
+/// A `MAV_CMD_PREFLIGHT_CALIBRATION` this autopilot does not carry out.
+#[derive(Debug, thiserror::Error)]
+enum NotOnboard {
+    #[error(
+        "calibration: param{param} = {value} is not calibrated onboard (gyro: param1 1, \
+         magnetometer: param2 1, accelerometer: param5 1, level horizon: param5 2)"
+    )]
+    Calibration { param: usize, value: f32 },
+    #[error("calibration: one at a time (more than one param set)")]
+    MoreThanOne,
+}
+
 /// The calibration `MAV_CMD_PREFLIGHT_CALIBRATION`'s params ask for, as PX4 reads them: param1
 /// 1 the gyro, param2 1 the magnetometer, param5 1 the accelerometer, param5 2 the level
 /// horizon; every param 0 cancels. One at a time. NaN is a reserved param left unset (MAVSDK
 /// leaves 6 and 7 so): 0.
-fn calibration(p: &[f32; 7]) -> Result<AutopilotCommand, String> {
+fn calibration(p: &[f32; 7]) -> Result<AutopilotCommand, NotOnboard> {
     let set: Vec<(usize, f32)> = p
         .iter()
         .enumerate()
@@ -100,10 +112,10 @@ fn calibration(p: &[f32; 7]) -> Result<AutopilotCommand, String> {
         [(2, 1.0)] => Ok(AutopilotCommand::CalibrateMag),
         [(5, 1.0)] => Ok(AutopilotCommand::CalibrateImu(ImuCalKind::Accel)),
         [(5, 2.0)] => Ok(AutopilotCommand::CalibrateImu(ImuCalKind::Level)),
-        [(i, x)] => Err(format!(
-            "calibration: param{i} = {x} is not calibrated onboard (gyro: param1 1, \
-             magnetometer: param2 1, accelerometer: param5 1, level horizon: param5 2)"
-        )),
-        _ => Err("calibration: one at a time (more than one param set)".into()),
+        [(param, value)] => Err(NotOnboard::Calibration {
+            param: *param,
+            value: *value,
+        }),
+        _ => Err(NotOnboard::MoreThanOne),
     }
 }

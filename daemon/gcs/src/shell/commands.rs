@@ -119,11 +119,11 @@ impl GroundStation {
             ["param", "set", name, value] => self.param_set(name, value, out),
             ["commander", rest @ ..] => match commander(rest) {
                 Ok(cmd) => self.for_vehicle(cmd, out),
-                Err(e) => e,
+                Err(e) => format!("{e}\n"),
             },
             ["failure", unit, kind, rest @ ..] => match failure(unit, kind, rest) {
                 Ok(i) => self.for_vehicle(AutopilotCommand::InjectFailure(i), out),
-                Err(e) => e,
+                Err(e) => format!("{e}\n"),
             },
             ["listener", topic, rest @ ..] => {
                 let topic = match *topic {
@@ -228,8 +228,27 @@ fn matches(pattern: &str, name: &str) -> bool {
     p[i..].iter().all(|&c| c == b'*')
 }
 
+/// What the shell cannot run, in its answer's words.
+#[derive(Debug, thiserror::Error)]
+enum Unrunnable {
+    #[error("usage: commander arm|disarm [-f] | takeoff|land|rtl|hold | mode NAME")]
+    CommanderUsage,
+    #[error("commander: no mode {0}")]
+    NoMode(String),
+    #[error("usage: failure UNIT TYPE [-i N]")]
+    FailureUsage,
+    #[error("failure: no unit {0}")]
+    NoUnit(String),
+    #[error("failure: no type {0}")]
+    NoType(String),
+    #[error("failure: instance {0}")]
+    NoInstance(String),
+    #[error("failure: {0}")]
+    Injection(#[from] flight_core::safety::failure_injection::Refusal),
+}
+
 /// `commander …`, as PX4's.
-fn commander(args: &[&str]) -> Result<AutopilotCommand, String> {
+fn commander(args: &[&str]) -> Result<AutopilotCommand, Unrunnable> {
     Ok(match args {
         ["arm"] => AutopilotCommand::Arm { force: false },
         ["arm", "-f"] => AutopilotCommand::Arm { force: true },
@@ -240,16 +259,12 @@ fn commander(args: &[&str]) -> Result<AutopilotCommand, String> {
         ["rtl"] => AutopilotCommand::SetMode(FlightMode::Rtl),
         ["hold"] => AutopilotCommand::SetMode(FlightMode::Loiter),
         ["mode", name] => AutopilotCommand::SetMode(mode(name)?),
-        _ => {
-            return Err(
-                "usage: commander arm|disarm [-f] | takeoff|land|rtl|hold | mode NAME\n".into(),
-            );
-        }
+        _ => return Err(Unrunnable::CommanderUsage),
     })
 }
 
 /// A mode by PX4's `commander mode` name.
-fn mode(name: &str) -> Result<FlightMode, String> {
+fn mode(name: &str) -> Result<FlightMode, Unrunnable> {
     Ok(match name.to_ascii_lowercase().as_str() {
         "manual" => FlightMode::Manual,
         "stabilized" => FlightMode::Stabilized,
@@ -263,12 +278,12 @@ fn mode(name: &str) -> Result<FlightMode, String> {
         "auto:takeoff" | "takeoff" => FlightMode::Takeoff,
         "auto:land" | "land" => FlightMode::Land,
         "auto:follow_target" | "follow_target" => FlightMode::FollowTarget,
-        other => return Err(format!("commander: no mode {other}\n")),
+        other => return Err(Unrunnable::NoMode(other.into())),
     })
 }
 
 /// `failure UNIT TYPE [-i N]`, as PX4's.
-fn failure(unit: &str, kind: &str, rest: &[&str]) -> Result<Injection, String> {
+fn failure(unit: &str, kind: &str, rest: &[&str]) -> Result<Injection, Unrunnable> {
     let unit = match unit {
         "gyro" => 0.0,
         "accel" => 1.0,
@@ -276,23 +291,23 @@ fn failure(unit: &str, kind: &str, rest: &[&str]) -> Result<Injection, String> {
         "baro" => 3.0,
         "gps" => 4.0,
         "motor" => 101.0,
-        other => return Err(format!("failure: no unit {other}\n")),
+        other => return Err(Unrunnable::NoUnit(other.into())),
     };
     let kind = match kind {
         "ok" => 0.0,
         "off" => 1.0,
         "stuck" => 2.0,
-        other => return Err(format!("failure: no type {other}\n")),
+        other => return Err(Unrunnable::NoType(other.into())),
     };
     let instance = match rest {
         [] => 0.0,
         ["-i", n] => n
             .parse::<u8>()
-            .map_err(|_| format!("failure: instance {n}\n"))?
+            .map_err(|_| Unrunnable::NoInstance((*n).into()))?
             .into(),
-        _ => return Err("usage: failure UNIT TYPE [-i N]\n".into()),
+        _ => return Err(Unrunnable::FailureUsage),
     };
-    Injection::decode(unit, kind, instance).map_err(|e| format!("failure: {e}\n"))
+    Ok(Injection::decode(unit, kind, instance)?)
 }
 
 fn status(t: &Telemetry, sample_hz: Option<f64>) -> String {

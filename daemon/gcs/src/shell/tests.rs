@@ -90,10 +90,11 @@ fn commands_for_the_vehicle_go_to_it_and_bad_input_is_answered() {
     }
     assert_eq!(out.vehicle.len(), 3);
     assert!(out.vehicle.iter().all(|(_, to)| to.reply == Reply::Shell));
-    g.answered(out.vehicle[0].1, Err("arming refused: no".into()), &mut out);
+    let no = flight_core::commander::ArmingDenial::NoSensorData;
+    g.answered(out.vehicle[0].1, Err(no.into()), &mut out);
     let text = session(&mut g, b"", 1);
     assert!(
-        text.contains("refused: arming refused: no\nnsh> "),
+        text.contains("refused: arming refused: no sensor data yet\nnsh> "),
         "{text:?}"
     );
     // Every byte, and lines far too long: answered, never a panic.

@@ -306,8 +306,12 @@ fn mission_and_guided_commands_reach_the_vehicle() {
     let mut out = Outbox::default();
     g.answered(to, Ok(()), &mut out);
     assert!(out.messages.is_empty());
-    g.answered(to, Err("no item 3".into()), &mut out);
-    assert_eq!(statustexts(&out), ["no item 3"]);
+    let no_item = Denial::NoMissionItem { seq: 3, count: 2 };
+    g.answered(to, Err(no_item), &mut out);
+    assert_eq!(
+        statustexts(&out),
+        ["mission item 3 does not exist (2 items)"]
+    );
     assert!(acks(&out).is_empty());
 }
 
