@@ -1,8 +1,11 @@
 #!/usr/bin/env python3
-"""Layout lints the compiler does not check: no non-test Rust source over 700 lines, and no
-two struct, enum or trait names alike across the workspace's non-test sources (a newcomer
-searching for a name finds one thing). Test files are exempt: `tests.rs`, anything under a
-`tests/` or `benches/` folder, and the binary's fuzz targets.
+"""Layout lints the compiler does not check: no non-test Rust source over 600 lines and no
+function in one over 100 lines (files and functions stop settling just under a cap: split by
+job, or into named stages), and no two struct, enum or trait names alike across the
+workspace's non-test sources (a newcomer searching for a name finds one thing). Test files are
+exempt: `tests.rs`, anything under a `tests/` or `benches/` folder, and the binary's fuzz
+targets. The files and functions still over the limits are listed below with their length
+today (SPLIT_PENDING): one listed may not grow, and once it fits it must leave the list.
 
 And the repository stands alone: no file in it (code, tests, docs) names a path outside it —
 a relative path that climbs above the repository from the file's own folder, a path into the
@@ -20,8 +23,91 @@ ROOT = pathlib.Path(__file__).resolve().parent.parent
 # Every workspace member (a member inside another, as daemon/core, is walked with it).
 MEMBERS = tomllib.loads((ROOT / "Cargo.toml").read_text())["workspace"]["members"]
 CRATES = [m for m in MEMBERS if not any(m.startswith(o + "/") for o in MEMBERS)]
-MAX_LINES = 700
+MAX_LINES = 600
+MAX_FN_LINES = 100
+# Over the limits today, to be split; the length each has now (it may not grow).
+SPLIT_PENDING: dict[str, int] = {
+    "daemon/core/src/commander/mission.rs::item": 122,
+    "daemon/core/src/control/relaxed_hover.rs::solve": 103,
+    "daemon/core/src/core/config.rs::from_params": 102,
+    "daemon/core/src/estimator/attitude/params.rs": 660,
+    "daemon/core/src/estimator/attitude/params.rs::validate": 101,
+    "daemon/core/src/estimator/tilt_heading.rs::update": 204,
+    "daemon/core/src/safety/failsafe.rs": 646,
+    "daemon/core/src/safety/motor_failure.rs::step": 140,
+    "daemon/core/src/sensors/mag_fit.rs::fit_ellipsoid": 107,
+    "daemon/files/src/ftp/mod.rs::act": 150,
+    "daemon/gcs/src/incoming.rs::on_message": 165,
+    "daemon/gcs/src/mission/items.rs::decode": 111,
+    "daemon/gcs/src/mission.rs::item": 129,
+    "daemon/src/app/mod.rs::fly": 132,
+    "daemon/src/app/mod.rs::fly_together": 123,
+    "daemon/src/app/prepare.rs::prepare": 168,
+    "daemon/src/links/mod.rs::parse": 107,
+    "daemon/src/records/flight_ulog.rs::record": 192,
+    "daemon/src/subcommands/batch/merge.rs::merge": 133,
+    "daemon/src/subcommands/batch.rs": 644,
+    "daemon/src/subcommands/batch.rs::draw": 115,
+    "daemon/src/subcommands/batch.rs::run": 130,
+    "sitl/core/src/jsbsim.rs::aircraft_xml": 160,
+    "sitl/core/src/scenario.rs": 613,
+    "sitl/core/src/scenario.rs::resolve": 147,
+    "sitl/core/src/scenario.rs::resolve_event": 198,
+    "sitl/core/src/sensors.rs::sample": 166,
+    "sitl/core/src/sim.rs": 653,
+    "sitl/src/json_physics.rs::run": 108,
+    "sitl/src/run.rs::hil": 185,
+}
 TYPE = re.compile(r"^\s*(?:pub(?:\([a-z]+\))?\s+)?(?:struct|enum|trait)\s+([A-Z][A-Za-z0-9]*)", re.M)
+
+
+FN = re.compile(r"^\s*(?:pub(?:\([a-z:]+\))?\s+)?(?:const\s+)?(?:async\s+)?(?:unsafe\s+)?"
+                r"fn\s+([a-z_][a-z0-9_]*)")
+# What hides braces from counting: comments, strings (raw too) and character literals.
+HIDDEN = re.compile(r"//[^\n]*|/\*.*?\*/|r(#*)\".*?\"\1|\"(?:\\.|[^\"\\])*\"|'(?:\\.[^']*|[^\\'])'",
+                    re.S)
+
+
+def code_only(text: str) -> str:
+    """`text` with its comments, strings and character literals blanked (lines kept)."""
+    return HIDDEN.sub(lambda m: re.sub(r"[^\n]", " ", m.group(0)), text)
+
+
+def long_functions(text: str) -> list[tuple[str, int, int]]:
+    """Every function in `text` longer than MAX_FN_LINES: name, first line, lines."""
+    lines = code_only(text).split("\n")
+    found = []
+    for start, line in enumerate(lines):
+        m = FN.match(line)
+        if not m:
+            continue
+        depth, end = 0, None
+        for k in range(start, len(lines)):
+            for ch in lines[k]:
+                if ch == ";" and depth == 0:
+                    end = -1  # a declaration without a body
+                    break
+                depth += (ch == "{") - (ch == "}")
+                if ch == "}" and depth == 0:
+                    end = k
+                    break
+            if end is not None:
+                break
+        if end is not None and end >= 0 and end - start + 1 > MAX_FN_LINES:
+            found.append((m.group(1), start + 1, end - start + 1))
+    return found
+
+
+def over_limit(key: str, length: int, limit: int, what: str) -> list[str]:
+    """The problem with `key` at `length` lines against `limit` and SPLIT_PENDING."""
+    pending = SPLIT_PENDING.get(key)
+    if length <= limit:
+        return [f"{key}: {length} lines now fits: take it out of SPLIT_PENDING"] if pending else []
+    if pending is None:
+        return [f"{key}: {length} lines (at most {limit}): {what}"]
+    if length > pending:
+        return [f"{key}: grew to {length} lines (SPLIT_PENDING says {pending}): {what}"]
+    return []
 
 
 def is_test(path: pathlib.Path) -> bool:
@@ -102,11 +188,15 @@ def main() -> int:
                 continue
             text = non_test_part(path.read_text())
             rel = str(path.relative_to(ROOT))
-            lines = text.count("\n")
-            if lines > MAX_LINES:
-                problems.append(f"{rel}: {lines} lines (at most {MAX_LINES}): split it by job")
+            problems += over_limit(rel, text.count("\n"), MAX_LINES, "split it by job")
+            for name, line, n in long_functions(text):
+                problems += over_limit(f"{rel}::{name}", n, MAX_FN_LINES,
+                                       f"fn at line {line}: split it into named stages")
             for name in TYPE.findall(text):
                 defined.setdefault(name, []).append(rel)
+    seen = {str(p.relative_to(ROOT)) for c in CRATES for p in (ROOT / c).rglob("*.rs")}
+    problems += [f"{key}: in SPLIT_PENDING but not found: take it out"
+                 for key in SPLIT_PENDING if key.split("::")[0] not in seen]
     for name, files in sorted(defined.items()):
         if len(files) > 1:
             problems.append(f"type {name} defined {len(files)} times: {', '.join(files)}")

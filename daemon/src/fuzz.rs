@@ -104,7 +104,7 @@ impl FuzzedVehicle {
         let out = self.autopilot.step(&frame.sample, &StepInputs::default())?;
         Some(answer(
             &out,
-            self.autopilot.rotors(),
+            self.autopilot.state().rotors,
             self.autopilot.pose_request(),
         ))
     }

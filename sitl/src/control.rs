@@ -242,7 +242,7 @@ impl Control {
         Ok(Self {
             socket,
             peer: None,
-            encoder: Encoder::default(),
+            encoder: hil::sim_encoder(),
             weather: Weather::new(wind, calibration_hand),
             rx: vec![0; 65_536],
             decoded: Decoded::default(),

@@ -162,7 +162,7 @@ impl Link {
             decoded: Decoded::default(),
             hand: None,
             replies: Vec::new(),
-            encoder: Encoder::default(),
+            encoder: hil::sim_encoder(),
             state_interval: None,
             heard: 0,
         }

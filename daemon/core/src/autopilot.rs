@@ -12,22 +12,27 @@
 //! the score against a simulator's truth) observe each [`AutopilotOutput`] from outside. Time
 //! comes with the sample; the ground-station link's age with [`StepInputs`]: no clock is read.
 
+mod auto_flight;
 mod blind;
 mod calibration;
 pub mod command;
+mod state;
+
+pub use auto_flight::AutoFlight;
+pub use state::VehicleState;
 
 use crate::commander::{Commander, CommanderInput, CommanderStatus, Health, LandedState};
 use crate::control::position::PositionSetpoint;
 use crate::control::{GroundContact, Setpoint};
-use crate::core::{FlightCore, FlightCoreConfig, SensorSample, StepOutput, nominal_battery_v};
-use crate::estimator::translation::GpsMeasurement;
+use crate::core::{FlightCore, FlightCoreConfig, nominal_battery_v};
 use crate::math::geo::LocalFrame;
 use crate::mixer::MixerError;
 use crate::params::FlightParams;
 use crate::safety::blind_descent::{BlindDescent, HoverCommands};
 use crate::safety::failure_injection::FailureInjector;
 use crate::safety::geofence::{FenceMonitor, GeoZone, Geofence};
-use crate::sensors::battery::{BatteryConfig, BatteryEstimator, BatteryState};
+use crate::sample::{SensorSample, StepOutput};
+use crate::sensors::battery::{BatteryConfig, BatteryEstimator};
 use crate::sensors::imu_calibrator::ImuCalibrator;
 use crate::sensors::imu_correction::ImuCorrection;
 use crate::sensors::mag_calibrator::MagCalibrator;
@@ -35,16 +40,6 @@ use crate::sensors::mag_check::MagFieldMonitor;
 use crate::sensors::monitor::SensorMonitor;
 use airframe::{Airframe, MAX_ROTORS};
 use nalgebra::Vector3;
-
-/// A flight flown without a ground station (the command line's `--takeoff`): arm and take off
-/// as soon as the estimator is ready, hold for `hover_s`, land; the run ends once disarmed.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct AutoFlight {
-    /// Take-off altitude above home (m).
-    pub takeoff_m: f64,
-    /// Time to hold before landing (s); infinite holds until told otherwise.
-    pub hover_s: f64,
-}
 
 /// How far back the sensor clock must jump for the source to count as started again (s): more
 /// than a lockstep resend or a serial line's backlog, less than any flight.
@@ -97,8 +92,9 @@ pub struct AutopilotOutput {
     pub estimate: StepOutput,
     /// The set-point flown.
     pub setpoint: Setpoint,
-    /// The sample as stepped: after failure injection and the sensor monitor.
-    pub sample: SensorSample,
+    /// The sample as stepped, raw (before the IMU's calibration): after failure injection
+    /// and the sensor monitor. What the logs record.
+    pub raw_sample: SensorSample,
     /// The sensor source started again before this sample (its clock went back by more than
     /// [`SOURCE_RESTART_S`]): the autopilot started afresh, and so do the records.
     pub restarted: bool,
@@ -115,8 +111,6 @@ pub struct Autopilot {
     params: FlightParams,
     rotors: usize,
     nominal_v: f64,
-    /// Times the sensor source started again from an earlier time.
-    source_restarts: u32,
     /// Samples that repeated or went back in time, answered or dropped without a step.
     repeated_frames: u64,
     auto: Option<AutoFlight>,
@@ -127,12 +121,10 @@ pub struct Autopilot {
     ended: bool,
     /// The last answer (repeated for a repeated sample), with the flight core's last output.
     last_answer: Option<AutopilotOutput>,
-    /// The last sample stepped on (magnetometer and barometer as last seen), the set-point
-    /// flown (armed only), and the last GPS solution.
-    last_sample: Option<SensorSample>,
-    last_setpoint: Option<Setpoint>,
-    gps: Option<GpsMeasurement>,
-    battery_v: f64,
+    /// The vehicle as published after each step and each command ([`Self::state`]): it also
+    /// holds the last sample flown, the set-point flown, the last GPS solution and the
+    /// battery voltage.
+    published: VehicleState,
     /// State of charge from the reported voltage and current.
     battery: BatteryEstimator,
     /// The uploaded fence, and the same placed in the estimator's frame once it has an origin.
@@ -185,24 +177,34 @@ impl Autopilot {
                 );
             }
         }
-        Ok(Self {
+        let published = VehicleState {
+            status: commander.status(),
+            estimate: None,
+            held_sample: None,
+            setpoint: None,
+            gps: None,
+            battery_v: 0.0,
+            battery: Default::default(),
+            mag_cal: None,
+            imu_cal: None,
+            source_restarts: 0,
+            rotors: airframe.rotors.len(),
+            max_thrust_n: core.config().position.max_thrust_n,
+        };
+        let mut autopilot = Self {
             core,
             commander,
             airframe: airframe.clone(),
             params: params.clone(),
             rotors: airframe.rotors.len(),
             nominal_v: nominal_battery_v(airframe),
-            source_restarts: 0,
             repeated_frames: 0,
             auto,
             end_when_disarmed: false,
             auto_denial: None,
             ended: false,
             last_answer: None,
-            last_sample: None,
-            last_setpoint: None,
-            gps: None,
-            battery_v: 0.0,
+            published,
             battery: BatteryEstimator::new(BatteryConfig::from_params(
                 &params.battery,
                 &airframe.battery,
@@ -220,7 +222,9 @@ impl Autopilot {
             estimate_resets: (0, 0),
             blind: None,
             imu_frozen_since_usec: None,
-        })
+        };
+        autopilot.publish();
+        Ok(autopilot)
     }
 
     /// Flies with new parameters from the next step on (a ground station's PARAM_SET); the
@@ -241,11 +245,7 @@ impl Autopilot {
             &params.battery,
             &self.airframe.battery,
         ));
-    }
-
-    /// How many rotors the airframe has.
-    pub fn rotors(&self) -> usize {
-        self.rotors
+        self.publish();
     }
 
     /// The commander's state.
@@ -263,73 +263,14 @@ impl Autopilot {
         self.commander.mission_status()
     }
 
-    /// The last sample stepped on (magnetometer and barometer as last seen).
-    pub fn sample(&self) -> Option<SensorSample> {
-        self.last_sample
-    }
-
-    /// The set-point flown (armed only).
-    pub fn setpoint(&self) -> Option<Setpoint> {
-        self.last_setpoint
-    }
-
     /// The flight core's last output.
-    pub fn estimate(&self) -> Option<StepOutput> {
+    fn estimate(&self) -> Option<StepOutput> {
         self.last_answer.map(|a| a.estimate)
-    }
-
-    /// The last GPS solution received.
-    pub fn gps(&self) -> Option<GpsMeasurement> {
-        self.gps
-    }
-
-    /// The largest collective thrust (N): what `ATTITUDE_TARGET`'s thrust is a fraction of.
-    pub fn max_thrust_n(&self) -> f64 {
-        self.core.config().position.max_thrust_n
-    }
-
-    /// The battery voltage (V): the board's report, else the pack's nominal voltage.
-    pub fn battery_v(&self) -> f64 {
-        self.battery_v
-    }
-
-    /// The battery as estimated from the board's (or simulator's) reports.
-    pub fn battery(&self) -> BatteryState {
-        self.battery.state()
-    }
-
-    /// Whether the run is over: the auto flight has landed and disarmed, or an operator asked
-    /// to end and the vehicle is disarmed.
-    pub fn finished(&self) -> bool {
-        self.ended
-    }
-
-    /// The auto flight is waiting for the estimator before it takes off.
-    pub fn awaiting_takeoff(&self) -> bool {
-        self.auto.is_some() && !self.end_when_disarmed
-    }
-
-    /// Times the sensor source started again from an earlier time.
-    pub fn source_restarts(&self) -> u32 {
-        self.source_restarts
     }
 
     /// Samples that repeated or went back in time, answered or dropped without a step.
     pub fn repeated_frames(&self) -> u64 {
         self.repeated_frames
-    }
-
-    /// Ends the run (Ctrl-C): lands first if in the air.
-    pub fn request_land(&mut self) {
-        self.end_when_disarmed = true;
-        self.auto = None;
-        if self.commander.armed() {
-            if let Err(e) = self.commander.set_mode(crate::commander::FlightMode::Land) {
-                tracing::warn!("landing: {e}");
-            }
-        } else {
-            self.ended = true;
-        }
     }
 
     /// One sensor sample: the whole chain, and what to tell the rotors. `None` for a sample
@@ -356,20 +297,7 @@ impl Autopilot {
             });
         }
         let mut sample = *sample;
-        self.battery_v = sample.battery_v.unwrap_or(self.nominal_v);
-        if let Some(g) = sample.gps {
-            self.gps = Some(g);
-        }
-        if let Some(v) = sample.battery_v {
-            let current = sample
-                .esc_current_a
-                .map(|c| c[..self.rotors.min(c.len())].iter().sum::<f64>());
-            let throttle = self.estimate().map_or(0.0, |o| {
-                o.commands[..self.rotors].iter().sum::<f64>() / self.rotors.max(1) as f64
-            });
-            let dt = self.dt_since_last(t_usec);
-            self.battery.step(v, current, throttle, dt);
-        }
+        self.power_and_gps(&sample, t_usec);
         self.injected.apply_to_sample(&mut sample);
         // Lost sensors are taken out: the estimators fall back as for a sensor that is off.
         self.monitor.update(&mut sample);
@@ -387,6 +315,66 @@ impl Autopilot {
             self.mag_field.update(flown.mag, &flown.accel, p, dt);
         }
         let (setpoint, armed) = self.command_setpoint(t_s, inputs);
+        let spooling = self.set_flight_phase();
+        let output = self.core.step(&flown, &setpoint, armed);
+        self.report_core(&output);
+        // Magnetometer and barometer as last seen (a sample carries them only when fresh).
+        let prev = self.published.held_sample;
+        self.published.held_sample = Some(SensorSample {
+            mag: flown.mag.or(prev.and_then(|p| p.mag)),
+            baro_alt_m: flown.baro_alt_m.or(prev.and_then(|p| p.baro_alt_m)),
+            ..flown
+        });
+        self.published.setpoint = armed.then_some(setpoint);
+        if armed && !spooling && !self.monitor.imu_repeating() {
+            // Not while the IMU repeats itself: if it is freezing, the loops fly blind and the
+            // blind descent must not inherit what they command meanwhile. Nor at idle on the
+            // ground before the take-off: the filter starts from the climb's first commands.
+            let dt = self.dt_since_last(t_usec);
+            self.hover.update(&output.commands, dt);
+        } else if !armed {
+            self.hover.reset();
+        }
+        let mut commands = output.commands;
+        self.injected
+            .apply_to_commands(&mut commands[..self.rotors]);
+        let answer = AutopilotOutput {
+            t_usec,
+            commands,
+            armed,
+            kind: StepKind::Flown,
+            estimate: output,
+            setpoint,
+            raw_sample: sample,
+            restarted,
+        };
+        self.last_answer = Some(answer);
+        self.published.estimate = Some(output);
+        self.publish();
+        Some(answer)
+    }
+
+    /// The battery's voltage and charge, and the last GPS solution, from `sample`.
+    fn power_and_gps(&mut self, sample: &SensorSample, t_usec: u64) {
+        self.published.battery_v = sample.battery_v.unwrap_or(self.nominal_v);
+        if let Some(g) = sample.gps {
+            self.published.gps = Some(g);
+        }
+        if let Some(v) = sample.battery_v {
+            let current = sample
+                .esc_current_a
+                .map(|c| c[..self.rotors.min(c.len())].iter().sum::<f64>());
+            let throttle = self.estimate().map_or(0.0, |o| {
+                o.commands[..self.rotors].iter().sum::<f64>() / self.rotors.max(1) as f64
+            });
+            let dt = self.dt_since_last(t_usec);
+            self.battery.step(v, current, throttle, dt);
+        }
+    }
+
+    /// Tells the flight core where the vehicle is in its flight (from the commander's state);
+    /// returns whether it is spooling up on the ground.
+    fn set_flight_phase(&mut self) -> bool {
         let status = self.commander.status();
         let spooling = status.armed && status.landed == LandedState::OnGround;
         if spooling {
@@ -408,7 +396,11 @@ impl Autopilot {
         } else {
             status.ground_contact
         });
-        let output = self.core.step(&flown, &setpoint, armed);
+        spooling
+    }
+
+    /// Logs what the flight core's step found: a motor failure, an attitude estimate reset.
+    fn report_core(&mut self, output: &StepOutput) {
         if let Some(f) = output.motor_failure {
             tracing::error!(
                 motor = f.rotor + 1,
@@ -427,38 +419,6 @@ impl Autopilot {
             }
             self.estimate_resets = (r.tilt, r.heading);
         }
-        // Magnetometer and barometer as last seen (a sample carries them only when fresh).
-        let prev = self.last_sample;
-        self.last_sample = Some(SensorSample {
-            mag: flown.mag.or(prev.and_then(|p| p.mag)),
-            baro_alt_m: flown.baro_alt_m.or(prev.and_then(|p| p.baro_alt_m)),
-            ..flown
-        });
-        self.last_setpoint = armed.then_some(setpoint);
-        if armed && !spooling && !self.monitor.imu_repeating() {
-            // Not while the IMU repeats itself: if it is freezing, the loops fly blind and the
-            // blind descent must not inherit what they command meanwhile. Nor at idle on the
-            // ground before the take-off: the filter starts from the climb's first commands.
-            let dt = self.dt_since_last(t_usec);
-            self.hover.update(&output.commands, dt);
-        } else if !armed {
-            self.hover.reset();
-        }
-        let mut commands = output.commands;
-        self.injected
-            .apply_to_commands(&mut commands[..self.rotors]);
-        let answer = AutopilotOutput {
-            t_usec,
-            commands,
-            armed,
-            kind: StepKind::Flown,
-            estimate: output,
-            setpoint,
-            sample,
-            restarted,
-        };
-        self.last_answer = Some(answer);
-        Some(answer)
     }
 
     /// Time of the last answered sample (µs; 0 before the first).
@@ -540,43 +500,6 @@ impl Autopilot {
         out
     }
 
-    /// The run ends when disarmed after the auto flight (or an operator's Ctrl-C).
-    fn check_end(&mut self) {
-        if self.end_when_disarmed && !self.commander.armed() {
-            self.ended = true;
-        }
-    }
-
-    /// The auto flight: take off when ready, land after the hold.
-    fn fly_auto(&mut self) {
-        let Some(a) = self.auto else {
-            return;
-        };
-        let c = &mut self.commander;
-        let s = c.status();
-        if !self.end_when_disarmed {
-            if s.ready && !s.armed {
-                if let Err(e) = c.takeoff(Some(a.takeoff_m)).and_then(|()| c.arm(false)) {
-                    if self.auto_denial.as_ref() != Some(&e) {
-                        tracing::warn!("auto flight: {e}");
-                        self.auto_denial = Some(e);
-                    }
-                    return;
-                }
-                tracing::info!(takeoff_m = a.takeoff_m, "auto flight: armed, taking off");
-                self.end_when_disarmed = true;
-            }
-        } else if s.mode == crate::commander::FlightMode::Loiter
-            && s.landed == LandedState::InAir
-            && s.in_mode_s >= a.hover_s
-        {
-            tracing::info!("auto flight: landing");
-            if let Err(e) = c.set_mode(crate::commander::FlightMode::Land) {
-                tracing::warn!("auto flight: {e}");
-            }
-        }
-    }
-
     /// The sensor source started again (its clock went back by more than
     /// [`SOURCE_RESTART_S`]): a simulator restarted, a flight board rebooted. Whatever the
     /// autopilot believed is of another world: it starts afresh — disarmed, estimator aligning
@@ -601,7 +524,7 @@ impl Autopilot {
             .set_mission(self.commander.mission_items().to_vec());
         fresh.fence_zones = std::mem::take(&mut self.fence_zones);
         fresh.repeated_frames = self.repeated_frames;
-        fresh.source_restarts = self.source_restarts + 1;
+        fresh.published.source_restarts = self.published.source_restarts + 1;
         // A calibration under way cannot go on in a clock that went back: ended, and said so.
         self.end_calibrations();
         fresh.mag_cal = self.mag_cal.take();

@@ -14,6 +14,7 @@ pub mod mission;
 pub mod mixer;
 pub mod params;
 pub mod safety;
+pub mod sample;
 pub mod sensors;
 
 /// Standard gravity (m/s²), along NED +z.

@@ -119,14 +119,14 @@ fn repeated_samples_are_answered_again_and_a_clock_that_goes_back_restarts_the_a
         ..s
     };
     assert!(f.autopilot.step(&backlog, &StepInputs::default()).is_none());
-    assert_eq!(f.autopilot.source_restarts(), 0);
+    assert_eq!(f.autopilot.state().source_restarts, 0);
     let back = SensorSample {
         t_usec: s.t_usec - (2.0 * SOURCE_RESTART_S * 1e6) as u64,
         ..s
     };
     let out = f.autopilot.step(&back, &StepInputs::default()).unwrap();
     assert!(out.restarted && out.kind == StepKind::Flown);
-    assert_eq!(f.autopilot.source_restarts(), 1);
+    assert_eq!(f.autopilot.state().source_restarts, 1);
     assert!(!f.autopilot.status().armed);
     assert_eq!(f.autopilot.mission_status().total, 1, "the mission is kept");
 }

@@ -100,7 +100,7 @@ impl Bench {
         let start = self.sim.time_s();
         let status = loop {
             self.step();
-            let s = self.autopilot.imu_calibration().unwrap();
+            let s = self.autopilot.state().imu_cal.unwrap();
             if s.state != ImuCalState::Collecting {
                 break s;
             }

@@ -103,7 +103,7 @@ fn land_in_wind(seed: u64) -> Landing {
 
 /// The gyro the autopilot was given (its sample's mean over the control interval).
 fn autopilot_gyro(o: &flight_core::autopilot::AutopilotOutput) -> Vector3<f64> {
-    o.sample.gyro
+    o.raw_sample.gyro
 }
 
 #[test]

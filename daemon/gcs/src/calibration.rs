@@ -43,7 +43,7 @@ impl GroundStation {
 
     /// Says what changed in the magnetometer calibration.
     fn report_mag_calibration(&mut self, t: &Telemetry, out: &mut Outbox) {
-        let Some(s) = t.mag_cal else {
+        let Some(s) = t.vehicle.as_ref().and_then(|v| v.mag_cal) else {
             return;
         };
         let info = MavSeverity::MAV_SEVERITY_INFO;
@@ -207,16 +207,25 @@ mod tests {
     fn each_calibration_is_started_on_command_and_all_zeros_cancel() {
         let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
         let out = command(&mut g, [0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
-        assert_eq!(out.vehicle[0].0, AutopilotCommand::CalibrateMag);
+        assert_eq!(
+            crate::testing::requested(&out)[0].0,
+            AutopilotCommand::CalibrateMag
+        );
         // As MAVSDK sends it: the reserved params 6 and 7 NaN.
         let out = command(&mut g, [0.0, 1.0, 0.0, 0.0, 0.0, f32::NAN, f32::NAN]);
-        assert_eq!(out.vehicle[0].0, AutopilotCommand::CalibrateMag);
+        assert_eq!(
+            crate::testing::requested(&out)[0].0,
+            AutopilotCommand::CalibrateMag
+        );
         assert!(
             acks(&out).is_empty(),
             "acknowledged when the control loop has started it"
         );
         let out = command(&mut g, [0.0; 7]);
-        assert_eq!(out.vehicle[0].0, AutopilotCommand::CancelCalibration);
+        assert_eq!(
+            crate::testing::requested(&out)[0].0,
+            AutopilotCommand::CancelCalibration
+        );
         // As MAVSDK asks for the others: gyro param1 1, accelerometer param5 1, level param5 2.
         for (p, kind) in [
             (
@@ -233,7 +242,10 @@ mod tests {
             ),
         ] {
             let out = command(&mut g, p);
-            assert_eq!(out.vehicle[0].0, AutopilotCommand::CalibrateImu(kind));
+            assert_eq!(
+                crate::testing::requested(&out)[0].0,
+                AutopilotCommand::CalibrateImu(kind)
+            );
         }
         // Two at once, the barometer, a quick accelerometer: refused, said why.
         for (p, why) in [
@@ -248,7 +260,7 @@ mod tests {
             ),
         ] {
             let out = command(&mut g, p);
-            assert!(out.vehicle.is_empty());
+            assert!(crate::testing::requested(&out).is_empty());
             assert_eq!(acks(&out)[0].result, MavResult::MAV_RESULT_UNSUPPORTED);
             assert!(statustexts(&out).concat().contains(why), "{why}");
         }
@@ -256,7 +268,7 @@ mod tests {
 
     fn poll(g: &mut GroundStation, cal: Progress) -> Outbox {
         let mut t = telemetry(false, FlightMode::Loiter);
-        t.mag_cal = Some(cal);
+        t.vehicle.as_mut().unwrap().mag_cal = Some(cal);
         let mut out = Outbox::default();
         g.report_calibration(&t, &mut out);
         out

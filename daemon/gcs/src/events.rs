@@ -372,7 +372,7 @@ impl GroundStation {
         let (Some((was_armed, was_mode, _)), Some((armed, mode, _))) = (before, now) else {
             return;
         };
-        let ms = (t.t_s * 1e3) as u32;
+        let ms = (t.link.t_s * 1e3) as u32;
         if mode != was_mode {
             out.send(
                 self.events
@@ -387,7 +387,7 @@ impl GroundStation {
 
     /// A failsafe's beginning, escalation or end.
     pub(crate) fn failsafe_event(&mut self, e: &SafetyEvent, t: &Telemetry, out: &mut Outbox) {
-        let ms = (t.t_s * 1e3) as u32;
+        let ms = (t.link.t_s * 1e3) as u32;
         let m = match *e {
             SafetyEvent::Triggered(c, FailsafeAction::None | FailsafeAction::Warn) => self
                 .events
@@ -421,7 +421,7 @@ impl GroundStation {
 
     /// `CURRENT_EVENT_SEQUENCE` when due at `now_s`.
     pub(crate) fn events_poll(&mut self, now_s: f64, t: &Telemetry, out: &mut Outbox) {
-        self.events_now_ms = (t.t_s * 1e3) as u32;
+        self.events_now_ms = (t.link.t_s * 1e3) as u32;
         if now_s >= self.events_current_due {
             self.events_current_due = now_s + CURRENT_INTERVAL_S;
             out.send(self.events.current());

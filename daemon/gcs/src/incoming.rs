@@ -6,8 +6,8 @@ use super::{
     AckTo, CommandMessage, DEFAULT_STREAMS, GroundStation, HostAction, LinkId, Outbox, Outgoing,
     mission, offboard,
 };
-use crate::Reply;
 use crate::telemetry::Telemetry;
+use crate::{Delivery, Reply};
 use flight_core::autopilot::command::AutopilotCommand;
 use flight_core::commander::Sticks;
 use flight_core::safety::targets::TargetLimits;
@@ -19,8 +19,8 @@ impl GroundStation {
     /// What an uploaded mission item is checked against now: the parameters' limits, and home
     /// once the vehicle has one and a global position.
     fn mission_bounds(&self, t: &Telemetry) -> mission::MissionBounds {
-        let origin = t.output.as_ref().and_then(|o| o.translation.origin);
-        let home = t.status.as_ref().and_then(|s| s.home).map(|h| h.0);
+        let origin = t.estimate().as_ref().and_then(|o| o.translation.origin);
+        let home = t.status().as_ref().and_then(|s| s.home).map(|h| h.0);
         mission::MissionBounds {
             limits: TargetLimits::new(&self.params.values().safety),
             home: origin.zip(home),
@@ -65,8 +65,8 @@ impl GroundStation {
                         reply: Reply::Quiet,
                         ..requester(MavCmd::MAV_CMD_DO_SET_MISSION_CURRENT)
                     };
-                    out.vehicle
-                        .push((AutopilotCommand::SetMissionCurrent(m.seq), to));
+                    let cmd = AutopilotCommand::SetMissionCurrent(m.seq);
+                    out.request(cmd, Delivery::Answered(to));
                 } else {
                     self.missions.bounds = Some(self.mission_bounds(t));
                     self.missions.on_message(from, msg, out);
@@ -149,7 +149,7 @@ impl GroundStation {
                 self.command(cmd, to, t, out);
             }
             MavMessage::MANUAL_CONTROL(m) if self.for_us(m.target, None) => {
-                out.sticks = Some(sticks(m));
+                out.request(AutopilotCommand::Sticks(sticks(m)), Delivery::Latest);
             }
             MavMessage::SET_POSITION_TARGET_LOCAL_NED(m)
                 if self.for_us(m.target_system, Some(m.target_component)) =>
@@ -173,7 +173,7 @@ impl GroundStation {
                     ..requester(MavCmd::MAV_CMD_DO_FOLLOW)
                 };
                 match follow_target(m) {
-                    Some(cmd) => out.vehicle.push((cmd, to)),
+                    Some(cmd) => out.request(cmd, Delivery::Answered(to)),
                     None => {
                         self.dropped += 1;
                         tracing::debug!(?m, "FOLLOW_TARGET dropped: not a place");
@@ -199,7 +199,7 @@ impl GroundStation {
                 self.events_requested(r, from, out);
             }
             MavMessage::TIMESYNC(s) if s.tc1 == 0 => {
-                let now_ns = (t.t_s * 1e9) as i64;
+                let now_ns = (t.link.t_s * 1e9) as i64;
                 out.send(MavMessage::TIMESYNC(TIMESYNC_DATA {
                     tc1: now_ns,
                     ts1: s.ts1,
@@ -213,7 +213,7 @@ impl GroundStation {
 
     /// A frame whose payload did not parse: a command with an id this dialect does not know
     /// is still acknowledged, as UNSUPPORTED.
-    pub fn on_unparsed(&mut self, raw: &hil::RawMessage, out: &mut Outbox) {
+    pub fn on_unparsed(&mut self, raw: &mavwire::RawMessage, out: &mut Outbox) {
         self.dropped += 1;
         if raw.msg_id != COMMAND_LONG_DATA::ID && raw.msg_id != COMMAND_INT_DATA::ID {
             return;
@@ -323,7 +323,7 @@ impl GroundStation {
         out: &mut Outbox,
     ) {
         let reason = result.err();
-        let shown = &self.follow_refusal_shown;
+        let shown = &self.announced.follow_refusal;
         let same = match (&reason, shown) {
             (Some(r), Some(s)) => r.same_reason(s),
             (r, s) => r.is_none() && s.is_none(),
@@ -331,14 +331,14 @@ impl GroundStation {
         if let Some(r) = reason.as_ref().filter(|_| !same) {
             out.say(MavSeverity::MAV_SEVERITY_WARNING, &r.to_string());
         }
-        self.follow_refusal_shown = reason;
+        self.announced.follow_refusal = reason;
     }
 
     /// In Follow Target, says when the target's fixes stop (the vehicle holds behind its last
     /// place) and when they come back.
     pub(crate) fn follow_target_poll(&mut self, t: &Telemetry, out: &mut Outbox) {
-        let stale = t.status.and_then(|s| s.follow).map(|f| f.stale);
-        match (stale, self.follow_lost_shown) {
+        let stale = t.status().and_then(|s| s.follow).map(|f| f.stale);
+        match (stale, self.announced.follow_lost) {
             (Some(true), false) => out.say(
                 MavSeverity::MAV_SEVERITY_WARNING,
                 "follow target lost: holding behind its last place",
@@ -346,7 +346,7 @@ impl GroundStation {
             (Some(false), true) => out.say(MavSeverity::MAV_SEVERITY_INFO, "follow target found"),
             _ => {}
         }
-        self.follow_lost_shown = stale == Some(true);
+        self.announced.follow_lost = stale == Some(true);
     }
 }
 

@@ -10,6 +10,7 @@
 // and older scripts send: honoured on purpose.
 #![allow(deprecated)]
 
+mod announcements;
 mod calibration;
 mod commands;
 pub mod component_metadata;
@@ -22,6 +23,7 @@ mod notices;
 pub mod offboard;
 pub mod param_store;
 pub mod params;
+pub mod requests;
 mod shell;
 pub mod signing;
 pub mod streams;
@@ -29,18 +31,16 @@ pub mod telemetry;
 #[cfg(any(test, feature = "testing"))]
 pub mod testing;
 
-pub use commands::ANSWERED_COMMANDS;
+pub use commands::answered_commands;
 use flight_core::autopilot::command::AutopilotCommand;
-use flight_core::commander::{
-    CommanderStatus, Denial, FlightMode, LandedState, OffboardTarget, Sticks,
-};
+use flight_core::commander::{CommanderStatus, Denial, FlightMode, OffboardTarget};
 use flight_core::params::FlightParams;
-use flight_core::safety::failsafe::{FailsafeAction, SafetyEvent};
 pub use link_rates::LinkId;
 use link_rates::LinkRates;
 use mavlink::MessageData;
 use mavlink::dialects::common::*;
 use params::Parameters;
+pub use requests::{Delivery, Request};
 use telemetry::Telemetry;
 
 /// Our component id (`MAV_COMP_ID_AUTOPILOT1`).
@@ -139,18 +139,11 @@ pub struct Outbox {
     pub messages: Vec<Outgoing>,
     /// Streamed messages to send on one link each (rates are per link).
     pub streamed: Vec<(LinkId, Outgoing)>,
-    /// Commands for the control loop; each answer comes back to [`GroundStation::answered`].
-    pub vehicle: Vec<(AutopilotCommand, AckTo)>,
+    /// What is asked of the vehicle, in order, each with its delivery rule; an answered
+    /// request's answer comes back to [`GroundStation::answered`].
+    pub requests: Vec<Request>,
     /// Other work, in order.
     pub actions: Vec<HostAction>,
-    /// The latest stick positions (`MANUAL_CONTROL`), for the control loop; never answered.
-    pub sticks: Option<Sticks>,
-    /// The latest offboard set-point, for the control loop; never answered.
-    pub offboard: Option<OffboardTarget>,
-    /// A new mission for the commander (an upload finished, or the mission was cleared).
-    pub mission: Option<mission::NewMission>,
-    /// A new geofence (an upload finished, or the fence was cleared).
-    pub fence: Option<Vec<flight_core::safety::geofence::GeoZone>>,
     /// A ground station's heartbeat arrived (the link-loss failsafe's clock restarts).
     pub gcs_heartbeat: bool,
     /// Every text told the operator, whole (for the host's flight log; drain it).
@@ -218,9 +211,6 @@ pub struct GroundStation {
     sample_rate: link_rates::SampleRate,
     /// The MAVLink shell's session.
     shell: shell::Shell,
-    /// The follow target was last said to be lost; the last refusal of a fix said.
-    follow_lost_shown: bool,
-    follow_refusal_shown: Option<Denial>,
     /// The link of the message being handled.
     link: LinkId,
     /// One-off messages asked for (REQUEST_MESSAGE), sent on the next poll.
@@ -233,9 +223,6 @@ pub struct GroundStation {
     events_current_due: f64,
     /// The vehicle's time at the last poll (ms): an event between polls is stamped with it.
     events_now_ms: u32,
-    /// What the last heartbeat showed: a change sends one at once.
-    shown: Option<(bool, FlightMode, LandedState)>,
-    home_shown: Option<[f64; 3]>,
     /// Messages that could not be parsed or were not for us.
     pub dropped: u64,
     /// The Unix time when the clock's zero was (µs), for SYSTEM_TIME.
@@ -244,21 +231,14 @@ pub struct GroundStation {
     params: Parameters,
     /// The values a reset returns to (`flight.toml` and the command line).
     base_params: FlightParams,
-    /// What has been said once of what happened (`notices.rs`).
-    notices: notices::Notices,
-    /// Failsafe events already said (the count of the commander's log).
-    safety_events_shown: u64,
+    /// What has been announced of what changed (`announcements.rs`).
+    announced: announcements::Announced,
     /// Offboard set-points dropped as malformed or unsupported.
     pub offboard_refused: u64,
     /// The mission, fence and rally plans and their transfers.
     pub missions: mission::Missions,
-    /// The mission progress last shown (current item, state, items reached).
-    mission_shown: Option<(u16, flight_core::mission::MissionState)>,
-    reached_shown: u32,
     /// The sample time (s) of the IMU message last streamed, by link and message.
     imu_sent: Vec<((LinkId, u32), f64)>,
-    /// When MISSION_CURRENT is next due (s).
-    mission_current_next_s: f64,
     /// What has been said of the calibrations.
     cal_said: calibration::Said,
     /// A reboot restarts the process: refused for one of several vehicles in it (`--count`).
@@ -274,28 +254,20 @@ impl GroundStation {
             rates: LinkRates::default(),
             sample_rate: Default::default(),
             shell: Default::default(),
-            follow_lost_shown: false,
-            follow_refusal_shown: None,
             link: 0,
             requested: Vec::new(),
             metadata: None,
             events: Default::default(),
             events_current_due: 0.0,
             events_now_ms: 0,
-            shown: None,
-            home_shown: None,
             dropped: 0,
             unix_start_usec: 0,
             params: Parameters::default(),
             base_params: FlightParams::default(),
-            notices: Default::default(),
-            safety_events_shown: 0,
+            announced: Default::default(),
             offboard_refused: 0,
             missions: mission::Missions::default(),
-            mission_shown: None,
-            reached_shown: 0,
             imu_sent: Vec::new(),
-            mission_current_next_s: 0.0,
             cal_said: Default::default(),
             reboot_allowed: true,
         }
@@ -388,77 +360,18 @@ impl GroundStation {
     /// the armed state, mode or landed state changed.
     pub fn poll(&mut self, now_s: f64, t: &Telemetry, out: &mut Outbox) {
         let unix = self.unix_start_usec + (now_s * 1e6) as u64;
-        self.sample_rate.observe(t.t_s, t.frames);
+        self.sample_rate.observe(t.link.t_s, t.link.frames);
         self.events_poll(now_s, t, out);
-        let shown = t.status.map(|s| (s.armed, s.mode, s.landed));
-        if shown != self.shown {
-            self.said_in_events(self.shown, shown, t, out);
-            self.shown = shown;
-            out.send(streams::heartbeat(t, self.mav_type));
-            for id in [EXTENDED_SYS_STATE_DATA::ID, CURRENT_MODE_DATA::ID] {
-                out.messages
-                    .extend(streams::build(id, t, unix).map(Outgoing::Message));
-            }
-            self.rates.sent_everywhere(HEARTBEAT_DATA::ID, now_s);
-        }
-        self.notices.say(t, self.mav_type, out);
-        if let Some(log) = t.status.map(|s| s.safety_log) {
-            // Each failsafe event once, in the state machine's words, however short-lived.
-            let (missed, events) = log.since(self.safety_events_shown);
-            if missed > 0 {
-                out.say(
-                    MavSeverity::MAV_SEVERITY_WARNING,
-                    &format!("{missed} failsafe messages missed"),
-                );
-            }
-            for e in events {
-                self.failsafe_event(&e, t, out);
-                let severity = match e {
-                    SafetyEvent::Cleared(_) => MavSeverity::MAV_SEVERITY_NOTICE,
-                    SafetyEvent::Triggered(_, FailsafeAction::None | FailsafeAction::Warn) => {
-                        MavSeverity::MAV_SEVERITY_WARNING
-                    }
-                    _ => MavSeverity::MAV_SEVERITY_CRITICAL,
-                };
-                out.say(severity, &e.to_string());
-            }
-            self.safety_events_shown = log.count;
-        }
-        let home = t.status.and_then(|s| s.home).map(|h| [h.0.x, h.0.y, h.0.z]);
-        if home.is_some() && home != self.home_shown {
-            // HOME_POSITION on every change, as PX4.
-            self.home_shown = home;
-            out.messages
-                .extend(streams::build(HOME_POSITION_DATA::ID, t, unix).map(Outgoing::Message));
-        }
-        self.missions.poll(now_s, out);
-        self.report_calibration(t, out);
-        if let Some(status) = t.status {
-            let m = status.mission;
-            // MISSION_ITEM_REACHED once per item, then MISSION_CURRENT (at 1 Hz and on every
-            // change) saying where the mission went on.
-            for seq in m.reached_since(self.reached_shown) {
-                out.send(MavMessage::MISSION_ITEM_REACHED(
-                    MISSION_ITEM_REACHED_DATA { seq },
-                ));
-            }
-            self.reached_shown = m.reached_count;
-            let shown = (m.current, m.state);
-            if self.mission_shown != Some(shown) || now_s >= self.mission_current_next_s {
-                self.mission_shown = Some(shown);
-                self.mission_current_next_s = now_s + 1.0;
-                out.send(self.mission_current(&status));
-            }
-        }
+        self.announce(now_s, t, unix, out);
         for (link, id) in self.rates.due(now_s) {
             if [HIGHRES_IMU_DATA::ID, SCALED_IMU_DATA::ID].contains(&id) {
                 // One IMU sample per message, as PX4 sends them on new data: a slot that comes
                 // before the next sample (a vehicle slower than the wall clock) is skipped.
                 let sent = &mut self.imu_sent;
                 match sent.iter_mut().find(|s| s.0 == (link, id)) {
-                    Some(s) if s.1 == t.t_s => continue,
-                    Some(s) => s.1 = t.t_s,
-                    None => sent.push(((link, id), t.t_s)),
+                    Some(s) if s.1 == t.link.t_s => continue,
+                    Some(s) => s.1 = t.link.t_s,
+                    None => sent.push(((link, id), t.link.t_s)),
                 }
             }
             let m = if id == HEARTBEAT_DATA::ID {
@@ -509,10 +422,10 @@ impl GroundStation {
             HEARTBEAT_DATA::ID => Some(streams::heartbeat(t, self.mav_type)),
             AUTOPILOT_VERSION_DATA::ID => Some(self.autopilot_version()),
             AVAILABLE_MODES_DATA::ID => streams::available_mode(param as usize),
-            MISSION_CURRENT_DATA::ID => t.status.map(|s| self.mission_current(&s)),
+            MISSION_CURRENT_DATA::ID => t.status().map(|s| self.mission_current(&s)),
             COMPONENT_METADATA_DATA::ID => self.metadata.as_ref().map(|(uri, crc)| {
                 MavMessage::COMPONENT_METADATA(COMPONENT_METADATA_DATA {
-                    time_boot_ms: (t.t_s * 1e3) as u32,
+                    time_boot_ms: (t.link.t_s * 1e3) as u32,
                     file_crc: *crc,
                     uri: uri.as_str().into(),
                 })
@@ -520,7 +433,7 @@ impl GroundStation {
             // The legacy form of the same (PX4 still answers it; QGC falls back to it).
             COMPONENT_INFORMATION_DATA::ID => self.metadata.as_ref().map(|(uri, crc)| {
                 MavMessage::COMPONENT_INFORMATION(COMPONENT_INFORMATION_DATA {
-                    time_boot_ms: (t.t_s * 1e3) as u32,
+                    time_boot_ms: (t.link.t_s * 1e3) as u32,
                     general_metadata_file_crc: *crc,
                     peripherals_metadata_file_crc: 0,
                     general_metadata_uri: uri.as_str().into(),
@@ -627,7 +540,7 @@ impl GroundStation {
     /// gets no answer either way, as in PX4).
     fn offboard(&mut self, target: Result<OffboardTarget, offboard::Refusal>, out: &mut Outbox) {
         match target {
-            Ok(t) => out.offboard = Some(t),
+            Ok(t) => out.request(AutopilotCommand::Offboard(t), Delivery::Latest),
             Err(why) => {
                 self.offboard_refused += 1;
                 tracing::debug!("offboard set-point dropped: {why}");

@@ -14,7 +14,8 @@
 
 mod items;
 
-use super::Outbox;
+use super::{Delivery, Outbox};
+use flight_core::autopilot::command::AutopilotCommand;
 use flight_core::mission::MissionItem;
 use mavlink::MavHeader;
 use mavlink::dialects::common::*;
@@ -212,8 +213,10 @@ impl Missions {
                 for k in kinds {
                     self.plans[k] = Plan::default();
                     match k {
-                        0 => out.mission = Some(Vec::new()),
-                        1 => out.fence = Some(Vec::new()),
+                        0 => {
+                            out.request(AutopilotCommand::SetMission(Vec::new()), Delivery::InOrder)
+                        }
+                        1 => out.request(AutopilotCommand::SetFence(Vec::new()), Delivery::InOrder),
                         _ => {}
                     }
                 }
@@ -252,8 +255,8 @@ impl Missions {
         if c.count == 0 {
             self.plans[k] = Plan::default();
             match k {
-                0 => out.mission = Some(Vec::new()),
-                1 => out.fence = Some(Vec::new()),
+                0 => out.request(AutopilotCommand::SetMission(Vec::new()), Delivery::InOrder),
+                1 => out.request(AutopilotCommand::SetFence(Vec::new()), Delivery::InOrder),
                 _ => {}
             }
             return out.send(ack(peer, kind, MavMissionResult::MAV_MISSION_ACCEPTED, 0));
@@ -370,7 +373,7 @@ impl Missions {
                             ),
                         );
                     }
-                    out.fence = Some(plan.zones);
+                    out.request(AutopilotCommand::SetFence(plan.zones), Delivery::InOrder);
                 }
                 Err(why) => {
                     tracing::warn!(?why, "fence upload refused");
@@ -391,7 +394,7 @@ impl Missions {
         };
         self.finished = Some((peer, u.kind, u.count));
         if k == 0 {
-            out.mission = Some(u.decoded);
+            out.request(AutopilotCommand::SetMission(u.decoded), Delivery::InOrder);
         }
         out.send(ack(
             peer,

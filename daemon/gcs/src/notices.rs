@@ -25,7 +25,7 @@ pub(crate) struct Notices {
 impl Notices {
     /// Says what changed since the last call, once.
     pub(crate) fn say(&mut self, t: &Telemetry, mav_type: MavType, out: &mut Outbox) {
-        let losses = t.status.map_or(0, |s| s.manual_losses);
+        let losses = t.status().map_or(0, |s| s.manual_losses);
         if losses > self.manual_losses {
             self.manual_losses = losses;
             out.say(
@@ -33,20 +33,20 @@ impl Notices {
                 "manual control lost: Hold",
             );
         }
-        let losses = t.status.map_or(0, |s| s.offboard_losses);
+        let losses = t.status().map_or(0, |s| s.offboard_losses);
         if losses > self.offboard_losses {
             self.offboard_losses = losses;
-            let mode = t.status.map_or("Hold", |s| s.mode.name());
+            let mode = t.status().map_or("Hold", |s| s.mode.name());
             out.say(
                 MavSeverity::MAV_SEVERITY_CRITICAL,
                 &format!("offboard set-points lost: {mode}"),
             );
         }
-        let motor = t.status.and_then(|s| s.motor_failed);
+        let motor = t.status().and_then(|s| s.motor_failed);
         if motor != self.motor_failed {
             self.motor_failed = motor;
             if let Some(m) = motor {
-                let how = if t.status.is_some_and(|s| s.spinning) {
+                let how = if t.status().is_some_and(|s| s.spinning) {
                     "flying on three rotors, spinning"
                 } else if mav_type == MavType::MAV_TYPE_QUADROTOR {
                     "cannot fly on three rotors"
@@ -60,22 +60,26 @@ impl Notices {
             }
         }
         // Said before the frames are back: it is why.
-        if t.source_restarts > self.source_restarts {
-            self.source_restarts = t.source_restarts;
+        let restarts = t.vehicle.as_ref().map_or(0, |v| v.source_restarts);
+        if restarts > self.source_restarts {
+            self.source_restarts = restarts;
             out.say(
                 MavSeverity::MAV_SEVERITY_WARNING,
                 "sensor source restarted: vehicle reset",
             );
         }
-        if t.sensors_silent != self.sensors_silent {
-            self.sensors_silent = t.sensors_silent;
-            if t.sensors_silent {
+        if t.link.sensors_silent != self.sensors_silent {
+            self.sensors_silent = t.link.sensors_silent;
+            if t.link.sensors_silent {
                 out.say(
                     MavSeverity::MAV_SEVERITY_CRITICAL,
                     &format!(
                         "sensor frames stopped: {}",
-                        t.status
-                            .map_or("-", |s| if s.armed { s.mode.name() } else { "disarmed" })
+                        t.status().map_or("-", |s| if s.armed {
+                            s.mode.name()
+                        } else {
+                            "disarmed"
+                        })
                     ),
                 );
             } else {
@@ -88,7 +92,7 @@ impl Notices {
     /// A reset of the attitude estimate (PX4 counts them in `quat_reset_counter`): the estimate
     /// was wrong by that much (a gyro that saturated, a bump, a glitch) and is right again.
     fn estimate_resets(&mut self, t: &Telemetry, out: &mut Outbox) {
-        let Some(r) = t.output.and_then(|o| o.attitude).map(|a| a.reset) else {
+        let Some(r) = t.estimate().and_then(|o| o.attitude).map(|a| a.reset) else {
             return;
         };
         let kinds = [

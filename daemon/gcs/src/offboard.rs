@@ -74,7 +74,7 @@ fn yaw_of(mask: u16, yaw: f32, yaw_rate: f32) -> Result<(f64, Option<f64>), Refu
 
 /// The estimate's position and heading, which relative frames need.
 fn pose(t: &Telemetry) -> Option<(Vector3<f64>, f64)> {
-    let out = t.output?;
+    let out = t.estimate()?;
     let att = out.attitude?;
     Some((out.translation.pos_ned_m, att.q.euler_angles().2))
 }
@@ -152,7 +152,7 @@ pub fn global_int(
 ) -> Result<OffboardTarget, Refusal> {
     let mask = m.type_mask.bits();
     let frame = t
-        .output
+        .estimate()
         .and_then(|o| o.translation.origin)
         .map(LocalFrame::new)
         .ok_or("no global origin yet")?;
@@ -166,7 +166,7 @@ pub fn global_int(
     let pos_used = mask & (POS_IGNORE[0] | POS_IGNORE[1] | POS_IGNORE[2]) == 0;
     let pos = if pos_used {
         let home_down = t
-            .status
+            .status()
             .and_then(|s| s.home)
             .map(|h| h.0.z)
             .ok_or("no home for a relative altitude");

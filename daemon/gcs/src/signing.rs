@@ -270,7 +270,7 @@ impl Signing {
         Verdict::Signed
     }
 
-    /// Signs `frame`, one unsigned MAVLink 2 frame as `hil::Encoder` writes it: sets the
+    /// Signs `frame`, one unsigned MAVLink 2 frame as `mavwire::Encoder` writes it: sets the
     /// signed flag, recomputes the checksum over the new header, appends link id, timestamp
     /// and signature. Without a key, or for a frame that is not an unsigned MAVLink 2 frame,
     /// nothing changes.
@@ -289,7 +289,7 @@ impl Signing {
         let msg_id = u32::from_le_bytes([frame[7], frame[8], frame[9], 0]);
         use mavlink::Message;
         let extra = mavlink::dialects::common::MavMessage::extra_crc(msg_id);
-        let crc = hil::checksum(&frame[1..payload_end], extra);
+        let crc = mavwire::checksum(&frame[1..payload_end], extra);
         frame[payload_end..].copy_from_slice(&crc.to_le_bytes());
         frame.push(self.link_id);
         frame.extend_from_slice(&self.timestamp.to_le_bytes()[..6]);

@@ -1,41 +1,58 @@
 //! Fixtures shared by this crate's tests and the daemon's (feature `testing`).
 
-use crate::telemetry::Telemetry;
-use crate::{GroundStation, HostAction, Outbox};
-use flight_core::autopilot::Autopilot;
+use crate::telemetry::{LinkState, Telemetry};
+use crate::{AckTo, Delivery, GroundStation, HostAction, Outbox};
 use flight_core::autopilot::command::AutopilotCommand;
-use flight_core::commander::{CommanderStatus, FlightMode, LandedState};
+use flight_core::autopilot::{Autopilot, VehicleState};
+use flight_core::commander::{CommanderStatus, FlightMode, LandedState, Sticks};
+use flight_core::mission::MissionItem;
+use flight_core::safety::geofence::GeoZone;
 use mavlink::dialects::common::*;
 
 /// The telemetry of a vehicle at rest on the ground, ready to arm, `armed` or not, in `mode`,
 /// with a full battery.
 pub fn telemetry(armed: bool, mode: FlightMode) -> Telemetry {
+    let status = CommanderStatus {
+        armed,
+        mode,
+        landed: LandedState::OnGround,
+        ground_contact: Default::default(),
+        home: None,
+        failsafe: false,
+        failsafe_action: None,
+        motor_failed: None,
+        spinning: false,
+        failsafe_conditions: 0,
+        safety_log: Default::default(),
+        orbit: None,
+        follow: None,
+        prearm_ok: true,
+        ready: true,
+        in_mode_s: 0.0,
+        manual_losses: 0,
+        offboard_losses: 0,
+        mission: Default::default(),
+        manual_control: None,
+    };
     Telemetry {
-        t_s: 12.0,
-        status: Some(CommanderStatus {
-            armed,
-            mode,
-            landed: LandedState::OnGround,
-            ground_contact: Default::default(),
-            home: None,
-            failsafe: false,
-            failsafe_action: None,
-            motor_failed: None,
-            spinning: false,
-            failsafe_conditions: 0,
-            safety_log: Default::default(),
-            orbit: None,
-            follow: None,
-            prearm_ok: true,
-            ready: true,
-            in_mode_s: 0.0,
-            manual_losses: 0,
-            offboard_losses: 0,
-            mission: Default::default(),
-            manual_control: None,
+        vehicle: Some(VehicleState {
+            status,
+            estimate: None,
+            held_sample: None,
+            setpoint: None,
+            gps: None,
+            battery_v: 16.0,
+            battery: Default::default(),
+            mag_cal: None,
+            imu_cal: None,
+            source_restarts: 0,
+            rotors: 4,
+            max_thrust_n: 0.0,
         }),
-        battery_v: 16.0,
-        ..Telemetry::default()
+        link: LinkState {
+            t_s: 12.0,
+            ..LinkState::default()
+        },
     }
 }
 
@@ -77,24 +94,14 @@ pub fn command_int(command: MavCmd, p: [f32; 7], x: i32, y: i32, frame: MavFrame
 }
 
 /// Carries out what the protocol put in `out`, as the links' task and the control loop do:
-/// commands to `autopilot` (each answered through `gcs`), sticks, offboard set-points, a new
-/// mission or fence, new parameter values; then empties what was to be sent.
+/// its requests to `autopilot` in order (each answered one answered through `gcs`), new
+/// parameter values; then empties what was to be sent.
 pub fn carry_out(gcs: &mut GroundStation, autopilot: &mut Autopilot, out: &mut Outbox) {
-    for (c, to) in std::mem::take(&mut out.vehicle) {
-        let r = autopilot.command(c);
-        gcs.answered(to, r, out);
-    }
-    if let Some(s) = out.sticks.take() {
-        let _ = autopilot.command(AutopilotCommand::Sticks(s));
-    }
-    if let Some(t) = out.offboard.take() {
-        let _ = autopilot.command(AutopilotCommand::Offboard(t));
-    }
-    if let Some(m) = out.mission.take() {
-        let _ = autopilot.command(AutopilotCommand::SetMission(m));
-    }
-    if let Some(z) = out.fence.take() {
-        let _ = autopilot.command(AutopilotCommand::SetFence(z));
+    for r in std::mem::take(&mut out.requests) {
+        let result = autopilot.command(r.command);
+        if let Delivery::Answered(to) = r.delivery {
+            gcs.answered(to, result, out);
+        }
     }
     for a in out.actions.drain(..) {
         if a == HostAction::ParamsChanged {
@@ -104,4 +111,43 @@ pub fn carry_out(gcs: &mut GroundStation, autopilot: &mut Autopilot, out: &mut O
     out.messages.clear();
     out.streamed.clear();
     out.said.clear();
+}
+
+/// The commands in `out` that are answered, and whom each answer is for.
+pub fn requested(out: &Outbox) -> Vec<(AutopilotCommand, AckTo)> {
+    out.answered_requests()
+        .map(|(c, to)| (c.clone(), to))
+        .collect()
+}
+
+/// Takes the answered commands out of `out` (the other requests stay).
+pub fn take_requested(out: &mut Outbox) -> Vec<(AutopilotCommand, AckTo)> {
+    let taken = requested(out);
+    out.requests
+        .retain(|r| !matches!(r.delivery, Delivery::Answered(_)));
+    taken
+}
+
+/// The latest stick positions in `out`.
+pub fn sticks(out: &Outbox) -> Option<Sticks> {
+    out.requests.iter().find_map(|r| match r.command {
+        AutopilotCommand::Sticks(s) => Some(s),
+        _ => None,
+    })
+}
+
+/// The new mission in `out`.
+pub fn mission(out: &Outbox) -> Option<Vec<MissionItem>> {
+    out.requests.iter().find_map(|r| match &r.command {
+        AutopilotCommand::SetMission(m) => Some(m.clone()),
+        _ => None,
+    })
+}
+
+/// The new geofence in `out`.
+pub fn fence(out: &Outbox) -> Option<Vec<GeoZone>> {
+    out.requests.iter().find_map(|r| match &r.command {
+        AutopilotCommand::SetFence(z) => Some(z.clone()),
+        _ => None,
+    })
 }

@@ -46,10 +46,16 @@ fn commands_for_us_reach_the_vehicle_and_others_are_ignored() {
             &mut out,
         );
     }
-    assert_eq!(out.vehicle.len(), 3);
-    assert_eq!(out.vehicle[0].0, AutopilotCommand::Arm { force: false });
+    assert_eq!(crate::testing::requested(&out).len(), 3);
     assert_eq!(
-        (out.vehicle[0].1.system, out.vehicle[0].1.component),
+        crate::testing::requested(&out)[0].0,
+        AutopilotCommand::Arm { force: false }
+    );
+    assert_eq!(
+        (
+            crate::testing::requested(&out)[0].1.system,
+            crate::testing::requested(&out)[0].1.component
+        ),
         (255, 190)
     );
     // Another system's, or another component's: no ack, nothing done.
@@ -62,7 +68,7 @@ fn commands_for_us_reach_the_vehicle_and_others_are_ignored() {
             &mut out,
         );
     }
-    assert!(out.vehicle.is_empty() && out.messages.is_empty());
+    assert!(crate::testing::requested(&out).is_empty() && out.messages.is_empty());
     // Force, and a NaN where a value is needed: denied with a reason.
     let mut out = Outbox::default();
     let force = [0.0, 21196.0, 0.0, 0.0, 0.0, 0.0, 0.0];
@@ -72,7 +78,10 @@ fn commands_for_us_reach_the_vehicle_and_others_are_ignored() {
         &t,
         &mut out,
     );
-    assert_eq!(out.vehicle[0].0, AutopilotCommand::Disarm { force: true });
+    assert_eq!(
+        crate::testing::requested(&out)[0].0,
+        AutopilotCommand::Disarm { force: true }
+    );
     let mut out = Outbox::default();
     let nan = [f32::NAN, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
     g.on_message(
@@ -135,12 +144,12 @@ fn an_unknown_command_id_is_acknowledged_unsupported() {
     payload[30] = 1;
     payload[31] = 1;
     let mut frame = Vec::new();
-    hil::Encoder::with_ids(255, 190).push_raw(&mut frame, COMMAND_LONG_DATA::ID, &payload);
-    let mut d = hil::Decoded {
+    mavwire::Encoder::with_ids(255, 190).push_raw(&mut frame, COMMAND_LONG_DATA::ID, &payload);
+    let mut d = mavwire::Decoded {
         keep_unparsed: true,
-        ..hil::Decoded::default()
+        ..mavwire::Decoded::default()
     };
-    hil::decode_into(&frame, &mut d);
+    mavwire::decode_into(&frame, &mut d);
     assert!(d.messages.is_empty() && d.unparsed.len() == 1 && d.malformed == 1);
     let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
     let mut out = Outbox::default();
@@ -151,7 +160,7 @@ fn an_unknown_command_id_is_acknowledged_unsupported() {
     assert_eq!(*id, COMMAND_ACK_DATA::ID);
     // Through the wire again: an ack of 31999, UNSUPPORTED, to 255/190.
     let mut frame = Vec::new();
-    hil::Encoder::with_ids(1, 1).push_raw(&mut frame, *id, ack);
+    mavwire::Encoder::with_ids(1, 1).push_raw(&mut frame, *id, ack);
     let raw = &frame[10..frame.len() - 2];
     assert_eq!(u16::from_le_bytes([raw[0], raw[1]]), 31999);
     assert_eq!(raw[2], MavResult::MAV_RESULT_UNSUPPORTED as u8);
@@ -205,7 +214,7 @@ fn heartbeats_show_px4_modes_and_follow_a_change_at_once() {
 fn an_imu_stream_sends_each_sample_once() {
     let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
     let mut t = telemetry(false, FlightMode::Loiter);
-    t.sample = Some(flight_core::core::SensorSample::imu(
+    t.vehicle.as_mut().unwrap().held_sample = Some(flight_core::core::SensorSample::imu(
         nalgebra::Vector3::zeros(),
         nalgebra::Vector3::new(0.0, 0.0, -9.81),
     ));
@@ -213,14 +222,14 @@ fn an_imu_stream_sends_each_sample_once() {
     let run = |g: &mut GroundStation, t: &mut Telemetry, polls: u64, every: u64| {
         let mut sent = Vec::new();
         for _ in 0..polls {
-            let k = t.frames + 1;
+            let k = t.link.frames + 1;
             if k.is_multiple_of(every) {
-                t.t_s += 0.004 * every as f64;
-                if let Some(s) = t.sample.as_mut() {
-                    s.t_usec = (t.t_s * 1e6) as u64;
+                t.link.t_s += 0.004 * every as f64;
+                if let Some(s) = t.vehicle.as_mut().unwrap().held_sample.as_mut() {
+                    s.t_usec = (t.link.t_s * 1e6) as u64;
                 }
             }
-            t.frames = k;
+            t.link.frames = k;
             let mut out = Outbox::default();
             g.poll(k as f64 * 0.004, t, &mut out);
             for (_, m) in &out.streamed {
@@ -311,10 +320,13 @@ fn set_mode_in_both_forms_names_px4_modes() {
         &mut out,
     );
     assert_eq!(
-        out.vehicle[0].0,
+        crate::testing::requested(&out)[0].0,
         AutopilotCommand::SetMode(FlightMode::Land)
     );
-    assert_eq!(out.vehicle[0].1.command, MavCmd::MAV_CMD_DO_SET_MODE);
+    assert_eq!(
+        crate::testing::requested(&out)[0].1.command,
+        MavCmd::MAV_CMD_DO_SET_MODE
+    );
     // COMMAND_LONG DO_SET_MODE to AUTO.RTL, and a mode that does not exist.
     let mut out = Outbox::default();
     for (main, sub) in [(4.0, 5.0), (4.0, 1.0)] {
@@ -329,8 +341,11 @@ fn set_mode_in_both_forms_names_px4_modes() {
             &mut out,
         );
     }
-    assert_eq!(out.vehicle.len(), 1);
-    assert_eq!(out.vehicle[0].0, AutopilotCommand::SetMode(FlightMode::Rtl));
+    assert_eq!(crate::testing::requested(&out).len(), 1);
+    assert_eq!(
+        crate::testing::requested(&out)[0].0,
+        AutopilotCommand::SetMode(FlightMode::Rtl)
+    );
     assert_eq!(acks(&out)[0].result, MavResult::MAV_RESULT_DENIED);
 }
 
@@ -368,11 +383,11 @@ fn every_answered_command_is_handled_and_others_are_unsupported() {
         );
         // Passed to the vehicle (answered later), or answered here.
         (
-            !out.vehicle.is_empty() || !out.actions.is_empty(),
+            !crate::testing::requested(&out).is_empty() || !out.actions.is_empty(),
             acks(&out).first().map(|a| a.result),
         )
     };
-    for command in ANSWERED_COMMANDS {
+    for command in answered_commands() {
         let (passed_on, ack) = result(command);
         assert!(
             passed_on || ack.is_some_and(|r| r != MavResult::MAV_RESULT_UNSUPPORTED),

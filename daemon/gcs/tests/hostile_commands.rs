@@ -13,14 +13,14 @@ mod common;
 
 use airframe::{Airframe, MAX_ROTORS};
 use flight_core::autopilot::command::AutopilotCommand;
-use flight_core::autopilot::{Autopilot, AutopilotOutput, StepInputs};
+use flight_core::autopilot::{Autopilot, AutopilotOutput, StepInputs, VehicleState};
 use flight_core::commander::LandedState;
 use flight_core::math::geo::{LatLonAlt, LocalFrame};
 use flight_core::params::FlightParams;
 use flight_core::safety::targets::{
     GROUND_CLEARANCE_M, HOME_SHIFT_MAX_M, PLAUSIBLE_RANGE_M, TargetLimits,
 };
-use gcs::telemetry::Telemetry;
+use gcs::telemetry::{LinkState, Telemetry};
 use gcs::testing::{command_int, command_long};
 use gcs::{GroundStation, Outbox, Outgoing};
 use mavlink::MavHeader;
@@ -144,14 +144,26 @@ impl Vehicle {
     }
 
     fn telemetry(&self) -> Telemetry {
+        let state = self.autopilot.state();
         Telemetry {
-            t_s: self.sim.time_s(),
-            status: Some(self.autopilot.status()),
-            output: self.last.map(|o| o.estimate),
-            setpoint: self.autopilot.setpoint(),
-            gps: self.autopilot.gps(),
-            battery_v: 16.0,
-            ..Telemetry::default()
+            vehicle: Some(VehicleState {
+                status: state.status,
+                estimate: self.last.map(|o| o.estimate),
+                held_sample: None,
+                setpoint: state.setpoint,
+                gps: state.gps,
+                battery_v: 16.0,
+                battery: Default::default(),
+                mag_cal: None,
+                imu_cal: None,
+                source_restarts: 0,
+                rotors: state.rotors,
+                max_thrust_n: 0.0,
+            }),
+            link: LinkState {
+                t_s: self.sim.time_s(),
+                ..LinkState::default()
+            },
         }
     }
 
@@ -172,7 +184,7 @@ impl Vehicle {
         let t = self.telemetry();
         let mut out = Outbox::default();
         self.gcs.on_message(&gcs_header(), msg, &t, &mut out);
-        for (command, to) in std::mem::take(&mut out.vehicle) {
+        for (command, to) in gcs::testing::take_requested(&mut out) {
             let r = self.autopilot.command(command);
             self.gcs.answered(to, r, &mut out);
         }
@@ -216,7 +228,8 @@ impl Vehicle {
         let (_, home, _) = self.home();
         if let Some(p) = self
             .autopilot
-            .setpoint()
+            .state()
+            .setpoint
             .and_then(|s| s.position().copied())
         {
             for v in [p.vel_ned_m_s, p.accel_ned_m_s2] {
@@ -285,7 +298,7 @@ fn may_accept(command: MavCmd, slot: usize, value: f32, v: &Vehicle) -> Option<b
 fn table(hover: bool) {
     let mut refused = 0;
     let mut cases = 0;
-    for command in gcs::ANSWERED_COMMANDS {
+    for command in gcs::answered_commands() {
         let mut v = Vehicle::new(hover);
         let (_, _, h) = v.home();
         let base = sane(command, &h);

@@ -83,7 +83,7 @@ pub(super) async fn status_line(
             .filter_map(|rx| {
                 let t = *rx.borrow_and_update();
                 // The loop ended, or its thread did (an error before it started).
-                (!t.finished && rx.has_changed().is_ok()).then_some(t)
+                (!t.link.finished && rx.has_changed().is_ok()).then_some(t)
             })
             .collect();
         if latest.is_empty() {
@@ -92,13 +92,13 @@ pub(super) async fn status_line(
         let wall = started.elapsed().as_secs_f64().max(1e-9);
         let line = if telemetry.len() == 1 {
             let t = &latest[0];
-            let (Some(out), Some(status)) = (t.output, t.status) else {
+            let (Some(out), Some(status)) = (t.estimate(), t.status()) else {
                 continue;
             };
             let (roll, pitch, yaw) = out.attitude.map_or((0.0, 0.0, 0.0), |a| a.q.euler_angles());
             let mut line = format!(
                 "t {:6.1} s  {:<8} {:<8} alt {:6.2} m  vz {:5.2} m/s  roll {:5.1}  pitch {:5.1}  yaw {:6.1} deg  {:.0} frames/s x{:.0} real time",
-                t.t_s,
+                t.link.t_s,
                 if status.armed { "armed" } else { "disarmed" },
                 status.mode.name(),
                 -out.translation.pos_ned_m.z,
@@ -106,10 +106,10 @@ pub(super) async fn status_line(
                 roll.to_degrees(),
                 pitch.to_degrees(),
                 yaw.to_degrees(),
-                t.frames as f64 / wall,
-                t.t_s / wall
+                t.link.frames as f64 / wall,
+                t.link.t_s / wall
             );
-            if let Some(s) = t.loop_stats {
+            if let Some(s) = t.link.loop_stats {
                 line += &format!("  loop p99 {} us, {} overruns", s.jitter_p99_us, s.overruns);
             }
             line
@@ -131,13 +131,13 @@ pub(super) async fn status_line(
 
 /// Several vehicles' status in one line: how many fly, armed, in each mode, and their altitudes.
 fn swarm_status(latest: &[Telemetry], count: usize, wall_s: f64) -> String {
-    let t_s = latest.iter().map(|t| t.t_s).fold(0.0, f64::max);
+    let t_s = latest.iter().map(|t| t.link.t_s).fold(0.0, f64::max);
     let armed = latest
         .iter()
-        .filter(|t| t.status.is_some_and(|s| s.armed))
+        .filter(|t| t.status().is_some_and(|s| s.armed))
         .count();
     let mut modes: Vec<(&str, usize)> = Vec::new();
-    for s in latest.iter().filter_map(|t| t.status) {
+    for s in latest.iter().filter_map(|t| t.status()) {
         match modes.iter_mut().find(|(m, _)| *m == s.mode.name()) {
             Some((_, n)) => *n += 1,
             None => modes.push((s.mode.name(), 1)),
@@ -145,7 +145,7 @@ fn swarm_status(latest: &[Telemetry], count: usize, wall_s: f64) -> String {
     }
     let alts = latest
         .iter()
-        .filter_map(|t| t.output.map(|o| -o.translation.pos_ned_m.z));
+        .filter_map(|t| t.estimate().map(|o| -o.translation.pos_ned_m.z));
     let (lo, hi) = alts.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), a| {
         (lo.min(a), hi.max(a))
     });

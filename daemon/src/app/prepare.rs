@@ -177,7 +177,7 @@ pub(super) fn prepare(
         .ftp_root
         .is_some()
         .then_some((metadata.uri, metadata.crc));
-    let (mut ports, commands, telemetry) = Ports::new(16);
+    let (mut ports, ends) = Ports::new(16);
     let (params_tx, params_rx) = watch::channel(params.clone());
     ports.params = Some(params_rx);
     Ok(Prepared {
@@ -189,8 +189,9 @@ pub(super) fn prepare(
         gcs: gcs_links::Vehicle {
             system_id,
             mav_type,
-            telemetry,
-            commands,
+            telemetry: ends.telemetry,
+            commands: ends.commands,
+            answers: ends.answers,
             parameters: gcs::params::Parameters::new(params, store),
             base_params: base,
             params: params_tx,

@@ -10,11 +10,15 @@
 //! frame, and counts its lateness and overruns ([`crate::control_loop::deadline`]).
 
 pub mod deadline;
+mod report;
+mod together;
+
+pub use report::FlightReport;
+pub use together::{SwarmReport, fly_together};
 
 use crate::links::SensorLink;
 use crate::links::frames::{self, Received};
 use crate::records::FlightRecords;
-use crate::records::score::FlightScore;
 use anyhow::{Context, Result, bail};
 use deadline::{Deadlines, LoopStats, sleep_until};
 use flight_core::autopilot::command::AutopilotCommand;
@@ -22,10 +26,10 @@ use flight_core::autopilot::{Autopilot, StepInputs};
 use flight_core::commander::Denial;
 use flight_core::params::FlightParams;
 use flight_core::sensors::imu_calibrator::PoseRequest;
-use gcs::telemetry::{LoopSummary, Telemetry};
+use gcs::telemetry::{LinkState, LoopSummary, Telemetry};
 use hil::ActuatorCommand;
 use std::time::{Duration, Instant};
-use tokio::sync::{mpsc, oneshot, watch};
+use tokio::sync::{mpsc, watch};
 
 /// The estimator converges in a few seconds at rest; a sequence still waiting after this long
 /// never will, and the flight stops with the reason instead of waiting forever.
@@ -59,12 +63,18 @@ pub enum LoopCommand {
     /// A ground station's heartbeat arrived: the loop keeps its wall-clock time for the
     /// link-loss failsafe (the autopilot has no clock of its own).
     GcsHeartbeat,
-    /// An autopilot command; the answer goes back on the channel given (if any).
-    Autopilot(
-        AutopilotCommand,
-        Option<oneshot::Sender<Result<(), Denial>>>,
-    ),
+    /// A ground station's request: an answered one's answer goes back on
+    /// [`Ports::answers`] under its number.
+    Vehicle {
+        /// What is asked.
+        command: AutopilotCommand,
+        /// The number its answer carries back; none for a request not answered.
+        answer: Option<u64>,
+    },
 }
+
+/// The answer to an answered request: its number and the result.
+pub type Answer = (u64, Result<(), Denial>);
 
 /// The control loop's side of its channels.
 pub struct Ports {
@@ -74,23 +84,39 @@ pub struct Ports {
     pub telemetry: watch::Sender<Telemetry>,
     /// The parameters to fly with, when something (the ground-station side) changes them.
     pub params: Option<watch::Receiver<FlightParams>>,
+    /// The answers to answered requests (never full: at most one per request admitted).
+    pub answers: mpsc::UnboundedSender<Answer>,
+}
+
+/// The other ends of a control loop's channels, for the tasks around it.
+pub struct LoopEnds {
+    /// Commands to the loop (bounded).
+    pub commands: mpsc::Sender<LoopCommand>,
+    /// Its answers to answered requests.
+    pub answers: mpsc::UnboundedReceiver<Answer>,
+    /// Its latest telemetry.
+    pub telemetry: watch::Receiver<Telemetry>,
 }
 
 impl Ports {
-    /// Channels whose other ends are returned: a command sender (capacity `capacity`) and a
-    /// telemetry receiver.
-    pub fn new(capacity: usize) -> (Self, mpsc::Sender<LoopCommand>, watch::Receiver<Telemetry>) {
+    /// Channels whose other ends are returned: commands in (capacity `capacity`), answers
+    /// and telemetry out.
+    pub fn new(capacity: usize) -> (Self, LoopEnds) {
         let (tx, commands) = mpsc::channel(capacity);
+        let (answers, answers_rx) = mpsc::unbounded_channel();
         let (telemetry, rx) = watch::channel(Telemetry::default());
-        (
-            Self {
-                commands,
-                telemetry,
-                params: None,
-            },
-            tx,
-            rx,
-        )
+        let ports = Self {
+            commands,
+            telemetry,
+            params: None,
+            answers,
+        };
+        let ends = LoopEnds {
+            commands: tx,
+            answers: answers_rx,
+            telemetry: rx,
+        };
+        (ports, ends)
     }
 }
 
@@ -109,87 +135,6 @@ pub enum Pacing {
         /// How often the loop's timing is logged.
         stats: Duration,
     },
-}
-
-/// What happened, printed as one `key=value` line at the end.
-#[derive(Debug, Default)]
-pub struct FlightReport {
-    source: String,
-    sim_time_s: f64,
-    wall_time_s: f64,
-    frames: u64,
-    malformed: u64,
-    repeated: u64,
-    score: FlightScore,
-    disarmed: bool,
-    sensor_timeouts: u64,
-    /// The deadline loop's rate and timing over the whole run.
-    deadline_loop: Option<(f64, LoopSummary)>,
-}
-
-impl FlightReport {
-    /// The vehicle ended its run on the ground, disarmed.
-    pub fn landed(&self) -> bool {
-        self.disarmed && self.score.on_ground()
-    }
-
-    /// The flight's figures against the simulator's truth.
-    pub fn score(&self) -> &FlightScore {
-        &self.score
-    }
-
-    /// Sensor time flown (s).
-    pub fn sim_time_s(&self) -> f64 {
-        self.sim_time_s
-    }
-
-    /// Times the sensor frames stopped (the watchdog fired).
-    pub fn sensor_timeouts(&self) -> u64 {
-        self.sensor_timeouts
-    }
-}
-
-impl std::fmt::Display for FlightReport {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let opt = |x: Option<f64>| x.map_or("nan".to_owned(), |x| format!("{x:.3}"));
-        write!(
-            f,
-            "autopilot summary: source={} sim_time_s={:.2} wall_time_s={:.2} realtime_factor={:.1} frames={} frames_per_s={:.0} malformed={} repeated={} sensor_timeouts={} max_alt_m={:.2} hover_alt_rms_m={} hover_drift_rms_m={} attitude_rms_deg={} touchdown_m_s={:.2} impact_m_s={:.2} max_tilt_deg={:.1} max_distance_m={:.2} failsafe={} landed={} disarmed={}",
-            self.source,
-            self.sim_time_s,
-            self.wall_time_s,
-            self.sim_time_s / self.wall_time_s.max(1e-9),
-            self.frames,
-            self.frames as f64 / self.wall_time_s.max(1e-9),
-            self.malformed,
-            self.repeated,
-            self.sensor_timeouts,
-            self.score.max_height_m,
-            opt(self.score.hover_alt_rms_m()),
-            opt(self.score.hover_drift_rms_m()),
-            opt(self.score.attitude_rms_deg()),
-            self.score.touchdown_m_s,
-            self.score.impact_m_s,
-            self.score.max_tilt_deg,
-            self.score.max_distance_m,
-            self.score.failsafe,
-            self.score.on_ground(),
-            self.disarmed
-        )?;
-        match &self.deadline_loop {
-            None => write!(f, " pacing=lockstep"),
-            Some((hz, s)) => write!(
-                f,
-                " pacing=deadlines loop_hz={hz:.0} ticks={} jitter_p50_us={} jitter_p99_us={} jitter_max_us={} work_max_us={} overruns={}",
-                s.ticks,
-                s.jitter_p50_us,
-                s.jitter_p99_us,
-                s.jitter_max_us,
-                s.work_max_us,
-                s.overruns
-            ),
-        }
-    }
 }
 
 /// Whether the loop goes on.
@@ -242,7 +187,7 @@ impl<'a> ControlLoop<'a> {
                 source: link.describe(),
                 ..FlightReport::default()
             },
-            rotors: autopilot.rotors(),
+            rotors: autopilot.state().rotors,
             link,
             autopilot,
             records,
@@ -278,7 +223,7 @@ impl<'a> ControlLoop<'a> {
                 LoopCommand::GcsHeartbeat => {
                     self.gcs_heartbeat = Some(Instant::now());
                 }
-                LoopCommand::Autopilot(c, reply) => {
+                LoopCommand::Vehicle { command: c, answer } => {
                     // Sticks, offboard set-points and target fixes are streams: not logged.
                     let what = match &c {
                         AutopilotCommand::Sticks(_)
@@ -298,9 +243,9 @@ impl<'a> ControlLoop<'a> {
                         (Ok(()), Some(c)) => tracing::info!(command = c, "accepted"),
                         (Err(e), Some(c)) => tracing::warn!(command = c, "{e}"),
                     }
-                    if let Some(reply) = reply {
-                        // The asker may have given up waiting: nothing to do then.
-                        let _ = reply.send(result);
+                    if let Some(id) = answer {
+                        // The links may have ended (or given up on it): nothing to do then.
+                        let _ = self.ports.answers.send((id, result));
                     }
                 }
             }
@@ -367,10 +312,10 @@ impl<'a> ControlLoop<'a> {
             self.autopilot.sensors_stopped();
             // No step publishes while the frames are silent: the ground station hears of it
             // (and of the failsafe) now.
-            let status = self.autopilot.status();
+            let state = *self.autopilot.state();
             self.ports.telemetry.send_modify(|t| {
-                t.status = Some(status);
-                t.sensors_silent = true;
+                t.vehicle = Some(state);
+                t.link.sensors_silent = true;
             });
         }
         // Keep the motors on the failsafe's command (a board wants a steady stream).
@@ -404,9 +349,8 @@ impl<'a> ControlLoop<'a> {
             let Some(step) = self.autopilot.step(&frame.sample, &inputs) else {
                 continue;
             };
-            let status = self.autopilot.status();
             self.records
-                .observe(&step, &status, frame.truth, self.autopilot);
+                .observe(&step, self.autopilot.state(), frame.truth);
             self.last_frame = Instant::now();
             self.silence_logged = false;
             self.last_frame_clock = self.link.silence_clock_s();
@@ -423,25 +367,16 @@ impl<'a> ControlLoop<'a> {
             let now = self.last_frame;
             if now >= self.published + TELEMETRY_INTERVAL || changed {
                 self.published = now;
-                let a = &*self.autopilot;
                 self.ports.telemetry.send_replace(Telemetry {
-                    t_s: self.t_s,
-                    status: Some(status),
-                    gps: a.gps(),
-                    sample: a.sample(),
-                    setpoint: a.setpoint(),
-                    truth: self.records.truth(),
-                    max_thrust_n: a.max_thrust_n(),
-                    battery_v: a.battery_v(),
-                    battery: a.battery(),
-                    output: Some(step.estimate),
-                    frames: self.report.frames,
-                    loop_stats: self.loop_stats,
-                    finished: false,
-                    sensors_silent: false,
-                    source_restarts: a.source_restarts(),
-                    mag_cal: a.mag_calibration(),
-                    imu_cal: a.imu_calibration(),
+                    vehicle: Some(*self.autopilot.state()),
+                    link: LinkState {
+                        t_s: self.t_s,
+                        truth: self.records.truth(),
+                        frames: self.report.frames,
+                        loop_stats: self.loop_stats,
+                        finished: false,
+                        sensors_silent: false,
+                    },
                 });
             }
             if self.autopilot.awaiting_takeoff() && self.t_s > READY_TIMEOUT_S {
@@ -556,7 +491,7 @@ pub fn fly(vehicle: Onboard<'_>, pacing: Pacing) -> Result<FlightReport> {
             stats,
         } => l.run_deadlines(period, spin, stats),
     };
-    l.ports.telemetry.send_modify(|t| t.finished = true);
+    l.ports.telemetry.send_modify(|t| t.link.finished = true);
     result?;
     Ok(l.into_report(started))
 }
@@ -573,74 +508,6 @@ pub struct Onboard<'a> {
     pub records: &'a mut FlightRecords,
     /// Its channels to the tasks around it (its ground stations).
     pub ports: &'a mut Ports,
-}
-
-/// How a flight of several vehicles together went.
-#[derive(Debug)]
-pub struct SwarmReport {
-    /// Each vehicle's report, or why its flight ended in error, in the members' order.
-    pub flights: Vec<Result<FlightReport>>,
-    /// Rounds flown: in each, every vehicle still flying took one sensor frame.
-    pub rounds: u64,
-    /// Simulated time of the last round (s).
-    pub sim_time_s: f64,
-    /// Wall-clock time (s).
-    pub wall_time_s: f64,
-    /// Paced (`speed`): the largest lag of a round behind its wall-clock time (s); a swarm
-    /// that runs in real time keeps it within a few exchange periods.
-    pub max_lag_s: f64,
-}
-
-/// Flies several vehicles on this thread, in lockstep on one clock: every round each vehicle
-/// still flying takes the next frame of its simulator (one exchange, `1 / exchange_hz` of
-/// simulated time) and answers it, so all worlds advance together. With `speed` the rounds are
-/// paced against the wall clock (× real time); without, they run as fast as they can. A vehicle
-/// whose run ends (landed and disarmed, `Stop`, an error) leaves the round; the others fly on.
-pub fn fly_together(
-    members: Vec<Onboard<'_>>,
-    exchange_hz: f64,
-    speed: Option<f64>,
-) -> SwarmReport {
-    let started = Instant::now();
-    let mut loops: Vec<Option<ControlLoop<'_>>> = members
-        .into_iter()
-        .map(|m| Some(ControlLoop::new(m)))
-        .collect();
-    let mut flights: Vec<Option<Result<FlightReport>>> = loops.iter().map(|_| None).collect();
-    let (mut rounds, mut max_lag_s) = (0u64, 0.0f64);
-    let mut flying = loops.len();
-    while flying > 0 {
-        for (slot, flight) in loops.iter_mut().zip(flights.iter_mut()) {
-            let Some(l) = slot.as_mut() else { continue };
-            let end = match l.tick(POLL, false) {
-                Ok(Flow::Continue) => continue,
-                Ok(Flow::Stop) => Ok(()),
-                Err(e) => Err(e),
-            };
-            let Some(l) = slot.take() else { continue };
-            l.ports.telemetry.send_modify(|t| t.finished = true);
-            *flight = Some(end.map(|()| l.into_report(started)));
-            flying -= 1;
-        }
-        rounds += 1;
-        if let Some(speed) = speed {
-            let due = started + Duration::from_secs_f64(rounds as f64 / exchange_hz / speed);
-            match due.checked_duration_since(Instant::now()) {
-                Some(wait) => std::thread::sleep(wait),
-                None => max_lag_s = max_lag_s.max(due.elapsed().as_secs_f64()),
-            }
-        }
-    }
-    SwarmReport {
-        flights: flights
-            .into_iter()
-            .map(|f| f.unwrap_or_else(|| Err(anyhow::anyhow!("never flown"))))
-            .collect(),
-        rounds,
-        sim_time_s: rounds as f64 / exchange_hz,
-        wall_time_s: started.elapsed().as_secs_f64(),
-        max_lag_s,
-    }
 }
 
 #[cfg(test)]

@@ -245,7 +245,7 @@ fn fly_seed(fault: Fault, seed: u64) -> (FaultyLink, FlightReport, Autopilot) {
     let mut autopilot = Autopilot::new(&airframe, &params, Some(auto)).unwrap();
     let mut records = FlightRecords::new(auto.takeoff_m);
     let mut link = FaultyLink::new(fault, seed);
-    let (mut ports, _commands, _telemetry) = Ports::new(4);
+    let (mut ports, _ends) = Ports::new(4);
     let vehicle = Onboard {
         link: &mut link,
         autopilot: &mut autopilot,
@@ -381,7 +381,7 @@ fn a_simulator_restarted_in_flight_restarts_the_vehicle_which_flies_again() {
     assert!(link.restarted, "the simulator was restarted");
     assert!(link.reaction_s.is_some(), "the silence was answered");
     assert_eq!(report.sensor_timeouts, 1);
-    assert_eq!(vehicle.source_restarts(), 1);
+    assert_eq!(vehicle.state().source_restarts, 1);
     assert!(
         link.max_height_m > 4.5,
         "flew again: {:.2} m",

@@ -1,12 +1,13 @@
-//! Signing on the links' side: `SETUP_SIGNING` (the key from a trusted link, kept in its file)
-//! and the keeper of signing's memory (the streams' timestamps, written beside the key so that a
-//! frame captured before a restart is a replay after it).
+//! Signing on the links' side: `SETUP_SIGNING` (the key from a trusted link, kept in its file),
+//! the keeper of signing's memory (the streams' timestamps, written beside the key so that a
+//! frame captured before a restart is a replay after it), and the report of refused frames.
 
 use crate::records::signing_file;
-use gcs::signing::{SecretKey, Signing, SigningMemory};
+use gcs::signing::{Refusals, SecretKey, Signing, SigningMemory};
 use mavlink::dialects::common::MavSeverity;
-use std::sync::Mutex;
-use std::time::Duration;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 use tokio::sync::watch;
 
 /// `SETUP_SIGNING` (<https://mavlink.io/en/guide/message_signing.html>): only from a trusted
@@ -125,6 +126,79 @@ async fn write_memory(
         }
         if !memory.has_changed().unwrap_or(false) {
             tokio::time::sleep(Duration::from_secs(1)).await;
+        }
+    }
+}
+
+/// How often refused frames are reported in the log.
+const REFUSALS_REPORT: Duration = Duration::from_secs(5);
+
+/// Signing seen from the links' task: its memory kept in its file, and the frames it (and the
+/// endpoints' allow-lists) refused reported in the log when their counts change.
+pub(super) struct SigningWatch {
+    signing: Arc<Mutex<Signing>>,
+    memory: Option<MemoryKeeper>,
+    /// Frames refused by the endpoints' `sysids` lists.
+    not_allowed: Arc<AtomicU64>,
+    reported: (Refusals, u64),
+    next_report: Instant,
+}
+
+impl SigningWatch {
+    /// Watches `signing` (its memory kept beside `key_file`) and the allow-lists' count.
+    pub(super) fn new(
+        signing: Arc<Mutex<Signing>>,
+        key_file: Option<&std::path::Path>,
+        not_allowed: Arc<AtomicU64>,
+    ) -> Self {
+        Self {
+            signing,
+            memory: MemoryKeeper::new(key_file),
+            not_allowed,
+            reported: Default::default(),
+            next_report: Instant::now(),
+        }
+    }
+
+    /// The refusals so far: signing's, and the allow-lists'.
+    pub(super) fn refused(&self) -> (Refusals, u64) {
+        (
+            self.signing
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .refused,
+            self.not_allowed.load(Ordering::Relaxed),
+        )
+    }
+
+    /// Hands signing's memory on, and reports the refusals when due and changed.
+    pub(super) fn tick(&mut self) {
+        if let Some(m) = self.memory.as_mut() {
+            m.note(&self.signing);
+        }
+        if Instant::now() < self.next_report {
+            return;
+        }
+        self.next_report = Instant::now() + REFUSALS_REPORT;
+        let now = self.refused();
+        if now != self.reported {
+            self.reported = now;
+            let (r, n) = now;
+            tracing::warn!(
+                unsigned = r.unsigned,
+                bad_signature = r.bad_signature,
+                replayed = r.replayed,
+                future = r.future,
+                not_on_allow_list = n,
+                "frames refused so far"
+            );
+        }
+    }
+
+    /// Writes the last memory.
+    pub(super) async fn finish(&mut self) {
+        if let Some(m) = self.memory.take() {
+            m.finish(&self.signing).await;
         }
     }
 }

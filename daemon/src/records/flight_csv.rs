@@ -169,7 +169,7 @@ impl FlightCsv {
         true_pose: Option<(Vector3<f64>, UnitQuaternion<f64>)>,
         loop_late: Option<Duration>,
     ) -> std::io::Result<()> {
-        let (t_s, out, sample) = (step.t_usec as f64 * 1e-6, &step.estimate, &step.sample);
+        let (t_s, out, sample) = (step.t_usec as f64 * 1e-6, &step.estimate, &step.raw_sample);
         let sp = out.attitude_setpoint;
         self.rows.push(Row {
             t_s,

@@ -11,7 +11,7 @@
 use crate::records::log_files::{LogFile, LogProducer, SHIP_INTERVAL_S};
 use crate::records::ulog::{self, Level, UlogParam, UlogRow};
 use crate::records::ulog_topics::{MOTORS, OUTPUTS, PERIOD_US, TOPICS, id, nav_state};
-use flight_core::autopilot::{Autopilot, AutopilotOutput};
+use flight_core::autopilot::{AutopilotOutput, VehicleState};
 use flight_core::commander::{CommanderStatus, FlightMode, LandedState};
 use flight_core::params::{FlightParams, ParamKind};
 use nalgebra::UnitQuaternion;
@@ -174,12 +174,11 @@ impl FlightUlog {
     pub fn record(
         &mut self,
         step: &AutopilotOutput,
-        status: &CommanderStatus,
-        vehicle: &Autopilot,
+        vehicle: &VehicleState,
     ) -> std::io::Result<()> {
         let t = step.t_usec;
         self.first_us.get_or_insert(t);
-        let (est, s) = (&step.estimate, &step.sample);
+        let (est, s) = (&step.estimate, &step.raw_sample);
         let tr = &est.translation;
         let q = est.attitude.map(|a| a.q);
         if self.due(id::SENSOR_COMBINED, t) {
@@ -204,7 +203,7 @@ impl FlightUlog {
                 UlogRow::at(t).u64(t).f32s(rate.as_slice()),
             );
         }
-        let max_thrust = vehicle.max_thrust_n().max(1e-6);
+        let max_thrust = vehicle.max_thrust_n.max(1e-6);
         let sp = est.attitude_setpoint;
         let thrust_body = sp.map_or([f64::NAN; 3], |a| [0.0, 0.0, -a.thrust_n / max_thrust]);
         if self.due(id::VEHICLE_RATES_SETPOINT, t) {
@@ -223,7 +222,7 @@ impl FlightUlog {
                 .f32s(&thrust_body);
             self.data(id::VEHICLE_ATTITUDE_SETPOINT, row);
         }
-        let rotors = vehicle.rotors();
+        let rotors = vehicle.rotors;
         if self.due(id::ACTUATOR_MOTORS, t) {
             let motor = |i: usize| match (i < rotors, step.armed) {
                 (false, _) | (true, false) => f64::NAN,
@@ -320,7 +319,7 @@ impl FlightUlog {
             );
         }
         if self.due(id::BATTERY_STATUS, t) {
-            let b = vehicle.battery();
+            let b = vehicle.battery;
             let row = UlogRow::at(t)
                 .f32(b.voltage_v)
                 .f32(b.current_a.unwrap_or(-1.0))
@@ -355,7 +354,7 @@ impl FlightUlog {
                 .f32(w.var_horiz_m2_s2);
             self.data(id::WIND, row);
         }
-        self.status(t, step, status);
+        self.status(t, step, &vehicle.status);
         let due = self.shipped_us.is_none_or(|s| t < s || t >= s + ship_us());
         if due {
             self.shipped_us = Some(t);

@@ -12,8 +12,7 @@ pub mod ulog;
 mod ulog_topics;
 
 use anyhow::{Context, Result};
-use flight_core::autopilot::{Autopilot, AutopilotOutput, StepKind};
-use flight_core::commander::CommanderStatus;
+use flight_core::autopilot::{AutopilotOutput, StepKind, VehicleState};
 use flight_csv::FlightCsv;
 use flight_ulog::FlightUlog;
 use hil::TruthReport;
@@ -75,16 +74,16 @@ impl FlightRecords {
         self.last_truth
     }
 
-    /// Observes one step of `vehicle`: the truth that came with its frame scores it, a flown
+    /// Observes one step and the vehicle after it: the truth that came with its frame scores it, a flown
     /// step is a CSV row and logged. A repeated frame adds nothing; a frame flown blind is
     /// scored, with no estimate.
     pub fn observe(
         &mut self,
         step: &AutopilotOutput,
-        status: &CommanderStatus,
+        vehicle: &VehicleState,
         truth: Option<TruthReport>,
-        vehicle: &Autopilot,
     ) {
+        let status = &vehicle.status;
         if step.restarted {
             // Another world: its flight is scored from the start.
             self.score = FlightScore::new(self.takeoff_m);
@@ -114,7 +113,7 @@ impl FlightRecords {
                     self.csv_error = Some(e);
                 }
                 if let Some(ulog) = self.ulog.as_mut()
-                    && let Err(e) = ulog.record(step, status, vehicle)
+                    && let Err(e) = ulog.record(step, vehicle)
                 {
                     tracing::error!("ULog flight log: {e}; logging stopped");
                     self.ulog = None;

@@ -171,7 +171,7 @@ mod tests {
     fn figures_are_measured_from_the_takeoff_spot() {
         // The ground-station tests' armed status, in the mode and landed state asked.
         let status = |mode, landed| {
-            let armed = gcs::testing::telemetry(true, mode).status;
+            let armed = gcs::testing::telemetry(true, mode).status();
             CommanderStatus {
                 landed,
                 ..armed.expect("the test telemetry has a status")

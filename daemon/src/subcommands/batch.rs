@@ -382,7 +382,8 @@ pub fn fly_run(
         let mut records = FlightRecords::new(cfg.takeoff_m);
         let sim =
             EmbeddedSim::with_world(airframe, plan.world(cfg.sensors), &plan.events, None, None)?;
-        let (mut ports, stop, _telemetry) = Ports::new(1);
+        let (mut ports, ends) = Ports::new(1);
+        let stop = ends.commands;
         let mut link = TimeLimited {
             sim,
             limit_s: cfg.time_limit_s(),

@@ -3,21 +3,21 @@
 //!
 //! Encoding turns a [`SensorFrame`] and the truth into `HIL_SENSOR`, `HIL_GPS`, `ESC_STATUS` and
 //! `HIL_STATE_QUATERNION`; decoding splits a datagram into frames, counting every malformed one.
-//! [`json`] is the other protocol a physics may speak: ArduPilot's JSON interface. With the
-//! feature `transport`, `transport` carries the bytes over UDP or a serial line for both ends.
+//! [`json`] is the other protocol a physics may speak: ArduPilot's JSON interface. The framing,
+//! the byte transports (feature `transport`) and the truth report are `mavwire`'s, re-exported
+//! here.
 
 pub mod hand;
 pub mod json;
 mod simulator_end;
-#[cfg(feature = "transport")]
-pub mod transport;
 pub use hand::HandRequest;
-pub use simulator_end::{STATE_INTERVAL_USEC, SimulatorEnd};
-mod wire;
-pub use wire::{
-    Decoded, Encoder, MAX_FRAME, RawMessage, StreamDecoder, checksum, decode, decode_checked,
-    decode_into,
+#[cfg(feature = "transport")]
+pub use mavwire::transport;
+pub use mavwire::{
+    Decoded, Encoder, MAX_FRAME, RawMessage, StreamDecoder, TruthReport, checksum, decode,
+    decode_checked, decode_into,
 };
+pub use simulator_end::{STATE_INTERVAL_USEC, SimulatorEnd};
 
 use mavlink::dialects::common::{
     ESC_STATUS_DATA, HIL_ACTUATOR_CONTROLS_DATA, HIL_GPS_DATA, HIL_SENSOR_DATA,
@@ -33,6 +33,11 @@ use sitl_core::sim::TruthState;
 pub const SIM_SYSTEM_ID: u8 = 1;
 /// Component id of the simulator: MAV_COMP_ID_USER1 (0 is the broadcast address, 1 the autopilot).
 pub const SIM_COMPONENT_ID: u8 = 25;
+
+/// The simulator's encoder: its system and component ids.
+pub fn sim_encoder() -> Encoder {
+    Encoder::with_ids(SIM_SYSTEM_ID, SIM_COMPONENT_ID)
+}
 
 /// `HIL_SENSOR` from a sensor frame (SI units; pressure in hPa as the message defines).
 pub fn hil_sensor(f: &SensorFrame) -> MavMessage {
@@ -370,27 +375,6 @@ pub struct SensorUpdate {
     pub truth: Option<TruthReport>,
 }
 
-/// The simulator's ground truth as `HIL_STATE_QUATERNION` carries it.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct TruthReport {
-    /// Time of the truth (µs).
-    pub time_usec: u64,
-    /// Attitude, `q_ned_from_frd`.
-    pub q: nalgebra::UnitQuaternion<f64>,
-    /// Latitude (deg).
-    pub lat_deg: f64,
-    /// Longitude (deg).
-    pub lon_deg: f64,
-    /// Altitude (m AMSL).
-    pub alt_m: f64,
-    /// Velocity NED (m/s).
-    pub vel_ned_m_s: Vector3<f64>,
-    /// Body rate FRD (rad/s).
-    pub rate_frd_rad_s: Vector3<f64>,
-    /// Specific force FRD (m/s²), from the message's milli-g.
-    pub specific_force_frd_m_s2: Vector3<f64>,
-}
-
 impl SensorUpdate {
     /// Folds one message in; returns true for `HIL_SENSOR` (a new sensor frame).
     pub fn absorb(&mut self, msg: &MavMessage) -> bool {
@@ -445,30 +429,7 @@ impl SensorUpdate {
                 false
             }
             MavMessage::HIL_STATE_QUATERNION(q) => {
-                let a = q.attitude_quaternion;
-                self.truth = Some(TruthReport {
-                    time_usec: q.time_usec,
-                    q: nalgebra::UnitQuaternion::new_normalize(nalgebra::Quaternion::new(
-                        a[0] as f64,
-                        a[1] as f64,
-                        a[2] as f64,
-                        a[3] as f64,
-                    )),
-                    lat_deg: q.lat as f64 * 1e-7,
-                    lon_deg: q.lon as f64 * 1e-7,
-                    alt_m: q.alt as f64 * 1e-3,
-                    vel_ned_m_s: Vector3::new(q.vx as f64, q.vy as f64, q.vz as f64) * 0.01,
-                    rate_frd_rad_s: Vector3::new(
-                        q.rollspeed as f64,
-                        q.pitchspeed as f64,
-                        q.yawspeed as f64,
-                    ),
-                    specific_force_frd_m_s2: Vector3::new(
-                        q.xacc as f64,
-                        q.yacc as f64,
-                        q.zacc as f64,
-                    ) * (sitl_core::GRAVITY_M_S2 / 1000.0),
-                });
+                self.truth = Some(TruthReport::from(q));
                 false
             }
             _ => false,
@@ -491,7 +452,7 @@ mod tests {
 
     #[test]
     fn frames_round_trip_and_junk_is_counted() {
-        let mut enc = Encoder::default();
+        let mut enc = sim_encoder();
         let mut buf = Vec::new();
         enc.push(&mut buf, &actuators(10));
         enc.push(&mut buf, &actuators(20));
@@ -543,7 +504,7 @@ mod tests {
         };
         let mut bytes = Vec::new();
         encode_exchange(
-            &mut Encoder::default(),
+            &mut sim_encoder(),
             &mut bytes,
             &frame,
             &sim.truth(),
@@ -568,7 +529,7 @@ mod tests {
     /// and never take the next good frame with them.
     #[test]
     fn a_stream_is_split_into_frames_wherever_the_reads_fall() {
-        let mut enc = Encoder::default();
+        let mut enc = sim_encoder();
         let mut stream = Vec::new();
         enc.push(&mut stream, &actuators(1));
         stream.extend_from_slice(b"\x00\x13junk");

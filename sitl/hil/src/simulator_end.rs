@@ -47,7 +47,7 @@ impl SimulatorEnd {
         Self {
             sim,
             acc,
-            encoder: Encoder::default(),
+            encoder: crate::sim_encoder(),
             steps_per_exchange: steps,
             next_state_usec: 0,
             state_interval_usec: Some(STATE_INTERVAL_USEC),

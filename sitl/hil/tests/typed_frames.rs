@@ -56,7 +56,7 @@ fn typed_frames_equal_decoded_bytes() {
             let controls: Vec<f64> = hover[..rotors].iter().map(|c| c * 1.05).collect();
             let msg = actuator_controls(t_wire, &controls, true);
             bytes.clear();
-            hil::Encoder::default().push(&mut bytes, &msg);
+            hil::sim_encoder().push(&mut bytes, &msg);
             let d = hil::decode(&bytes);
             let MavMessage::HIL_ACTUATOR_CONTROLS(m) = &d.messages[0].1 else {
                 panic!("not an actuator message")
@@ -85,7 +85,7 @@ fn the_hand_does_what_the_requests_on_the_wire_ask() {
     use sitl_core::sim::{Face, SimAction};
     let answer = |end: &SimulatorEnd, hand: HandRequest| {
         let mut bytes = Vec::new();
-        let mut encoder = hil::Encoder::default();
+        let mut encoder = hil::sim_encoder();
         let cmd = ActuatorCommand::as_sent(end.frame().time_usec, &[0.0; 4], false).with_hand(hand);
         for m in cmd.messages() {
             encoder.push(&mut bytes, &m);

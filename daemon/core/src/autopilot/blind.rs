@@ -3,8 +3,8 @@
 //! ([`crate::safety::blind_descent`]) brings the vehicle down open-loop.
 
 use super::{Autopilot, AutopilotOutput, StepKind};
-use crate::core::SensorSample;
 use crate::safety::blind_descent::BlindDescent;
+use crate::sample::SensorSample;
 use airframe::MAX_ROTORS;
 
 /// What to tell the rotors while the sensor samples are silent.
@@ -26,7 +26,9 @@ impl Autopilot {
         if let Some(c) = self.imu_cal.as_mut() {
             c.sensors_stopped();
         }
-        self.blind_descent("sensor frames stopped")
+        let in_air = self.blind_descent("sensor frames stopped");
+        self.publish();
+        in_air
     }
 
     /// The sensor samples are back: the loops fly again (the commander keeps descending).
@@ -34,6 +36,7 @@ impl Autopilot {
         if self.blind.take().is_some() {
             tracing::warn!("sensor frames back: descending closed-loop");
         }
+        self.publish();
     }
 
     /// What to tell the rotors while the samples are silent, `silence_s` after the last one:
@@ -49,6 +52,7 @@ impl Autopilot {
                 };
             }
             self.blind_descent_over();
+            self.publish();
         }
         SilentAnswer {
             t_usec,
@@ -144,11 +148,15 @@ impl Autopilot {
             armed,
             kind: StepKind::Blind,
             estimate,
-            setpoint: self.last_setpoint.unwrap_or_else(super::origin_setpoint),
-            sample: *sample,
+            setpoint: self
+                .published
+                .setpoint
+                .unwrap_or_else(super::origin_setpoint),
+            raw_sample: *sample,
             restarted,
         };
         self.last_answer = Some(answer);
+        self.publish();
         Some(answer)
     }
 }

@@ -3,7 +3,7 @@
 
 use super::Autopilot;
 use crate::commander::Denial;
-use crate::core::SensorSample;
+use crate::sample::SensorSample;
 use crate::sensors::imu_calibrator::{
     ImuCalKind, ImuCalState, ImuCalStatus, ImuCalibrator, PoseRequest,
 };
@@ -126,16 +126,6 @@ impl Autopilot {
         {
             log_imu_end(&c.status());
         }
-    }
-
-    /// The magnetometer calibration under way, or the last one.
-    pub fn mag_calibration(&self) -> Option<MagCalStatus> {
-        self.mag_cal.as_ref().map(MagCalibrator::status)
-    }
-
-    /// The gyro, accelerometer or level-horizon calibration under way, or the last one.
-    pub fn imu_calibration(&self) -> Option<ImuCalStatus> {
-        self.imu_cal.as_ref().map(ImuCalibrator::status)
     }
 
     /// What the calibration under way needs of the person holding the vehicle.

@@ -9,7 +9,8 @@ use crate::math::geo::{LatLonAlt, LocalFrame};
 use crate::mission::{MissionItem, MissionPoint, SpeedChange};
 use crate::safety::failure_injection::{Injection, Refusal};
 use crate::safety::geofence::{FenceMonitor, GeoZone, Geofence};
-use crate::safety::targets::{check_point, global_to_ned};
+use crate::safety::targets::{TargetError, check_point, global_to_ned};
+use crate::sample::StepOutput;
 use crate::sensors::imu_calibrator::ImuCalKind;
 use nalgebra::Vector3;
 
@@ -109,6 +110,13 @@ pub enum AutopilotCommand {
 impl Autopilot {
     /// Carries out a command, or says why not.
     pub fn command(&mut self, c: AutopilotCommand) -> Result<(), Denial> {
+        let result = self.carry_out(c);
+        self.publish();
+        result
+    }
+
+    /// The command's work.
+    fn carry_out(&mut self, c: AutopilotCommand) -> Result<(), Denial> {
         let arming = matches!(
             c,
             AutopilotCommand::Arm { .. }
@@ -119,15 +127,6 @@ impl Autopilot {
         if arming && let Some(kind) = self.calibrating() {
             return Err(ArmingDenial::Calibrating(kind).into());
         }
-        let last = self.estimate();
-        let origin = last.and_then(|o| o.translation.origin);
-        // What a command naming a place on the Earth needs: the estimate and its origin.
-        let global = |command| match (last, origin) {
-            (Some(out), Some(origin)) => Ok((out, origin)),
-            _ => Err(Denial::NoGlobalPosition { command }),
-        };
-        let target = |command| move |why| Denial::Target { command, why };
-        let c_ = &mut self.commander;
         match c {
             AutopilotCommand::CalibrateMag => self.start_mag_calibration(),
             AutopilotCommand::CalibrateImu(kind) => self.start_imu_calibration(kind),
@@ -135,73 +134,42 @@ impl Autopilot {
                 self.cancel_calibration();
                 Ok(())
             }
-            AutopilotCommand::Arm { force } => c_.arm(force),
-            AutopilotCommand::Disarm { force } => c_.disarm(force),
-            AutopilotCommand::SetMode(m) => c_.set_mode(m),
-            AutopilotCommand::Takeoff(alt) => c_.takeoff(alt),
-            AutopilotCommand::SetHome(p) => c_.set_home(p),
-            AutopilotCommand::TakeoffAmsl(amsl_m) => {
-                let (out, origin) = global("take-off")?;
-                let home_down = c_.home().map_or(out.translation.pos_ned_m.z, |h| h.z);
-                let home_amsl = origin.alt_m - home_down;
-                let above_home = (amsl_m - home_amsl).max(c_.params().takeoff_alt_m);
-                c_.takeoff(Some(above_home))
-            }
-            AutopilotCommand::SetHomeGlobal(p) => {
-                let (_, origin) = global("home")?;
-                let home = global_to_ned(&p, &origin).map_err(target("home"))?;
-                c_.set_home(Some(home))
-            }
+            AutopilotCommand::Arm { force } => self.commander.arm(force),
+            AutopilotCommand::Disarm { force } => self.commander.disarm(force),
+            AutopilotCommand::SetMode(m) => self.commander.set_mode(m),
+            AutopilotCommand::Takeoff(alt) => self.commander.takeoff(alt),
+            AutopilotCommand::SetHome(p) => self.commander.set_home(p),
             AutopilotCommand::Sticks(s) => {
-                c_.manual_control(s);
+                self.commander.manual_control(s);
                 Ok(())
             }
-            AutopilotCommand::InjectFailure(_) if !self.injection_enabled => {
-                Err(Refusal::Disabled.into())
-            }
-            AutopilotCommand::InjectFailure(i) => {
-                let said = self.injected.inject(i)?;
-                tracing::warn!("{said}");
-                Ok(())
-            }
+            AutopilotCommand::InjectFailure(i) => self.inject_failure(i),
             AutopilotCommand::Offboard(t) => {
-                c_.offboard_setpoint(t);
+                self.commander.offboard_setpoint(t);
                 Ok(())
             }
             AutopilotCommand::SetMission(items) => {
-                c_.set_mission(items);
+                self.commander.set_mission(items);
                 Ok(())
             }
             AutopilotCommand::SetFence(zones) => {
-                self.fence =
-                    origin.map(|o| FenceMonitor::new(Geofence::new(&zones, &LocalFrame::new(o))));
-                self.fence_zones = zones;
-                // Judged now, not at the next step: an arm in the same batch of commands must
-                // meet the new fence.
-                if let (Some(f), Some(tr)) = (&self.fence, last.map(|e| e.translation)) {
-                    let outside = tr.horizontal_valid && !f.fence.allows(&tr.pos_ned_m.xy());
-                    c_.note_geofence_breached(outside);
-                }
+                self.set_fence(zones);
                 Ok(())
             }
-            AutopilotCommand::SetMissionCurrent(seq) => c_.set_mission_current(seq),
-            AutopilotCommand::StartMission(first) => c_.start_mission(first),
-            AutopilotCommand::ChangeSpeed(change) => c_.change_speed(change),
+            AutopilotCommand::SetMissionCurrent(seq) => self.commander.set_mission_current(seq),
+            AutopilotCommand::StartMission(first) => self.commander.start_mission(first),
+            AutopilotCommand::ChangeSpeed(change) => self.commander.change_speed(change),
             AutopilotCommand::ConditionYaw {
                 angle_deg,
                 rate_deg_s,
                 direction,
                 relative,
-            } => {
-                let yaw = last
-                    .and_then(|o| o.attitude)
-                    .map_or(0.0, |a| a.q.euler_angles().2);
-                let target = if relative {
-                    yaw + angle_deg.to_radians() * if direction < 0 { -1.0 } else { 1.0 }
-                } else {
-                    angle_deg.to_radians()
-                };
-                c_.condition_yaw(target, rate_deg_s.map(f64::to_radians))
+            } => self.condition_yaw(angle_deg, rate_deg_s, direction, relative),
+            AutopilotCommand::TakeoffAmsl(amsl_m) => self.takeoff_amsl(amsl_m),
+            AutopilotCommand::SetHomeGlobal(p) => {
+                let (_, origin) = self.global("home")?;
+                let home = global_to_ned(&p, &origin).map_err(target("home"))?;
+                self.commander.set_home(Some(home))
             }
             AutopilotCommand::Reposition {
                 at,
@@ -209,18 +177,15 @@ impl Autopilot {
                 yaw_rad,
                 change_mode,
             } => {
-                let (out, origin) = global("reposition")?;
-                check_point(&at).map_err(target("reposition"))?;
-                let home = c_.home().unwrap_or(out.translation.pos_ned_m);
-                // The parts left open stay NaN: the commander keeps them.
-                let target = at.to_ned(&origin, &home, &Vector3::repeat(f64::NAN));
-                c_.reposition(target, speed_m_s, yaw_rad, change_mode)
+                let target = self.place("reposition", &at)?;
+                let c = &mut self.commander;
+                c.reposition(target, speed_m_s, yaw_rad, change_mode)
             }
             AutopilotCommand::FollowTarget { at, vel_ned_m_s } => {
                 let command = "follow target";
-                let (_, origin) = global(command)?;
+                let (_, origin) = self.global(command)?;
                 let pos = global_to_ned(&at, &origin).map_err(target(command))?;
-                c_.follow_target_fix(TargetFix {
+                self.commander.follow_target_fix(TargetFix {
                     pos_ned_m: pos,
                     vel_ned_m_s,
                 })
@@ -232,11 +197,8 @@ impl Autopilot {
                 yaw,
                 turns,
             } => {
-                let (out, origin) = global("orbit")?;
-                check_point(&center).map_err(target("orbit"))?;
-                let home = c_.home().unwrap_or(out.translation.pos_ned_m);
-                let c = center.to_ned(&origin, &home, &Vector3::repeat(f64::NAN));
-                c_.orbit(OrbitRequest {
+                let c = self.place("orbit", &center)?;
+                self.commander.orbit(OrbitRequest {
                     radius_m,
                     speed_m_s,
                     yaw,
@@ -247,4 +209,84 @@ impl Autopilot {
             }
         }
     }
+
+    /// A new geofence, placed in the estimator's frame once it has an origin.
+    fn set_fence(&mut self, zones: Vec<GeoZone>) {
+        let last = self.estimate();
+        let origin = last.and_then(|o| o.translation.origin);
+        self.fence = origin.map(|o| FenceMonitor::new(Geofence::new(&zones, &LocalFrame::new(o))));
+        self.fence_zones = zones;
+        // Judged now, not at the next step: an arm in the same batch of commands must meet
+        // the new fence.
+        if let (Some(f), Some(tr)) = (&self.fence, last.map(|e| e.translation)) {
+            let outside = tr.horizontal_valid && !f.fence.allows(&tr.pos_ned_m.xy());
+            self.commander.note_geofence_breached(outside);
+        }
+    }
+
+    /// What a command naming a place on the Earth needs: the estimate and its origin, else
+    /// `command` is refused.
+    fn global(&self, command: &'static str) -> Result<(StepOutput, LatLonAlt), Denial> {
+        let last = self.estimate();
+        match (last, last.and_then(|o| o.translation.origin)) {
+            (Some(out), Some(origin)) => Ok((out, origin)),
+            _ => Err(Denial::NoGlobalPosition { command }),
+        }
+    }
+
+    /// A mission point of `command` in the estimator's frame (NED, m; what it leaves open NaN,
+    /// kept by the commander), its altitude taken from home.
+    fn place(&self, command: &'static str, at: &MissionPoint) -> Result<Vector3<f64>, Denial> {
+        let (out, origin) = self.global(command)?;
+        check_point(at).map_err(target(command))?;
+        let home = self.commander.home().unwrap_or(out.translation.pos_ned_m);
+        Ok(at.to_ned(&origin, &home, &Vector3::repeat(f64::NAN)))
+    }
+
+    /// `CONDITION_YAW`: to `angle_deg`, or by it when `relative` (clockwise for `direction`
+    /// ≥ 0), at `rate_deg_s` or the automatic rate.
+    fn condition_yaw(
+        &mut self,
+        angle_deg: f64,
+        rate_deg_s: Option<f64>,
+        direction: i8,
+        relative: bool,
+    ) -> Result<(), Denial> {
+        let yaw = self
+            .estimate()
+            .and_then(|o| o.attitude)
+            .map_or(0.0, |a| a.q.euler_angles().2);
+        let target = if relative {
+            yaw + angle_deg.to_radians() * if direction < 0 { -1.0 } else { 1.0 }
+        } else {
+            angle_deg.to_radians()
+        };
+        self.commander
+            .condition_yaw(target, rate_deg_s.map(f64::to_radians))
+    }
+
+    /// A failure injected, if `SYS_FAILURE_EN` allows it.
+    fn inject_failure(&mut self, i: Injection) -> Result<(), Denial> {
+        if !self.injection_enabled {
+            return Err(Refusal::Disabled.into());
+        }
+        let said = self.injected.inject(i)?;
+        tracing::warn!("{said}");
+        Ok(())
+    }
+
+    /// Take-off to an altitude above mean sea level: at least the parameter's above home.
+    fn takeoff_amsl(&mut self, amsl_m: f64) -> Result<(), Denial> {
+        let (out, origin) = self.global("take-off")?;
+        let c = &mut self.commander;
+        let home_down = c.home().map_or(out.translation.pos_ned_m.z, |h| h.z);
+        let home_amsl = origin.alt_m - home_down;
+        let above_home = (amsl_m - home_amsl).max(c.params().takeoff_alt_m);
+        c.takeoff(Some(above_home))
+    }
+}
+
+/// A target refused for `command`.
+fn target(command: &'static str) -> impl Fn(TargetError) -> Denial {
+    move |why| Denial::Target { command, why }
 }

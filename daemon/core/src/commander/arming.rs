@@ -3,7 +3,7 @@
 
 use super::stabilized::LOW_THROTTLE;
 use super::task::Task;
-use super::{ArmingDenial, Commander, CommanderInput, Denial, FlightMode, LandedState};
+use super::{ArmingDenial, Commander, CommanderInput, Denial, FlightMode};
 use crate::safety::preflight::{PreflightCheck, PreflightFailure, PreflightInput, preflight};
 
 impl Commander {
@@ -60,7 +60,7 @@ impl Commander {
         }
         let f = &mut self.flight;
         f.armed = true;
-        f.landed = LandedState::OnGround;
+        f.land.on_ground();
         if !f.home_commanded {
             f.home = Some((i.pos_ned_m, i.yaw_rad));
         }

@@ -2,7 +2,6 @@
 //! `MPC_LAND_SPEED` on what estimate is left — braking to zero ground speed while the
 //! horizontal estimate holds — until touchdown. It is left only by landing.
 
-use super::LandedState;
 use super::flight::{Flight, Tick, Touchdown};
 use super::task::FlightTask;
 use crate::control::Setpoint;
@@ -24,7 +23,7 @@ impl FlightTask for Descend {
 
     fn update(&mut self, f: &mut Flight, t: &Tick) -> Setpoint {
         let i = t.i;
-        f.landed = LandedState::Landing;
+        f.land.landing();
         // Touchdown when the vertical speed has stayed near zero for a second.
         let stopped = i.t_s - self.since_s > 1.0 && i.vel_ned_m_s.z.abs() < 0.15;
         self.touchdown.check(f, stopped, i.t_s);

@@ -25,7 +25,7 @@ impl Commander {
         let d = self.safety.update(&SafetyInput {
             t_s: i.t_s,
             armed: self.flight.armed,
-            in_air: self.flight.landed != LandedState::OnGround,
+            in_air: self.flight.land.state() != LandedState::OnGround,
             mode_needs_position: self.mode.needs_position(),
             gcs_link_age_s: h.gcs_link_age_s,
             battery_remaining: h.battery_remaining,
@@ -53,7 +53,7 @@ impl Commander {
         }
         match d.action {
             FailsafeAction::None | FailsafeAction::Warn => {}
-            FailsafeAction::Hold if self.flight.landed == LandedState::InAir => {
+            FailsafeAction::Hold if self.flight.land.state() == LandedState::InAir => {
                 // Stop firmly: a braking profile at MPC_ACC_FS_BRK from the present speed
                 // (its velocity and deceleration fed forward), then hold where it ends.
                 let v = Vector3::new(i.vel_ned_m_s.x, i.vel_ned_m_s.y, 0.0);

@@ -3,13 +3,14 @@
 //! and the small pieces several tasks fly with (touchdown, hold, spool-up).
 
 use super::mission_run::MissionRun;
-use super::{CommanderInput, CommanderParams, Denial, LandedState, OffboardTarget, Sticks};
+use super::{CommanderInput, CommanderParams, Denial, OffboardTarget, Sticks};
 use crate::control::GroundContact;
 use crate::control::position::PositionSetpoint;
 use crate::mission::SpeedChange;
 use nalgebra::Vector3;
 use std::f64::consts::{PI, TAU};
 
+use super::land_detector::LandDetector;
 use super::line::Line;
 
 /// The state of the flight that outlives a mode: the tasks read it and change it.
@@ -19,8 +20,8 @@ pub(super) struct Flight {
     pub(super) params: CommanderParams,
     /// Motors armed.
     pub(super) armed: bool,
-    /// On the ground, taking off, flying or landing.
-    pub(super) landed: LandedState,
+    /// On the ground, taking off, flying or landing: its one writer.
+    pub(super) land: LandDetector,
     /// Home position NED (m) and heading (rad), once set.
     pub(super) home: Option<(Vector3<f64>, f64)>,
     /// Home was set by a command: arming keeps it.
@@ -48,7 +49,7 @@ impl Flight {
         Self {
             params,
             armed: false,
-            landed: LandedState::OnGround,
+            land: LandDetector::new(),
             home: None,
             home_commanded: false,
             takeoff_alt_m: params.takeoff_alt_m,
@@ -235,7 +236,7 @@ impl Touchdown {
 
     fn touched_down(f: &mut Flight) -> bool {
         f.touched_down = true;
-        f.landed = LandedState::OnGround;
+        f.land.on_ground();
         true
     }
 

@@ -128,7 +128,7 @@ pub(super) struct FollowTarget {
 
 impl FlightTask for FollowTarget {
     fn update(&mut self, f: &mut Flight, t: &Tick) -> Setpoint {
-        f.landed = LandedState::InAir;
+        f.land.airborne();
         let p = f.params;
         let i = t.i;
         let Some(target) = t.target else {
@@ -219,7 +219,7 @@ impl Commander {
     /// places on the Earth). A target lost before is forgotten: it holds until a fix.
     pub(super) fn follow_entry(&mut self) -> Result<(), Denial> {
         let name = FlightMode::FollowTarget.name();
-        if !self.flight.armed || self.flight.landed != LandedState::InAir {
+        if !self.flight.armed || self.flight.land.state() != LandedState::InAir {
             return Err(Denial::NotFlying { command: name });
         }
         if self.last.and_then(|i| i.origin).is_none() {

@@ -90,7 +90,7 @@ impl Commander {
     /// Mission while flying (in Mission until the next item).
     pub fn condition_yaw(&mut self, yaw_rad: f64, rate_rad_s: Option<f64>) -> Result<(), Denial> {
         if !matches!(self.mode, FlightMode::Loiter | FlightMode::Mission)
-            || self.flight.landed != LandedState::InAir
+            || self.flight.land.state() != LandedState::InAir
         {
             return Err(Denial::WrongMode {
                 command: "yaw command",
@@ -123,7 +123,7 @@ impl Commander {
                 command: "reposition",
             });
         };
-        if !self.flight.armed || self.flight.landed != LandedState::InAir {
+        if !self.flight.armed || self.flight.land.state() != LandedState::InAir {
             return Err(Denial::NotFlying {
                 command: "reposition",
             });

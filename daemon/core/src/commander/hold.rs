@@ -45,10 +45,10 @@ impl Hold {
 
 impl FlightTask for Hold {
     fn update(&mut self, f: &mut Flight, t: &Tick) -> Setpoint {
-        if f.landed == LandedState::OnGround {
+        if f.land.state() == LandedState::OnGround {
             return Setpoint::Position(spooled(t.home, t.yaw));
         }
-        f.landed = LandedState::InAir;
+        f.land.airborne();
         let yaw = if f.yaw_goal.is_some() {
             f.slew_yaw(None, t.i, t.dt)
         } else {

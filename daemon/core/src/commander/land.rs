@@ -2,7 +2,6 @@
 //! `MPC_LAND_ALT3`), touchdown after standing still for a second, disarm. The same descent
 //! ends a return and a mission's Land item.
 
-use super::LandedState;
 use super::flight::{Flight, MAYBE_LANDED_S, Tick, Touchdown};
 use super::task::FlightTask;
 use crate::commander::CommanderInput;
@@ -46,7 +45,7 @@ impl Landing {
         yaw: f64,
     ) -> PositionSetpoint {
         let p = f.params;
-        f.landed = LandedState::Landing;
+        f.land.landing();
         let (x, y) = *self.xy.get_or_insert((i.pos_ned_m.x, i.pos_ned_m.y));
         let ground = f.home.map_or(i.pos_ned_m.z, |h| h.0.z);
         let height = ground - i.pos_ned_m.z;

@@ -56,19 +56,19 @@ impl ManualPosition {
         } else {
             -climb * p.manual_sink_m_s
         };
-        if f.landed == LandedState::OnGround {
+        if f.land.state() == LandedState::OnGround {
             if climb <= 0.0 {
                 self.touchdown.reset();
                 return None;
             }
-            f.landed = LandedState::Takeoff;
+            f.land.climbing();
         }
         let yaw = *self.yaw.get_or_insert(i.yaw_rad);
         let yaw = wrap_pi(yaw + deadzone(s.yaw, dz) * p.manual_yaw_rate_deg_s.to_radians() * dt);
         self.yaw = Some(yaw);
         let height = t.home.z - i.pos_ned_m.z;
-        if f.landed == LandedState::Takeoff && height > 1.0 {
-            f.landed = LandedState::InAir;
+        if f.land.state() == LandedState::Takeoff && height > 1.0 {
+            f.land.airborne();
         }
         // Touchdown: sinking commanded, and no longer moving down for a second.
         let stopped = climb < 0.0 && i.vel_ned_m_s.z.abs() < 0.15 && height < 1.0;

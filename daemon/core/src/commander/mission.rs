@@ -129,9 +129,9 @@ impl MissionFlight {
                 let line = self.line.as_mut()?;
                 let goal = line.from.z - line.length;
                 let (sp, arrived) = line.step(dt, yaw);
-                f.landed = LandedState::Takeoff;
+                f.land.climbing();
                 if arrived && i.pos_ned_m.z - home.z <= 0.95 * (goal - home.z) {
-                    f.landed = LandedState::InAir;
+                    f.land.airborne();
                     self.line = None;
                     // A take-off item is done when its altitude is; any other item starts now.
                     if let MissionItem::Takeoff { at, .. } = item
@@ -144,7 +144,7 @@ impl MissionFlight {
                 Some(sp)
             }
             Stage::Leg { target } => {
-                f.landed = LandedState::InAir;
+                f.land.airborne();
                 if let Some(arc) = self.arc.as_mut() {
                     let yaw = f.slew_yaw(item_yaw, i, dt);
                     let (sp, done) = arc.step(dt, yaw);
@@ -201,7 +201,7 @@ impl MissionFlight {
                 if i.t_s >= until_s {
                     return None;
                 }
-                f.landed = LandedState::InAir;
+                f.land.airborne();
                 let yaw = f.slew_yaw(item_yaw, i, dt);
                 Some(hold_setpoint(target, yaw))
             }
@@ -228,7 +228,7 @@ impl MissionFlight {
         if !matches!(item, MissionItem::Waypoint { .. }) {
             self.arc = None; // a corner leads only onto a waypoint's leg
         }
-        if f.landed == LandedState::OnGround {
+        if f.land.state() == LandedState::OnGround {
             if matches!(item, MissionItem::Land { .. } | MissionItem::ReturnToLaunch) {
                 return None; // already down
             }
@@ -240,7 +240,7 @@ impl MissionFlight {
             };
             let from = Vector3::new(i.pos_ned_m.x, i.pos_ned_m.y, home.z);
             self.line = Some(f.climb(from, down));
-            f.landed = LandedState::Takeoff;
+            f.land.climbing();
             return Some(Stage::Takeoff);
         }
         let target = match item {
@@ -367,7 +367,7 @@ impl FlightTask for MissionFlight {
             return Setpoint::Position(loiter(&mut self.hold, f, i, yaw));
         }
         f.mission.state = MissionState::Complete;
-        if f.landed == LandedState::OnGround {
+        if f.land.state() == LandedState::OnGround {
             // Home as it stands now (a `DO_SET_HOME` item may have moved it in this update).
             let home = f.home.map_or(i.pos_ned_m, |h| h.0);
             return Setpoint::Position(spooled(home, i.yaw_rad));

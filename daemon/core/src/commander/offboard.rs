@@ -36,16 +36,16 @@ impl FlightTask for Offboard {
             Setpoint::Attitude(a) => a.thrust > hover,
         };
         let height = home.z - i.pos_ned_m.z;
-        match f.landed {
+        match f.land.state() {
             LandedState::OnGround => {
                 self.touchdown.reset();
                 if !up_asked {
                     // Kept on the ground until the set-points ask to leave it.
                     return Setpoint::Position(spooled(home, i.yaw_rad));
                 }
-                f.landed = LandedState::Takeoff;
+                f.land.climbing();
             }
-            LandedState::Takeoff if height > 1.0 => f.landed = LandedState::InAir,
+            LandedState::Takeoff if height > 1.0 => f.land.airborne(),
             _ => {
                 let still = !up_asked && height < 1.0 && i.vel_ned_m_s.norm() < 0.3;
                 self.touchdown.check(f, still, i.t_s);

@@ -178,7 +178,7 @@ impl Orbit {
 
 impl FlightTask for Orbit {
     fn update(&mut self, f: &mut Flight, t: &Tick) -> Setpoint {
-        f.landed = LandedState::InAir;
+        f.land.airborne();
         let p = f.params;
         let pos = t.i.pos_ned_m;
         let rel = pos.xy() - self.center.xy();
@@ -255,7 +255,7 @@ impl Commander {
         let Some(i) = self.last else {
             return Err(Denial::NoPositionEstimate { command: "orbit" });
         };
-        if !self.flight.armed || self.flight.landed != LandedState::InAir {
+        if !self.flight.armed || self.flight.land.state() != LandedState::InAir {
             return Err(Denial::NotFlying { command: "orbit" });
         }
         if self.mode == FlightMode::Descend {

@@ -44,7 +44,7 @@ impl Rtl {
         home: Vector3<f64>,
     ) -> PositionSetpoint {
         let p = f.params;
-        f.landed = LandedState::InAir;
+        f.land.airborne();
         loop {
             match self.stage {
                 RtlStage::Climb => {
@@ -79,7 +79,7 @@ impl Rtl {
 
 impl FlightTask for Rtl {
     fn update(&mut self, f: &mut Flight, t: &Tick) -> Setpoint {
-        if f.landed == LandedState::OnGround {
+        if f.land.state() == LandedState::OnGround {
             return Setpoint::Position(spooled(t.home, t.yaw));
         }
         Setpoint::Position(self.fly(f, t.i, t.dt, t.yaw, t.home))

@@ -40,15 +40,15 @@ impl FlightTask for Stabilized {
             hover + (1.0 - hover) * (s.throttle - 0.5) / 0.5
         };
         let height = t.home.z - i.pos_ned_m.z;
-        match f.landed {
+        match f.land.state() {
             LandedState::OnGround => {
                 // Lifting off: thrust above hover, or the vehicle has risen.
                 if thrust > hover || height > 0.5 {
-                    f.landed = LandedState::Takeoff;
+                    f.land.climbing();
                 }
                 self.touchdown.reset();
             }
-            LandedState::Takeoff if height > 1.0 => f.landed = LandedState::InAir,
+            LandedState::Takeoff if height > 1.0 => f.land.airborne(),
             _ => {
                 // Touchdown: throttle held low and the vehicle still for a second.
                 let still = s.throttle <= LOW_THROTTLE && i.vel_ned_m_s.norm() < 0.3;
@@ -61,7 +61,7 @@ impl FlightTask for Stabilized {
         // held. On the ground the heading follows the vehicle.
         let yaw_rate = deadzone(s.yaw, p.stick_deadzone) * p.manual_yaw_rate_deg_s.to_radians();
         let yaw = match self.yaw {
-            Some(y) if yaw_rate == 0.0 && f.landed != LandedState::OnGround => y,
+            Some(y) if yaw_rate == 0.0 && f.land.state() != LandedState::OnGround => y,
             _ => i.yaw_rad,
         };
         let yaw = wrap_pi(yaw);
@@ -79,7 +79,7 @@ impl FlightTask for Stabilized {
         let rate = q_d.inverse() * Vector3::new(0.0, 0.0, yaw_rate);
         Setpoint::Attitude(AttitudeTarget {
             q_d: Some(q_d),
-            rate_frd_rad_s: if f.landed == LandedState::OnGround {
+            rate_frd_rad_s: if f.land.state() == LandedState::OnGround {
                 Vector3::zeros()
             } else {
                 rate

@@ -35,16 +35,16 @@ impl Takeoff {
 impl FlightTask for Takeoff {
     fn update(&mut self, f: &mut Flight, t: &Tick) -> Setpoint {
         let (p, i) = (f.params, t.i);
-        if f.landed == LandedState::OnGround && self.ground.is_none() {
+        if f.land.state() == LandedState::OnGround && self.ground.is_none() {
             self.ground = Some(Vector3::new(i.pos_ned_m.x, i.pos_ned_m.y, t.home.z));
         }
-        if f.landed == LandedState::OnGround && t.since_arming_s < p.spool_s {
+        if f.land.state() == LandedState::OnGround && t.since_arming_s < p.spool_s {
             return Setpoint::Position(spooled(t.home, t.yaw));
         }
         let target_down = t.home.z - f.takeoff_alt_m;
         let line = match self.line.as_mut() {
             Some(line) => line,
-            None if i.pos_ned_m.z <= target_down && f.landed != LandedState::OnGround => {
+            None if i.pos_ned_m.z <= target_down && f.land.state() != LandedState::OnGround => {
                 // Already above the take-off altitude: hold here.
                 let at = brake_point(i, p.accel_m_s2, t.yaw);
                 self.reached = Some(at);
@@ -53,20 +53,20 @@ impl FlightTask for Takeoff {
             None => {
                 // From the ground the climb starts at the ground, not at the estimate's noise
                 // around it, above where the vehicle stood.
-                let from = if f.landed == LandedState::OnGround {
+                let from = if f.land.state() == LandedState::OnGround {
                     self.ground
                         .unwrap_or(Vector3::new(i.pos_ned_m.x, i.pos_ned_m.y, t.home.z))
                 } else {
                     i.pos_ned_m
                 };
-                f.landed = LandedState::Takeoff;
+                f.land.climbing();
                 self.line.insert(f.climb(from, target_down))
             }
         };
         let (sp, arrived) = line.step(t.dt, t.yaw);
         let goal = line.from.z - line.length;
         if arrived && i.pos_ned_m.z - t.home.z <= 0.95 * (goal - t.home.z) {
-            f.landed = LandedState::InAir;
+            f.land.airborne();
             self.reached = Some((sp.pos_ned_m, t.yaw));
         }
         Setpoint::Position(sp)

@@ -6,8 +6,8 @@
 //!
 //! Refused unless `SYS_FAILURE_EN` is 1, as in PX4.
 
-use crate::core::SensorSample;
 use crate::estimator::translation::GpsMeasurement;
+use crate::sample::SensorSample;
 use nalgebra::Vector3;
 
 /// MAVLink `FAILURE_UNIT` values handled here.

@@ -9,7 +9,7 @@
 //! rotors. The magnetometer is taken as mounted apart from the board (on the GPS mast, as on most
 //! multirotors): its own calibration applies in the estimator.
 
-use crate::core::SensorSample;
+use crate::sample::SensorSample;
 use nalgebra::{UnitQuaternion, Vector3};
 
 crate::params::param_group! {

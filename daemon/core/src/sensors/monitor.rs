@@ -7,8 +7,8 @@
 //! barometer would otherwise hold the altitude estimate still while the vehicle climbs), and the
 //! failsafe machine hears of it. What the others show is in [`evidence`].
 
-use crate::core::SensorSample;
 use crate::safety::failsafe::SensorsLost;
+use crate::sample::SensorSample;
 use evidence::Evidence;
 use nalgebra::Vector3;
 

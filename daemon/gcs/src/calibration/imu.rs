@@ -41,7 +41,7 @@ impl GroundStation {
         t: &Telemetry,
         out: &mut Outbox,
     ) {
-        let Some(s) = t.imu_cal else {
+        let Some(s) = t.vehicle.as_ref().and_then(|v| v.imu_cal) else {
             return;
         };
         let info = MavSeverity::MAV_SEVERITY_INFO;
@@ -182,7 +182,7 @@ mod tests {
 
     fn poll(g: &mut GroundStation, s: ImuCalStatus) -> Vec<String> {
         let mut t = telemetry(false, FlightMode::Loiter);
-        t.imu_cal = Some(s);
+        t.vehicle.as_mut().unwrap().imu_cal = Some(s);
         let mut out = Outbox::default();
         g.report_calibration(&t, &mut out);
         statustexts(&out)

@@ -10,40 +10,98 @@ mod modes;
 mod navigation;
 mod preflight;
 
-use super::{AckTo, CommandMessage, GroundStation, Outbox};
+use super::{AckTo, CommandMessage, Delivery, GroundStation, Outbox};
 use crate::telemetry::Telemetry;
 use flight_core::autopilot::command::AutopilotCommand;
 use flight_core::math::geo::LatLonAlt;
 use mavlink::dialects::common::*;
 
-/// Every command the vehicle answers, in the order of its families below; any other is
-/// answered `MAV_RESULT_UNSUPPORTED`.
-pub const ANSWERED_COMMANDS: [MavCmd; 24] = [
-    MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
-    MavCmd::MAV_CMD_NAV_TAKEOFF,
-    MavCmd::MAV_CMD_NAV_LAND,
-    MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH,
-    MavCmd::MAV_CMD_NAV_LOITER_UNLIM,
-    MavCmd::MAV_CMD_DO_REPOSITION,
-    MavCmd::MAV_CMD_DO_ORBIT,
-    MavCmd::MAV_CMD_DO_CHANGE_SPEED,
-    MavCmd::MAV_CMD_CONDITION_YAW,
-    MavCmd::MAV_CMD_MISSION_START,
-    MavCmd::MAV_CMD_DO_SET_MISSION_CURRENT,
-    MavCmd::MAV_CMD_DO_PAUSE_CONTINUE,
-    MavCmd::MAV_CMD_DO_SET_MODE,
-    MavCmd::MAV_CMD_DO_SET_STANDARD_MODE,
-    MavCmd::MAV_CMD_DO_SET_HOME,
-    MavCmd::MAV_CMD_GET_HOME_POSITION,
-    MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
-    MavCmd::MAV_CMD_GET_MESSAGE_INTERVAL,
-    MavCmd::MAV_CMD_REQUEST_MESSAGE,
-    MavCmd::MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES,
-    MavCmd::MAV_CMD_PREFLIGHT_STORAGE,
-    MavCmd::MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN,
-    MavCmd::MAV_CMD_PREFLIGHT_CALIBRATION,
-    MavCmd::MAV_CMD_INJECT_FAILURE,
+/// The families of commands, one file each.
+#[derive(Debug, Clone, Copy)]
+enum Family {
+    Arming,
+    Navigation,
+    Mission,
+    Modes,
+    Home,
+    Messages,
+    Preflight,
+    Failure,
+}
+
+/// Every command the vehicle answers, by family: the one list of them (any other is answered
+/// `MAV_RESULT_UNSUPPORTED`).
+const FAMILIES: [(Family, &[MavCmd]); 8] = [
+    (Family::Arming, &[MavCmd::MAV_CMD_COMPONENT_ARM_DISARM]),
+    (
+        Family::Navigation,
+        &[
+            MavCmd::MAV_CMD_NAV_TAKEOFF,
+            MavCmd::MAV_CMD_NAV_LAND,
+            MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH,
+            MavCmd::MAV_CMD_NAV_LOITER_UNLIM,
+            MavCmd::MAV_CMD_DO_REPOSITION,
+            MavCmd::MAV_CMD_DO_ORBIT,
+            MavCmd::MAV_CMD_DO_CHANGE_SPEED,
+            MavCmd::MAV_CMD_CONDITION_YAW,
+        ],
+    ),
+    (
+        Family::Mission,
+        &[
+            MavCmd::MAV_CMD_MISSION_START,
+            MavCmd::MAV_CMD_DO_SET_MISSION_CURRENT,
+            MavCmd::MAV_CMD_DO_PAUSE_CONTINUE,
+        ],
+    ),
+    (
+        Family::Modes,
+        &[
+            MavCmd::MAV_CMD_DO_SET_MODE,
+            MavCmd::MAV_CMD_DO_SET_STANDARD_MODE,
+        ],
+    ),
+    (
+        Family::Home,
+        &[
+            MavCmd::MAV_CMD_DO_SET_HOME,
+            MavCmd::MAV_CMD_GET_HOME_POSITION,
+        ],
+    ),
+    (
+        Family::Messages,
+        &[
+            MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
+            MavCmd::MAV_CMD_GET_MESSAGE_INTERVAL,
+            MavCmd::MAV_CMD_REQUEST_MESSAGE,
+            MavCmd::MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES,
+        ],
+    ),
+    (
+        Family::Preflight,
+        &[
+            MavCmd::MAV_CMD_PREFLIGHT_STORAGE,
+            MavCmd::MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN,
+            MavCmd::MAV_CMD_PREFLIGHT_CALIBRATION,
+        ],
+    ),
+    (Family::Failure, &[MavCmd::MAV_CMD_INJECT_FAILURE]),
 ];
+
+/// Every command the vehicle answers, family by family.
+pub fn answered_commands() -> impl Iterator<Item = MavCmd> {
+    FAMILIES
+        .iter()
+        .flat_map(|(_, commands)| commands.iter().copied())
+}
+
+/// The family that answers `command`, if one does.
+fn family(command: MavCmd) -> Option<Family> {
+    FAMILIES
+        .iter()
+        .find(|(_, commands)| commands.contains(&command))
+        .map(|(family, _)| *family)
+}
 
 /// A command to handle: what it asks, whom to answer, the latest telemetry.
 struct Call<'a> {
@@ -61,36 +119,19 @@ impl GroundStation {
         t: &Telemetry,
         out: &mut Outbox,
     ) {
-        match c.command {
-            MavCmd::MAV_CMD_COMPONENT_ARM_DISARM => self.arming(Call { c, to, t }, out),
-            MavCmd::MAV_CMD_NAV_TAKEOFF
-            | MavCmd::MAV_CMD_NAV_LAND
-            | MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH
-            | MavCmd::MAV_CMD_NAV_LOITER_UNLIM
-            | MavCmd::MAV_CMD_DO_REPOSITION
-            | MavCmd::MAV_CMD_DO_ORBIT
-            | MavCmd::MAV_CMD_DO_CHANGE_SPEED
-            | MavCmd::MAV_CMD_CONDITION_YAW => self.navigation(Call { c, to, t }, out),
-            MavCmd::MAV_CMD_MISSION_START
-            | MavCmd::MAV_CMD_DO_SET_MISSION_CURRENT
-            | MavCmd::MAV_CMD_DO_PAUSE_CONTINUE => self.mission(Call { c, to, t }, out),
-            MavCmd::MAV_CMD_DO_SET_MODE | MavCmd::MAV_CMD_DO_SET_STANDARD_MODE => {
-                self.modes(Call { c, to, t }, out)
-            }
-            MavCmd::MAV_CMD_DO_SET_HOME | MavCmd::MAV_CMD_GET_HOME_POSITION => {
-                self.home(Call { c, to, t }, out)
-            }
-            MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL
-            | MavCmd::MAV_CMD_GET_MESSAGE_INTERVAL
-            | MavCmd::MAV_CMD_REQUEST_MESSAGE
-            | MavCmd::MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES => {
-                self.messages(Call { c, to, t }, out)
-            }
-            MavCmd::MAV_CMD_PREFLIGHT_STORAGE
-            | MavCmd::MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN
-            | MavCmd::MAV_CMD_PREFLIGHT_CALIBRATION => self.preflight(Call { c, to, t }, out),
-            MavCmd::MAV_CMD_INJECT_FAILURE => self.failure(Call { c, to, t }, out),
-            _ => out.send(self.ack(to, MavResult::MAV_RESULT_UNSUPPORTED)),
+        let Some(family) = family(c.command) else {
+            return out.send(self.ack(to, MavResult::MAV_RESULT_UNSUPPORTED));
+        };
+        let call = Call { c, to, t };
+        match family {
+            Family::Arming => self.arming(call, out),
+            Family::Navigation => self.navigation(call, out),
+            Family::Mission => self.mission(call, out),
+            Family::Modes => self.modes(call, out),
+            Family::Home => self.home(call, out),
+            Family::Messages => self.messages(call, out),
+            Family::Preflight => self.preflight(call, out),
+            Family::Failure => self.failure(call, out),
         }
     }
 
@@ -144,5 +185,5 @@ impl GroundStation {
 
 /// Passes `command` to the vehicle; its answer is acknowledged to `to`.
 fn vehicle(out: &mut Outbox, to: AckTo, command: AutopilotCommand) {
-    out.vehicle.push((command, to));
+    out.request(command, Delivery::Answered(to));
 }

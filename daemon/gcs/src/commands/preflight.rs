@@ -16,7 +16,7 @@ impl GroundStation {
         let p = c.p;
         match c.command {
             MavCmd::MAV_CMD_PREFLIGHT_STORAGE => {
-                let armed = t.status.is_some_and(|s| s.armed);
+                let armed = t.status().is_some_and(|s| s.armed);
                 // MAV_PFS_CMD: 0 read, 1 write, 2 clear (reset to defaults), 6 nothing.
                 match p[0] {
                     0.0 | 2.0 if armed => self.deny(to, out, "parameters: disarm first"),
@@ -41,7 +41,7 @@ impl GroundStation {
                 }
             }
             MavCmd::MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN => {
-                let armed = t.status.is_some_and(|s| s.armed);
+                let armed = t.status().is_some_and(|s| s.armed);
                 let action = match p[0] {
                     0.0 => None,
                     1.0 => Some(HostAction::Reboot),

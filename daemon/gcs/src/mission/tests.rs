@@ -165,7 +165,7 @@ fn a_mission_uploads_item_by_item_and_downloads_identical() {
     let (result, id) = acked(&out);
     assert_eq!(result, MavMissionResult::MAV_MISSION_ACCEPTED);
     assert_ne!(id, 0, "an opaque id for the plan");
-    let flown = out.mission.as_ref().unwrap();
+    let flown = crate::testing::mission(&out).unwrap();
     assert_eq!(flown.len(), 6, "every item, item 0 included (not home)");
     assert!(matches!(flown[0], MissionItem::Takeoff { .. }));
     assert_eq!(flown[2], MissionItem::ChangeSpeed(SpeedChange::To(3.0)));
@@ -370,7 +370,7 @@ fn items_the_vehicle_cannot_fly_end_the_upload_and_keep_the_old_plan() {
             &[ok.clone(), bad.clone()],
         );
         assert_eq!(acked(&out).0, why, "{:?} in {:?}", bad.command, bad.frame);
-        assert!(out.mission.is_none());
+        assert!(crate::testing::mission(&out).is_none());
         assert!(out.messages.iter().any(|m| matches!(
             m,
             super::super::Outgoing::Message(MavMessage::STATUSTEXT(_))
@@ -397,7 +397,7 @@ fn items_the_vehicle_cannot_fly_end_the_upload_and_keep_the_old_plan() {
     );
     assert_eq!(acked(&out).0, MavMissionResult::MAV_MISSION_ACCEPTED);
     assert_eq!(
-        out.mission.unwrap()[1],
+        crate::testing::mission(&out).unwrap()[1],
         MissionItem::Jump {
             to: 0,
             repeat: None
@@ -435,7 +435,10 @@ fn repeats_gaps_timeouts_and_a_lost_ack_are_recovered_from() {
     assert_eq!(result, MavMissionResult::MAV_MISSION_ACCEPTED);
     let again = send(&mut m, GCS, MavMessage::MISSION_ITEM_INT(items[5].clone()));
     assert_eq!(acked(&again), (MavMissionResult::MAV_MISSION_ACCEPTED, id));
-    assert!(again.mission.is_none(), "the mission is handed over once");
+    assert!(
+        crate::testing::mission(&again).is_none(),
+        "the mission is handed over once"
+    );
     // A ground station that goes silent: RETRIES requests, then the upload is given up.
     let out = send(
         &mut m,
@@ -539,9 +542,12 @@ fn fence_and_rally_are_stored_apart_and_cleared_apart() {
     let fence: Vec<_> = (0..3).map(vertex).collect();
     let out = upload(&mut m, MavMissionType::MAV_MISSION_TYPE_FENCE, &fence);
     assert_eq!(acked(&out).0, MavMissionResult::MAV_MISSION_ACCEPTED);
-    assert!(out.mission.is_none(), "a fence is not a mission");
+    assert!(
+        crate::testing::mission(&out).is_none(),
+        "a fence is not a mission"
+    );
     assert_eq!(
-        out.fence,
+        crate::testing::fence(&out),
         Some(vec![GeoZone::Polygon {
             inclusion: true,
             vertices_deg: (0..3)
@@ -600,7 +606,7 @@ fn fence_and_rally_are_stored_apart_and_cleared_apart() {
     let out = send(&mut m, GCS, clear(MavMissionType::MAV_MISSION_TYPE_MISSION));
     assert_eq!(acked(&out).0, MavMissionResult::MAV_MISSION_ACCEPTED);
     assert_eq!(
-        out.mission,
+        crate::testing::mission(&out),
         Some(Vec::new()),
         "the commander's mission cleared too"
     );
@@ -706,7 +712,7 @@ fn fence_plans_become_zones_or_are_refused() {
     let mut m = Missions::default();
     let out = upload(&mut m, kind, &good);
     assert_eq!(acked(&out).0, MavMissionResult::MAV_MISSION_ACCEPTED);
-    assert_eq!(out.fence.as_ref().map(Vec::len), Some(2));
+    assert_eq!(crate::testing::fence(&out).as_ref().map(Vec::len), Some(2));
     let bad_cases = [
         // A polygon one vertex short of its count.
         (
@@ -786,12 +792,12 @@ fn fence_plans_become_zones_or_are_refused() {
     for (items, why) in bad_cases {
         let out = upload(&mut m, kind, &items);
         assert_eq!(acked(&out).0, why, "{items:?}");
-        assert!(out.fence.is_none());
+        assert!(crate::testing::fence(&out).is_none());
         assert_eq!(m.items(kind).len(), 6, "the previous fence is kept");
     }
     let out = send(&mut m, GCS, count(0, kind));
     assert_eq!(acked(&out).0, MavMissionResult::MAV_MISSION_ACCEPTED);
-    assert_eq!(out.fence, Some(Vec::new()));
+    assert_eq!(crate::testing::fence(&out), Some(Vec::new()));
 }
 
 /// MAVSDK's geofence plugin uploads a polygon with, as its placeholder for "no circle", an
@@ -835,7 +841,7 @@ fn fence_radius_zero_circle_is_no_circle() {
     let mut m = Missions::default();
     let out = upload(&mut m, kind, &items);
     assert_eq!(acked(&out).0, MavMissionResult::MAV_MISSION_ACCEPTED);
-    let zones = out.fence.as_ref().expect("fence set");
+    let zones = crate::testing::fence(&out).expect("fence set");
     assert_eq!(zones.len(), 1);
     assert!(
         matches!(&zones[0], GeoZone::Polygon { inclusion: true, vertices_deg } if vertices_deg.len() == 3)

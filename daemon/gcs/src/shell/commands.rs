@@ -3,7 +3,7 @@
 //! do (answered later in the shell).
 
 use crate::telemetry::Telemetry;
-use crate::{AckTo, GroundStation, HostAction, Outbox, Reply};
+use crate::{AckTo, Delivery, GroundStation, HostAction, Outbox, Reply};
 use flight_core::autopilot::command::AutopilotCommand;
 use flight_core::commander::FlightMode;
 use flight_core::params::FlightParams;
@@ -52,14 +52,14 @@ impl Listener {
         }
         self.next_s = now_s + 0.1;
         self.left -= 1;
-        let out = t.output;
+        let out = t.estimate();
         let text = match self.topic {
             Topic::Attitude => match out.and_then(|o| o.attitude) {
                 Some(a) => {
                     let (r, p, y) = a.q.euler_angles();
                     format!(
                         "attitude t={:.3} roll={:.2} pitch={:.2} yaw={:.2} deg\n",
-                        t.t_s,
+                        t.link.t_s,
                         r.to_degrees(),
                         p.to_degrees(),
                         y.to_degrees()
@@ -70,7 +70,7 @@ impl Listener {
             Topic::Position => match out.map(|o| o.translation) {
                 Some(tr) => format!(
                     "position t={:.3} ned=[{:.2} {:.2} {:.2}] m vel=[{:.2} {:.2} {:.2}] m/s\n",
-                    t.t_s,
+                    t.link.t_s,
                     tr.pos_ned_m.x,
                     tr.pos_ned_m.y,
                     tr.pos_ned_m.z,
@@ -80,19 +80,19 @@ impl Listener {
                 ),
                 None => "position: no estimate\n".into(),
             },
-            Topic::Imu => match t.sample {
+            Topic::Imu => match t.vehicle.as_ref().and_then(|v| v.held_sample) {
                 Some(s) => format!(
                     "imu t={:.3} gyro=[{:.4} {:.4} {:.4}] rad/s accel=[{:.3} {:.3} {:.3}] m/s^2\n",
-                    t.t_s, s.gyro.x, s.gyro.y, s.gyro.z, s.accel.x, s.accel.y, s.accel.z
+                    t.link.t_s, s.gyro.x, s.gyro.y, s.gyro.z, s.accel.x, s.accel.y, s.accel.z
                 ),
                 None => "imu: no sample\n".into(),
             },
             Topic::Battery => format!(
                 "battery t={:.3} {:.2} V remaining {}\n",
-                t.t_s,
-                t.battery_v,
-                t.battery
-                    .remaining
+                t.link.t_s,
+                t.vehicle.as_ref().map_or(0.0, |v| v.battery_v),
+                t.vehicle
+                    .and_then(|v| v.battery.remaining)
                     .map_or("-".into(), |r| format!("{:.0} %", r * 100.0))
             ),
         };
@@ -149,7 +149,7 @@ impl GroundStation {
                 String::new()
             }
             ["reboot"] => {
-                if t.status.is_some_and(|s| s.armed) {
+                if t.status().is_some_and(|s| s.armed) {
                     return "reboot refused: armed\n".into();
                 }
                 if !self.reboot_allowed {
@@ -173,7 +173,7 @@ impl GroundStation {
             component,
             reply: Reply::Shell,
         };
-        out.vehicle.push((cmd, to));
+        out.request(cmd, Delivery::Answered(to));
         self.shell.pending = true;
         String::new()
     }
@@ -312,7 +312,7 @@ fn failure(unit: &str, kind: &str, rest: &[&str]) -> Result<Injection, Unrunnabl
 
 fn status(t: &Telemetry, sample_hz: Option<f64>) -> String {
     let mut text = String::new();
-    match t.status {
+    match t.status() {
         Some(s) => {
             let _ = writeln!(
                 text,
@@ -326,7 +326,7 @@ fn status(t: &Telemetry, sample_hz: Option<f64>) -> String {
         }
         None => text.push_str("mode: - (no sensor data yet)\n"),
     }
-    match t.output {
+    match t.estimate() {
         Some(o) => {
             let tr = o.translation;
             let _ = writeln!(
@@ -358,15 +358,15 @@ fn status(t: &Telemetry, sample_hz: Option<f64>) -> String {
 fn top(t: &Telemetry, sample_hz: Option<f64>) -> String {
     let mut text = format!(
         "sensors: {} frames, {} Hz, {}\n",
-        t.frames,
+        t.link.frames,
         sample_hz.map_or("-".into(), |h| format!("{h:.1}")),
-        if t.sensors_silent {
+        if t.link.sensors_silent {
             "SILENT"
         } else {
             "arriving"
         }
     );
-    let _ = match t.loop_stats {
+    let _ = match t.link.loop_stats {
         Some(l) => writeln!(
             text,
             "loop: {} ticks; jitter p50 {} us, p99 {} us, max {} us; work max {} us; overruns {}",

@@ -88,10 +88,18 @@ fn commands_for_the_vehicle_go_to_it_and_bad_input_is_answered() {
     ] {
         g.on_serial_control(0, &header(), &typed(line, respond), true, &t, &mut out);
     }
-    assert_eq!(out.vehicle.len(), 3);
-    assert!(out.vehicle.iter().all(|(_, to)| to.reply == Reply::Shell));
+    assert_eq!(crate::testing::requested(&out).len(), 3);
+    assert!(
+        crate::testing::requested(&out)
+            .iter()
+            .all(|(_, to)| to.reply == Reply::Shell)
+    );
     let no = flight_core::commander::ArmingDenial::NoSensorData;
-    g.answered(out.vehicle[0].1, Err(no.into()), &mut out);
+    g.answered(
+        crate::testing::requested(&out)[0].1,
+        Err(no.into()),
+        &mut out,
+    );
     let text = session(&mut g, b"", 1);
     assert!(
         text.contains("refused: arming refused: no sensor data yet\nnsh> "),
@@ -119,7 +127,7 @@ fn a_refused_endpoint_gets_the_reason_and_an_empty_message_closes() {
     let mut out = Outbox::default();
     let respond = SerialControlFlag::SERIAL_CONTROL_FLAG_RESPOND;
     g.on_serial_control(0, &header(), &typed(b"ver\n", respond), false, &t, &mut out);
-    assert!(out.vehicle.is_empty() && g.shell.peer.is_none());
+    assert!(crate::testing::requested(&out).is_empty() && g.shell.peer.is_none());
     assert_eq!(out.streamed.len(), 1, "the reason only");
     g.on_serial_control(0, &header(), &typed(b"", respond), true, &t, &mut out);
     assert!(g.shell.peer.is_some());
@@ -148,7 +156,7 @@ fn a_command_for_the_vehicle_holds_the_prompt_until_its_answer_and_floods_are_bo
         &t,
         &mut out,
     );
-    let to = out.vehicle[0].1;
+    let to = crate::testing::requested(&out)[0].1;
     assert_eq!((to.system, to.component), (255, 190));
     g.answered(to, Ok(()), &mut out);
     let text = session(&mut g, b"", 1);

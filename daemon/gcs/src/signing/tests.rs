@@ -34,7 +34,7 @@ fn heartbeat(mavtype: MavType) -> MavMessage {
 /// `msg` as an unsigned frame from system 255.
 fn frame(msg: &MavMessage) -> Vec<u8> {
     let mut out = Vec::new();
-    hil::Encoder::with_ids(255, 190).push(&mut out, msg);
+    mavwire::Encoder::with_ids(255, 190).push(&mut out, msg);
     out
 }
 
@@ -52,7 +52,7 @@ fn a_signed_frame_is_accepted_once_and_still_decodes() {
     let f = signed(&mut gcs, &arm());
     assert_eq!(f.len(), frame(&arm()).len() + SIGNATURE_LEN);
     assert_eq!(f[2] & IFLAG_SIGNED, IFLAG_SIGNED);
-    let d = hil::decode(&f);
+    let d = mavwire::decode(&f);
     assert_eq!(d.messages.len(), 1, "the checksum covers the new flag");
     assert_eq!(d.messages[0].1, arm());
     assert_eq!(vehicle.check(&f, false), Verdict::Signed);
@@ -172,7 +172,7 @@ fn the_stream_table_is_bounded() {
     for sys in 0..=255u8 {
         for comp in 0..4u8 {
             let mut f = Vec::new();
-            hil::Encoder::with_ids(sys, comp).push(&mut f, &arm());
+            mavwire::Encoder::with_ids(sys, comp).push(&mut f, &arm());
             let mut gcs = signing(KEY);
             gcs.sign(&mut f);
             assert_eq!(vehicle.check(&f, false), Verdict::Signed);

@@ -12,7 +12,7 @@ pub(super) fn message(s: &StreamInput) -> Option<MavMessage> {
     let amsl = frame.map_or(f64::NAN, |f| f.to_geodetic(&tr.pos_ned_m).alt_m);
     let home_down = status.and_then(|s| s.home).map_or(0.0, |h| h.0.z);
     Some(MavMessage::ALTITUDE(ALTITUDE_DATA {
-        time_usec: (t.t_s * 1e6) as u64,
+        time_usec: (t.link.t_s * 1e6) as u64,
         altitude_monotonic: amsl as f32,
         altitude_amsl: amsl as f32,
         altitude_local: -tr.pos_ned_m.z as f32,

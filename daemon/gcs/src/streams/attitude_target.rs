@@ -4,7 +4,6 @@ use super::prelude::*;
 
 /// `ATTITUDE_TARGET` from the latest telemetry, if there is data for it.
 pub(super) fn message(s: &StreamInput) -> Option<MavMessage> {
-    let t = s.t;
     let out = s.out;
     let ms = s.ms;
     let sp = out?.attitude_setpoint?;
@@ -16,7 +15,8 @@ pub(super) fn message(s: &StreamInput) -> Option<MavMessage> {
         body_roll_rate: w.x as f32,
         body_pitch_rate: w.y as f32,
         body_yaw_rate: w.z as f32,
-        thrust: (sp.thrust_n / t.max_thrust_n.max(1e-9)).clamp(0.0, 1.0) as f32,
+        thrust: (sp.thrust_n / s.v.map_or(0.0, |v| v.max_thrust_n).max(1e-9)).clamp(0.0, 1.0)
+            as f32,
         type_mask: AttitudeTargetTypemask::empty(),
     }))
 }

@@ -4,15 +4,14 @@ use super::prelude::*;
 
 /// `BATTERY_STATUS` from the latest telemetry, if there is data for it.
 pub(super) fn message(s: &StreamInput) -> Option<MavMessage> {
-    let t = s.t;
     let mut voltages = [u16::MAX; 10];
-    voltages[0] = (t.battery_v * 1e3).clamp(0.0, 65534.0) as u16;
-    let b = &t.battery;
-    let charge_state = if acting(t, Condition::BatteryEmergency) {
+    voltages[0] = (s.v.map_or(0.0, |v| v.battery_v) * 1e3).clamp(0.0, 65534.0) as u16;
+    let b = s.v.map(|v| v.battery).unwrap_or_default();
+    let charge_state = if acting(s.t, Condition::BatteryEmergency) {
         MavBatteryChargeState::MAV_BATTERY_CHARGE_STATE_EMERGENCY
-    } else if acting(t, Condition::BatteryCritical) {
+    } else if acting(s.t, Condition::BatteryCritical) {
         MavBatteryChargeState::MAV_BATTERY_CHARGE_STATE_CRITICAL
-    } else if acting(t, Condition::BatteryLow) {
+    } else if acting(s.t, Condition::BatteryLow) {
         MavBatteryChargeState::MAV_BATTERY_CHARGE_STATE_LOW
     } else if b.remaining.is_some() {
         MavBatteryChargeState::MAV_BATTERY_CHARGE_STATE_OK

@@ -4,7 +4,6 @@ use super::prelude::*;
 
 /// `ESTIMATOR_STATUS` from the latest telemetry, if there is data for it.
 pub(super) fn message(s: &StreamInput) -> Option<MavMessage> {
-    let t = s.t;
     let out = s.out;
     let usec = s.usec;
     let o = out?;
@@ -21,7 +20,9 @@ pub(super) fn message(s: &StreamInput) -> Option<MavMessage> {
     if tr.vertical_valid {
         flags |= F::ESTIMATOR_VELOCITY_VERT | F::ESTIMATOR_POS_VERT_ABS;
     }
-    let h_acc = t.gps.map_or(f32::NAN, |g| g.h_acc_m as f32);
+    let h_acc =
+        s.v.and_then(|v| v.gps)
+            .map_or(f32::NAN, |g| g.h_acc_m as f32);
     Some(MavMessage::ESTIMATOR_STATUS(ESTIMATOR_STATUS_DATA {
         time_usec: usec,
         flags,

@@ -5,11 +5,11 @@ use super::prelude::*;
 /// `GPS_RAW_INT` from the latest telemetry, if there is data for it.
 pub(super) fn message(s: &StreamInput) -> Option<MavMessage> {
     let t = s.t;
-    let g = t.gps?;
+    let g = s.v.and_then(|v| v.gps)?;
     let speed = g.vel_ned_m_s.xy().norm();
     let cog = g.vel_ned_m_s.y.atan2(g.vel_ned_m_s.x).to_degrees();
     Some(MavMessage::GPS_RAW_INT(GPS_RAW_INT_DATA {
-        time_usec: (t.t_s * 1e6) as u64,
+        time_usec: (t.link.t_s * 1e6) as u64,
         lat: e7(g.position.lat_deg),
         lon: e7(g.position.lon_deg),
         alt: (g.position.alt_m * 1e3).round() as i32,

@@ -4,8 +4,7 @@ use super::prelude::*;
 
 /// `HIGHRES_IMU` from the latest telemetry, if there is data for it.
 pub(super) fn message(s: &StreamInput) -> Option<MavMessage> {
-    let t = s.t;
-    let s = t.sample?;
+    let s = s.v.and_then(|v| v.held_sample)?;
     let mag = s.mag.unwrap_or(nalgebra::Vector3::repeat(f64::NAN));
     let alt = s.baro_alt_m.unwrap_or(f64::NAN);
     use HighresImuUpdatedFlags as F;

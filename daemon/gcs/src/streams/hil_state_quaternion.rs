@@ -5,7 +5,7 @@ use super::prelude::*;
 /// `HIL_STATE_QUATERNION` from the latest telemetry, if there is data for it.
 pub(super) fn message(s: &StreamInput) -> Option<MavMessage> {
     let t = s.t;
-    let g = t.truth?;
+    let g = t.link.truth?;
     let q = g.q.quaternion();
     let w = g.rate_frd_rad_s;
     let v = g.vel_ned_m_s * 100.0;

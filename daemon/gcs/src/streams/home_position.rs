@@ -21,6 +21,6 @@ pub(super) fn message(s: &StreamInput) -> Option<MavMessage> {
         approach_x: 0.0,
         approach_y: 0.0,
         approach_z: 0.0,
-        time_usec: (t.t_s * 1e6) as u64,
+        time_usec: (t.link.t_s * 1e6) as u64,
     }))
 }

@@ -4,6 +4,7 @@
 
 use crate::modes;
 use crate::telemetry::Telemetry;
+use flight_core::autopilot::VehicleState;
 use flight_core::commander::FlightMode;
 use flight_core::core::StepOutput;
 use flight_core::math::geo::LocalFrame;
@@ -56,14 +57,16 @@ pub(super) struct StreamInput<'a> {
     pub(super) t: &'a Telemetry,
     /// Unix time (µs), for `SYSTEM_TIME`.
     pub(super) unix_usec: u64,
+    /// The vehicle after its last step.
+    pub(super) v: Option<&'a VehicleState>,
     /// The flight core's last output.
-    pub(super) out: Option<StepOutput>,
+    pub(super) out: Option<&'a StepOutput>,
     /// Its attitude estimate.
-    pub(super) att: Option<flight_core::estimator::attitude::AttitudeEstimate>,
+    pub(super) att: Option<&'a flight_core::estimator::attitude::AttitudeEstimate>,
     /// Its translation estimate.
-    pub(super) tr: Option<flight_core::estimator::translation::TranslationEstimate>,
+    pub(super) tr: Option<&'a flight_core::estimator::translation::TranslationEstimate>,
     /// The commander's state.
-    pub(super) status: Option<flight_core::commander::CommanderStatus>,
+    pub(super) status: Option<&'a flight_core::commander::CommanderStatus>,
     /// The local frame of the estimate's origin, once set.
     pub(super) frame: Option<LocalFrame>,
     /// The vehicle's clock (ms, `time_boot_ms`).
@@ -79,12 +82,12 @@ pub(super) fn e7(deg: f64) -> i32 {
 
 /// The vehicle's clock (`time_boot_ms`): its sensor time.
 pub(super) fn boot_ms(t: &Telemetry) -> u32 {
-    (t.t_s * 1e3) as u32
+    (t.link.t_s * 1e3) as u32
 }
 
 /// Whether the failsafe condition `c` is acting.
 pub(super) fn acting(t: &Telemetry, c: Condition) -> bool {
-    let mask = t.status.map_or(0, |s| s.failsafe_conditions);
+    let mask = t.status().map_or(0, |s| s.failsafe_conditions);
     CONDITIONS
         .iter()
         .position(|k| *k == c)
@@ -145,18 +148,20 @@ pub(super) fn i16_sat(x: f64) -> i16 {
 
 /// The message with id `id` from the latest telemetry, if there is data for it.
 pub fn build(id: u32, t: &Telemetry, unix_usec: u64) -> Option<MavMessage> {
-    let out = t.output;
-    let tr = out.map(|o| o.translation);
+    let v = t.vehicle.as_ref();
+    let out = v.and_then(|v| v.estimate.as_ref());
+    let tr = out.map(|o| &o.translation);
     let s = StreamInput {
         t,
         unix_usec,
+        v,
         out,
-        att: out.and_then(|o| o.attitude),
+        att: out.and_then(|o| o.attitude.as_ref()),
         tr,
-        status: t.status,
+        status: v.map(|v| &v.status),
         frame: tr.and_then(|tr| tr.origin).map(LocalFrame::new),
         ms: boot_ms(t),
-        usec: (t.t_s * 1e6) as u64,
+        usec: (t.link.t_s * 1e6) as u64,
     };
     match id {
         SYS_STATUS_DATA::ID => sys_status::message(&s),
@@ -203,7 +208,7 @@ pub const ON_REQUEST: [u32; 8] = [
 
 /// The vehicle as `HEARTBEAT` shows it.
 pub fn heartbeat(t: &Telemetry, mav_type: MavType) -> MavMessage {
-    let status = t.status;
+    let status = t.status();
     let armed = status.is_some_and(|s| s.armed);
     let mode = status.map_or(FlightMode::Loiter, |s| s.mode);
     let mut base_mode = MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED;

@@ -4,9 +4,8 @@ use super::prelude::*;
 
 /// `POSITION_TARGET_LOCAL_NED` from the latest telemetry, if there is data for it.
 pub(super) fn message(s: &StreamInput) -> Option<MavMessage> {
-    let t = s.t;
     let ms = s.ms;
-    let sp = *t.setpoint?.position()?;
+    let sp = *s.v.and_then(|v| v.setpoint)?.position()?;
     use PositionTargetTypemask as M;
     let mut mask = M::POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE;
     let ignore = [

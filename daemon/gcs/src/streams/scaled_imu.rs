@@ -4,10 +4,9 @@ use super::prelude::*;
 
 /// `SCALED_IMU` from the latest telemetry, if there is data for it.
 pub(super) fn message(s: &StreamInput) -> Option<MavMessage> {
-    let t = s.t;
     let ms = s.ms;
     // mg, mrad/s, mgauss.
-    let s = t.sample?;
+    let s = s.v.and_then(|v| v.held_sample)?;
     let mg = |x: f64| i16_sat(x / flight_core::GRAVITY_M_S2 * 1e3);
     let mag = s.mag.unwrap_or_default() * 1e3;
     Some(MavMessage::SCALED_IMU(SCALED_IMU_DATA {

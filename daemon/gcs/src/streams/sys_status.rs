@@ -8,6 +8,8 @@ pub(super) fn message(s: &StreamInput) -> Option<MavMessage> {
     let att = s.att;
     let tr = s.tr;
     let status = s.status;
+    let battery_v = s.v.map_or(0.0, |v| v.battery_v);
+    let battery = s.v.map(|v| v.battery).unwrap_or_default();
     let present = sensors_present();
     let mut health = present;
     if !att.is_some_and(|a| a.valid) {
@@ -78,9 +80,9 @@ pub(super) fn message(s: &StreamInput) -> Option<MavMessage> {
         onboard_control_sensors_present: present | extra,
         onboard_control_sensors_enabled: present | extra,
         onboard_control_sensors_health: health,
-        voltage_battery: (t.battery_v * 1e3).clamp(0.0, 65534.0) as u16,
-        current_battery: centiamps(t.battery.current_a),
-        battery_remaining: percent(t.battery.remaining),
+        voltage_battery: (battery_v * 1e3).clamp(0.0, 65534.0) as u16,
+        current_battery: centiamps(battery.current_a),
+        battery_remaining: percent(battery.remaining),
         // (The crate's default for these is its first flag, a recovery system.)
         onboard_control_sensors_present_extended: MavSysStatusSensorExtended::empty(),
         onboard_control_sensors_enabled_extended: MavSysStatusSensorExtended::empty(),

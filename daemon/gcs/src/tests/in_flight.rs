@@ -21,7 +21,7 @@ fn manual_control_reaches_the_vehicle_as_sticks_and_a_loss_is_reported() {
     let mut out = Outbox::default();
     g.on_message(&gcs_header(), &manual(1, 500, 750), &t, &mut out);
     assert_eq!(
-        out.sticks,
+        crate::testing::sticks(&out),
         Some(Sticks {
             forward: 0.5,
             right: -1.0,
@@ -32,14 +32,14 @@ fn manual_control_reaches_the_vehicle_as_sticks_and_a_loss_is_reported() {
     assert!(out.messages.is_empty(), "never answered");
     let mut out = Outbox::default();
     g.on_message(&gcs_header(), &manual(2, 500, 750), &t, &mut out);
-    assert_eq!(out.sticks, None, "another vehicle's");
+    assert_eq!(crate::testing::sticks(&out), None, "another vehicle's");
     g.on_message(&gcs_header(), &manual(1, 3000, -200), &t, &mut out);
-    let s = out.sticks.unwrap();
+    let s = crate::testing::sticks(&out).unwrap();
     assert_eq!((s.forward, s.throttle), (1.0, 0.0), "clamped");
 
     let mut out = Outbox::default();
     g.poll(0.0, &t, &mut out);
-    if let Some(s) = t.status.as_mut() {
+    if let Some(s) = t.vehicle.as_mut().map(|v| &mut v.status) {
         s.manual_losses = 1;
     }
     g.poll(0.01, &t, &mut out);
@@ -87,7 +87,7 @@ fn on_request_messages_can_be_asked_for_and_say_which_set_point_axes_are_flown()
         MavResult::MAV_RESULT_TEMPORARILY_REJECTED
     );
     // Velocity horizontally, position vertically (POSCTL with the pitch stick forward).
-    t.setpoint = Some(flight_core::control::Setpoint::Position(
+    t.vehicle.as_mut().unwrap().setpoint = Some(flight_core::control::Setpoint::Position(
         flight_core::control::position::PositionSetpoint {
             pos_ned_m: nalgebra::Vector3::new(f64::NAN, f64::NAN, -5.0),
             vel_ned_m_s: nalgebra::Vector3::new(3.0, 0.0, f64::NAN),
@@ -139,7 +139,7 @@ fn mission_progress_is_streamed_and_each_reached_item_reported_once() {
             m.reached_recent[m.reached_count as usize % 8] = seq;
             m.reached_count += 1;
         }
-        t.status.as_mut().unwrap().mission = m;
+        t.vehicle.as_mut().map(|v| &mut v.status).unwrap().mission = m;
     };
     let current = |out: &Outbox| -> Vec<MISSION_CURRENT_DATA> {
         out.messages
@@ -188,7 +188,12 @@ fn mission_progress_is_streamed_and_each_reached_item_reported_once() {
     );
     // No mission: total is UINT16_MAX.
     with(&mut t, 0, S::NoMission, &[]);
-    t.status.as_mut().unwrap().mission.total = 0;
+    t.vehicle
+        .as_mut()
+        .map(|v| &mut v.status)
+        .unwrap()
+        .mission
+        .total = 0;
     let mut out = Outbox::default();
     g.poll(1.3, &t, &mut out);
     assert_eq!(current(&out)[0].total, u16::MAX);
@@ -205,8 +210,13 @@ fn mission_and_guided_commands_reach_the_vehicle() {
         out
     };
     let one = |out: Outbox| {
-        assert_eq!(out.vehicle.len(), 1, "{:?}", out.messages);
-        out.vehicle[0].clone()
+        assert_eq!(
+            crate::testing::requested(&out).len(),
+            1,
+            "{:?}",
+            out.messages
+        );
+        crate::testing::requested(&out)[0].clone()
     };
     let long = |c, p| command_long(c, p, (1, 1));
     let nan = f32::NAN;
@@ -367,7 +377,7 @@ fn gcs_heartbeats_are_forwarded_and_failsafes_announced() {
         ],
     ];
     for (k, events) in steps.into_iter().enumerate() {
-        if let Some(st) = t.status.as_mut() {
+        if let Some(st) = t.vehicle.as_mut().map(|v| &mut v.status) {
             for &e in events {
                 st.safety_log.push(e);
             }
@@ -388,7 +398,7 @@ fn gcs_heartbeats_are_forwarded_and_failsafes_announced() {
     );
     // More than the log keeps between two looks: what was lost is counted.
     let mut out = Outbox::default();
-    if let Some(st) = t.status.as_mut() {
+    if let Some(st) = t.vehicle.as_mut().map(|v| &mut v.status) {
         for _ in 0..10 {
             st.safety_log
                 .push(Triggered(Condition::MagLost, FailsafeAction::Warn));
@@ -426,7 +436,7 @@ fn a_motor_failure_is_said_once_with_how_the_vehicle_flies_on() {
         let mut t = telemetry(true, FlightMode::Loiter);
         let mut out = Outbox::default();
         g.poll(0.0, &t, &mut out);
-        if let Some(st) = t.status.as_mut() {
+        if let Some(st) = t.vehicle.as_mut().map(|v| &mut v.status) {
             st.motor_failed = Some(if spinning { 1 } else { 2 });
             st.spinning = spinning;
         }
@@ -456,7 +466,7 @@ fn an_attitude_estimate_reset_is_said_once() {
     };
     let mut out = Outbox::default();
     let mut at = |g: &mut GroundStation, t: &mut Telemetry, s: f64, reset| {
-        t.output = Some(StepOutput {
+        t.vehicle.as_mut().unwrap().estimate = Some(StepOutput {
             attitude: Some(estimate(reset)),
             ..Default::default()
         });
@@ -497,7 +507,7 @@ fn sys_status_health_bits_and_battery_follow_the_checks() {
     use flight_core::sensors::battery::BatteryState;
     let bit = |c: Condition| 1u32 << CONDITIONS.iter().position(|k| *k == c).unwrap();
     let mut t = telemetry(false, FlightMode::Loiter);
-    t.battery = BatteryState {
+    t.vehicle.as_mut().unwrap().battery = BatteryState {
         voltage_v: 15.1,
         current_a: Some(12.34),
         consumed_mah: Some(1234.4),
@@ -519,7 +529,7 @@ fn sys_status_health_bits_and_battery_follow_the_checks() {
         | S::MAV_SYS_STATUS_PREARM_CHECK;
     assert!(s.onboard_control_sensors_health.contains(all), "{s:?}");
     assert_eq!((s.current_battery, s.battery_remaining), (1234, 12));
-    if let Some(st) = t.status.as_mut() {
+    if let Some(st) = t.vehicle.as_mut().map(|v| &mut v.status) {
         st.failsafe_conditions = bit(Condition::MagLost)
             | bit(Condition::BatteryLow)
             | bit(Condition::BatteryCritical)

@@ -94,13 +94,6 @@ pub struct Encoder {
     sequence: u8,
 }
 
-impl Default for Encoder {
-    /// The simulator's encoder.
-    fn default() -> Self {
-        Self::with_ids(crate::SIM_SYSTEM_ID, crate::SIM_COMPONENT_ID)
-    }
-}
-
 impl Encoder {
     /// An encoder speaking as `system_id`/`component_id` (the autopilot: its system id, 1).
     pub fn with_ids(system_id: u8, component_id: u8) -> Self {
@@ -494,7 +487,7 @@ mod tests {
             damage in proptest::collection::vec((any::<prop::sample::Index>(), any::<u8>(), 0u8..5), 1..12),
             piece in 1usize..300,
         ) {
-            let mut enc = Encoder::default();
+            let mut enc = Encoder::with_ids(1, 25);
             let mut bytes = Vec::new();
             for m in &msgs {
                 enc.push(&mut bytes, m);
@@ -527,7 +520,7 @@ mod tests {
                 (messages(), proptest::collection::vec(0u8..0xFD, 0..40)), 1..6),
             piece in 1usize..80,
         ) {
-            let mut enc = Encoder::default();
+            let mut enc = Encoder::with_ids(1, 25);
             let mut bytes = Vec::new();
             let mut runs = 0;
             for (msg, junk) in &parts {
@@ -552,7 +545,7 @@ mod tests {
     #[test]
     fn unknown_incompat_flags_and_unknown_ids_are_refused() {
         let mut frame = Vec::new();
-        Encoder::default().push(
+        Encoder::with_ids(1, 25).push(
             &mut frame,
             &MavMessage::HEARTBEAT(HEARTBEAT_DATA::default()),
         );
@@ -568,7 +561,7 @@ mod tests {
     #[test]
     fn a_check_sees_each_well_formed_frame_whole_and_its_refusals_are_counted_apart() {
         let mut bytes = Vec::new();
-        let mut enc = Encoder::default();
+        let mut enc = Encoder::with_ids(1, 25);
         for mode in 0..4 {
             let hb = HEARTBEAT_DATA {
                 custom_mode: mode,
