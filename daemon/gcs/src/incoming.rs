@@ -52,29 +52,9 @@ impl GroundStation {
         t: &Telemetry,
         out: &mut Outbox,
     ) {
-        let requester = |command| AckTo {
-            command,
-            system: from.system_id as u8,
-            component: from.component_id,
-            reply: Reply::Ack,
-        };
+        let requester = |command| acked(from, command);
         if let Some((system, component)) = mission::target(msg) {
-            if self.for_us(system, Some(component)) {
-                if let MavMessage::MISSION_SET_CURRENT(m) = msg {
-                    let to = AckTo {
-                        reply: Reply::Quiet,
-                        ..requester(MavCmd::MAV_CMD_DO_SET_MISSION_CURRENT)
-                    };
-                    let cmd = AutopilotCommand::SetMissionCurrent(m.seq);
-                    out.request(cmd, Delivery::Answered(to));
-                } else {
-                    self.missions.bounds = Some(self.mission_bounds(t));
-                    self.missions.on_message(from, msg, out);
-                }
-            } else {
-                self.dropped += 1;
-            }
-            return;
+            return self.on_mission_message(system, component, from, msg, t, out);
         }
         if let Some(change) = self.on_param_message(msg, out) {
             if change.values {
@@ -89,64 +69,8 @@ impl GroundStation {
             MavMessage::HEARTBEAT(h) if h.mavtype == MavType::MAV_TYPE_GCS => {
                 out.gcs_heartbeat = true;
             }
-            MavMessage::COMMAND_LONG(c) => {
-                if !self.for_us(c.target_system, Some(c.target_component)) {
-                    self.dropped += 1;
-                    return;
-                }
-                let p = [
-                    c.param1, c.param2, c.param3, c.param4, c.param5, c.param6, c.param7,
-                ];
-                let cmd = CommandMessage {
-                    command: c.command,
-                    p,
-                };
-                self.command(cmd, requester(c.command), t, out);
-            }
-            MavMessage::COMMAND_INT(c) => {
-                if !self.for_us(c.target_system, Some(c.target_component)) {
-                    self.dropped += 1;
-                    return;
-                }
-                let p = [
-                    c.param1,
-                    c.param2,
-                    c.param3,
-                    c.param4,
-                    (c.x as f64 * 1e-7) as f32,
-                    (c.y as f64 * 1e-7) as f32,
-                    c.z,
-                ];
-                let cmd = CommandMessage {
-                    command: c.command,
-                    p,
-                };
-                // Latitude and longitude need their 1e-7 precision: the global commands read
-                // x and y from the message itself.
-                let global = (c.x != 0 || c.y != 0).then_some((c.x, c.y));
-                self.command_int(cmd, global, c.frame, requester(c.command), t, out);
-            }
-            MavMessage::SET_MODE(m) => {
-                if !self.for_us(m.target_system, None) {
-                    self.dropped += 1;
-                    return;
-                }
-                // The legacy message, acknowledged as MAV_CMD_DO_SET_MODE (as PX4 does).
-                let to = requester(MavCmd::MAV_CMD_DO_SET_MODE);
-                let p = [
-                    m.base_mode.bits() as f32,
-                    ((m.custom_mode >> 16) & 0xFF) as f32,
-                    (m.custom_mode >> 24) as f32,
-                    0.0,
-                    0.0,
-                    0.0,
-                    0.0,
-                ];
-                let cmd = CommandMessage {
-                    command: MavCmd::MAV_CMD_DO_SET_MODE,
-                    p,
-                };
-                self.command(cmd, to, t, out);
+            MavMessage::COMMAND_LONG(_) | MavMessage::COMMAND_INT(_) | MavMessage::SET_MODE(_) => {
+                self.on_command_message(from, msg, t, out);
             }
             MavMessage::MANUAL_CONTROL(m) if self.for_us(m.target, None) => {
                 out.request(AutopilotCommand::Sticks(sticks(m)), Delivery::Latest);
@@ -206,6 +130,108 @@ impl GroundStation {
                     target_system: from.system_id as u8,
                     target_component: from.component_id,
                 }));
+            }
+            _ => {}
+        }
+    }
+
+    /// A message of the mission protocol (or `MISSION_SET_CURRENT`) for `system`, `component`.
+    fn on_mission_message(
+        &mut self,
+        system: u8,
+        component: u8,
+        from: &MavHeader,
+        msg: &MavMessage,
+        t: &Telemetry,
+        out: &mut Outbox,
+    ) {
+        let requester = |command| acked(from, command);
+        if self.for_us(system, Some(component)) {
+            if let MavMessage::MISSION_SET_CURRENT(m) = msg {
+                let to = AckTo {
+                    reply: Reply::Quiet,
+                    ..requester(MavCmd::MAV_CMD_DO_SET_MISSION_CURRENT)
+                };
+                let cmd = AutopilotCommand::SetMissionCurrent(m.seq);
+                out.request(cmd, Delivery::Answered(to));
+            } else {
+                self.missions.bounds = Some(self.mission_bounds(t));
+                self.missions.on_message(from, msg, out);
+            }
+        } else {
+            self.dropped += 1;
+        }
+    }
+
+    /// A command: `COMMAND_LONG`, `COMMAND_INT`, or the legacy `SET_MODE` (acknowledged as
+    /// `MAV_CMD_DO_SET_MODE`, as PX4 does).
+    fn on_command_message(
+        &mut self,
+        from: &MavHeader,
+        msg: &MavMessage,
+        t: &Telemetry,
+        out: &mut Outbox,
+    ) {
+        let requester = |command| acked(from, command);
+        match msg {
+            MavMessage::COMMAND_LONG(c) => {
+                if !self.for_us(c.target_system, Some(c.target_component)) {
+                    self.dropped += 1;
+                    return;
+                }
+                let p = [
+                    c.param1, c.param2, c.param3, c.param4, c.param5, c.param6, c.param7,
+                ];
+                let cmd = CommandMessage {
+                    command: c.command,
+                    p,
+                };
+                self.command(cmd, requester(c.command), t, out);
+            }
+            MavMessage::COMMAND_INT(c) => {
+                if !self.for_us(c.target_system, Some(c.target_component)) {
+                    self.dropped += 1;
+                    return;
+                }
+                let p = [
+                    c.param1,
+                    c.param2,
+                    c.param3,
+                    c.param4,
+                    (c.x as f64 * 1e-7) as f32,
+                    (c.y as f64 * 1e-7) as f32,
+                    c.z,
+                ];
+                let cmd = CommandMessage {
+                    command: c.command,
+                    p,
+                };
+                // Latitude and longitude need their 1e-7 precision: the global commands read
+                // x and y from the message itself.
+                let global = (c.x != 0 || c.y != 0).then_some((c.x, c.y));
+                self.command_int(cmd, global, c.frame, requester(c.command), t, out);
+            }
+            MavMessage::SET_MODE(m) => {
+                if !self.for_us(m.target_system, None) {
+                    self.dropped += 1;
+                    return;
+                }
+                // The legacy message, acknowledged as MAV_CMD_DO_SET_MODE (as PX4 does).
+                let to = requester(MavCmd::MAV_CMD_DO_SET_MODE);
+                let p = [
+                    m.base_mode.bits() as f32,
+                    ((m.custom_mode >> 16) & 0xFF) as f32,
+                    (m.custom_mode >> 24) as f32,
+                    0.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                ];
+                let cmd = CommandMessage {
+                    command: MavCmd::MAV_CMD_DO_SET_MODE,
+                    p,
+                };
+                self.command(cmd, to, t, out);
             }
             _ => {}
         }
@@ -369,4 +395,14 @@ fn follow_target(m: &FOLLOW_TARGET_DATA) -> Option<AutopilotCommand> {
         at,
         vel_ned_m_s: vel,
     })
+}
+
+/// A command of `from`'s, to be answered with a `COMMAND_ACK`.
+fn acked(from: &MavHeader, command: MavCmd) -> AckTo {
+    AckTo {
+        command,
+        system: from.system_id as u8,
+        component: from.component_id,
+        reply: Reply::Ack,
+    }
 }
