@@ -37,8 +37,6 @@ SPLIT_PENDING: dict[str, int] = {
     "daemon/core/src/safety/motor_failure.rs::step": 140,
     "daemon/core/src/sensors/mag_fit.rs::fit_ellipsoid": 107,
     "daemon/files/src/ftp/mod.rs::act": 150,
-    "daemon/gcs/src/mission/items.rs::decode": 111,
-    "daemon/gcs/src/mission.rs::item": 129,
     "daemon/src/app/mod.rs::fly": 132,
     "daemon/src/app/mod.rs::fly_together": 123,
     "daemon/src/app/prepare.rs::prepare": 168,

@@ -308,28 +308,7 @@ impl Missions {
             }
             return;
         }
-        let checked = if u.kind == MavMissionType::MAV_MISSION_TYPE_MISSION {
-            decode(m).and_then(|item| match item {
-                MissionItem::Jump { to, .. } if to >= u.count => {
-                    Err(MavMissionResult::MAV_MISSION_INVALID_PARAM1)
-                }
-                item => Ok(Some(item)),
-            })
-        } else if fits(u.kind, m.command) {
-            Ok(None)
-        } else {
-            Err(MavMissionResult::MAV_MISSION_UNSUPPORTED)
-        };
-        let bounds = self.bounds;
-        let checked = checked
-            .map_err(|why| (format!("{why:?}"), why))
-            .and_then(|d| match (d, bounds) {
-                (Some(item), Some(b)) => b
-                    .check(&item)
-                    .map(|()| Some(item))
-                    .map_err(|(e, why)| (e.to_string(), why)),
-                (d, _) => Ok(d),
-            });
+        let checked = check_item(m, u.kind, u.count, self.bounds.as_ref());
         let decoded = match checked {
             Ok(d) => d,
             Err((reason, why)) => {
@@ -355,7 +334,12 @@ impl Missions {
             out.send(request(peer, u.kind, u.items.len() as u16));
             return;
         }
-        // Complete.
+        self.upload_complete(peer, out);
+    }
+
+    /// The last item of an upload arrived: a fence is decoded whole, the plan kept, the
+    /// mission or fence handed to the vehicle, the upload acknowledged.
+    fn upload_complete(&mut self, peer: (u8, u8), out: &mut Outbox) {
         let Some(u) = self.upload.take() else {
             return;
         };
@@ -449,6 +433,37 @@ pub fn target(msg: &MavMessage) -> Option<(u8, u8)> {
         MavMessage::MISSION_SET_CURRENT(m) => (m.target_system, m.target_component),
         _ => return None,
     })
+}
+
+/// An item of an upload of `kind` (`count` items) checked: decoded (a mission's; a jump within
+/// the mission) and within `bounds`, or the reason and result it is refused with.
+fn check_item(
+    m: &MISSION_ITEM_INT_DATA,
+    kind: MavMissionType,
+    count: u16,
+    bounds: Option<&MissionBounds>,
+) -> Result<Option<MissionItem>, (String, MavMissionResult)> {
+    let checked = if kind == MavMissionType::MAV_MISSION_TYPE_MISSION {
+        decode(m).and_then(|item| match item {
+            MissionItem::Jump { to, .. } if to >= count => {
+                Err(MavMissionResult::MAV_MISSION_INVALID_PARAM1)
+            }
+            item => Ok(Some(item)),
+        })
+    } else if fits(kind, m.command) {
+        Ok(None)
+    } else {
+        Err(MavMissionResult::MAV_MISSION_UNSUPPORTED)
+    };
+    checked
+        .map_err(|why| (format!("{why:?}"), why))
+        .and_then(|d| match (d, bounds) {
+            (Some(item), Some(b)) => b
+                .check(&item)
+                .map(|()| Some(item))
+                .map_err(|(e, why)| (e.to_string(), why)),
+            (d, _) => Ok(d),
+        })
 }
 
 #[cfg(test)]

@@ -94,37 +94,7 @@ pub fn decode(m: &MISSION_ITEM_INT_DATA) -> Result<MissionItem, MavMissionResult
         MavFrame::MAV_FRAME_MISSION => None,
         _ => return Err(MAV_MISSION_UNSUPPORTED_FRAME),
     };
-    // A position in a global frame; (0, 0) is "here", as a NaN altitude.
-    let point = || -> Result<MissionPoint, MavMissionResult> {
-        let Some(relative) = relative else {
-            return Err(MAV_MISSION_UNSUPPORTED_FRAME);
-        };
-        let (lat, lon, z) = (m.x as f64 * 1e-7, m.y as f64 * 1e-7, m.z as f64);
-        let point = MissionPoint {
-            lat_lon_deg: (m.x != 0 || m.y != 0).then_some((lat, lon)),
-            alt: (!z.is_nan()).then_some(if relative {
-                MissionAltitude::AboveHome(z)
-            } else {
-                MissionAltitude::Amsl(z)
-            }),
-        };
-        check_point(&point).map_err(|e| field_at_fault(&e))?;
-        Ok(point)
-    };
-    let yaw = |deg: f32| -> Result<Option<f64>, MavMissionResult> {
-        match deg {
-            d if d.is_nan() => Ok(None),
-            d if d.is_finite() => Ok(Some((d as f64).to_radians())),
-            _ => Err(MAV_MISSION_INVALID_PARAM4),
-        }
-    };
-    let seconds = |s: f32, err| {
-        if s.is_finite() && s >= 0.0 {
-            Ok(s as f64)
-        } else {
-            Err(err)
-        }
-    };
+    let point = || global_point(m, relative);
     Ok(match m.command {
         MavCmd::MAV_CMD_NAV_WAYPOINT => MissionItem::Waypoint {
             at: point()?,
@@ -166,21 +136,7 @@ pub fn decode(m: &MISSION_ITEM_INT_DATA) -> Result<MissionItem, MavMissionResult
             delay_s: seconds(m.param1, MAV_MISSION_INVALID_PARAM1)?,
         },
         MavCmd::MAV_CMD_DO_CHANGE_SPEED => MissionItem::ChangeSpeed(speed_change(m.param2)?),
-        MavCmd::MAV_CMD_DO_JUMP => {
-            let to = m.param1;
-            if !(to.is_finite() && to >= 0.0 && to.fract() == 0.0 && to < MAX_ITEMS as f32) {
-                return Err(MAV_MISSION_INVALID_PARAM1);
-            }
-            let repeat = match m.param2 {
-                -1.0 => None,
-                r if r.is_finite() && r >= 0.0 && r.fract() == 0.0 => Some(r as u32),
-                _ => return Err(MAV_MISSION_INVALID_PARAM2),
-            };
-            MissionItem::Jump {
-                to: to as u16,
-                repeat,
-            }
-        }
+        MavCmd::MAV_CMD_DO_JUMP => jump(m)?,
         MavCmd::MAV_CMD_DO_SET_HOME => MissionItem::SetHome {
             at: if m.param1 == 1.0 {
                 None
@@ -193,6 +149,63 @@ pub fn decode(m: &MISSION_ITEM_INT_DATA) -> Result<MissionItem, MavMissionResult
             },
         },
         _ => return Err(MAV_MISSION_UNSUPPORTED),
+    })
+}
+
+/// The item's position in a global frame (`relative`: its altitude above home; `None`: a frame
+/// without positions); (0, 0) is "here", as a NaN altitude.
+fn global_point(
+    m: &MISSION_ITEM_INT_DATA,
+    relative: Option<bool>,
+) -> Result<MissionPoint, MavMissionResult> {
+    let Some(relative) = relative else {
+        return Err(MavMissionResult::MAV_MISSION_UNSUPPORTED_FRAME);
+    };
+    let (lat, lon, z) = (m.x as f64 * 1e-7, m.y as f64 * 1e-7, m.z as f64);
+    let point = MissionPoint {
+        lat_lon_deg: (m.x != 0 || m.y != 0).then_some((lat, lon)),
+        alt: (!z.is_nan()).then_some(if relative {
+            MissionAltitude::AboveHome(z)
+        } else {
+            MissionAltitude::Amsl(z)
+        }),
+    };
+    check_point(&point).map_err(|e| field_at_fault(&e))?;
+    Ok(point)
+}
+
+/// A heading in degrees (NaN: none).
+fn yaw(deg: f32) -> Result<Option<f64>, MavMissionResult> {
+    match deg {
+        d if d.is_nan() => Ok(None),
+        d if d.is_finite() => Ok(Some((d as f64).to_radians())),
+        _ => Err(MavMissionResult::MAV_MISSION_INVALID_PARAM4),
+    }
+}
+
+/// A duration (s), finite and not negative, else `err`.
+fn seconds(s: f32, err: MavMissionResult) -> Result<f64, MavMissionResult> {
+    if s.is_finite() && s >= 0.0 {
+        Ok(s as f64)
+    } else {
+        Err(err)
+    }
+}
+
+/// `DO_JUMP`: to item param1, param2 times (−1: for ever).
+fn jump(m: &MISSION_ITEM_INT_DATA) -> Result<MissionItem, MavMissionResult> {
+    let to = m.param1;
+    if !(to.is_finite() && to >= 0.0 && to.fract() == 0.0 && to < MAX_ITEMS as f32) {
+        return Err(MavMissionResult::MAV_MISSION_INVALID_PARAM1);
+    }
+    let repeat = match m.param2 {
+        -1.0 => None,
+        r if r.is_finite() && r >= 0.0 && r.fract() == 0.0 => Some(r as u32),
+        _ => return Err(MavMissionResult::MAV_MISSION_INVALID_PARAM2),
+    };
+    Ok(MissionItem::Jump {
+        to: to as u16,
+        repeat,
     })
 }
 
