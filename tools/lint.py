@@ -36,7 +36,6 @@ SPLIT_PENDING: dict[str, int] = {
     "daemon/core/src/safety/failsafe.rs": 646,
     "daemon/core/src/safety/motor_failure.rs::step": 140,
     "daemon/core/src/sensors/mag_fit.rs::fit_ellipsoid": 107,
-    "daemon/files/src/ftp/mod.rs::act": 150,
     "daemon/src/app/mod.rs::fly": 132,
     "daemon/src/app/mod.rs::fly_together": 123,
     "daemon/src/app/prepare.rs::prepare": 168,

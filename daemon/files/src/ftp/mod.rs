@@ -335,18 +335,7 @@ impl FtpServer {
                 done(Vec::new())
             }
             Opcode::ListDirectory | Opcode::ListDirectoryWithTime => {
-                let path = self.root.resolve(req.text())?;
-                let with_time = op == Opcode::ListDirectoryWithTime;
-                let mut extra = Vec::new();
-                if self.root.is_root(&path) {
-                    if self.root.has_logs() {
-                        extra.push(paths::MAV_LOG);
-                    }
-                    if !self.virtual_dir.files.is_empty() {
-                        extra.push(self.virtual_dir.name.as_str());
-                    }
-                }
-                done(listing::entries(&path, req.offset, with_time, &extra)?)
+                done(self.list(req, op == Opcode::ListDirectoryWithTime)?)
             }
             Opcode::OpenFileRO => {
                 let path = self.root.resolve(req.text())?;
@@ -390,57 +379,13 @@ impl FtpServer {
                 });
                 Ok(None)
             }
-            Opcode::WriteFile => {
-                let s = self.session(req, now_s)?;
-                if !s.writable {
-                    return Err(FtpError::FileProtected);
-                }
-                if u64::from(req.offset) + req.data.len() as u64 > MAX_FILE_BYTES {
-                    return Err(FtpError::FailErrno(EFBIG));
-                }
-                let OpenFile::Disk(file) = &mut s.file else {
-                    return Err(FtpError::FileProtected);
-                };
-                file.seek(SeekFrom::Start(req.offset.into()))
-                    .and_then(|_| file.write_all(&req.data))
-                    .map_err(io)?;
-                done((req.data.len() as u32).to_le_bytes().to_vec())
-            }
-            Opcode::RemoveFile => {
-                let path = self.root.resolve_for_write(req.text())?;
-                if path.is_dir() {
-                    return Err(FtpError::FailErrno(EISDIR));
-                }
-                std::fs::remove_file(&path).map_err(io)?;
-                done(Vec::new())
-            }
-            Opcode::CreateDirectory => {
-                let path = self.root.resolve_for_write(req.text())?;
-                std::fs::create_dir(&path).map_err(io)?;
-                done(Vec::new())
-            }
-            Opcode::RemoveDirectory => {
-                let path = self.root.resolve_for_write(req.text())?;
-                std::fs::remove_dir(&path).map_err(io)?;
-                done(Vec::new())
-            }
-            Opcode::TruncateFile => {
-                if u64::from(req.offset) > MAX_FILE_BYTES {
-                    return Err(FtpError::FailErrno(EFBIG));
-                }
-                let path = self.root.resolve_for_write(req.text())?;
-                let file = std::fs::OpenOptions::new()
-                    .write(true)
-                    .open(&path)
-                    .map_err(io)?;
-                file.set_len(req.offset.into()).map_err(io)?;
-                done(Vec::new())
-            }
-            Opcode::Rename => {
-                let (old, new) = rename_paths(&req.data).ok_or(FtpError::FailErrno(EINVAL))?;
-                let old = self.root.resolve_for_write(old)?;
-                let new = self.root.resolve_for_write(new)?;
-                std::fs::rename(&old, &new).map_err(io)?;
+            Opcode::WriteFile => done(self.write_file(req, now_s)?),
+            Opcode::RemoveFile
+            | Opcode::CreateDirectory
+            | Opcode::RemoveDirectory
+            | Opcode::TruncateFile
+            | Opcode::Rename => {
+                self.change_tree(op, req)?;
                 done(Vec::new())
             }
             Opcode::CalcFileCRC32 => {
@@ -456,6 +401,87 @@ impl FtpServer {
                 Ok(None)
             }
             Opcode::Ack | Opcode::Nak => Err(FtpError::UnknownCommand),
+        }
+    }
+
+    /// `ListDirectory`: the entries of the requested folder from `req.offset`, with their
+    /// times if asked; the root lists the log folder and the virtual folder too.
+    fn list(&self, req: &FtpPayload, with_time: bool) -> Result<Vec<u8>, FtpError> {
+        let path = self.root.resolve(req.text())?;
+        let mut extra = Vec::new();
+        if self.root.is_root(&path) {
+            if self.root.has_logs() {
+                extra.push(paths::MAV_LOG);
+            }
+            if !self.virtual_dir.files.is_empty() {
+                extra.push(self.virtual_dir.name.as_str());
+            }
+        }
+        listing::entries(&path, req.offset, with_time, &extra)
+    }
+
+    /// `WriteFile` into the session's file: returns the bytes written, as a little-endian
+    /// count.
+    fn write_file(&mut self, req: &FtpPayload, now_s: f64) -> Result<Vec<u8>, FtpError> {
+        let s = self.session(req, now_s)?;
+        if !s.writable {
+            return Err(FtpError::FileProtected);
+        }
+        if u64::from(req.offset) + req.data.len() as u64 > MAX_FILE_BYTES {
+            return Err(FtpError::FailErrno(EFBIG));
+        }
+        let OpenFile::Disk(file) = &mut s.file else {
+            return Err(FtpError::FileProtected);
+        };
+        file.seek(SeekFrom::Start(req.offset.into()))
+            .and_then(|_| file.write_all(&req.data))
+            .map_err(|e| FtpError::of_io(&e))?;
+        Ok((req.data.len() as u32).to_le_bytes().to_vec())
+    }
+
+    /// What changes the tree: removing a file or folder, making a folder, truncating a file,
+    /// renaming.
+    fn change_tree(&self, op: Opcode, req: &FtpPayload) -> Result<(), FtpError> {
+        let io = |e: std::io::Error| FtpError::of_io(&e);
+        match op {
+            Opcode::RemoveFile => {
+                let path = self.root.resolve_for_write(req.text())?;
+                if path.is_dir() {
+                    return Err(FtpError::FailErrno(EISDIR));
+                }
+                std::fs::remove_file(&path).map_err(io)?;
+                Ok(())
+            }
+            Opcode::CreateDirectory => {
+                let path = self.root.resolve_for_write(req.text())?;
+                std::fs::create_dir(&path).map_err(io)?;
+                Ok(())
+            }
+            Opcode::RemoveDirectory => {
+                let path = self.root.resolve_for_write(req.text())?;
+                std::fs::remove_dir(&path).map_err(io)?;
+                Ok(())
+            }
+            Opcode::TruncateFile => {
+                if u64::from(req.offset) > MAX_FILE_BYTES {
+                    return Err(FtpError::FailErrno(EFBIG));
+                }
+                let path = self.root.resolve_for_write(req.text())?;
+                let file = std::fs::OpenOptions::new()
+                    .write(true)
+                    .open(&path)
+                    .map_err(io)?;
+                file.set_len(req.offset.into()).map_err(io)?;
+                Ok(())
+            }
+            Opcode::Rename => {
+                let (old, new) = rename_paths(&req.data).ok_or(FtpError::FailErrno(EINVAL))?;
+                let old = self.root.resolve_for_write(old)?;
+                let new = self.root.resolve_for_write(new)?;
+                std::fs::rename(&old, &new).map_err(io)?;
+                Ok(())
+            }
+            _ => Err(FtpError::UnknownCommand),
         }
     }
 }
