@@ -5,7 +5,7 @@
 mod console;
 mod prepare;
 
-use crate::control_loop::{self, FlightReport, LoopCommand, Onboard, Pacing};
+use crate::control_loop::{self, FlightReport, LoopCommand, Onboard, Pacing, Ports};
 use crate::gcs_links;
 use crate::links::sim::{self, EmbeddedSim};
 use crate::links::{SensorLink, SerialLink, Source, UdpLink, json_link};
@@ -13,6 +13,7 @@ use crate::records::FlightRecords;
 use crate::settings::Settings;
 use anyhow::{Context, Result, bail};
 use console::{interrupts, status_line};
+use flight_core::autopilot::Autopilot;
 use flight_core::math::geo::LatLonAlt;
 use gcs::telemetry::Telemetry;
 use prepare::{Prepared, prepare, sensor_preset};
@@ -50,11 +51,7 @@ pub fn fly(cfg: Settings) -> Result<()> {
         endpoints,
         gcs,
     } = prepare(&cfg, &source, &airframe, cfg.instance)?;
-    let deadlines = Pacing::Deadlines {
-        period: Duration::from_secs_f64(1.0 / cfg.loop_hz),
-        spin: Duration::from_secs_f64(cfg.loop_spin_us * 1e-6),
-        stats: Duration::from_secs_f64(cfg.loop_stats_s),
-    };
+    let deadlines = deadline_pacing(&cfg);
     let (commands, telemetry) = (gcs.commands.clone(), gcs.telemetry.clone());
     // The control loop on its own thread owns the vehicle and the sensor link; this thread runs
     // the tasks that talk to it (ground stations, status line, Ctrl-C).
@@ -71,22 +68,9 @@ pub fn fly(cfg: Settings) -> Result<()> {
             }
             match source {
                 Source::Embedded => {
-                    let sensors = sensor_preset(&cfg)?;
-                    let world = SimConfig {
-                        seed: cfg.seed,
-                        sensors: SensorConfig::preset(sensors),
-                        home: sitl_core::geo::home_for_instance(&LatLonAlt::default(), cfg.instance),
-                        ..SimConfig::default()
-                    };
-                    let mut link = EmbeddedSim::with_world(
-                        &airframe,
-                        world,
-                        &[],
-                        cfg.realtime_factor()?,
-                        cfg.truth_csv.as_deref(),
-                    )?;
+                    let mut link = embedded_link(&cfg, &airframe, cfg.instance)?;
                     let report =
-                        control_loop::fly(Onboard { link: &mut link, autopilot: &mut autopilot, records: &mut records, ports }, Pacing::Lockstep)?;
+                        control_loop::fly(onboard(&mut link, &mut autopilot, &mut records, ports), Pacing::Lockstep)?;
                     link.finish()?;
                     finish(&mut records, report)
                 }
@@ -94,22 +78,11 @@ pub fn fly(cfg: Settings) -> Result<()> {
                     let mut link = UdpLink::bind(addr, lockstep, system_id)?;
                     tracing::info!(listening = %link.local_addr()?, airframe = %airframe.name, "waiting for a simulator");
                     let pacing = if lockstep { Pacing::Lockstep } else { deadlines };
-                    let report = control_loop::fly(Onboard { link: &mut link, autopilot: &mut autopilot, records: &mut records, ports }, pacing)?;
+                    let report = control_loop::fly(onboard(&mut link, &mut autopilot, &mut records, ports), pacing)?;
                     finish(&mut records, report)
                 }
                 Source::Json { addr, channels } => {
-                    let rotors = airframe.rotors.len();
-                    let channels = if channels.is_empty() {
-                        (0..rotors).collect()
-                    } else if channels.len() == rotors {
-                        channels
-                    } else {
-                        bail!(
-                            "json://…?channels= names {} channels for the {rotors} rotors of {}",
-                            channels.len(),
-                            airframe.name
-                        );
-                    };
+                    let channels = json_channels(channels, &airframe)?;
                     let sensors = sensor_preset(&cfg)?;
                     let mut link = json_link::JsonLink::connect(
                         addr,
@@ -121,7 +94,7 @@ pub fn fly(cfg: Settings) -> Result<()> {
                     .with_context(|| format!("opening a UDP socket for {addr}"))?;
                     tracing::info!(physics = %addr, airframe = %airframe.name, "sending servo packets to a JSON physics");
                     let report =
-                        control_loop::fly(Onboard { link: &mut link, autopilot: &mut autopilot, records: &mut records, ports }, Pacing::Lockstep)?;
+                        control_loop::fly(onboard(&mut link, &mut autopilot, &mut records, ports), Pacing::Lockstep)?;
                     finish(&mut records, report)
                 }
                 Source::Serial {
@@ -132,7 +105,7 @@ pub fn fly(cfg: Settings) -> Result<()> {
                     let mut link = SerialLink::open(path, baud, lockstep, system_id)?;
                     tracing::info!(port = %link.describe(), airframe = %airframe.name, "waiting for the flight board");
                     let pacing = if lockstep { Pacing::Lockstep } else { deadlines };
-                    let report = control_loop::fly(Onboard { link: &mut link, autopilot: &mut autopilot, records: &mut records, ports }, pacing)?;
+                    let report = control_loop::fly(onboard(&mut link, &mut autopilot, &mut records, ports), pacing)?;
                     finish(&mut records, report)
                 }
             }
@@ -147,15 +120,77 @@ pub fn fly(cfg: Settings) -> Result<()> {
     let report = control
         .join()
         .map_err(|_| anyhow::anyhow!("the control loop panicked"))??;
-    // The process's peak memory joins the summary (the bench quotes it).
-    match peak_rss_kib() {
-        Some(kib) => println!("{report} max_rss_kib={kib}"),
-        None => println!("{report}"),
-    }
+    print_summary(&report);
     if exits.first() == Some(&Some(gcs::HostAction::Reboot)) {
         reboot()?;
     }
     Ok(())
+}
+
+/// The pacing of a loop that does not wait for its link: the settings' deadlines.
+fn deadline_pacing(cfg: &Settings) -> Pacing {
+    Pacing::Deadlines {
+        period: Duration::from_secs_f64(1.0 / cfg.loop_hz),
+        spin: Duration::from_secs_f64(cfg.loop_spin_us * 1e-6),
+        stats: Duration::from_secs_f64(cfg.loop_stats_s),
+    }
+}
+
+/// The summary line, with the process's peak memory (the bench quotes it).
+fn print_summary(report: &FlightReport) {
+    match peak_rss_kib() {
+        Some(kib) => println!("{report} max_rss_kib={kib}"),
+        None => println!("{report}"),
+    }
+}
+
+/// What the control loop flies: `link`, and the vehicle's autopilot, records and channels.
+fn onboard<'a>(
+    link: &'a mut dyn SensorLink,
+    autopilot: &'a mut Autopilot,
+    records: &'a mut FlightRecords,
+    ports: &'a mut Ports,
+) -> Onboard<'a> {
+    Onboard {
+        link,
+        autopilot,
+        records,
+        ports,
+    }
+}
+
+/// The embedded simulator of vehicle `instance`: the settings' seed, sensors and speed, its
+/// home placed as `sitl -i` places it.
+fn embedded_link(cfg: &Settings, airframe: &Airframe, instance: u16) -> Result<EmbeddedSim> {
+    let world = SimConfig {
+        seed: cfg.seed,
+        sensors: SensorConfig::preset(sensor_preset(cfg)?),
+        home: sitl_core::geo::home_for_instance(&LatLonAlt::default(), instance),
+        ..SimConfig::default()
+    };
+    EmbeddedSim::with_world(
+        airframe,
+        world,
+        &[],
+        cfg.realtime_factor()?,
+        cfg.truth_csv.as_deref(),
+    )
+}
+
+/// The servo channel of each rotor on a JSON physics: as given (one per rotor), or in order.
+fn json_channels(channels: Vec<usize>, airframe: &Airframe) -> Result<Vec<usize>> {
+    let rotors = airframe.rotors.len();
+    if channels.is_empty() {
+        Ok((0..rotors).collect())
+    } else if channels.len() == rotors {
+        Ok(channels)
+    } else {
+        bail!(
+            "json://…?channels= names {} channels for the {rotors} rotors of {}",
+            channels.len(),
+            airframe.name
+        );
+    }
 }
 
 /// Says the control loop's thread has ended when dropped (at its end, on an error or a panic
@@ -217,26 +252,7 @@ fn serve(
 /// `--count N`: N vehicles in the embedded simulator, flown together on one control-loop thread
 /// in lockstep on one clock ([`control_loop::fly_together`]), each with its own ground stations.
 fn fly_together(cfg: Settings, source: Source) -> Result<()> {
-    if source != Source::Embedded {
-        bail!(
-            "--count flies vehicles in the embedded simulator (--sim); with simulator processes or flight boards run one autopilot per vehicle, each with its own --instance"
-        );
-    }
-    if cfg.truth_csv.is_some()
-        || cfg.flight_csv.is_some()
-        || cfg.tlog.is_some()
-        || cfg.ulog.is_some()
-    {
-        bail!(
-            "--truth-csv, --flight-csv, --tlog and --ulog name one vehicle's file; with --count every vehicle logs to --log-dir"
-        );
-    }
-    if let Some(p) = cfg.named_param_store() {
-        bail!(
-            "--param-store {} names one vehicle's file; with --count every vehicle keeps its own (the default) or none",
-            p.display()
-        );
-    }
+    refuse_one_vehicles_files(&cfg, &source)?;
     let airframe = Airframe::load(&cfg.airframe_path())?;
     let sensors = sensor_preset(&cfg)?;
     let mut vehicles = Vec::with_capacity(cfg.count.into());
@@ -309,6 +325,38 @@ fn fly_together(cfg: Settings, source: Source) -> Result<()> {
     let report = control
         .join()
         .map_err(|_| anyhow::anyhow!("the control loop panicked"))??;
+    swarm_summary(&cfg, &report)
+}
+
+/// What `--count` cannot fly: another source than the embedded simulator, files named for
+/// one vehicle.
+fn refuse_one_vehicles_files(cfg: &Settings, source: &Source) -> Result<()> {
+    if *source != Source::Embedded {
+        bail!(
+            "--count flies vehicles in the embedded simulator (--sim); with simulator processes or flight boards run one autopilot per vehicle, each with its own --instance"
+        );
+    }
+    if cfg.truth_csv.is_some()
+        || cfg.flight_csv.is_some()
+        || cfg.tlog.is_some()
+        || cfg.ulog.is_some()
+    {
+        bail!(
+            "--truth-csv, --flight-csv, --tlog and --ulog name one vehicle's file; with --count every vehicle logs to --log-dir"
+        );
+    }
+    if let Some(p) = cfg.named_param_store() {
+        bail!(
+            "--param-store {} names one vehicle's file; with --count every vehicle keeps its own (the default) or none",
+            p.display()
+        );
+    }
+    Ok(())
+}
+
+/// Each vehicle's summary line, then the swarm's; an error if any vehicle's flight ended in
+/// one.
+fn swarm_summary(cfg: &Settings, report: &control_loop::SwarmReport) -> Result<()> {
     let mut failed = 0;
     let mut landed = 0;
     for (k, flight) in report.flights.iter().enumerate() {

@@ -14,6 +14,7 @@ use flight_core::autopilot::{AutoFlight, Autopilot};
 use flight_core::params::FlightParams;
 use gcs::component_metadata::{ComponentMetadata, METADATA_DIR};
 use gcs::param_store::ParamStore;
+use gcs::signing::{SecretKey, SigningMemory};
 use sitl_core::Airframe;
 use sitl_core::sensors::SensorPreset;
 use std::path::{Path, PathBuf};
@@ -45,26 +46,8 @@ pub(super) fn prepare(
     airframe: &Airframe,
     instance: u16,
 ) -> Result<Prepared> {
-    let mut base = FlightParams::load(&cfg.params_path())?;
-    source.preset_params(&mut base);
     let mut notices = Vec::new();
-    let (mut params, store) = match cfg.param_store(instance) {
-        Some(path) => {
-            let loaded = param_file::load(&path, &base)?;
-            for w in &loaded.warnings {
-                tracing::warn!("{w}");
-            }
-            if loaded.from_previous_copy {
-                notices.push("param store damaged: previous copy used".to_owned());
-            }
-            let names: Vec<&str> = loaded.store.names().collect();
-            if !names.is_empty() {
-                tracing::info!(store = %path.display(), "parameters set from a ground station: {}", names.join(", "));
-            }
-            (loaded.params, loaded.store)
-        }
-        None => (base.clone(), ParamStore::in_memory()),
-    };
+    let (mut base, mut params, store) = load_params(cfg, source, instance, &mut notices)?;
     if let Some(t) = cfg.takeoff_m {
         params.commander.takeoff_alt_m = t;
         base.commander.takeoff_alt_m = t;
@@ -98,18 +81,7 @@ pub(super) fn prepare(
     };
     let mut ulog_events = None;
     if let Some(path) = &ulog {
-        let start = UlogStart {
-            params: params.clone(),
-            system_id,
-            mav_type: mav_type as u8,
-            airframe: airframe.name.clone(),
-            unix_start_us: std::time::SystemTime::now()
-                .duration_since(std::time::UNIX_EPOCH)
-                .map_or(0, |d| d.as_micros() as u64),
-            lockstep: source.lockstep(),
-        };
-        let log = FlightUlog::create(path, start)
-            .with_context(|| format!("creating {}", path.display()))?;
+        let log = open_ulog(path, &params, system_id, mav_type as u8, airframe, source)?;
         ulog_events = log.events();
         records.log_ulog_to(log);
     }
@@ -128,55 +100,13 @@ pub(super) fn prepare(
         .map(|u| gcs_links::EndpointSpec::parse(u, instance))
         .collect::<Result<Vec<_>>>()
         .context("--mavlink")?;
-    let signing_key = match &cfg.signing_key_file {
-        Some(path) => signing_file::load_key(path)?,
-        None => None,
-    };
-    let signing_memory = match &cfg.signing_key_file {
-        Some(path) => {
-            let (memory, warning) = signing_file::load_memory(&signing_file::memory_path(path));
-            if let Some(w) = warning {
-                tracing::warn!("{w}");
-                notices.push("signing timestamps lost: see the log".to_owned());
-            }
-            memory
-        }
-        None => Default::default(),
-    };
-    let mut files = vehicle_files::FilesConfig {
-        ftp_root: cfg.ftp_root().map(Path::to_path_buf),
-        logs: cfg.log_dir().map(Path::to_path_buf).or_else(|| {
-            // `--ulog x.ulg` names a file here: its directory is `.`.
-            let dir = ulog.as_ref()?.parent()?;
-            let dir = if dir.as_os_str().is_empty() {
-                Path::new(".")
-            } else {
-                dir
-            };
-            Some(dir.to_path_buf())
-        }),
-        writable: !cfg.ftp_read_only,
-        busy: [&ulog, &tlog_path, &flight_csv]
-            .into_iter()
-            .flatten()
-            .cloned()
-            .collect(),
-        virtual_dir: vehicle_files::VirtualDir::default(),
-    };
-    // The component metadata, read by FTP: named only when FTP serves it.
-    let metadata = ComponentMetadata::new(&airframe.name, gcs::COMPONENT_ID);
-    files.virtual_dir = vehicle_files::VirtualDir {
-        name: METADATA_DIR.to_owned(),
-        files: metadata
-            .files
-            .iter()
-            .map(|(name, bytes)| (name.clone(), bytes.as_slice().into()))
-            .collect(),
-    };
-    let metadata = files
-        .ftp_root
-        .is_some()
-        .then_some((metadata.uri, metadata.crc));
+    let (signing_key, signing_memory) = load_signing(cfg, &mut notices)?;
+    let busy = [&ulog, &tlog_path, &flight_csv]
+        .into_iter()
+        .flatten()
+        .cloned()
+        .collect();
+    let (files, metadata) = files_config(cfg, airframe, ulog.as_ref(), busy);
     let (mut ports, ends) = Ports::new(16);
     let (params_tx, params_rx) = watch::channel(params.clone());
     ports.params = Some(params_rx);
@@ -206,6 +136,124 @@ pub(super) fn prepare(
             reboot_allowed: cfg.count == 1,
         },
     })
+}
+
+/// The flight log at `path`, its header saying the parameters, the vehicle and its source.
+fn open_ulog(
+    path: &Path,
+    params: &FlightParams,
+    system_id: u8,
+    mav_type: u8,
+    airframe: &Airframe,
+    source: &Source,
+) -> Result<FlightUlog> {
+    let start = UlogStart {
+        params: params.clone(),
+        system_id,
+        mav_type,
+        airframe: airframe.name.clone(),
+        unix_start_us: std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_micros() as u64),
+        lockstep: source.lockstep(),
+    };
+    FlightUlog::create(path, start).with_context(|| format!("creating {}", path.display()))
+}
+
+/// The flight parameters: the file's (with what the source presets), then the store's over
+/// them. Returns the base values (what a reset returns to), the values flown and the store;
+/// what the first ground station is told goes to `notices`.
+fn load_params(
+    cfg: &Settings,
+    source: &Source,
+    instance: u16,
+    notices: &mut Vec<String>,
+) -> Result<(FlightParams, FlightParams, ParamStore)> {
+    let mut base = FlightParams::load(&cfg.params_path())?;
+    source.preset_params(&mut base);
+    let (params, store) = match cfg.param_store(instance) {
+        Some(path) => {
+            let loaded = param_file::load(&path, &base)?;
+            for w in &loaded.warnings {
+                tracing::warn!("{w}");
+            }
+            if loaded.from_previous_copy {
+                notices.push("param store damaged: previous copy used".to_owned());
+            }
+            let names: Vec<&str> = loaded.store.names().collect();
+            if !names.is_empty() {
+                tracing::info!(store = %path.display(), "parameters set from a ground station: {}", names.join(", "));
+            }
+            (loaded.params, loaded.store)
+        }
+        None => (base.clone(), ParamStore::in_memory()),
+    };
+    Ok((base, params, store))
+}
+
+/// The signing key and what signing remembered, from the key's file (none: signing off).
+fn load_signing(
+    cfg: &Settings,
+    notices: &mut Vec<String>,
+) -> Result<(Option<SecretKey>, SigningMemory)> {
+    let signing_key = match &cfg.signing_key_file {
+        Some(path) => signing_file::load_key(path)?,
+        None => None,
+    };
+    let signing_memory = match &cfg.signing_key_file {
+        Some(path) => {
+            let (memory, warning) = signing_file::load_memory(&signing_file::memory_path(path));
+            if let Some(w) = warning {
+                tracing::warn!("{w}");
+                notices.push("signing timestamps lost: see the log".to_owned());
+            }
+            memory
+        }
+        None => Default::default(),
+    };
+    Ok((signing_key, signing_memory))
+}
+
+/// What MAVLink FTP and the log download serve (the logs being written, `busy`, protected),
+/// with the component metadata in its virtual folder; the metadata's URI and CRC when FTP
+/// serves it.
+fn files_config(
+    cfg: &Settings,
+    airframe: &Airframe,
+    ulog: Option<&PathBuf>,
+    busy: Vec<PathBuf>,
+) -> (vehicle_files::FilesConfig, Option<(String, u32)>) {
+    let mut files = vehicle_files::FilesConfig {
+        ftp_root: cfg.ftp_root().map(Path::to_path_buf),
+        logs: cfg.log_dir().map(Path::to_path_buf).or_else(|| {
+            // `--ulog x.ulg` names a file here: its directory is `.`.
+            let dir = ulog?.parent()?;
+            let dir = if dir.as_os_str().is_empty() {
+                Path::new(".")
+            } else {
+                dir
+            };
+            Some(dir.to_path_buf())
+        }),
+        writable: !cfg.ftp_read_only,
+        busy,
+        virtual_dir: vehicle_files::VirtualDir::default(),
+    };
+    // The component metadata, read by FTP: named only when FTP serves it.
+    let metadata = ComponentMetadata::new(&airframe.name, gcs::COMPONENT_ID);
+    files.virtual_dir = vehicle_files::VirtualDir {
+        name: METADATA_DIR.to_owned(),
+        files: metadata
+            .files
+            .iter()
+            .map(|(name, bytes)| (name.clone(), bytes.as_slice().into()))
+            .collect(),
+    };
+    let metadata = files
+        .ftp_root
+        .is_some()
+        .then_some((metadata.uri, metadata.crc));
+    (files, metadata)
 }
 
 /// The embedded simulator's sensor preset.

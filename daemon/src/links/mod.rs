@@ -99,6 +99,48 @@ fn parse_bool(url: &str, key: &str, v: &str) -> Result<bool> {
 
 pub use flight_core::sensors::mag_check::SIMULATED_MAG_ID;
 
+/// `json://ADDRESS:PORT?channels=…` (`rest` after the scheme): the port offset by 10 ×
+/// `instance`, the servo channel of each rotor.
+fn parse_json(url: &str, rest: &str, instance: u16) -> Result<Source> {
+    let (addr, query) = rest.split_once('?').unwrap_or((rest, ""));
+    let mut a: SocketAddr = addr.parse().with_context(|| {
+        format!("{url:?}: expected json://ADDRESS:PORT, e.g. json://127.0.0.1:9002")
+    })?;
+    let offset = instance
+        .checked_mul(hil::json::JSON_INSTANCE_STRIDE)
+        .and_then(|o| a.port().checked_add(o))
+        .with_context(|| format!("{url:?}: instance {instance} pushes the port past 65535"))?;
+    a.set_port(offset);
+    let mut channels = Vec::new();
+    parse_options(
+        url,
+        query,
+        |k, v| {
+            match k {
+                "channels" => {
+                    for c in v.split(',') {
+                        let c: usize = c
+                            .parse()
+                            .ok()
+                            .filter(|c| (1..=32).contains(c))
+                            .with_context(|| {
+                                format!("{url:?}: channels: {c:?} is not a servo channel 1-32")
+                            })?;
+                        if channels.contains(&(c - 1)) {
+                            bail!("{url:?}: channels: {c} given twice");
+                        }
+                        channels.push(c - 1);
+                    }
+                }
+                _ => return Ok(false),
+            }
+            Ok(true)
+        },
+        "channels",
+    )?;
+    Ok(Source::Json { addr: a, channels })
+}
+
 impl Source {
     /// The other end is a simulator: the embedded one, one over UDP, or one in lockstep on a
     /// serial line.
@@ -156,47 +198,7 @@ impl Source {
             return Ok(Self::Udp { addr: a, lockstep });
         }
         if let Some(rest) = url.strip_prefix("json://") {
-            let (addr, query) = rest.split_once('?').unwrap_or((rest, ""));
-            let mut a: SocketAddr = addr.parse().with_context(|| {
-                format!("{url:?}: expected json://ADDRESS:PORT, e.g. json://127.0.0.1:9002")
-            })?;
-            let offset = instance
-                .checked_mul(hil::json::JSON_INSTANCE_STRIDE)
-                .and_then(|o| a.port().checked_add(o))
-                .with_context(|| {
-                    format!("{url:?}: instance {instance} pushes the port past 65535")
-                })?;
-            a.set_port(offset);
-            let mut channels = Vec::new();
-            parse_options(
-                url,
-                query,
-                |k, v| {
-                    match k {
-                        "channels" => {
-                            for c in v.split(',') {
-                                let c: usize = c
-                                    .parse()
-                                    .ok()
-                                    .filter(|c| (1..=32).contains(c))
-                                    .with_context(|| {
-                                        format!(
-                                            "{url:?}: channels: {c:?} is not a servo channel 1-32"
-                                        )
-                                    })?;
-                                if channels.contains(&(c - 1)) {
-                                    bail!("{url:?}: channels: {c} given twice");
-                                }
-                                channels.push(c - 1);
-                            }
-                        }
-                        _ => return Ok(false),
-                    }
-                    Ok(true)
-                },
-                "channels",
-            )?;
-            return Ok(Self::Json { addr: a, channels });
+            return parse_json(url, rest, instance);
         }
         if let Some(rest) = url.strip_prefix("serial://") {
             let (path, query) = rest.split_once('?').unwrap_or((rest, ""));

@@ -178,8 +178,24 @@ impl FlightUlog {
     ) -> std::io::Result<()> {
         let t = step.t_usec;
         self.first_us.get_or_insert(t);
+        self.record_imu(t, step);
+        self.record_control(t, step, vehicle);
+        self.record_position(t, step);
+        self.record_sensors(t, step);
+        self.record_health(t, step, vehicle);
+        self.status(t, step, &vehicle.status);
+        let due = self.shipped_us.is_none_or(|s| t < s || t >= s + ship_us());
+        if due {
+            self.shipped_us = Some(t);
+            ulog::sync(&mut self.buf);
+            return self.ship();
+        }
+        Ok(())
+    }
+
+    /// `sensor_combined`, `vehicle_attitude`, `vehicle_angular_velocity`.
+    fn record_imu(&mut self, t: u64, step: &AutopilotOutput) {
         let (est, s) = (&step.estimate, &step.raw_sample);
-        let tr = &est.translation;
         let q = est.attitude.map(|a| a.q);
         if self.due(id::SENSOR_COMBINED, t) {
             let dt = 2_000; // the loop's nominal period (µs)
@@ -203,6 +219,12 @@ impl FlightUlog {
                 UlogRow::at(t).u64(t).f32s(rate.as_slice()),
             );
         }
+    }
+
+    /// `vehicle_rates_setpoint`, `vehicle_attitude_setpoint`, `actuator_motors`,
+    /// `actuator_outputs`.
+    fn record_control(&mut self, t: u64, step: &AutopilotOutput, vehicle: &VehicleState) {
+        let est = &step.estimate;
         let max_thrust = vehicle.max_thrust_n.max(1e-6);
         let sp = est.attitude_setpoint;
         let thrust_body = sp.map_or([f64::NAN; 3], |a| [0.0, 0.0, -a.thrust_n / max_thrust]);
@@ -246,6 +268,12 @@ impl FlightUlog {
                 UlogRow::at(t).f32s(&output).u32(rotors as u32),
             );
         }
+    }
+
+    /// `vehicle_local_position`, `vehicle_global_position`, `vehicle_local_position_setpoint`.
+    fn record_position(&mut self, t: u64, step: &AutopilotOutput) {
+        let tr = &step.estimate.translation;
+        let q = step.estimate.attitude.map(|a| a.q);
         if self.due(id::VEHICLE_LOCAL_POSITION, t) {
             let (p, v, a) = (tr.pos_ned_m, tr.vel_ned_m_s, tr.accel_ned_m_s2);
             let origin = tr.origin;
@@ -291,6 +319,12 @@ impl FlightUlog {
                 .f32s(p.accel_ned_m_s2.as_slice());
             self.data(id::VEHICLE_LOCAL_POSITION_SETPOINT, row);
         }
+    }
+
+    /// The sensors when fresh: `vehicle_gps_position`, `vehicle_air_data`,
+    /// `vehicle_magnetometer`.
+    fn record_sensors(&mut self, t: u64, step: &AutopilotOutput) {
+        let s = &step.raw_sample;
         if let Some(g) = s.gps {
             let since_start = t.saturating_sub(self.first_us.unwrap_or(t));
             let v = g.vel_ned_m_s;
@@ -318,6 +352,12 @@ impl FlightUlog {
                 UlogRow::at(t).u64(t).f32s(m.as_slice()),
             );
         }
+    }
+
+    /// `battery_status`, `estimator_status`, `wind`.
+    fn record_health(&mut self, t: u64, step: &AutopilotOutput, vehicle: &VehicleState) {
+        let (est, s) = (&step.estimate, &step.raw_sample);
+        let tr = &est.translation;
         if self.due(id::BATTERY_STATUS, t) {
             let b = vehicle.battery;
             let row = UlogRow::at(t)
@@ -354,14 +394,6 @@ impl FlightUlog {
                 .f32(w.var_horiz_m2_s2);
             self.data(id::WIND, row);
         }
-        self.status(t, step, &vehicle.status);
-        let due = self.shipped_us.is_none_or(|s| t < s || t >= s + ship_us());
-        if due {
-            self.shipped_us = Some(t);
-            ulog::sync(&mut self.buf);
-            return self.ship();
-        }
-        Ok(())
     }
 
     /// `vehicle_status` and `vehicle_land_detected`, at once when they change.
