@@ -13,12 +13,8 @@ use crate::records::FlightRecords;
 use anyhow::{Context, Result, bail};
 use flight_core::autopilot::{AutoFlight, Autopilot};
 use flight_core::params::FlightParams;
-use nalgebra::Vector3;
 use sitl_core::Airframe;
-use sitl_core::environment::WindConfig;
-use sitl_core::rng::Rng;
-use sitl_core::sensors::{SensorConfig, SensorHealth, SensorKind, SensorPreset};
-use sitl_core::sim::{Event, SimAction, SimConfig};
+use sitl_core::sensors::SensorPreset;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
@@ -26,11 +22,13 @@ use tokio::sync::mpsc;
 
 pub mod manifest;
 pub mod merge;
+mod plan;
 mod progress;
 pub mod shard;
 pub mod summary;
 
 use manifest::{Campaign, Manifest, Version};
+pub use plan::{FaultKind, RunPlan};
 use progress::Progress;
 use shard::Shard;
 use summary::BatchSummary;
@@ -58,217 +56,71 @@ pub struct BatchConfig {
     pub sensors: SensorPreset,
 }
 
-/// The faults a batch can draw, each at a random moment of the hover.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum FaultKind {
-    /// No fault.
-    None,
-    /// One motor's propeller loses part of its thrust (to 50–90 %).
-    Motor,
-    /// One motor stops.
-    MotorOff,
-    /// The GPS loses its fix for 5–15 s.
-    Gps,
-    /// A magnetic disturbance of 0.1–0.3 G, any direction, for 3–10 s.
-    Mag,
-    /// The barometer goes silent for 2–10 s.
-    Baro,
-    /// A 1 − cos gust of 3–8 m/s, horizontal, for 1–3 s.
-    Gust,
-    /// The IMU repeats one reading from then on.
-    Imu,
-}
-
-impl FaultKind {
-    /// Every fault, by its name on the command line and in the CSV.
-    pub const ALL: [(&'static str, FaultKind); 8] = [
-        ("none", FaultKind::None),
-        ("motor", FaultKind::Motor),
-        ("motor_off", FaultKind::MotorOff),
-        ("gps", FaultKind::Gps),
-        ("mag", FaultKind::Mag),
-        ("baro", FaultKind::Baro),
-        ("gust", FaultKind::Gust),
-        ("imu", FaultKind::Imu),
-    ];
-
-    /// The fault named `name`.
-    pub fn from_name(name: &str) -> Result<Self> {
-        Self::ALL
-            .iter()
-            .find(|(n, _)| *n == name)
-            .map(|&(_, f)| f)
-            .with_context(|| {
-                let names: Vec<&str> = Self::ALL.iter().map(|(n, _)| *n).collect();
-                format!("unknown fault {name:?} (known: {})", names.join(", "))
-            })
-    }
-
-    /// Its name.
-    pub fn name(self) -> &'static str {
-        Self::ALL
-            .iter()
-            .find(|&&(_, f)| f == self)
-            .map_or("?", |(n, _)| n)
-    }
-}
-
-/// One run as drawn: its sensors' seed, its weather and its fault.
-#[derive(Debug, Clone, PartialEq)]
-pub struct RunPlan {
-    /// The run's number in the batch.
-    pub run: u32,
-    /// Seed of the simulator's random processes (sensor noise, turbulence).
-    pub sim_seed: u64,
-    /// Mean wind speed (m/s) and the direction it blows from (deg, clockwise from north).
-    pub wind_m_s: f64,
-    /// Direction the wind blows from (deg).
-    pub wind_from_deg: f64,
-    /// Turbulence intensity W20 (m/s).
-    pub turbulence_m_s: f64,
-    /// The fault, when it strikes (s of simulation time), and what exactly it is.
-    pub fault: FaultKind,
-    /// When the fault strikes (s); none without one.
-    pub fault_t_s: Option<f64>,
-    /// The fault's particulars, for the CSV (motor, strength, length).
-    pub fault_detail: String,
-    /// The simulator's events that make the fault.
-    pub events: Vec<Event>,
-}
-
-impl RunPlan {
-    /// Draws run `run` of `cfg` for a vehicle of `rotors` rotors, from the stream `(seed, run)`.
-    pub fn draw(cfg: &BatchConfig, run: u32, rotors: usize) -> Self {
-        let mut rng = Rng::stream(cfg.seed, u64::from(run));
-        let sim_seed = rng.next_u64();
-        let wind_m_s = cfg.wind_max_m_s * rng.uniform();
-        let wind_from_deg = 360.0 * rng.uniform();
-        let turbulence_m_s = cfg.turbulence_max_m_s * rng.uniform();
-        let fault =
-            cfg.faults[(rng.uniform() * cfg.faults.len() as f64) as usize % cfg.faults.len()];
-        // The hover begins after the spool-up (1 s after arming at about 1 s) and the climb
-        // (1.5 m/s, 1 m/s²); the fault strikes within it, a second clear of either end.
-        let hover_start_s = 3.5 + cfg.takeoff_m / 1.5;
-        let t = hover_start_s + 1.0 + (cfg.hover_s - 2.0).max(0.0) * rng.uniform();
-        let between = |rng: &mut Rng, lo: f64, hi: f64| lo + (hi - lo) * rng.uniform();
-        let horizontal = |rng: &mut Rng, size: f64| {
-            let a = std::f64::consts::TAU * rng.uniform();
-            Vector3::new(size * a.cos(), size * a.sin(), 0.0)
-        };
-        let at = |t_s, action| Event { t_s, action };
-        let (detail, events) = match fault {
-            FaultKind::None => (String::new(), Vec::new()),
-            FaultKind::Motor => {
-                let index = (rng.uniform() * rotors as f64) as usize % rotors;
-                let effectiveness = between(&mut rng, 0.5, 0.9);
-                (
-                    format!("motor {} at {:.0} %", index + 1, 100.0 * effectiveness),
-                    vec![at(
-                        t,
-                        SimAction::MotorEffectiveness {
-                            index,
-                            effectiveness,
-                        },
-                    )],
-                )
-            }
-            FaultKind::MotorOff => {
-                let index = (rng.uniform() * rotors as f64) as usize % rotors;
-                (
-                    format!("motor {} off", index + 1),
-                    vec![at(t, SimAction::MotorFail { index })],
-                )
-            }
-            FaultKind::Gps => {
-                let d = between(&mut rng, 5.0, 15.0);
-                (
-                    format!("fix lost {d:.1} s"),
-                    vec![
-                        at(t, SimAction::GpsFixLost(true)),
-                        at(t + d, SimAction::GpsFixLost(false)),
-                    ],
-                )
-            }
-            FaultKind::Mag => {
-                let size = between(&mut rng, 0.1, 0.3);
-                let d = between(&mut rng, 3.0, 10.0);
-                let mut field = Vector3::new(rng.normal(), rng.normal(), rng.normal());
-                field *= size / field.norm().max(1e-9);
-                (
-                    format!("{size:.2} G for {d:.1} s"),
-                    vec![
-                        at(t, SimAction::MagDisturbance(field)),
-                        at(t + d, SimAction::MagDisturbance(Vector3::zeros())),
-                    ],
-                )
-            }
-            FaultKind::Baro => {
-                let d = between(&mut rng, 2.0, 10.0);
-                let health = |health| SimAction::Sensor {
-                    sensor: SensorKind::Baro,
-                    health,
-                };
-                (
-                    format!("silent {d:.1} s"),
-                    vec![
-                        at(t, health(SensorHealth::Off)),
-                        at(t + d, health(SensorHealth::Ok)),
-                    ],
-                )
-            }
-            FaultKind::Gust => {
-                let peak = between(&mut rng, 3.0, 8.0);
-                let d = between(&mut rng, 1.0, 3.0);
-                (
-                    format!("{peak:.1} m/s over {d:.1} s"),
-                    vec![at(
-                        t,
-                        SimAction::Gust {
-                            peak_ned_m_s: horizontal(&mut rng, peak),
-                            duration_s: d,
-                        },
-                    )],
-                )
-            }
-            FaultKind::Imu => (
-                "stuck".into(),
-                vec![at(
-                    t,
-                    SimAction::Sensor {
-                        sensor: SensorKind::Imu,
-                        health: SensorHealth::Stuck,
-                    },
-                )],
-            ),
-        };
-        Self {
-            run,
-            sim_seed,
-            wind_m_s,
-            wind_from_deg,
-            turbulence_m_s,
-            fault,
-            fault_t_s: (fault != FaultKind::None).then_some(t),
-            fault_detail: detail,
-            events,
+impl BatchConfig {
+    /// Refuses a batch without runs or faults, a wind or turbulence out of range, run numbers
+    /// past the last.
+    fn check(&self) -> Result<()> {
+        if self.runs == 0 || self.faults.is_empty() {
+            bail!("a batch needs at least one run and one fault kind (none is one)");
         }
-    }
-
-    /// The simulated world of this run.
-    fn world(&self, sensors: SensorPreset) -> SimConfig {
-        // The wind blows from `wind_from_deg`: the air moves the other way.
-        let to = (self.wind_from_deg + 180.0).to_radians();
-        SimConfig {
-            seed: self.sim_seed,
-            sensors: SensorConfig::preset(sensors),
-            wind: WindConfig {
-                mean_ned_m_s: [self.wind_m_s * to.cos(), self.wind_m_s * to.sin(), 0.0],
-                turbulence_w20_m_s: self.turbulence_m_s,
-                roughness_m: None,
-            },
-            ..SimConfig::default()
+        for (name, x, max) in [
+            ("--wind-max", self.wind_max_m_s, 30.0),
+            ("--turbulence-max", self.turbulence_max_m_s, 30.0),
+        ] {
+            if !(x.is_finite() && (0.0..=max).contains(&x)) {
+                bail!("{name} must be within [0, {max}] m/s, got {x}");
+            }
         }
+        if self.first.checked_add(self.runs).is_none() {
+            bail!(
+                "--first {} and --runs {}: run numbers end at {}",
+                self.first,
+                self.runs,
+                u32::MAX - 1
+            );
+        }
+        Ok(())
     }
+}
+
+/// The campaign's CSV at `output`, its header written; a manifest left at `manifest_path` by a
+/// batch before (which would vouch for it) removed first.
+fn start_csv(
+    output: &Path,
+    manifest_path: &Path,
+) -> Result<csv::Writer<std::io::BufWriter<std::fs::File>>> {
+    match std::fs::remove_file(manifest_path) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+            Err(e).with_context(|| format!("removing {}", manifest_path.display()))?
+        }
+        _ => {}
+    }
+    let file =
+        std::fs::File::create(output).with_context(|| format!("creating {}", output.display()))?;
+    let mut csv = csv::Writer::from_writer(std::io::BufWriter::new(file));
+    csv.write_record(CSV_HEADER.split(','))?;
+    csv.flush()?;
+    Ok(csv)
+}
+
+/// The batch's summary: the faults' table and one line; an error if runs could not be flown.
+fn say_done(manifest: &Manifest, rows: usize, output: &Path, manifest_path: &Path) -> Result<()> {
+    manifest.summary.print_faults();
+    println!(
+        "batch summary: {} shard={} jobs={} wall_time_s={:.2} runs_per_s={:.2} csv={} manifest={}",
+        manifest.summary.total,
+        manifest.shard,
+        manifest.jobs,
+        manifest.wall_time_s,
+        rows as f64 / manifest.wall_time_s.max(1e-9),
+        output.display(),
+        manifest_path.display()
+    );
+    let errors = manifest.summary.total.errors;
+    if errors > 0 {
+        bail!("{errors} of {rows} runs could not be flown");
+    }
+    Ok(())
 }
 
 /// Faster than this at the ground (m/s) is a crash, not a landing: a fall from over half a metre.
@@ -462,44 +314,15 @@ pub fn run(
     jobs: usize,
     output: &Path,
 ) -> Result<()> {
-    if cfg.runs == 0 || cfg.faults.is_empty() {
-        bail!("a batch needs at least one run and one fault kind (none is one)");
-    }
-    for (name, x, max) in [
-        ("--wind-max", cfg.wind_max_m_s, 30.0),
-        ("--turbulence-max", cfg.turbulence_max_m_s, 30.0),
-    ] {
-        if !(x.is_finite() && (0.0..=max).contains(&x)) {
-            bail!("{name} must be within [0, {max}] m/s, got {x}");
-        }
-    }
-    if cfg.first.checked_add(cfg.runs).is_none() {
-        bail!(
-            "--first {} and --runs {}: run numbers end at {}",
-            cfg.first,
-            cfg.runs,
-            u32::MAX - 1
-        );
-    }
+    cfg.check()?;
     refuse_json(output)?;
     let airframe = Airframe::load(airframe_path)?;
     let campaign = Campaign::new(cfg, &airframe.name, airframe_path, params_path)?;
     let mut params = FlightParams::load(params_path)?;
     Source::Embedded.preset_params(&mut params);
     params.commander.takeoff_alt_m = cfg.takeoff_m;
-    // A manifest left from a batch before would vouch for the CSV being written: gone first.
     let manifest_path = Manifest::path_of(output);
-    match std::fs::remove_file(&manifest_path) {
-        Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
-            Err(e).with_context(|| format!("removing {}", manifest_path.display()))?
-        }
-        _ => {}
-    }
-    let file =
-        std::fs::File::create(output).with_context(|| format!("creating {}", output.display()))?;
-    let mut csv = csv::Writer::from_writer(std::io::BufWriter::new(file));
-    csv.write_record(CSV_HEADER.split(','))?;
-    csv.flush()?;
+    let mut csv = start_csv(output, &manifest_path)?;
     let runs: Vec<u32> = shard.runs(cfg.first, cfg.runs).collect();
     let jobs = jobs.clamp(1, runs.len().max(1));
     tracing::info!(
@@ -570,19 +393,7 @@ pub fn run(
         summary,
     };
     manifest.write(&manifest_path)?;
-    manifest.summary.print_faults();
-    println!(
-        "batch summary: {} shard={shard} jobs={jobs} wall_time_s={wall:.2} runs_per_s={:.2} csv={} manifest={}",
-        manifest.summary.total,
-        rows.len() as f64 / wall.max(1e-9),
-        output.display(),
-        manifest_path.display()
-    );
-    let errors = manifest.summary.total.errors;
-    if errors > 0 {
-        bail!("{errors} of {} runs could not be flown", rows.len());
-    }
-    Ok(())
+    say_done(&manifest, rows.len(), output, &manifest_path)
 }
 
 /// The CSV to write: `given`, or `name` in it when it is a directory (made when it ends in /),

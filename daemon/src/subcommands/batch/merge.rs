@@ -165,21 +165,10 @@ fn ranges(runs: &[u32], max: usize) -> String {
     parts.join(", ")
 }
 
-/// Merges the shards named by `inputs` into the CSV `output` (a file, or a directory for
-/// `batch-SEED.csv`; that name here by default) and its manifest, and prints the summary a
-/// batch prints.
-pub fn merge(inputs: &[PathBuf], output: Option<&Path>) -> Result<()> {
-    let mut shards = Vec::new();
-    for named in manifests(inputs, output)? {
-        let shard = read_shard(&named.path)?;
-        if named.in_directory && shard.manifest.merged_shards.is_some() {
-            tracing::info!(manifest = %named.path.display(), "passed over: a merged campaign");
-            continue;
-        }
-        shards.push(shard);
-    }
+/// Refuses shards of two campaigns, or flown by two builds.
+fn same_campaign(shards: &[ShardFile]) -> Result<()> {
     let Some(first) = shards.first() else {
-        bail!("nothing to merge: the directories given hold merged campaigns only");
+        return Ok(());
     };
     for s in &shards[1..] {
         let differ = first.manifest.campaign.differences(&s.manifest.campaign);
@@ -201,16 +190,16 @@ pub fn merge(inputs: &[PathBuf], output: Option<&Path>) -> Result<()> {
             );
         }
     }
-    let campaign = &first.manifest.campaign;
-    let Some(end) = campaign.first.checked_add(campaign.runs) else {
-        bail!(
-            "{}: its runs pass run number {}",
-            first.path.display(),
-            u32::MAX
-        );
-    };
-    let output = super::output_path(output, &super::default_name(campaign.seed, Shard::WHOLE))?;
-    let output = output.as_path();
+    Ok(())
+}
+
+/// Every row of the shards by its run number (and the shard it came from); a run outside its
+/// shard or the campaign, or given twice, refused.
+fn rows_by_run(
+    shards: &[ShardFile],
+    first_run: u32,
+    end: u32,
+) -> Result<BTreeMap<u32, (usize, &csv::StringRecord)>> {
     let run_column = super::column("run");
     let mut by_run: BTreeMap<u32, (usize, &csv::StringRecord)> = BTreeMap::new();
     let mut twice = Vec::new();
@@ -220,7 +209,7 @@ pub fn merge(inputs: &[PathBuf], output: Option<&Path>) -> Result<()> {
                 .get(run_column)
                 .and_then(|r| r.parse().ok())
                 .with_context(|| format!("{}: a row without a run number", s.path.display()))?;
-            if !s.manifest.shard.holds(campaign.first, run) || run >= end {
+            if !s.manifest.shard.holds(first_run, run) || run >= end {
                 bail!(
                     "{}: run {run} is not one of shard {}'s",
                     s.path.display(),
@@ -245,6 +234,37 @@ pub fn merge(inputs: &[PathBuf], output: Option<&Path>) -> Result<()> {
             if n > 3 { "; …" } else { "" }
         );
     }
+    Ok(by_run)
+}
+
+/// Merges the shards named by `inputs` into the CSV `output` (a file, or a directory for
+/// `batch-SEED.csv`; that name here by default) and its manifest, and prints the summary a
+/// batch prints.
+pub fn merge(inputs: &[PathBuf], output: Option<&Path>) -> Result<()> {
+    let mut shards = Vec::new();
+    for named in manifests(inputs, output)? {
+        let shard = read_shard(&named.path)?;
+        if named.in_directory && shard.manifest.merged_shards.is_some() {
+            tracing::info!(manifest = %named.path.display(), "passed over: a merged campaign");
+            continue;
+        }
+        shards.push(shard);
+    }
+    let Some(first) = shards.first() else {
+        bail!("nothing to merge: the directories given hold merged campaigns only");
+    };
+    same_campaign(&shards)?;
+    let campaign = &first.manifest.campaign;
+    let Some(end) = campaign.first.checked_add(campaign.runs) else {
+        bail!(
+            "{}: its runs pass run number {}",
+            first.path.display(),
+            u32::MAX
+        );
+    };
+    let output = super::output_path(output, &super::default_name(campaign.seed, Shard::WHOLE))?;
+    let output = output.as_path();
+    let by_run = rows_by_run(&shards, campaign.first, end)?;
     let missing: Vec<u32> = Shard::WHOLE
         .runs(campaign.first, campaign.runs)
         .filter(|r| !by_run.contains_key(r))

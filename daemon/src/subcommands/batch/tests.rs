@@ -1,6 +1,7 @@
 //! The batch's draws, its rows whatever the workers, and its fault names.
 #![allow(clippy::unwrap_used)]
 use super::*;
+use sitl_core::sim::SimAction;
 use std::path::PathBuf;
 
 fn config(faults: &[FaultKind]) -> BatchConfig {
