@@ -27,13 +27,8 @@ MAX_LINES = 600
 MAX_FN_LINES = 100
 # Over the limits today, to be split; the length each has now (it may not grow).
 SPLIT_PENDING: dict[str, int] = {
-    "daemon/core/src/commander/mission.rs::item": 122,
     "daemon/core/src/control/relaxed_hover.rs::solve": 103,
-    "daemon/core/src/core/config.rs::from_params": 102,
-    "daemon/core/src/estimator/attitude/params.rs": 660,
-    "daemon/core/src/estimator/attitude/params.rs::validate": 101,
     "daemon/core/src/estimator/tilt_heading.rs::update": 204,
-    "daemon/core/src/safety/failsafe.rs": 646,
     "daemon/core/src/safety/motor_failure.rs::step": 140,
     "daemon/core/src/sensors/mag_fit.rs::fit_ellipsoid": 107,
     "sitl/core/src/jsbsim.rs::aircraft_xml": 160,

@@ -94,7 +94,7 @@ impl MissionFlight {
 
     /// One item: its set-point, or `None` when it is done.
     fn item(&mut self, f: &mut Flight, t: &Tick, item: MissionItem) -> Option<PositionSetpoint> {
-        let (p, i, dt, home) = (f.params, t.i, t.dt, t.home);
+        let (i, dt, home) = (t.i, t.dt, t.home);
         let origin = i.origin?;
         let resolve = |m: &MissionPoint| m.to_ned(&origin, &home, &i.pos_ned_m);
         // Done at once.
@@ -143,60 +143,7 @@ impl MissionFlight {
                 }
                 Some(sp)
             }
-            Stage::Leg { target } => {
-                f.land.airborne();
-                if let Some(arc) = self.arc.as_mut() {
-                    let yaw = f.slew_yaw(item_yaw, i, dt);
-                    let (sp, done) = arc.step(dt, yaw);
-                    if done {
-                        self.arc = None;
-                    }
-                    return Some(sp);
-                }
-                let line = self.line.as_mut()?;
-                let along = (line.dir.xy().norm() > 0.5 && line.length - line.s > 1.0)
-                    .then(|| line.dir.y.atan2(line.dir.x));
-                let yaw = f.slew_yaw(item_yaw.or(along), i, dt);
-                let (sp, arrived) = self.line.as_mut()?.step(dt, yaw);
-                let off = i.pos_ned_m - target;
-                let within =
-                    off.xy().norm() <= acceptance(f, &item) && off.z.abs() <= p.alt_acceptance_m;
-                if let Some(corner) = self.corner.filter(|_| arrived) {
-                    // Through the corner: reached as the arc begins, the vehicle about the
-                    // waypoint (within the acceptance radius of it or of the arc's start).
-                    let near = (i.pos_ned_m - corner.start).xy().norm() <= acceptance(f, &item);
-                    if within || near {
-                        self.line = None;
-                        self.corner = None;
-                        self.arc = Some(corner);
-                        return None;
-                    }
-                }
-                if !(arrived && within) {
-                    return Some(sp);
-                }
-                self.line = None;
-                self.stage = match item {
-                    MissionItem::Waypoint { hold_s, .. } if hold_s > 0.0 => Stage::Hold {
-                        target,
-                        until_s: i.t_s + hold_s,
-                    },
-                    MissionItem::LoiterTime { time_s, .. } => Stage::Hold {
-                        target,
-                        until_s: i.t_s + time_s,
-                    },
-                    MissionItem::LoiterUnlimited { .. } => Stage::Hold {
-                        target,
-                        until_s: f64::INFINITY,
-                    },
-                    MissionItem::Land { .. } => {
-                        self.landing = Landing::over((target.x, target.y));
-                        Stage::Land
-                    }
-                    _ => return None,
-                };
-                Some(sp)
-            }
+            Stage::Leg { target } => self.leg(f, t, item, item_yaw, target),
             Stage::Hold { target, until_s } => {
                 if i.t_s >= until_s {
                     return None;
@@ -214,6 +161,70 @@ impl MissionFlight {
                 Some(self.rtl.fly(f, i, dt, yaw, home))
             }
         }
+    }
+
+    /// A leg to `target`: along its line (or through a corner's arc), then what the item does
+    /// there (hold, loiter, land), or `None` when it is done.
+    fn leg(
+        &mut self,
+        f: &mut Flight,
+        t: &Tick,
+        item: MissionItem,
+        item_yaw: Option<f64>,
+        target: Vector3<f64>,
+    ) -> Option<PositionSetpoint> {
+        let (p, i, dt) = (f.params, t.i, t.dt);
+        f.land.airborne();
+        if let Some(arc) = self.arc.as_mut() {
+            let yaw = f.slew_yaw(item_yaw, i, dt);
+            let (sp, done) = arc.step(dt, yaw);
+            if done {
+                self.arc = None;
+            }
+            return Some(sp);
+        }
+        let line = self.line.as_mut()?;
+        let along = (line.dir.xy().norm() > 0.5 && line.length - line.s > 1.0)
+            .then(|| line.dir.y.atan2(line.dir.x));
+        let yaw = f.slew_yaw(item_yaw.or(along), i, dt);
+        let (sp, arrived) = self.line.as_mut()?.step(dt, yaw);
+        let off = i.pos_ned_m - target;
+        let within = off.xy().norm() <= acceptance(f, &item) && off.z.abs() <= p.alt_acceptance_m;
+        if let Some(corner) = self.corner.filter(|_| arrived) {
+            // Through the corner: reached as the arc begins, the vehicle about the
+            // waypoint (within the acceptance radius of it or of the arc's start).
+            let near = (i.pos_ned_m - corner.start).xy().norm() <= acceptance(f, &item);
+            if within || near {
+                self.line = None;
+                self.corner = None;
+                self.arc = Some(corner);
+                return None;
+            }
+        }
+        if !(arrived && within) {
+            return Some(sp);
+        }
+        self.line = None;
+        self.stage = match item {
+            MissionItem::Waypoint { hold_s, .. } if hold_s > 0.0 => Stage::Hold {
+                target,
+                until_s: i.t_s + hold_s,
+            },
+            MissionItem::LoiterTime { time_s, .. } => Stage::Hold {
+                target,
+                until_s: i.t_s + time_s,
+            },
+            MissionItem::LoiterUnlimited { .. } => Stage::Hold {
+                target,
+                until_s: f64::INFINITY,
+            },
+            MissionItem::Land { .. } => {
+                self.landing = Landing::over((target.x, target.y));
+                Stage::Land
+            }
+            _ => return None,
+        };
+        Some(sp)
     }
 
     /// Sets up an item: its first stage (`None`: nothing to do, it is done).

@@ -6,7 +6,7 @@ use crate::control::motor::MotorLoopParams;
 use crate::control::position::PositionParams;
 use crate::control::rate::{LadrcParams, PidParams};
 use crate::estimator::translation::TranslationParams;
-use crate::params::{AttitudeParams, FlightParams};
+use crate::params::{AttitudeControlGroup, AttitudeParams, FlightParams, RateGroup};
 use crate::safety::motor_failure::MotorFailureParams;
 use airframe::Airframe;
 use nalgebra::Vector3;
@@ -71,55 +71,8 @@ impl FlightCoreConfig {
             .iter()
             .map(|r| r.thrust_n(crate::SEA_LEVEL_AIR_DENSITY_KG_M3, r.max_speed_rad_s))
             .sum();
-        let r = &p.rate;
-        let rate = if r.controller == 1 {
-            RateLoopParams::Pid([0, 1, 2].map(|i| {
-                let j = inertia[i];
-                let (kp, ki, kd, imax) = if i < 2 {
-                    (r.pid_p_rp, r.pid_i_rp, r.pid_d_rp, r.pid_imax_rp)
-                } else {
-                    (r.pid_p_y, r.pid_i_y, 0.0, r.pid_imax_y)
-                };
-                PidParams {
-                    k_p: kp * j,
-                    k_i: ki * j,
-                    k_d: kd * j,
-                    k_ff: 0.0,
-                    d_cutoff_hz: r.pid_d_cutoff_hz,
-                    i_limit: imax * j,
-                    u_max: 1e3,
-                }
-            }))
-        } else {
-            RateLoopParams::Ladrc([0, 1, 2].map(|i| LadrcParams {
-                b_bar: r.adrc_b_scale / inertia[i],
-                k_d: if i < 2 { r.adrc_kd_rp } else { r.adrc_kd_y },
-                beta: r.adrc_beta,
-                td_limit: if r.adrc_td_limit > 0.0 {
-                    r.adrc_td_limit
-                } else {
-                    f64::INFINITY
-                },
-                u_max: 1e3,
-            }))
-        };
-        let c = &p.attitude_control;
-        let attitude_law = if c.law == 1 {
-            let tilt_inertia = inertia.x.max(inertia.y);
-            AttitudeLaw::TiltYawPd(TiltYawPdParams {
-                k_p_tilt: c.pd_k_p_tilt * tilt_inertia,
-                k_d_tilt: c.pd_k_d_tilt * tilt_inertia,
-                k_p_yaw: c.pd_k_p_yaw * inertia.z,
-                k_d_yaw: c.pd_k_d_yaw * inertia.z,
-            })
-        } else {
-            AttitudeLaw::Kinematic(KinematicParams {
-                k_k: c.k_k,
-                yaw_weight: c.yaw_weight,
-                max_tilt_rate: c.max_tilt_rate_deg_s.to_radians(),
-                max_yaw_rate: c.max_yaw_rate_deg_s.to_radians(),
-            })
-        };
+        let rate = rate_loop(&p.rate, &inertia);
+        let attitude_law = attitude_law(&p.attitude_control, &inertia);
         let (t, q, m) = (&p.translation, &p.position, &p.motor);
         Self {
             attitude: p.attitude.clone(),
@@ -165,5 +118,60 @@ impl FlightCoreConfig {
                 reallocate: p.safety.motor_failure_mode != 0,
             },
         }
+    }
+}
+
+/// The rate loop's gains from the parameters, scaled by the inertia about each axis (kg·m²).
+fn rate_loop(r: &RateGroup, inertia: &Vector3<f64>) -> RateLoopParams {
+    if r.controller == 1 {
+        RateLoopParams::Pid([0, 1, 2].map(|i| {
+            let j = inertia[i];
+            let (kp, ki, kd, imax) = if i < 2 {
+                (r.pid_p_rp, r.pid_i_rp, r.pid_d_rp, r.pid_imax_rp)
+            } else {
+                (r.pid_p_y, r.pid_i_y, 0.0, r.pid_imax_y)
+            };
+            PidParams {
+                k_p: kp * j,
+                k_i: ki * j,
+                k_d: kd * j,
+                k_ff: 0.0,
+                d_cutoff_hz: r.pid_d_cutoff_hz,
+                i_limit: imax * j,
+                u_max: 1e3,
+            }
+        }))
+    } else {
+        RateLoopParams::Ladrc([0, 1, 2].map(|i| LadrcParams {
+            b_bar: r.adrc_b_scale / inertia[i],
+            k_d: if i < 2 { r.adrc_kd_rp } else { r.adrc_kd_y },
+            beta: r.adrc_beta,
+            td_limit: if r.adrc_td_limit > 0.0 {
+                r.adrc_td_limit
+            } else {
+                f64::INFINITY
+            },
+            u_max: 1e3,
+        }))
+    }
+}
+
+/// The attitude law and its gains from the parameters, scaled by the inertia (kg·m²).
+fn attitude_law(c: &AttitudeControlGroup, inertia: &Vector3<f64>) -> AttitudeLaw {
+    if c.law == 1 {
+        let tilt_inertia = inertia.x.max(inertia.y);
+        AttitudeLaw::TiltYawPd(TiltYawPdParams {
+            k_p_tilt: c.pd_k_p_tilt * tilt_inertia,
+            k_d_tilt: c.pd_k_d_tilt * tilt_inertia,
+            k_p_yaw: c.pd_k_p_yaw * inertia.z,
+            k_d_yaw: c.pd_k_d_yaw * inertia.z,
+        })
+    } else {
+        AttitudeLaw::Kinematic(KinematicParams {
+            k_k: c.k_k,
+            yaw_weight: c.yaw_weight,
+            max_tilt_rate: c.max_tilt_rate_deg_s.to_radians(),
+            max_yaw_rate: c.max_yaw_rate_deg_s.to_radians(),
+        })
     }
 }

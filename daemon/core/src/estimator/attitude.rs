@@ -15,8 +15,10 @@ use super::wahba::{ObservationError, VectorObservation, quest};
 use crate::GRAVITY_M_S2;
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 
+mod meta;
 mod params;
-pub use params::{ATTITUDE_META, AttitudeParams};
+pub use meta::ATTITUDE_META;
+pub use params::AttitudeParams;
 
 /// Magnetometer calibration of Castillo (75): offset, rotation R and scale E of the fitted
 /// ellipsoid.

@@ -2,9 +2,10 @@
 //! and checks.
 
 use super::MagCalibration;
+use super::meta::ATTITUDE_META;
 use crate::estimator::heading::HeadingSettings;
 use crate::estimator::tilt_heading::TiltHeadingSettings;
-use crate::params::{ParamKind, ParamMeta, ParamViolation, check};
+use crate::params::{ParamViolation, check};
 use nalgebra::{Matrix3, Vector3};
 use serde::Deserialize;
 
@@ -98,320 +99,6 @@ impl Default for AttitudeParams {
         }
     }
 }
-
-/// Metadata of the attitude parameters.
-pub const ATTITUDE_META: &[ParamMeta] = &[
-    ParamMeta {
-        name: "ATT_MODE",
-        key: "mode",
-        kind: ParamKind::Int32,
-        unit: "",
-        default: 1.0,
-        min: 0.0,
-        max: 1.0,
-        description: "Attitude estimator: 0 Castillo's q-method observer, 1 the tilt/heading filter (accelerometer for tilt only, magnetometer for heading only, bias learned in motion)",
-    },
-    ParamMeta {
-        name: "ATT_TAU_ACC",
-        key: "tau_acc_s",
-        kind: ParamKind::Real32,
-        unit: "s",
-        default: 3.0,
-        min: 0.1,
-        max: 30.0,
-        description: "Tilt/heading filter: time constant of the accelerometer's low-pass in the gyro frame (longer ignores longer accelerations)",
-    },
-    ParamMeta {
-        name: "ATT_TAU_MAG",
-        key: "tau_mag_s",
-        kind: ParamKind::Real32,
-        unit: "s",
-        default: 15.0,
-        min: 0.5,
-        max: 100.0,
-        description: "Tilt/heading filter: time constant of the magnetic heading correction",
-    },
-    ParamMeta {
-        name: "ATT_BIAS_TAU",
-        key: "bias_tau_s",
-        kind: ParamKind::Real32,
-        unit: "s",
-        default: 10.0,
-        min: 0.0,
-        max: 1000.0,
-        description: "Tilt/heading filter: time constant of the gyro-bias Kalman filter in motion (0: learn only at rest)",
-    },
-    ParamMeta {
-        name: "ATT_MAG_REJ_T",
-        key: "mag_reject_s",
-        kind: ParamKind::Real32,
-        unit: "s",
-        default: 60.0,
-        min: 0.0,
-        max: 600.0,
-        description: "Tilt/heading filter: longest time a disturbed magnetic field is ignored (heading on the gyro meanwhile)",
-    },
-    ParamMeta {
-        name: "ATT_MAG_LEARN",
-        key: "mag_learn",
-        kind: ParamKind::Int32,
-        unit: "",
-        default: 0.0,
-        min: 0.0,
-        max: 1.0,
-        description: "Tilt/heading filter: learn a body-fixed magnetic field (hard iron) in flight from the gyro",
-    },
-    ParamMeta {
-        name: "ATT_OBS_K",
-        key: "observer_gain",
-        kind: ParamKind::Real32,
-        unit: "1/s",
-        default: 1.0,
-        min: 0.05,
-        max: 50.0,
-        description: "Observer gain k of Castillo (105): how fast the estimate follows the q-method measurement",
-    },
-    ParamMeta {
-        name: "ATT_BIAS_K",
-        key: "bias_gain",
-        kind: ParamKind::Real32,
-        unit: "1/s",
-        default: 0.05,
-        min: 0.0,
-        max: 5.0,
-        description: "Gyro-bias gain of Castillo (102)",
-    },
-    ParamMeta {
-        name: "ATT_BIAS_MAX",
-        key: "bias_limit_rad_s",
-        kind: ParamKind::Real32,
-        unit: "rad/s",
-        default: 0.1,
-        min: 0.001,
-        max: 1.0,
-        description: "Bound on the gyro-bias estimate",
-    },
-    ParamMeta {
-        name: "ATT_W_ACC",
-        key: "accel_weight",
-        kind: ParamKind::Real32,
-        unit: "",
-        default: 1.0,
-        min: 0.001,
-        max: 100.0,
-        description: "Wahba weight of the accelerometer vector, Castillo (80)",
-    },
-    ParamMeta {
-        name: "ATT_W_MAG",
-        key: "mag_weight",
-        kind: ParamKind::Real32,
-        unit: "",
-        default: 0.1,
-        min: 0.001,
-        max: 100.0,
-        description: "Wahba weight of the magnetometer vector, Castillo (80)",
-    },
-    ParamMeta {
-        name: "ATT_ACC_SOFT",
-        key: "accel_deweight_g",
-        kind: ParamKind::Real32,
-        unit: "g",
-        default: 0.05,
-        min: 0.0,
-        max: 2.0,
-        description: "Specific-force error where the accelerometer weight starts to fall",
-    },
-    ParamMeta {
-        name: "ATT_ACC_GATE",
-        key: "accel_gate_g",
-        kind: ParamKind::Real32,
-        unit: "g",
-        default: 0.3,
-        min: 0.01,
-        max: 3.0,
-        description: "Specific-force error beyond which the accelerometer is not used",
-    },
-    ParamMeta {
-        name: "ATT_ALIGN_N",
-        key: "align_samples",
-        kind: ParamKind::Int32,
-        unit: "samples",
-        default: 250.0,
-        min: 1.0,
-        max: 10000.0,
-        description: "IMU samples averaged for the initial alignment at rest",
-    },
-    ParamMeta {
-        name: "ATT_MAX_DR_T",
-        key: "max_uncorrected_s",
-        kind: ParamKind::Real32,
-        unit: "s",
-        default: 0.5,
-        min: 0.01,
-        max: 60.0,
-        description: "Longest gyro-only propagation before the attitude is flagged invalid",
-    },
-    ParamMeta {
-        name: "ATT_MAG_INC",
-        key: "mag_inclination_deg",
-        kind: ParamKind::Real32,
-        unit: "deg",
-        default: 63.3,
-        min: -90.0,
-        max: 90.0,
-        description: "Magnetic inclination at the flying site",
-    },
-    ParamMeta {
-        name: "ATT_MAG_DEC",
-        key: "mag_declination_deg",
-        kind: ParamKind::Real32,
-        unit: "deg",
-        default: 3.0,
-        min: -180.0,
-        max: 180.0,
-        description: "Magnetic declination at the flying site",
-    },
-    ParamMeta {
-        name: "ATT_MAG_STR",
-        key: "mag_intensity_gauss",
-        kind: ParamKind::Real32,
-        unit: "gauss",
-        default: 0.48,
-        min: 0.2,
-        max: 0.7,
-        description: "Magnetic field strength at the flying site (the pre-arm consistency check)",
-    },
-    ParamMeta {
-        name: "CAL_MAG0_ID",
-        key: "mag_calibration_id",
-        kind: ParamKind::Int32,
-        unit: "",
-        default: 0.0,
-        min: 0.0,
-        max: 2147483647.0,
-        description: "Set by a magnetometer calibration (a simulator presets its own); 0: never calibrated, arming refused",
-    },
-    ParamMeta {
-        name: "CAL_MAG0_XOFF",
-        key: "mag_offset[0]",
-        kind: ParamKind::Real32,
-        unit: "gauss",
-        default: 0.0,
-        min: -2.0,
-        max: 2.0,
-        description: "Magnetometer hard-iron offset, x (Castillo (75); set by a calibration)",
-    },
-    ParamMeta {
-        name: "CAL_MAG0_YOFF",
-        key: "mag_offset[1]",
-        kind: ParamKind::Real32,
-        unit: "gauss",
-        default: 0.0,
-        min: -2.0,
-        max: 2.0,
-        description: "Magnetometer hard-iron offset, y",
-    },
-    ParamMeta {
-        name: "CAL_MAG0_ZOFF",
-        key: "mag_offset[2]",
-        kind: ParamKind::Real32,
-        unit: "gauss",
-        default: 0.0,
-        min: -2.0,
-        max: 2.0,
-        description: "Magnetometer hard-iron offset, z",
-    },
-    ParamMeta {
-        name: "CAL_MAG0_XSCALE",
-        key: "mag_scale[0]",
-        kind: ParamKind::Real32,
-        unit: "",
-        default: 1.0,
-        min: 0.2,
-        max: 5.0,
-        description: "Soft-iron correction R E Rᵀ (Castillo (75)), xx (set by a calibration)",
-    },
-    ParamMeta {
-        name: "CAL_MAG0_YSCALE",
-        key: "mag_scale[1]",
-        kind: ParamKind::Real32,
-        unit: "",
-        default: 1.0,
-        min: 0.2,
-        max: 5.0,
-        description: "Soft-iron correction, yy",
-    },
-    ParamMeta {
-        name: "CAL_MAG0_ZSCALE",
-        key: "mag_scale[2]",
-        kind: ParamKind::Real32,
-        unit: "",
-        default: 1.0,
-        min: 0.2,
-        max: 5.0,
-        description: "Soft-iron correction, zz",
-    },
-    ParamMeta {
-        name: "CAL_MAG0_XODIAG",
-        key: "mag_offdiag[0]",
-        kind: ParamKind::Real32,
-        unit: "",
-        default: 0.0,
-        min: -1.0,
-        max: 1.0,
-        description: "Soft-iron correction, xy (the matrix must stay positive definite)",
-    },
-    ParamMeta {
-        name: "CAL_MAG0_YODIAG",
-        key: "mag_offdiag[1]",
-        kind: ParamKind::Real32,
-        unit: "",
-        default: 0.0,
-        min: -1.0,
-        max: 1.0,
-        description: "Soft-iron correction, xz",
-    },
-    ParamMeta {
-        name: "CAL_MAG0_ZODIAG",
-        key: "mag_offdiag[2]",
-        kind: ParamKind::Real32,
-        unit: "",
-        default: 0.0,
-        min: -1.0,
-        max: 1.0,
-        description: "Soft-iron correction, yz",
-    },
-    ParamMeta {
-        name: "CAL_MAG0_XCOMP",
-        key: "mag_comp[0]",
-        kind: ParamKind::Real32,
-        unit: "gauss",
-        default: 0.0,
-        min: -1.0,
-        max: 1.0,
-        description: "Motor-current field at full thrust, x, taken off in proportion to the mean thrust fraction (ω/ω_max)² (PX4's throttle compensation)",
-    },
-    ParamMeta {
-        name: "CAL_MAG0_YCOMP",
-        key: "mag_comp[1]",
-        kind: ParamKind::Real32,
-        unit: "gauss",
-        default: 0.0,
-        min: -1.0,
-        max: 1.0,
-        description: "Motor-current field at full thrust, y",
-    },
-    ParamMeta {
-        name: "CAL_MAG0_ZCOMP",
-        key: "mag_comp[2]",
-        kind: ParamKind::Real32,
-        unit: "gauss",
-        default: 0.0,
-        min: -1.0,
-        max: 1.0,
-        description: "Motor-current field at full thrust, z",
-    },
-];
 
 impl AttitudeParams {
     /// The value of the field `key` named in [`ATTITUDE_META`].
@@ -542,67 +229,24 @@ impl AttitudeParams {
                 self.get(key).unwrap_or(f64::NAN),
             );
         }
-        check(&mut v, "attitude", m, "observer_gain", self.observer_gain);
-        check(&mut v, "attitude", m, "bias_gain", self.bias_gain);
-        check(
-            &mut v,
-            "attitude",
-            m,
-            "bias_limit_rad_s",
-            self.bias_limit_rad_s,
-        );
-        check(&mut v, "attitude", m, "accel_weight", self.accel_weight);
-        check(&mut v, "attitude", m, "mag_weight", self.mag_weight);
-        check(
-            &mut v,
-            "attitude",
-            m,
-            "accel_deweight_g",
-            self.accel_deweight_g,
-        );
-        check(&mut v, "attitude", m, "accel_gate_g", self.accel_gate_g);
-        check(
-            &mut v,
-            "attitude",
-            m,
-            "align_samples",
-            self.align_samples as f64,
-        );
-        check(
-            &mut v,
-            "attitude",
-            m,
-            "max_uncorrected_s",
-            self.max_uncorrected_s,
-        );
-        check(
-            &mut v,
-            "attitude",
-            m,
-            "mag_inclination_deg",
-            self.mag_inclination_deg,
-        );
-        check(
-            &mut v,
-            "attitude",
-            m,
-            "mag_declination_deg",
-            self.mag_declination_deg,
-        );
-        check(
-            &mut v,
-            "attitude",
-            m,
-            "mag_intensity_gauss",
-            self.mag_intensity_gauss,
-        );
-        check(
-            &mut v,
-            "attitude",
-            m,
-            "mag_calibration_id",
-            self.mag_calibration_id as f64,
-        );
+        let fields = [
+            ("observer_gain", self.observer_gain),
+            ("bias_gain", self.bias_gain),
+            ("bias_limit_rad_s", self.bias_limit_rad_s),
+            ("accel_weight", self.accel_weight),
+            ("mag_weight", self.mag_weight),
+            ("accel_deweight_g", self.accel_deweight_g),
+            ("accel_gate_g", self.accel_gate_g),
+            ("align_samples", self.align_samples as f64),
+            ("max_uncorrected_s", self.max_uncorrected_s),
+            ("mag_inclination_deg", self.mag_inclination_deg),
+            ("mag_declination_deg", self.mag_declination_deg),
+            ("mag_intensity_gauss", self.mag_intensity_gauss),
+            ("mag_calibration_id", self.mag_calibration_id as f64),
+        ];
+        for (key, value) in fields {
+            check(&mut v, "attitude", m, key, value);
+        }
         if self.accel_deweight_g >= self.accel_gate_g {
             v.push(ParamViolation {
                 key: "attitude.accel_deweight_g".into(),
