@@ -31,13 +31,16 @@
 use crate::airframe::Airframe;
 use crate::body::{BodyState, Integrator};
 use crate::environment::WindConfig;
-use crate::sensors::{EarthField, SensorConfig, SensorHealth, SensorKind, SensorPreset};
-use crate::sim::{Event, SimAction, SimConfig};
+use crate::sensors::{EarthField, SensorConfig, SensorKind, SensorPreset};
+use crate::sim::{Event, SimConfig};
 use ::airframe::config::{Checker, ConfigError, parse_toml, read_toml};
 use nalgebra::{UnitQuaternion, Vector3};
 use navmath::geo::LatLonAlt;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
+
+mod events;
+use events::resolve_event;
 
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -245,67 +248,14 @@ impl Scenario {
         airframe_dir: &Path,
     ) -> Result<Self, ConfigError> {
         let mut c = Checker::default();
-        c.positive("duration_s", raw.duration_s);
-        c.within("rate_hz", raw.rate_hz, 20.0, 10_000.0);
+        check_world(&mut c, &raw);
         let home = raw.home.unwrap_or_default();
-        c.within("home.lat_deg", home.lat_deg, -89.0, 89.0);
-        c.within("home.lon_deg", home.lon_deg, -180.0, 180.0);
-        c.within("home.alt_m", home.alt_m, -400.0, 9000.0);
         let ini = &raw.initial;
-        c.finite("initial.position_ned_m", &ini.position_ned_m);
-        c.finite("initial.velocity_ned_m_s", &ini.velocity_ned_m_s);
-        c.finite("initial.attitude_euler_deg", &ini.attitude_euler_deg);
-        c.finite("initial.rate_frd_rad_s", &ini.rate_frd_rad_s);
-        if let Some(z0) = raw.wind.roughness_m {
-            c.within("wind.roughness_m", z0, 1e-4, 2.0);
-        }
-        c.finite("wind.mean_ned_m_s", &raw.wind.mean_ned_m_s);
-        c.within(
-            "wind.turbulence_w20_m_s",
-            raw.wind.turbulence_w20_m_s,
-            0.0,
-            40.0,
-        );
-        if let Some(q) = raw.battery.charge {
-            c.within("battery.charge", q, 0.0, 1.0);
-        }
-        if let Some(cap) = raw.battery.capacity_mah {
-            c.within("battery.capacity_mah", cap, 1.0, 1e6);
-        }
         let mut events = Vec::new();
         for (i, e) in raw.events.iter().enumerate() {
             resolve_event(&mut c, i, e, &mut events);
         }
-        let mut open_loop = Vec::new();
-        for (i, s) in raw.open_loop.iter().enumerate() {
-            let key = format!("open_loop[{i}]");
-            c.non_negative(format!("{key}.t_s"), s.t_s);
-            let cmd = match (&s.throttle, &s.hover_delta, &s.controls) {
-                (Some(t), None, None) => {
-                    c.within(format!("{key}.throttle"), *t, 0.0, 1.0);
-                    OpenLoopCommand::Throttle(*t)
-                }
-                (None, Some(d), None) => {
-                    c.within(format!("{key}.hover_delta"), *d, -1.0, 1.0);
-                    OpenLoopCommand::HoverDelta(*d)
-                }
-                (None, None, Some(v)) => {
-                    for (k, x) in v.iter().enumerate() {
-                        c.within(format!("{key}.controls[{k}]"), *x, 0.0, 1.0);
-                    }
-                    OpenLoopCommand::Controls(v.clone())
-                }
-                _ => {
-                    c.fail(
-                        &key,
-                        "give exactly one of throttle, hover_delta or controls",
-                    );
-                    continue;
-                }
-            };
-            open_loop.push((s.t_s, cmd));
-        }
-        open_loop.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let open_loop = resolve_open_loop(&mut c, &raw.open_loop);
         c.finish(file)?;
 
         let airframe_path = resolve_airframe(&raw.airframe, base, airframe_dir);
@@ -313,45 +263,8 @@ impl Scenario {
         if let Some(cap) = raw.battery.capacity_mah {
             airframe.battery.capacity_mah = cap;
         }
-        let rotors = airframe.rotors.len();
         let mut c = Checker::default();
-        for (i, e) in raw.events.iter().enumerate() {
-            let motor = match e {
-                EventFile::MotorFail { motor, .. }
-                | EventFile::MotorThrust { motor, .. }
-                | EventFile::MotorRestore { motor, .. } => Some(*motor),
-                _ => None,
-            };
-            if let Some(m) = motor
-                && (m == 0 || m > rotors)
-            {
-                {
-                    c.fail(
-                        format!("events[{i}].motor"),
-                        format!(
-                            "must be within [1, {rotors}] for airframe {}, got {m}",
-                            airframe.name
-                        ),
-                    );
-                }
-            }
-        }
-        for (i, (_, cmd)) in open_loop.iter().enumerate() {
-            if let OpenLoopCommand::Controls(v) = cmd
-                && v.len() != rotors
-            {
-                {
-                    c.fail(
-                        format!("open_loop[{i}].controls"),
-                        format!(
-                            "needs {rotors} values for airframe {}, got {}",
-                            airframe.name,
-                            v.len()
-                        ),
-                    );
-                }
-            }
-        }
+        check_for_airframe(&mut c, &raw.events, &open_loop, &airframe);
         c.finish(file)?;
 
         let e = ini.attitude_euler_deg;
@@ -410,203 +323,118 @@ pub fn resolve_airframe(name: &str, base: &Path, dir: &Path) -> PathBuf {
     }
 }
 
-fn resolve_event(c: &mut Checker, i: usize, e: &EventFile, out: &mut Vec<Event>) {
-    let key = format!("events[{i}]");
-    let mut push = |t_s: f64, action: SimAction| out.push(Event { t_s, action });
-    let restore = |c: &mut Checker,
-                   t_s: f64,
-                   duration: Option<f64>,
-                   action: SimAction,
-                   out_restore: &mut Vec<Event>| {
-        if let Some(d) = duration {
-            c.positive(format!("{key}.duration_s"), d);
-            out_restore.push(Event {
-                t_s: t_s + d,
-                action,
-            });
+/// The world's values checked into `c`: duration, rate, home, initial state, wind, battery.
+fn check_world(c: &mut Checker, raw: &ScenarioFile) {
+    c.positive("duration_s", raw.duration_s);
+    c.within("rate_hz", raw.rate_hz, 20.0, 10_000.0);
+    let home = raw.home.unwrap_or_default();
+    c.within("home.lat_deg", home.lat_deg, -89.0, 89.0);
+    c.within("home.lon_deg", home.lon_deg, -180.0, 180.0);
+    c.within("home.alt_m", home.alt_m, -400.0, 9000.0);
+    let ini = &raw.initial;
+    c.finite("initial.position_ned_m", &ini.position_ned_m);
+    c.finite("initial.velocity_ned_m_s", &ini.velocity_ned_m_s);
+    c.finite("initial.attitude_euler_deg", &ini.attitude_euler_deg);
+    c.finite("initial.rate_frd_rad_s", &ini.rate_frd_rad_s);
+    if let Some(z0) = raw.wind.roughness_m {
+        c.within("wind.roughness_m", z0, 1e-4, 2.0);
+    }
+    c.finite("wind.mean_ned_m_s", &raw.wind.mean_ned_m_s);
+    c.within(
+        "wind.turbulence_w20_m_s",
+        raw.wind.turbulence_w20_m_s,
+        0.0,
+        40.0,
+    );
+    if let Some(q) = raw.battery.charge {
+        c.within("battery.charge", q, 0.0, 1.0);
+    }
+    if let Some(cap) = raw.battery.capacity_mah {
+        c.within("battery.capacity_mah", cap, 1.0, 1e6);
+    }
+}
+
+/// The open-loop script checked into `c`, in time order.
+fn resolve_open_loop(c: &mut Checker, steps: &[OpenLoopFile]) -> Vec<(f64, OpenLoopCommand)> {
+    let mut open_loop = Vec::new();
+    for (i, s) in steps.iter().enumerate() {
+        let key = format!("open_loop[{i}]");
+        c.non_negative(format!("{key}.t_s"), s.t_s);
+        let cmd = match (&s.throttle, &s.hover_delta, &s.controls) {
+            (Some(t), None, None) => {
+                c.within(format!("{key}.throttle"), *t, 0.0, 1.0);
+                OpenLoopCommand::Throttle(*t)
+            }
+            (None, Some(d), None) => {
+                c.within(format!("{key}.hover_delta"), *d, -1.0, 1.0);
+                OpenLoopCommand::HoverDelta(*d)
+            }
+            (None, None, Some(v)) => {
+                for (k, x) in v.iter().enumerate() {
+                    c.within(format!("{key}.controls[{k}]"), *x, 0.0, 1.0);
+                }
+                OpenLoopCommand::Controls(v.clone())
+            }
+            _ => {
+                c.fail(
+                    &key,
+                    "give exactly one of throttle, hover_delta or controls",
+                );
+                continue;
+            }
+        };
+        open_loop.push((s.t_s, cmd));
+    }
+    open_loop.sort_by(|a, b| a.0.total_cmp(&b.0));
+    open_loop
+}
+
+/// What must fit the airframe, checked into `c`: the motors the events name, the controls the
+/// script gives.
+fn check_for_airframe(
+    c: &mut Checker,
+    events: &[EventFile],
+    open_loop: &[(f64, OpenLoopCommand)],
+    airframe: &Airframe,
+) {
+    let rotors = airframe.rotors.len();
+    for (i, e) in events.iter().enumerate() {
+        let motor = match e {
+            EventFile::MotorFail { motor, .. }
+            | EventFile::MotorThrust { motor, .. }
+            | EventFile::MotorRestore { motor, .. } => Some(*motor),
+            _ => None,
+        };
+        if let Some(m) = motor
+            && (m == 0 || m > rotors)
+        {
+            {
+                c.fail(
+                    format!("events[{i}].motor"),
+                    format!(
+                        "must be within [1, {rotors}] for airframe {}, got {m}",
+                        airframe.name
+                    ),
+                );
+            }
         }
-    };
-    let mut later = Vec::new();
-    let t = match e {
-        EventFile::MotorFail { t_s, motor } => {
-            push(
-                *t_s,
-                SimAction::MotorFail {
-                    index: motor.saturating_sub(1),
-                },
-            );
-            *t_s
+    }
+    for (i, (_, cmd)) in open_loop.iter().enumerate() {
+        if let OpenLoopCommand::Controls(v) = cmd
+            && v.len() != rotors
+        {
+            {
+                c.fail(
+                    format!("open_loop[{i}].controls"),
+                    format!(
+                        "needs {rotors} values for airframe {}, got {}",
+                        airframe.name,
+                        v.len()
+                    ),
+                );
+            }
         }
-        EventFile::MotorThrust {
-            t_s,
-            motor,
-            effectiveness,
-        } => {
-            c.within(format!("{key}.effectiveness"), *effectiveness, 0.0, 1.0);
-            push(
-                *t_s,
-                SimAction::MotorEffectiveness {
-                    index: motor.saturating_sub(1),
-                    effectiveness: *effectiveness,
-                },
-            );
-            *t_s
-        }
-        EventFile::MotorRestore { t_s, motor } => {
-            push(
-                *t_s,
-                SimAction::MotorRestore {
-                    index: motor.saturating_sub(1),
-                },
-            );
-            *t_s
-        }
-        EventFile::SensorOff {
-            t_s,
-            sensor,
-            duration_s,
-        }
-        | EventFile::SensorStuck {
-            t_s,
-            sensor,
-            duration_s,
-        } => {
-            let health = if matches!(e, EventFile::SensorOff { .. }) {
-                SensorHealth::Off
-            } else {
-                SensorHealth::Stuck
-            };
-            push(
-                *t_s,
-                SimAction::Sensor {
-                    sensor: *sensor,
-                    health,
-                },
-            );
-            restore(
-                c,
-                *t_s,
-                *duration_s,
-                SimAction::Sensor {
-                    sensor: *sensor,
-                    health: SensorHealth::Ok,
-                },
-                &mut later,
-            );
-            *t_s
-        }
-        EventFile::GpsFixLoss { t_s, duration_s } => {
-            push(*t_s, SimAction::GpsFixLost(true));
-            restore(
-                c,
-                *t_s,
-                *duration_s,
-                SimAction::GpsFixLost(false),
-                &mut later,
-            );
-            *t_s
-        }
-        EventFile::MagDisturbance {
-            t_s,
-            field_ned_gauss,
-            duration_s,
-        } => {
-            c.finite(format!("{key}.field_ned_gauss"), field_ned_gauss);
-            push(
-                *t_s,
-                SimAction::MagDisturbance(Vector3::from(*field_ned_gauss)),
-            );
-            restore(
-                c,
-                *t_s,
-                *duration_s,
-                SimAction::MagDisturbance(Vector3::zeros()),
-                &mut later,
-            );
-            *t_s
-        }
-        EventFile::ForcePulse {
-            t_s,
-            force_ned_n,
-            duration_s,
-        } => {
-            c.finite(format!("{key}.force_ned_n"), force_ned_n);
-            c.positive(format!("{key}.duration_s"), *duration_s);
-            push(
-                *t_s,
-                SimAction::ForcePulse {
-                    force_ned_n: Vector3::from(*force_ned_n),
-                    duration_s: *duration_s,
-                },
-            );
-            *t_s
-        }
-        EventFile::TorquePulse {
-            t_s,
-            torque_frd_n_m,
-            duration_s,
-        } => {
-            c.finite(format!("{key}.torque_frd_n_m"), torque_frd_n_m);
-            c.positive(format!("{key}.duration_s"), *duration_s);
-            push(
-                *t_s,
-                SimAction::TorquePulse {
-                    torque_frd_n_m: Vector3::from(*torque_frd_n_m),
-                    duration_s: *duration_s,
-                },
-            );
-            *t_s
-        }
-        EventFile::Gust {
-            t_s,
-            peak_ned_m_s,
-            duration_s,
-        } => {
-            c.finite(format!("{key}.peak_ned_m_s"), peak_ned_m_s);
-            c.positive(format!("{key}.duration_s"), *duration_s);
-            push(
-                *t_s,
-                SimAction::Gust {
-                    peak_ned_m_s: Vector3::from(*peak_ned_m_s),
-                    duration_s: *duration_s,
-                },
-            );
-            *t_s
-        }
-        EventFile::Wind {
-            t_s,
-            mean_ned_m_s,
-            turbulence_w20_m_s,
-        } => {
-            c.finite(format!("{key}.mean_ned_m_s"), mean_ned_m_s);
-            c.within(
-                format!("{key}.turbulence_w20_m_s"),
-                *turbulence_w20_m_s,
-                0.0,
-                40.0,
-            );
-            push(
-                *t_s,
-                SimAction::Wind {
-                    mean_ned_m_s: Vector3::from(*mean_ned_m_s),
-                    turbulence_w20_m_s: *turbulence_w20_m_s,
-                },
-            );
-            *t_s
-        }
-        EventFile::Tumble { t_s, duration_s } => {
-            c.positive(format!("{key}.duration_s"), *duration_s);
-            push(
-                *t_s,
-                SimAction::Tumble {
-                    duration_s: *duration_s,
-                },
-            );
-            *t_s
-        }
-    };
-    c.non_negative(format!("{key}.t_s"), t);
-    out.extend(later);
+    }
 }
 
 #[cfg(test)]

@@ -1,5 +1,6 @@
 use super::*;
-use crate::sensors::SensorKind;
+use crate::sensors::{SensorHealth, SensorKind};
+use crate::sim::SimAction;
 
 fn dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../params/airframes")
