@@ -34,8 +34,7 @@ SPLIT_PENDING: dict[str, int] = {
     "sitl/core/src/jsbsim.rs::aircraft_xml": 160,
     "sitl/core/src/sensors.rs::sample": 166,
     "sitl/core/src/sim.rs": 653,
-    "sitl/src/json_physics.rs::run": 108,
-    "sitl/src/run.rs::hil": 185,
+    "sitl/src/run.rs::hil": 153,
 }
 TYPE = re.compile(r"^\s*(?:pub(?:\([a-z]+\))?\s+)?(?:struct|enum|trait)\s+([A-Z][A-Za-z0-9]*)", re.M)
 

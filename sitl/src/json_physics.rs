@@ -18,6 +18,19 @@ use std::time::{Duration, Instant};
 
 /// How long one wait for a packet lasts: how quickly Ctrl-C is noticed.
 const POLL: Duration = Duration::from_millis(100);
+/// The rotors' commands of a servo packet (PWM on the first `rotors` channels), applied.
+fn apply_servos(end: &mut SimulatorEnd, packet: &ServoPacket, rotors: usize) {
+    let mut controls = [0.0; 16];
+    for (c, &pwm) in controls.iter_mut().zip(&packet.pwm).take(rotors) {
+        *c = command_from_pwm(pwm);
+    }
+    end.apply(&ActuatorCommand {
+        time_usec: end.frame().time_usec,
+        controls,
+        armed: true,
+        hand: hil::HandRequest::None,
+    });
+}
 
 /// The state after the last step, as a JSON reply. The IMU is the true rate and specific force,
 /// as a JSON physics gives them: the autopilot adds its sensors' noise (ArduPilot's `SIM_*`).
@@ -117,16 +130,7 @@ pub fn run(
             }
             _ => {}
         }
-        let mut controls = [0.0; 16];
-        for (c, &pwm) in controls.iter_mut().zip(&packet.pwm).take(rotors) {
-            *c = command_from_pwm(pwm);
-        }
-        end.apply(&ActuatorCommand {
-            time_usec: end.frame().time_usec,
-            controls,
-            armed: true,
-            hand: hil::HandRequest::None,
-        });
+        apply_servos(&mut end, &packet, rotors);
         pacer.wait_until(end.sim().time_s());
         let record = |sim: &Simulator| -> Result<()> {
             match truth.as_mut() {

@@ -285,6 +285,48 @@ pub(crate) fn open_truth(cli: &SitlCli, sim: &Simulator) -> Result<Option<TruthC
         })
         .transpose()
 }
+/// The link to the autopilot the command line names: a serial line, PX4's TCP, or UDP (the
+/// default); and what to call it.
+fn open_transport(cli: &SitlCli) -> Result<(Box<dyn Transport>, String)> {
+    Ok(match (&cli.serial, cli.tcp) {
+        (Some(path), _) => {
+            let t = SerialTransport::open(path, cli.baud)?;
+            let name = t.name().to_owned();
+            // Scripts read this line to learn the device of a new pseudo-terminal.
+            println!("sitl serial: {name}");
+            (Box::new(t), name)
+        }
+        (None, Some(addr)) => {
+            let t = TcpTransport::listen(with_instance(addr, cli.instance, 1, "--tcp")?)?;
+            let at = t.local_addr()?;
+            // Scripts read this line to learn the port (`--tcp 127.0.0.1:0` takes a free one).
+            println!("sitl tcp: {at}");
+            (Box::new(t), format!("TCP {at}"))
+        }
+        (None, None) => {
+            let target = with_instance(cli.autopilot, cli.instance, 1, "--autopilot")?;
+            let t = UdpTransport::new(cli.bind, target)?;
+            tracing::info!(local = %t.local_addr()?, "UDP bound");
+            (Box::new(t), target.to_string())
+        }
+    })
+}
+
+/// The weather control port, if the command line opens one.
+fn open_control(cli: &SitlCli, scenario: &Scenario) -> Result<Option<crate::control::Control>> {
+    Ok(match cli.control {
+        Some(addr) => {
+            let c = crate::control::Control::bind(
+                with_instance(addr, cli.instance, 1, "--control")?,
+                &scenario.sim.wind,
+                scenario.sim.calibration_hand,
+            )?;
+            tracing::info!(control = %c.local_addr()?, "weather control listening");
+            Some(c)
+        }
+        None => None,
+    })
+}
 
 /// Flies the scenario's open-loop script.
 pub fn open_loop(
@@ -342,28 +384,7 @@ pub fn hil(
     let mut dynamics = Dynamics::start(cli, scenario, &sim)?;
     let mut truth = open_truth(cli, &sim)?;
     let mut end = SimulatorEnd::new(sim, cli.hil_rate);
-    let (transport, target): (Box<dyn Transport>, String) = match (&cli.serial, cli.tcp) {
-        (Some(path), _) => {
-            let t = SerialTransport::open(path, cli.baud)?;
-            let name = t.name().to_owned();
-            // Scripts read this line to learn the device of a new pseudo-terminal.
-            println!("sitl serial: {name}");
-            (Box::new(t), name)
-        }
-        (None, Some(addr)) => {
-            let t = TcpTransport::listen(with_instance(addr, cli.instance, 1, "--tcp")?)?;
-            let at = t.local_addr()?;
-            // Scripts read this line to learn the port (`--tcp 127.0.0.1:0` takes a free one).
-            println!("sitl tcp: {at}");
-            (Box::new(t), format!("TCP {at}"))
-        }
-        (None, None) => {
-            let target = with_instance(cli.autopilot, cli.instance, 1, "--autopilot")?;
-            let t = UdpTransport::new(cli.bind, target)?;
-            tracing::info!(local = %t.local_addr()?, "UDP bound");
-            (Box::new(t), target.to_string())
-        }
-    };
+    let (transport, target) = open_transport(cli)?;
     tracing::info!(
         airframe = %end.sim().airframe().name, autopilot = %target,
         mode = ?cli.mode, physics = ?cli.physics, physics_hz = 1.0 / end.sim().config().dt_s, exchange_hz = end.exchange_hz(),
@@ -377,18 +398,7 @@ pub fn hil(
     let mut status = Status::new(cli.status_interval);
     let mut summary = Summary::default();
     let mut link = Link::new(transport);
-    let mut control = match cli.control {
-        Some(addr) => {
-            let c = crate::control::Control::bind(
-                with_instance(addr, cli.instance, 1, "--control")?,
-                &scenario.sim.wind,
-                scenario.sim.calibration_hand,
-            )?;
-            tracing::info!(control = %c.local_addr()?, "weather control listening");
-            Some(c)
-        }
-        None => None,
-    };
+    let mut control = open_control(cli, scenario)?;
     let mut connected = false;
     let timeout = Duration::from_millis(cli.timeout_ms.max(1));
     let mut last_timeout_log: Option<Instant> = None;
