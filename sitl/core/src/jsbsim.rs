@@ -180,7 +180,6 @@ pub fn init_xml(a: &Airframe, home: &LatLonAlt, initial: &crate::body::BodyState
 /// thrust force and a yaw moment per rotor, and the aerodynamic force and moment, each driven by
 /// one of the [`input_properties`].
 pub fn aircraft_xml(a: &Airframe) -> String {
-    let j = &a.inertia_kg_m2;
     let mut x = String::new();
     let _ = writeln!(x, "<?xml version=\"1.0\"?>");
     let _ = writeln!(
@@ -196,6 +195,19 @@ pub fn aircraft_xml(a: &Airframe) -> String {
         x,
         "  <fileheader><author>autopilot sitl</author></fileheader>"
     );
+    write_metrics(&mut x, a);
+    write_mass_balance(&mut x, a);
+    write_ground_reactions(&mut x, a);
+    write_external_reactions(&mut x, a);
+    // Empty, but JSBSim wants them (without aerodynamics it refuses to initialise).
+    let _ = writeln!(x, "  <propulsion/>");
+    let _ = writeln!(x, "  <aerodynamics/>");
+    let _ = writeln!(x, "</fdm_config>");
+    x
+}
+
+/// The metrics JSBSim insists on (no aerodynamics of its own use them).
+fn write_metrics(x: &mut String, a: &Airframe) {
     // Metrics JSBSim insists on; no aerodynamics of its own use them.
     let span = 2.0
         * a.rotors
@@ -215,6 +227,11 @@ pub fn aircraft_xml(a: &Airframe) -> String {
         );
     }
     let _ = writeln!(x, "  </metrics>");
+}
+
+/// The mass and inertia, about the centre of mass.
+fn write_mass_balance(x: &mut String, a: &Airframe) {
+    let j = &a.inertia_kg_m2;
     let _ = writeln!(x, "  <mass_balance>");
     let _ = writeln!(
         x,
@@ -237,6 +254,10 @@ pub fn aircraft_xml(a: &Airframe) -> String {
         "    <location name=\"CG\" unit=\"M\"><x>0</x><y>0</y><z>0</z></location>"
     );
     let _ = writeln!(x, "  </mass_balance>");
+}
+
+/// The feet the vehicle stands on.
+fn write_ground_reactions(x: &mut String, a: &Airframe) {
     // Three stiff, damped feet on a circle of half the arm, a tenth of a metre below the hubs.
     let arm = a
         .rotors
@@ -254,7 +275,7 @@ pub fn aircraft_xml(a: &Airframe) -> String {
             foot_depth_m(a),
         );
         let _ = writeln!(x, "    <contact type=\"STRUCTURE\" name=\"foot{}\">", k + 1);
-        location(&mut x, "      ", structural(&foot));
+        location(x, "      ", structural(&foot));
         let _ = writeln!(
             x,
             "      <static_friction>0.8</static_friction><dynamic_friction>0.5</dynamic_friction>"
@@ -266,6 +287,10 @@ pub fn aircraft_xml(a: &Airframe) -> String {
         let _ = writeln!(x, "    </contact>");
     }
     let _ = writeln!(x, "  </ground_reactions>");
+}
+
+/// The rotors' forces and moments, set by the bridge each step.
+fn write_external_reactions(x: &mut String, a: &Airframe) {
     let _ = writeln!(x, "  <external_reactions>");
     let declared = a
         .rotors
@@ -287,7 +312,7 @@ pub fn aircraft_xml(a: &Airframe) -> String {
             x,
             "      <function><property>{thrust}</property></function>"
         );
-        location(&mut x, "      ", structural(&r.position_frd_m));
+        location(x, "      ", structural(&r.position_frd_m));
         // Thrust lifts: up is -z in the body frame.
         let _ = writeln!(x, "      <direction><x>0</x><y>0</y><z>-1</z></direction>");
         let _ = writeln!(x, "    </force>");
@@ -308,7 +333,7 @@ pub fn aircraft_xml(a: &Airframe) -> String {
             "      <function><property>{}</property></function>",
             AERO_FORCE[k]
         );
-        location(&mut x, "      ", [0.0; 3]);
+        location(x, "      ", [0.0; 3]);
         let _ = writeln!(
             x,
             "      <direction><x>{}</x><y>{}</y><z>{}</z></direction>",
@@ -333,11 +358,6 @@ pub fn aircraft_xml(a: &Airframe) -> String {
         let _ = writeln!(x, "    </moment>");
     }
     let _ = writeln!(x, "  </external_reactions>");
-    // Empty, but JSBSim wants them (without aerodynamics it refuses to initialise).
-    let _ = writeln!(x, "  <propulsion/>");
-    let _ = writeln!(x, "  <aerodynamics/>");
-    let _ = writeln!(x, "</fdm_config>");
-    x
 }
 
 /// JSBSim's lowest frame rate (Hz): a force acts one JSBSim frame late, so frames of at most a
