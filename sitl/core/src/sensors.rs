@@ -365,13 +365,29 @@ impl SensorSuite {
             _ => 1e-3,
         };
         self.last_time_usec = Some(t.time_usec);
+        let q_inv = t.q_ned_from_frd.inverse();
+        let mut updated = self.sample_imu(t, &q_inv, dt);
+        updated |= self.sample_mag(t, &q_inv);
+        updated |= self.sample_baro(t);
+        self.sample_gps(t);
+        self.deliver_gps(t);
+        self.sample_rpm(t);
+        self.last.time_usec = t.time_usec;
+        self.last.fields_updated = updated;
+        if self.last.gps.is_some() {
+            self.last_gps = self.last.gps;
+        }
+        &self.last
+    }
+
+    /// The accelerometer and gyro (noise, bias walk, scale, vibration, mounting, range); the
+    /// fields updated.
+    fn sample_imu(&mut self, t: &Truth, q_inv: &UnitQuaternion<f64>, dt: f64) -> u32 {
         let mut updated = 0u32;
         let c = &self.cfg;
         let rate_noise = 1.0 / dt.sqrt(); // σ = N √(1/Δt) for band-limited white noise
-
         // IMU: the specific force at the IMU's lever arm, Zabunov (50)–(54) with a rigid mount
         // (no relative velocity, so no Coriolis term).
-        let q_inv = t.q_ned_from_frd.inverse();
         let r = self.imu_position_frd_m;
         let w = t.rate_frd_rad_s;
         let gravity = Vector3::new(0.0, 0.0, GRAVITY_M_S2);
@@ -413,7 +429,13 @@ impl SensorSuite {
             SensorHealth::Stuck => updated |= fields::ACCEL | fields::GYRO,
             SensorHealth::Off => {}
         }
+        updated
+    }
 
+    /// The magnetometer when due; the fields updated.
+    fn sample_mag(&mut self, t: &Truth, q_inv: &UnitQuaternion<f64>) -> u32 {
+        let mut updated = 0u32;
+        let c = &self.cfg;
         if self.mag_due.due(t.time_usec) {
             match self.health[1] {
                 SensorHealth::Ok => {
@@ -430,7 +452,13 @@ impl SensorSuite {
                 SensorHealth::Off => {}
             }
         }
+        updated
+    }
 
+    /// The barometer when due (drift and noise drawn whatever its health); the fields updated.
+    fn sample_baro(&mut self, t: &Truth) -> u32 {
+        let mut updated = 0u32;
+        let c = &self.cfg;
         if self.baro_due.due(t.time_usec) {
             let period = self.baro_due.period_usec as f64 * 1e-6;
             self.baro_drift_pa += c.baro_drift_pa * period.sqrt() * self.baro_rng.normal();
@@ -447,7 +475,12 @@ impl SensorSuite {
                 SensorHealth::Off => {}
             }
         }
+        updated
+    }
 
+    /// A GPS fix when due (its correlated error and velocity noise), queued for its latency.
+    fn sample_gps(&mut self, t: &Truth) {
+        let c = &self.cfg;
         if self.gps_due.due(t.time_usec) {
             let period = self.gps_due.period_usec as f64 * 1e-6;
             // First-order Gauss–Markov position error with the configured stationary σ.
@@ -487,6 +520,10 @@ impl SensorSuite {
                 self.gps_queue.push_back((deliver, fix));
             }
         }
+    }
+
+    /// The fixes whose latency has passed, as the GPS's health lets them through.
+    fn deliver_gps(&mut self, t: &Truth) {
         self.last.gps = None;
         while let Some(&(deliver, fix)) = self.gps_queue.front() {
             if deliver > t.time_usec {
@@ -506,7 +543,11 @@ impl SensorSuite {
                 SensorHealth::Off => {}
             }
         }
+    }
 
+    /// The rotor speeds from the ESCs when due.
+    fn sample_rpm(&mut self, t: &Truth) {
+        let c = &self.cfg;
         self.last.rotor_rpm = None;
         if self.rpm_due.due(t.time_usec) && self.health[4] != SensorHealth::Off {
             let mut rpm = [0.0; MAX_ROTORS];
@@ -517,13 +558,6 @@ impl SensorSuite {
             }
             self.last.rotor_rpm = Some(rpm);
         }
-
-        self.last.time_usec = t.time_usec;
-        self.last.fields_updated = updated;
-        if self.last.gps.is_some() {
-            self.last_gps = self.last.gps;
-        }
-        &self.last
     }
 }
 
