@@ -31,7 +31,6 @@ SPLIT_PENDING: dict[str, int] = {
     "daemon/core/src/estimator/tilt_heading.rs::update": 204,
     "daemon/core/src/safety/motor_failure.rs::step": 140,
     "daemon/core/src/sensors/mag_fit.rs::fit_ellipsoid": 107,
-    "sitl/core/src/sim.rs": 653,
     "sitl/src/run.rs::hil": 153,
 }
 TYPE = re.compile(r"^\s*(?:pub(?:\([a-z]+\))?\s+)?(?:struct|enum|trait)\s+([A-Z][A-Za-z0-9]*)", re.M)

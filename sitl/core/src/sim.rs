@@ -16,9 +16,11 @@ use navmath::geo::{LatLonAlt, LocalFrame};
 
 use events::Pulse;
 pub use events::{Event, SimAction};
+pub use external_body::{ExternalBody, ExternalBodyError, ExternalBodyStep, StepLoads};
 use ground::{Contact, Ground};
 use hand::Hand;
 pub use hand::{Face, PLACE_S, SET_DOWN_S, TUMBLE_RAMP_S, tumble_attitude};
+pub use truth::TruthState;
 
 /// How the simulation is set up.
 #[derive(Debug, Clone, PartialEq)]
@@ -87,77 +89,6 @@ const SETTLE_S: f64 = 2.0;
 /// would give it (m/s², rad/s²).
 const REST_SPEED: f64 = 1e-9;
 const REST_ACCEL: f64 = 1e-9;
-
-/// The true state, for logs, scoring and `HIL_STATE_QUATERNION`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct TruthState {
-    /// Simulation time (µs).
-    pub time_usec: u64,
-    /// Rigid-body state.
-    pub body: BodyState,
-    /// Mean linear acceleration over the last step, NED (m/s²).
-    pub accel_ned_m_s2: Vector3<f64>,
-    /// The local frame at home, where [`TruthState::position`] is measured.
-    pub home: LocalFrame,
-    /// Air velocity at the vehicle, NED (m/s).
-    pub wind_ned_m_s: Vector3<f64>,
-    /// Whether the ground bears the vehicle (a foot touches it).
-    pub landed: bool,
-    /// Battery terminal voltage (V).
-    pub battery_voltage_v: f64,
-    /// Battery current (A).
-    pub battery_current_a: f64,
-    /// Battery state of charge (0–1).
-    pub battery_remaining: f64,
-}
-
-impl TruthState {
-    /// Geodetic (WGS-84) position, computed when asked: only `HIL_STATE_QUATERNION` (at
-    /// 50 Hz) reads it, of the truths made every frame.
-    pub fn position(&self) -> LatLonAlt {
-        self.home.to_geodetic(&self.body.pos_ned_m)
-    }
-}
-
-/// The loads of one step, taken at its start, for an external flight-dynamics model that has
-/// gravity and the ground of its own.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct StepLoads {
-    /// The step (s).
-    pub dt_s: f64,
-    /// The rotors: each one's thrust at its hub and yaw moment (and their totals).
-    pub rotor: RotorWrench,
-    /// Drag and external force at the centre of mass, FRD (N).
-    pub aero_force_frd_n: Vector3<f64>,
-    /// The rotors' gyroscopic torque, aerodynamic torque, damping and external torque, FRD
-    /// (N·m).
-    pub aero_moment_frd_n_m: Vector3<f64>,
-}
-
-/// The body after a step of an external model.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ExternalBodyStep {
-    /// Position (local NED of the simulator's home), velocity, attitude and rate.
-    pub body: BodyState,
-    /// Every force but gravity over the mass, FRD (m/s²): what an accelerometer at the centre
-    /// of mass measures.
-    pub specific_force_frd_m_s2: Vector3<f64>,
-    /// Angular acceleration, FRD (rad/s²).
-    pub ang_accel_frd_rad_s2: Vector3<f64>,
-    /// The ground bears (part of) the vehicle.
-    pub on_ground: bool,
-}
-
-/// A rigid body moved by someone else (JSBSim): see [`Simulator::step_with`].
-pub trait ExternalBody {
-    /// Applies `loads` over one step and returns the body after it.
-    fn advance(&mut self, loads: &StepLoads) -> Result<ExternalBodyStep, ExternalBodyError>;
-}
-
-/// Why an external model could not step: it died, stalled or answered nonsense.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("{0}")]
-pub struct ExternalBodyError(pub String);
 
 /// The whole simulated vehicle and its world.
 pub struct Simulator {
@@ -647,7 +578,9 @@ impl Forces<'_> {
 }
 
 mod events;
+mod external_body;
 mod ground;
 mod hand;
 #[cfg(test)]
 mod tests;
+mod truth;
