@@ -27,10 +27,8 @@ MAX_LINES = 600
 MAX_FN_LINES = 100
 # Over the limits today, to be split; the length each has now (it may not grow).
 SPLIT_PENDING: dict[str, int] = {
-    "daemon/core/src/control/relaxed_hover.rs::solve": 103,
     "daemon/core/src/estimator/tilt_heading.rs::update": 204,
     "daemon/core/src/safety/motor_failure.rs::step": 140,
-    "daemon/core/src/sensors/mag_fit.rs::fit_ellipsoid": 107,
     "sitl/src/run.rs::hil": 153,
 }
 TYPE = re.compile(r"^\s*(?:pub(?:\([a-z]+\))?\s+)?(?:struct|enum|trait)\s+([A-Z][A-Za-z0-9]*)", re.M)

@@ -200,14 +200,14 @@ pub(crate) fn net_torque(
     moment - damping - rate_frd.cross(&(airframe.inertia_kg_m2 * rate_frd + h))
 }
 
-/// The relaxed hover of the quad `airframe` without rotor `lost`, the opposite rotor making
-/// `share` times the mean of the other two, in air of `air_density` (kg/m³).
-pub fn solve(
+/// Refuses what `solve` cannot be asked: not a quad, no such rotor, a share outside [0, 4], an
+/// air density not positive.
+fn check_request(
     airframe: &Airframe,
     lost: usize,
     share: f64,
     air_density: f64,
-) -> Result<RelaxedHover, RelaxedHoverError> {
+) -> Result<(), RelaxedHoverError> {
     let rotors = &airframe.rotors;
     if rotors.len() != 4 {
         return Err(RelaxedHoverError::NotAQuad {
@@ -223,6 +223,19 @@ pub fn solve(
     if !(air_density.is_finite() && air_density > 0.0) {
         return Err(RelaxedHoverError::AirDensity(air_density));
     }
+    Ok(())
+}
+
+/// The relaxed hover of the quad `airframe` without rotor `lost`, the opposite rotor making
+/// `share` times the mean of the other two, in air of `air_density` (kg/m³).
+pub fn solve(
+    airframe: &Airframe,
+    lost: usize,
+    share: f64,
+    air_density: f64,
+) -> Result<RelaxedHover, RelaxedHoverError> {
+    check_request(airframe, lost, share, air_density)?;
+    let rotors = &airframe.rotors;
     let at = |i: usize| rotors[i].position_frd_m;
     let opposite = (0..4)
         .filter(|&i| i != lost)

@@ -96,6 +96,38 @@ impl Ellipsoid {
         self.correction(strength) * (raw - self.offset)
     }
 }
+/// The quadric `vᵀ [x², y², z², 2xy, 2xz, 2yz, 2x, 2y, 2z] = 1` through the samples, centred on
+/// `mean` and scaled by `spread`, by least squares.
+fn quadric(
+    samples: &[Vector3<f64>],
+    mean: &Vector3<f64>,
+    spread: f64,
+) -> Result<SVector<f64, 9>, FitError> {
+    // Least squares of D v = 1, D's rows [x², y², z², 2xy, 2xz, 2yz, 2x, 2y, 2z].
+    let mut dtd = SMatrix::<f64, 9, 9>::zeros();
+    let mut dt1 = SVector::<f64, 9>::zeros();
+    for s in samples {
+        let p = (s - mean) / spread;
+        let row = SVector::<f64, 9>::from_column_slice(&[
+            p.x * p.x,
+            p.y * p.y,
+            p.z * p.z,
+            2.0 * p.x * p.y,
+            2.0 * p.x * p.z,
+            2.0 * p.y * p.z,
+            2.0 * p.x,
+            2.0 * p.y,
+            2.0 * p.z,
+        ]);
+        dtd += row * row.transpose();
+        dt1 += row;
+    }
+    let v = dtd.cholesky().ok_or(FitError::NotAnEllipsoid)?.solve(&dt1);
+    if v.iter().any(|x| !x.is_finite()) {
+        return Err(FitError::NotAnEllipsoid);
+    }
+    Ok(v)
+}
 
 /// Index of the nearest to `v` of the 26 directions of a cube's faces, edges and corners
 /// ((x, y, z) each −1, 0 or +1, not all 0, numbered in that order, x slowest). The nearest one
@@ -147,29 +179,7 @@ pub fn fit_ellipsoid(samples: &[Vector3<f64>]) -> Result<Ellipsoid, FitError> {
     if spread.is_nan() || spread <= 0.0 {
         return Err(FitError::NotAnEllipsoid);
     }
-    // Least squares of D v = 1, D's rows [x², y², z², 2xy, 2xz, 2yz, 2x, 2y, 2z].
-    let mut dtd = SMatrix::<f64, 9, 9>::zeros();
-    let mut dt1 = SVector::<f64, 9>::zeros();
-    for s in &finite {
-        let p = (s - mean) / spread;
-        let row = SVector::<f64, 9>::from_column_slice(&[
-            p.x * p.x,
-            p.y * p.y,
-            p.z * p.z,
-            2.0 * p.x * p.y,
-            2.0 * p.x * p.z,
-            2.0 * p.y * p.z,
-            2.0 * p.x,
-            2.0 * p.y,
-            2.0 * p.z,
-        ]);
-        dtd += row * row.transpose();
-        dt1 += row;
-    }
-    let v = dtd.cholesky().ok_or(FitError::NotAnEllipsoid)?.solve(&dt1);
-    if v.iter().any(|x| !x.is_finite()) {
-        return Err(FitError::NotAnEllipsoid);
-    }
+    let v = quadric(&finite, &mean, spread)?;
     // The quadric as a 4×4 matrix, its centre, and its shape about the centre.
     #[rustfmt::skip]
     let a = Matrix4::new(
