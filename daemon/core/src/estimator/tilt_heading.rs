@@ -203,6 +203,21 @@ const UNSEEN_TURN_S: f64 = 10.0;
 /// saturated, and the turn it missed is in the heading too (rad/s).
 const GYRO_RANGE_RAD_S: f64 = 30.0;
 
+/// What one update's tilt correction works with.
+struct TiltStep<'a> {
+    /// Gyro rate (rad/s) and specific force, less its learned bias (m/s²), FRD.
+    gyro: &'a Vector3<f64>,
+    accel: &'a Vector3<f64>,
+    /// The vehicle's acceleration known from the velocity (NED, m/s²), and its low-pass.
+    known_accel: Option<&'a Vector3<f64>>,
+    accel_lp: Vector3<f64>,
+    /// The GPS velocity, for the GPS check.
+    gps_vel: Option<&'a DelayedVelocity>,
+    armed: bool,
+    /// Moving, the gyro bias learned from the corrections.
+    moving: bool,
+}
+
 impl TiltHeadingFilter {
     /// A filter that starts from its first samples (no rest needed).
     pub fn new(settings: TiltHeadingSettings) -> Self {
@@ -420,7 +435,36 @@ impl TiltHeadingFilter {
         let moving = !self.rest.at_rest()
             && self.running_s > 2.0 * s.tau_acc_s
             && (gyro - bias).norm() < s.bias_max_rate_rad_s;
+        let (known_accel, accel_lp) = self.known_acceleration(vel_ned, dt);
+        self.fit_start_in_motion(gyro, accel, mag, known_accel.as_ref(), &bias, dt);
+        let level_from_body = self.correct_tilt(
+            &TiltStep {
+                gyro,
+                accel,
+                known_accel: known_accel.as_ref(),
+                accel_lp,
+                gps_vel: gps_vel.as_ref(),
+                armed,
+                moving,
+            },
+            &bias,
+            dt,
+        );
+        if let Some(m) = mag {
+            self.correct_heading(m, &level_from_body, armed, moving, dt);
+        } else {
+            self.since_mag_s += dt;
+        }
+    }
 
+    /// The vehicle's acceleration known from the velocity's differences, and its low-pass; in
+    /// steady flight the low-passes shortened.
+    fn known_acceleration(
+        &mut self,
+        vel_ned: Option<&Vector3<f64>>,
+        dt: f64,
+    ) -> (Option<Vector3<f64>>, Vector3<f64>) {
+        let s = self.settings;
         // Tilt: the specific force low-passed in the gyro frame, less the vehicle's acceleration
         // low-passed the same way, turned to the vertical. That acceleration is the velocity's
         // difference over the step (LP(Δv/Δt) = d/dt LP(v)): it needs no attitude, so the
@@ -456,7 +500,19 @@ impl TiltHeadingFilter {
                 Vector3::zeros()
             }
         };
-        // A start in motion: the first seconds fitted at once (at rest, the rest's mean wins).
+        (known_accel, accel_lp)
+    }
+
+    /// A start in motion: the first seconds fitted at once (at rest, the rest's mean wins).
+    fn fit_start_in_motion(
+        &mut self,
+        gyro: &Vector3<f64>,
+        accel: &Vector3<f64>,
+        mag: Option<&Vector3<f64>>,
+        known_accel: Option<&Vector3<f64>>,
+        bias: &Vector3<f64>,
+        dt: f64,
+    ) {
         if self.rest_aligned {
             self.motion_start.abandon();
         } else if !self.motion_start.done() {
@@ -464,24 +520,26 @@ impl TiltHeadingFilter {
                 gyro_frame: &self.q_gyro,
                 rate: &(gyro - bias),
                 accel,
-                known_accel: known_accel.as_ref(),
+                known_accel,
                 estimate: (known_accel.is_some() && self.motion_start.wants_estimate())
                     .then(|| self.attitude()),
                 mag,
             };
             if let Some(fit) = self.motion_start.update(&sample, dt) {
-                self.align_in_motion(&fit, &bias);
+                self.align_in_motion(&fit, bias);
             }
         }
-        let f = self.q_gyro * accel;
+    }
+
+    /// The tilt corrected toward the low-passed specific force less the known acceleration
+    /// (after the recovery's and the GPS check's resets), the accelerometer's bias learned, the
+    /// gyro bias's tilt part. Returns the level frame from the body.
+    fn correct_tilt(&mut self, t: &TiltStep, bias: &Vector3<f64>, dt: f64) -> UnitQuaternion<f64> {
+        let f = self.q_gyro * t.accel;
         self.recovery
-            .update(&f, known_accel.as_ref(), &(gyro - bias), dt);
-        self.gps_check.update(
-            &f,
-            self.q_gyro.to_rotation_matrix().matrix(),
-            gps_vel.as_ref(),
-            dt,
-        );
+            .update(&f, t.known_accel, &(t.gyro - bias), dt);
+        self.gps_check
+            .update(&f, self.q_gyro.to_rotation_matrix().matrix(), t.gps_vel, dt);
         let (t_s, integral) = self.gps_check.rotation_integral();
         if self.accel_bias.due(t_s)
             && let Some(w) = self.gps_check.window()
@@ -495,17 +553,17 @@ impl TiltHeadingFilter {
             );
         }
         let mut lp = self.accel_lp.update(&f, dt);
-        let mut accel_lp = accel_lp;
+        let mut accel_lp = t.accel_lp;
         // An error made faster than the low-pass fades it (`recovery.rs`): the low-passes start
         // again at the steady accelerometer's values, so the tilt is its at once.
         let reset = self
             .recovery
-            .check(&self.q_tilt, &self.heading.rotation(), armed)
+            .check(&self.q_tilt, &self.heading.rotation(), t.armed)
             .or_else(|| self.gps_check.check(&self.q_tilt, &self.heading.rotation()));
         if let Some(r) = reset {
             self.accel_lp.reset_to(r.specific_force);
             lp = r.specific_force;
-            if known_accel.is_some() {
+            if t.known_accel.is_some() {
                 self.vel_accel_lp.reset_to(r.accel_ned);
                 accel_lp = r.accel_ned;
             }
@@ -534,50 +592,60 @@ impl TiltHeadingFilter {
             self.bias.tilt(
                 &level_from_body.to_rotation_matrix(),
                 correction.map(|c| c.scaled_axis()).as_ref(),
-                moving,
+                t.moving,
                 dt,
             );
         }
+        level_from_body
+    }
 
-        // Heading: the horizontal field only.
+    /// The heading corrected toward the horizontal field `m` (its hard iron learned if asked),
+    /// and the gyro bias about the vertical.
+    fn correct_heading(
+        &mut self,
+        m: &Vector3<f64>,
+        level_from_body: &UnitQuaternion<f64>,
+        armed: bool,
+        moving: bool,
+        dt: f64,
+    ) {
+        let s = self.settings;
         self.since_mag_s += dt;
-        if let Some(m) = mag {
-            let dt = std::mem::take(&mut self.since_mag_s);
-            let field = self.heading.reference_strength().unwrap_or(m.norm());
-            let m = if s.learn_hard_iron {
-                m - self.hard_iron.update(m, &self.q_gyro, field, dt)
-            } else {
-                *m
-            };
-            // A wrong heading is reset from a clean field, when the gyro may have missed a turn
-            // (a tilt reset, a rate at its range): beyond 5° disarmed, 30° armed (a soft-iron
-            // error turns the field by a few degrees as the vehicle tilts). Otherwise a field
-            // far from the heading is more likely a magnet than a heading error: crept towards.
+        let dt = std::mem::take(&mut self.since_mag_s);
+        let field = self.heading.reference_strength().unwrap_or(m.norm());
+        let m = if s.learn_hard_iron {
+            m - self.hard_iron.update(m, &self.q_gyro, field, dt)
+        } else {
+            *m
+        };
+        // A wrong heading is reset from a clean field, when the gyro may have missed a turn
+        // (a tilt reset, a rate at its range): beyond 5° disarmed, 30° armed (a soft-iron
+        // error turns the field by a few degrees as the vehicle tilts). Otherwise a field
+        // far from the heading is more likely a magnet than a heading error: crept towards.
+        self.heading
+            .set_reset_limit(match (self.unseen_turn_s > 0.0, armed) {
+                (false, _) => std::f64::consts::PI,
+                (true, false) => HEADING_RESET_RAD,
+                (true, true) => HEADING_RESET_ARMED_RAD,
+            });
+        // After a start in motion the field has shown itself clean (`motion_start.rs`), and
+        // the bias about the vertical is the part the fit saw least: the heading holds to
+        // the field until it is learned (then `tau_s` again). Elsewhere (indoors, near steel) a field followed
+        // that closely brings its disturbances into the heading.
+        if self.heading_held {
+            let sigma = self
+                .bias
+                .vertical_sigma(&level_from_body.to_rotation_matrix());
+            self.heading_held = sigma > BIAS_SETTLED_RAD_S;
             self.heading
-                .set_reset_limit(match (self.unseen_turn_s > 0.0, armed) {
-                    (false, _) => std::f64::consts::PI,
-                    (true, false) => HEADING_RESET_RAD,
-                    (true, true) => HEADING_RESET_ARMED_RAD,
-                });
-            // After a start in motion the field has shown itself clean (`motion_start.rs`), and
-            // the bias about the vertical is the part the fit saw least: the heading holds to
-            // the field until it is learned (then `tau_s` again). Elsewhere (indoors, near steel) a field followed
-            // that closely brings its disturbances into the heading.
-            if self.heading_held {
-                let sigma = self
-                    .bias
-                    .vertical_sigma(&level_from_body.to_rotation_matrix());
-                self.heading_held = sigma > BIAS_SETTLED_RAD_S;
-                self.heading
-                    .set_drift(if self.heading_held { sigma } else { 0.0 });
-            }
-            let resets = self.heading.resets().0;
-            if let Some(step) = self.heading.update(&(level_from_body * m), dt) {
-                self.status.heading_error_rad = self.heading.last_error();
-                if self.heading.resets().0 == resets {
-                    let k = self.heading.last_gain();
-                    self.bias.heading(step, k, moving, dt);
-                }
+                .set_drift(if self.heading_held { sigma } else { 0.0 });
+        }
+        let resets = self.heading.resets().0;
+        if let Some(step) = self.heading.update(&(level_from_body * m), dt) {
+            self.status.heading_error_rad = self.heading.last_error();
+            if self.heading.resets().0 == resets {
+                let k = self.heading.last_gain();
+                self.bias.heading(step, k, moving, dt);
             }
         }
     }

@@ -171,6 +171,19 @@ pub struct MotorFailureDetector {
     failed: [bool; MAX_ROTORS],
 }
 
+/// What one step shows of all rotors, for each one's judgement.
+struct Seen {
+    /// The thrust and moments the set-points mean, less what the body shows (N, as forces).
+    deficit: Vector3<f64>,
+    /// A rotor-speed reading recent enough to judge by, and whether one arrived this step.
+    rpm_fresh: bool,
+    new_reading: bool,
+    /// In the air (a rotor's share of the imbalance is judged only there).
+    in_air: bool,
+    /// The step (s).
+    dt: f64,
+}
+
 impl MotorFailureDetector {
     /// A detector for `airframe`.
     pub fn new(airframe: &Airframe, params: MotorFailureParams) -> Self {
@@ -321,76 +334,90 @@ impl MotorFailureDetector {
             moment.y / self.mean_arm_m,
         );
         let deficit = self.believed - shown;
+        let seen = Seen {
+            deficit,
+            rpm_fresh,
+            new_reading,
+            in_air: i.in_air,
+            dt,
+        };
         let mut found = None;
         for r in 0..n {
-            if self.failed[r] {
-                continue;
-            }
-            // Rotor speed well below the lagged set-point, or turning as told.
-            let w = self.rpm[r];
-            let speed_judged = rpm_fresh
-                && self.speed_lag[r] > MIN_SPEED_SHARE * self.max_speed[r]
-                && w.is_finite();
-            let rpm_low = speed_judged && w < (1.0 - LOST_FRACTION) * self.speed_lag[r];
-            let speed_says_turning =
-                speed_judged && w >= (1.0 - TURNING_FRACTION) * self.speed_lag[r];
-            if !rpm_low {
-                self.rpm_low_readings[r] = 0;
-            } else if new_reading {
-                self.rpm_low_readings[r] += 1;
-            }
-            // This rotor's column explains the deficit, and the loss is most of its thrust.
-            let t = self.thrust_lag(r);
-            let fit = (i.in_air && t > MIN_THRUST_SHARE * self.max_thrust[r]).then(|| {
-                let b = &self.columns[r];
-                let lost = b.dot(&deficit) / b.norm_squared();
-                let residual = (deficit - b * lost).norm() / deficit.norm().max(1e-12);
-                (lost / t, residual)
-            });
-            let imbalance = fit
-                .filter(|&(f, res)| {
-                    res <= RESIDUAL_FRACTION && f > LOST_FRACTION && f < MAX_LOST_FRACTION
-                })
-                .map(|(f, _)| f);
-            // The quick stop judgement stands in for ESC telemetry: a fresh reading of the
-            // rotor turning as told overrules it (a lost propeller is left to the timeout).
-            let stopping = self.judge_stop(r, fit.filter(|_| !speed_says_turning), dt);
-            // Two low readings in a row, or one that the body's motion agrees with (the other
-            // witness suspects the same rotor): two pieces of evidence either way.
-            let readings_confirm = self.rpm_low_readings[r] >= RPM_CONFIRM_READINGS
-                || (self.rpm_low_readings[r] >= 1 && imbalance.is_some());
-            let rpm_fraction = 1.0 - w / self.speed_lag[r].max(1e-9);
-            // Each witness: its suspicion's time, whether it sees a loss now, whether its own
-            // evidence confirms it before `FD_ACT_MOT_TOUT`, and the share lost.
-            for (suspect, seen, early, by, fraction) in [
-                (
-                    &mut self.rpm_suspect_s[r],
-                    rpm_low,
-                    rpm_low && readings_confirm,
-                    Detection::RotorSpeed,
-                    rpm_fraction,
-                ),
-                (
-                    &mut self.imbalance_suspect_s[r],
-                    imbalance.is_some(),
-                    stopping.is_some(),
-                    Detection::ThrustImbalance,
-                    stopping.or(imbalance).unwrap_or(0.0),
-                ),
-            ] {
-                *suspect = if seen { *suspect + dt } else { 0.0 };
-                let confirmed = *suspect >= self.params.timeout_s || early;
-                if found.is_none() && confirmed {
-                    found = Some(MotorFailure {
-                        rotor: r,
-                        by,
-                        lost_fraction: fraction.clamp(0.0, 1.0),
-                    });
-                }
+            if !self.failed[r] {
+                let judged = self.judge(r, &seen);
+                found = found.or(judged);
             }
         }
         if let Some(f) = found {
             self.failed[f.rotor] = true;
+        }
+        found
+    }
+
+    /// Rotor `r` judged on what the body and the rotor speeds show: its failure, if one of the
+    /// witnesses confirms it now.
+    fn judge(&mut self, r: usize, now: &Seen) -> Option<MotorFailure> {
+        let mut found = None;
+        // Rotor speed well below the lagged set-point, or turning as told.
+        let w = self.rpm[r];
+        let speed_judged = now.rpm_fresh
+            && self.speed_lag[r] > MIN_SPEED_SHARE * self.max_speed[r]
+            && w.is_finite();
+        let rpm_low = speed_judged && w < (1.0 - LOST_FRACTION) * self.speed_lag[r];
+        let speed_says_turning = speed_judged && w >= (1.0 - TURNING_FRACTION) * self.speed_lag[r];
+        if !rpm_low {
+            self.rpm_low_readings[r] = 0;
+        } else if now.new_reading {
+            self.rpm_low_readings[r] += 1;
+        }
+        // This rotor's column explains the deficit, and the loss is most of its thrust.
+        let t = self.thrust_lag(r);
+        let fit = (now.in_air && t > MIN_THRUST_SHARE * self.max_thrust[r]).then(|| {
+            let b = &self.columns[r];
+            let lost = b.dot(&now.deficit) / b.norm_squared();
+            let residual = (now.deficit - b * lost).norm() / now.deficit.norm().max(1e-12);
+            (lost / t, residual)
+        });
+        let imbalance = fit
+            .filter(|&(f, res)| {
+                res <= RESIDUAL_FRACTION && f > LOST_FRACTION && f < MAX_LOST_FRACTION
+            })
+            .map(|(f, _)| f);
+        // The quick stop judgement stands in for ESC telemetry: a fresh reading of the
+        // rotor turning as told overrules it (a lost propeller is left to the timeout).
+        let stopping = self.judge_stop(r, fit.filter(|_| !speed_says_turning), now.dt);
+        // Two low readings in a row, or one that the body's motion agrees with (the other
+        // witness suspects the same rotor): two pieces of evidence either way.
+        let readings_confirm = self.rpm_low_readings[r] >= RPM_CONFIRM_READINGS
+            || (self.rpm_low_readings[r] >= 1 && imbalance.is_some());
+        let rpm_fraction = 1.0 - w / self.speed_lag[r].max(1e-9);
+        // Each witness: its suspicion's time, whether it sees a loss now, whether its own
+        // evidence confirms it before `FD_ACT_MOT_TOUT`, and the share lost.
+        for (suspect, seen, early, by, fraction) in [
+            (
+                &mut self.rpm_suspect_s[r],
+                rpm_low,
+                rpm_low && readings_confirm,
+                Detection::RotorSpeed,
+                rpm_fraction,
+            ),
+            (
+                &mut self.imbalance_suspect_s[r],
+                imbalance.is_some(),
+                stopping.is_some(),
+                Detection::ThrustImbalance,
+                stopping.or(imbalance).unwrap_or(0.0),
+            ),
+        ] {
+            *suspect = if seen { *suspect + now.dt } else { 0.0 };
+            let confirmed = *suspect >= self.params.timeout_s || early;
+            if found.is_none() && confirmed {
+                found = Some(MotorFailure {
+                    rotor: r,
+                    by,
+                    lost_fraction: fraction.clamp(0.0, 1.0),
+                });
+            }
         }
         found
     }
