@@ -35,8 +35,8 @@ use super::accel_bias::AccelBiasEstimator;
 use super::bias::{BiasEstimator, BiasSettings};
 pub use super::gps_tilt::DelayedVelocity;
 use super::gps_tilt::GpsTiltCheck;
-use super::hard_iron::{HardIronEstimator, HardIronSettings};
-use super::heading::{HeadingCorrector, HeadingSettings};
+use super::hard_iron::HardIronEstimator;
+use super::heading::HeadingCorrector;
 use super::lowpass::LowPass;
 use super::motion_start::{FitSample, MotionStart, MotionStartFit};
 use super::recovery::TiltRecovery;
@@ -45,90 +45,10 @@ use crate::GRAVITY_M_S2;
 use crate::math::quat;
 use nalgebra::{UnitQuaternion, Vector3};
 
-/// Settings of the tilt/heading filter.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct TiltHeadingSettings {
-    /// Time constant of the accelerometer's low-pass in the gyro frame (s).
-    pub tau_acc_s: f64,
-    /// Heading settings.
-    pub heading: HeadingSettings,
-    /// Time constant of bias learning at rest (s).
-    pub bias_tau_rest_s: f64,
-    /// Time constant of bias learning in motion, from the corrections (s); 0 switches it off.
-    pub bias_tau_motion_s: f64,
-    /// Largest bias estimate (rad/s).
-    pub bias_limit_rad_s: f64,
-    /// Largest body rate at which the bias is learned in motion (rad/s): faster, gyro scale and
-    /// axis errors drift the attitude as much as a bias would (PX4's attitude estimator keeps
-    /// the same limit).
-    pub bias_max_rate_rad_s: f64,
-    /// Whether the body-fixed field is learned online.
-    pub learn_hard_iron: bool,
-    /// Online hard-iron settings.
-    pub hard_iron: HardIronSettings,
-}
-
-impl Default for TiltHeadingSettings {
-    fn default() -> Self {
-        Self {
-            tau_acc_s: 3.0,
-            heading: HeadingSettings::default(),
-            bias_tau_rest_s: 3.0,
-            bias_tau_motion_s: 10.0,
-            bias_limit_rad_s: 0.1,
-            bias_max_rate_rad_s: 20f64.to_radians(),
-            learn_hard_iron: false,
-            hard_iron: HardIronSettings::default(),
-        }
-    }
-}
-
-impl TiltHeadingSettings {
-    /// The bias filter's settings.
-    pub fn bias_settings(&self) -> BiasSettings {
-        BiasSettings {
-            tau_rest_s: self.bias_tau_rest_s,
-            tau_motion_s: self.bias_tau_motion_s,
-            limit_rad_s: self.bias_limit_rad_s,
-            tau_acc_s: self.tau_acc_s,
-        }
-    }
-}
-
-/// Counters of the tilt/heading filter.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct TiltHeadingStatus {
-    /// Samples taken at rest.
-    pub at_rest: u64,
-    /// Magnetometer samples rejected as disturbed.
-    pub mag_disturbed: u64,
-    /// Times a new magnetic reference was adopted.
-    pub mag_new_reference: u64,
-    /// Online hard-iron fits accepted.
-    pub hard_iron_fits: u64,
-    /// Angle of the last tilt correction (rad).
-    pub tilt_correction_rad: f64,
-    /// Angle between the last magnetic heading and the estimate (rad).
-    pub heading_error_rad: f64,
-    /// The tilt taken from a steady accelerometer at once (`recovery.rs`), the heading from a
-    /// clean magnetometer: how often, and the last ones' sizes.
-    pub reset: EstimateReset,
-    /// The bias and attitude were fitted to the first seconds of a start in motion.
-    pub started_in_motion: bool,
-}
-
-/// The resets of the attitude estimate so far.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct EstimateReset {
-    /// Tilt resets.
-    pub tilt: u64,
-    /// The last tilt reset's size (rad).
-    pub tilt_rad: f64,
-    /// Heading resets.
-    pub heading: u64,
-    /// The last heading reset's size (rad, signed).
-    pub heading_rad: f64,
-}
+mod settings;
+mod status;
+pub use settings::TiltHeadingSettings;
+pub use status::{EstimateReset, TiltHeadingStatus};
 
 /// One sample of the filter's sensors.
 #[derive(Debug, Clone, Copy, PartialEq)]
