@@ -27,7 +27,6 @@ MAX_LINES = 600
 MAX_FN_LINES = 100
 # Over the limits today, to be split; the length each has now (it may not grow).
 SPLIT_PENDING: dict[str, int] = {
-    "sitl/src/run.rs::hil": 153,
 }
 TYPE = re.compile(r"^\s*(?:pub(?:\([a-z]+\))?\s+)?(?:struct|enum|trait)\s+([A-Z][A-Za-z0-9]*)", re.M)
 

@@ -15,6 +15,9 @@ use std::fmt;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+mod hil_loop;
+pub use hil_loop::hil;
+
 /// Everything a run counted, printed at the end as one `key=value` line.
 #[derive(Debug, Default)]
 pub struct Summary {
@@ -285,49 +288,6 @@ pub(crate) fn open_truth(cli: &SitlCli, sim: &Simulator) -> Result<Option<TruthC
         })
         .transpose()
 }
-/// The link to the autopilot the command line names: a serial line, PX4's TCP, or UDP (the
-/// default); and what to call it.
-fn open_transport(cli: &SitlCli) -> Result<(Box<dyn Transport>, String)> {
-    Ok(match (&cli.serial, cli.tcp) {
-        (Some(path), _) => {
-            let t = SerialTransport::open(path, cli.baud)?;
-            let name = t.name().to_owned();
-            // Scripts read this line to learn the device of a new pseudo-terminal.
-            println!("sitl serial: {name}");
-            (Box::new(t), name)
-        }
-        (None, Some(addr)) => {
-            let t = TcpTransport::listen(with_instance(addr, cli.instance, 1, "--tcp")?)?;
-            let at = t.local_addr()?;
-            // Scripts read this line to learn the port (`--tcp 127.0.0.1:0` takes a free one).
-            println!("sitl tcp: {at}");
-            (Box::new(t), format!("TCP {at}"))
-        }
-        (None, None) => {
-            let target = with_instance(cli.autopilot, cli.instance, 1, "--autopilot")?;
-            let t = UdpTransport::new(cli.bind, target)?;
-            tracing::info!(local = %t.local_addr()?, "UDP bound");
-            (Box::new(t), target.to_string())
-        }
-    })
-}
-
-/// The weather control port, if the command line opens one.
-fn open_control(cli: &SitlCli, scenario: &Scenario) -> Result<Option<crate::control::Control>> {
-    Ok(match cli.control {
-        Some(addr) => {
-            let c = crate::control::Control::bind(
-                with_instance(addr, cli.instance, 1, "--control")?,
-                &scenario.sim.wind,
-                scenario.sim.calibration_hand,
-            )?;
-            tracing::info!(control = %c.local_addr()?, "weather control listening");
-            Some(c)
-        }
-        None => None,
-    })
-}
-
 /// Flies the scenario's open-loop script.
 pub fn open_loop(
     scenario: &Scenario,
@@ -371,159 +331,4 @@ pub fn open_loop(
         csv.flush()?;
     }
     Ok(finish(&sim, started, Summary::default()))
-}
-
-/// Runs behind the HIL link.
-pub fn hil(
-    scenario: &Scenario,
-    cli: &SitlCli,
-    speed: Option<f64>,
-    stop: &AtomicBool,
-) -> Result<Summary> {
-    let sim = build(scenario)?;
-    let mut dynamics = Dynamics::start(cli, scenario, &sim)?;
-    let mut truth = open_truth(cli, &sim)?;
-    let mut end = SimulatorEnd::new(sim, cli.hil_rate);
-    let (transport, target) = open_transport(cli)?;
-    tracing::info!(
-        airframe = %end.sim().airframe().name, autopilot = %target,
-        mode = ?cli.mode, physics = ?cli.physics, physics_hz = 1.0 / end.sim().config().dt_s, exchange_hz = end.exchange_hz(),
-        "simulator ready"
-    );
-    let started = Instant::now();
-    let mut pacer = Pacer {
-        start: started,
-        factor: speed,
-    };
-    let mut status = Status::new(cli.status_interval);
-    let mut summary = Summary::default();
-    let mut link = Link::new(transport);
-    let mut control = open_control(cli, scenario)?;
-    let mut connected = false;
-    let timeout = Duration::from_millis(cli.timeout_ms.max(1));
-    let mut last_timeout_log: Option<Instant> = None;
-    let mut awaiting = AwaitAutopilot::new(started);
-    // PX4's simulator interface (TCP): its first word starts the sensor stream, and the clock
-    // runs in real time until its first answer, as PX4 boots on the simulator's clock.
-    let boots_in_real_time = cli.tcp.is_some();
-    let mut boot_pacer = Pacer {
-        start: started,
-        factor: Some(speed.unwrap_or(1.0)),
-    };
-    while end.sim().time_s() < scenario.duration_s - 1e-9 && !stop.load(Ordering::Relaxed) {
-        match link.peer(Duration::from_millis(200))? {
-            Peer::Absent => {
-                awaiting.unanswered(cli, &target)?;
-                continue; // nobody connected: physics waits
-            }
-            Peer::New => {
-                connected = false;
-                pacer.restart_at(end.sim().time_s());
-            }
-            Peer::There => {}
-        }
-        if boots_in_real_time && !connected && link.heard == 0 {
-            if !link.listen(Duration::from_millis(200), &mut summary)? {
-                awaiting.unanswered(cli, &target)?;
-                continue;
-            }
-            tracing::info!("autopilot heard: sensor frames in real time until its first command");
-            boot_pacer.restart_at(end.sim().time_s());
-        }
-        if let Some(interval) = link.take_state_interval() {
-            end.set_state_interval(interval);
-        }
-        status.maybe_print(end.sim(), started);
-        if let Some(c) = control.as_mut() {
-            for action in c.poll(end.sim().time_s()) {
-                end.sim_mut().apply(action);
-            }
-        }
-        if cli.mode == Mode::Lockstep {
-            // A cap, if `--speed` gives one: the frame waits for its wall-clock time.
-            pacer.wait_until(end.sim().time_s());
-        }
-        link.out.clear();
-        let time_usec = end.encode_frame(&mut link.out);
-        link.send()?;
-        summary.frames_sent += 1;
-        let waited = match cli.mode {
-            Mode::Lockstep if boots_in_real_time && !connected => {
-                boot_pacer.wait_until(end.sim().time_s());
-                link.drain(&mut summary)?
-            }
-            Mode::Lockstep => link.wait_for(
-                time_usec,
-                if connected {
-                    timeout
-                } else {
-                    Duration::from_millis(200)
-                },
-                &mut summary,
-            )?,
-            // Answers are taken between the physics steps below, as they arrive.
-            Mode::Realtime => None,
-        };
-        match waited {
-            Some(cmd) => {
-                if !connected {
-                    tracing::info!("autopilot answered: lockstep running");
-                    pacer.restart_at(end.sim().time_s());
-                }
-                connected = true;
-                end.apply(&cmd);
-            }
-            // The autopilot went away: physics waits for the next one.
-            None if link.gone() => continue,
-            None if cli.mode == Mode::Lockstep && !connected && boots_in_real_time => {
-                awaiting.unanswered(cli, &target)?; // and physics steps on: the clock runs
-            }
-            None if cli.mode == Mode::Lockstep && !connected => {
-                awaiting.unanswered(cli, &target)?;
-                continue; // resend the same frame; physics waits
-            }
-            None if cli.mode == Mode::Lockstep => {
-                summary.lockstep_timeouts += 1;
-                if last_timeout_log.is_none_or(|t| t.elapsed() > Duration::from_secs(1)) {
-                    tracing::warn!(
-                        total = summary.lockstep_timeouts,
-                        "lockstep timeout: no HIL_ACTUATOR_CONTROLS for t = {time_usec} us within {timeout:?}; stepping with the last command",
-                    );
-                    last_timeout_log = Some(Instant::now());
-                }
-            }
-            None => {}
-        }
-        let record = |sim: &Simulator| -> Result<()> {
-            match truth.as_mut() {
-                Some(csv) => Ok(csv.record(&sim.truth(), sim.rotor_speeds())?),
-                None => Ok(()),
-            }
-        };
-        match cli.mode {
-            Mode::Lockstep => end.advance_with(|sim, u| dynamics.step(sim, u), record)?,
-            Mode::Realtime => {
-                // Each physics step at its own wall time, with the newest answer there is.
-                end.advance_live(
-                    |t_s| {
-                        pacer.wait_until(t_s);
-                        let latest = link.drain(&mut summary)?;
-                        if latest.is_some() && !connected {
-                            tracing::info!("autopilot answering");
-                            connected = true;
-                        }
-                        Ok(latest)
-                    },
-                    |sim, u| dynamics.step(sim, u),
-                    record,
-                )?;
-                pacer.wait_until(end.sim().time_s());
-            }
-        }
-    }
-    status.maybe_print(end.sim(), started);
-    if let Some(mut csv) = truth {
-        csv.flush()?;
-    }
-    Ok(finish(end.sim(), started, summary))
 }
