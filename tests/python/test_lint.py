@@ -1,6 +1,5 @@
 """tools/lint.py's length checks: a function's lines counted by its braces, not fooled by braces
-in strings, characters or comments; a file or function over its limit named, one listed as
-pending allowed only until it grows or fits."""
+in strings, characters or comments; a file or function over its limit named."""
 
 import importlib.util
 import pathlib
@@ -25,10 +24,6 @@ def test_functions_are_measured_by_their_braces():
     assert found == {"long": limit + 1, "tricky": limit + 1 + (limit - 1)}
 
 
-def test_pending_splits_may_shrink_but_not_grow_and_leave_the_list_once_they_fit(monkeypatch):
-    monkeypatch.setattr(lint, "SPLIT_PENDING", {"a.rs": 700})
-    assert lint.over_limit("a.rs", 650, 600, "split") == []
-    assert "grew" in lint.over_limit("a.rs", 701, 600, "split")[0]
-    assert "take it out" in lint.over_limit("a.rs", 600, 600, "split")[0]
+def test_a_file_or_function_over_its_limit_is_named():
     assert "at most 600" in lint.over_limit("b.rs", 601, 600, "split")[0]
     assert lint.over_limit("b.rs", 600, 600, "split") == []
