@@ -110,7 +110,8 @@ fn message(a: &Action) -> Vec<MavMessage> {
             y,
             frame,
         } => {
-            let command = pick(&gcs::ANSWERED_COMMANDS, *which);
+            let answered: Vec<_> = gcs::answered_commands().collect();
+            let command = pick(&answered, *which);
             vec![if *as_int {
                 let p = [p[0], p[1], p[2], p[3], 0.0, 0.0, p[6]];
                 command_int(command, p, *x, *y, pick(&FRAMES, *frame))

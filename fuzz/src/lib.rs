@@ -42,8 +42,8 @@ impl Vehicle {
     pub fn new(armed: bool) -> Self {
         let params = FlightParams::default();
         let mut telemetry = gcs::testing::telemetry(armed, FlightMode::Loiter);
-        if let Some(s) = telemetry.status.as_mut() {
-            s.home = Some((nalgebra::Vector3::zeros(), 0.0));
+        if let Some(v) = telemetry.vehicle.as_mut() {
+            v.status.home = Some((nalgebra::Vector3::zeros(), 0.0));
         }
         Self {
             gcs: GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR)

@@ -509,7 +509,7 @@ impl GroundStation {
         out.say(MavSeverity::MAV_SEVERITY_WARNING, why);
     }
 
-    /// The control loop's answer to a command sent through [`Outbox::vehicle`]: the ack, and
+    /// The control loop's answer to an answered request (see [`Delivery::Answered`]): the ack, and
     /// the reason in a `STATUSTEXT` when denied.
     pub fn answered(&mut self, to: AckTo, result: Result<(), Denial>, out: &mut Outbox) {
         match to.reply {
