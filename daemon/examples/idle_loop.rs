@@ -12,13 +12,13 @@ mod deadline;
 use deadline::{Deadlines, LoopStats, sleep_until};
 use std::time::{Duration, Instant};
 
-fn main() -> Result<(), String> {
+fn main() -> anyhow::Result<()> {
     let arg = |i: usize| std::env::args().nth(i);
-    let usage = "usage: idle_loop SECONDS [HZ] [CPU]";
-    let seconds: f64 = arg(1).and_then(|s| s.parse().ok()).ok_or(usage)?;
-    let hz: f64 = arg(2).map_or(Ok(1000.0), |s| s.parse().map_err(|_| usage))?;
+    let usage = || anyhow::anyhow!("usage: idle_loop SECONDS [HZ] [CPU]");
+    let seconds: f64 = arg(1).and_then(|s| s.parse().ok()).ok_or_else(usage)?;
+    let hz: f64 = arg(2).map_or(Ok(1000.0), |s| s.parse().map_err(|_| usage()))?;
     if let Some(cpu) = arg(3) {
-        deadline::pin_to_cpu(cpu.parse().map_err(|_| usage)?)?;
+        deadline::pin_to_cpu(cpu.parse().map_err(|_| usage())?)?;
     }
     let period = Duration::from_secs_f64(1.0 / hz);
     let start = Instant::now();

@@ -41,7 +41,7 @@ pub fn fly(cfg: Settings) -> Result<()> {
         // This thread runs the tasks around the loop, and the threads it starts (the log
         // writers, the runtime's) inherit where it may run: none on the loop's CPU. The loop's
         // own thread pins itself there.
-        control_loop::deadline::keep_off_cpu(cpu).map_err(anyhow::Error::msg)?;
+        control_loop::deadline::keep_off_cpu(cpu)?;
     }
     let Prepared {
         system_id,
@@ -63,7 +63,7 @@ pub fn fly(cfg: Settings) -> Result<()> {
             let _ended = ended_guard;
             let ports = &mut ports;
             if let Some(cpu) = cfg.loop_cpu {
-                control_loop::deadline::pin_to_cpu(cpu).map_err(anyhow::Error::msg)?;
+                control_loop::deadline::pin_to_cpu(cpu)?;
                 tracing::info!(cpu, "control loop pinned");
             }
             match source {

@@ -65,42 +65,44 @@ pub fn sleep_until(deadline: Instant, spin: Duration) {
 /// Pins the calling thread to CPU `cpu` (keeps it away from a CPU that serves periodic
 /// interrupts; on a VM, say, the balloon driver's statistics).
 #[cfg(target_os = "linux")]
-pub fn pin_to_cpu(cpu: usize) -> Result<(), String> {
+pub fn pin_to_cpu(cpu: usize) -> anyhow::Result<()> {
+    use anyhow::Context;
     use nix::sched::{CpuSet, sched_setaffinity};
     let mut set = CpuSet::new();
-    set.set(cpu).map_err(|e| format!("CPU {cpu}: {e}"))?;
+    set.set(cpu).with_context(|| format!("CPU {cpu}"))?;
     sched_setaffinity(nix::unistd::Pid::from_raw(0), &set)
-        .map_err(|e| format!("pinning the control loop to CPU {cpu}: {e}"))
+        .with_context(|| format!("pinning the control loop to CPU {cpu}"))
 }
 
 /// Keeps the calling thread off CPU `cpu` (the other threads of a process whose control loop
 /// is pinned there: they inherit its real-time priority under `chrt`, and one of them running
 /// on the loop's CPU delays the loop's wake-up until it blocks). No-op on a one-CPU machine.
 #[cfg(target_os = "linux")]
-pub fn keep_off_cpu(cpu: usize) -> Result<(), String> {
+pub fn keep_off_cpu(cpu: usize) -> anyhow::Result<()> {
+    use anyhow::Context;
     use nix::sched::{sched_getaffinity, sched_setaffinity};
     let me = nix::unistd::Pid::from_raw(0);
-    let mut set = sched_getaffinity(me).map_err(|e| format!("reading the CPU affinity: {e}"))?;
+    let mut set = sched_getaffinity(me).context("reading the CPU affinity")?;
     let others = (0..nix::sched::CpuSet::count())
         .filter(|&c| c != cpu && set.is_set(c).unwrap_or(false))
         .count();
     if others == 0 {
         return Ok(());
     }
-    set.unset(cpu).map_err(|e| format!("CPU {cpu}: {e}"))?;
-    sched_setaffinity(me, &set).map_err(|e| format!("keeping off CPU {cpu}: {e}"))
+    set.unset(cpu).with_context(|| format!("CPU {cpu}"))?;
+    sched_setaffinity(me, &set).with_context(|| format!("keeping off CPU {cpu}"))
 }
 
 /// Keeps the calling thread off a CPU: not available here (nothing to do).
 #[cfg(not(target_os = "linux"))]
-pub fn keep_off_cpu(_cpu: usize) -> Result<(), String> {
+pub fn keep_off_cpu(_cpu: usize) -> anyhow::Result<()> {
     Ok(())
 }
 
 /// Pins the calling thread to a CPU: not available here.
 #[cfg(not(target_os = "linux"))]
-pub fn pin_to_cpu(cpu: usize) -> Result<(), String> {
-    Err(format!("pinning to CPU {cpu} is only supported on Linux"))
+pub fn pin_to_cpu(cpu: usize) -> anyhow::Result<()> {
+    anyhow::bail!("pinning to CPU {cpu} is only supported on Linux")
 }
 
 /// Timing of a paced loop: how late each tick woke, how long its work took, the deadlines it
