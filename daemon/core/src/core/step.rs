@@ -156,7 +156,8 @@ impl FlightCore {
             return out;
         };
         self.flying = true;
-        out.wind = self.outside_force(&a, s, &translation, setpoint, dt);
+        self.step_disturbance(&a, s, &translation, setpoint, dt);
+        out.wind = self.wind(&a, &translation, dt);
         out.motor_failure = self.detect_motor_failure(s, dt);
         let (sp, rate_ff, rate_only) = self.attitude_setpoint(setpoint, &a, &translation, dt);
         // The density of the last barometer sample, held between samples (the barometer is
@@ -252,17 +253,14 @@ impl FlightCore {
         }
     }
 
-    /// The outside force on the vehicle learned, and the wind it means for telemetry and logs
-    /// (10 Hz at most, not on every sample).
-    fn outside_force(
+    /// The wind the outside force means, for telemetry and logs (10 Hz at most, not on every
+    /// sample).
+    fn wind(
         &mut self,
         a: &AttitudeEstimate,
-        s: &SensorSample,
         translation: &TranslationEstimate,
-        setpoint: &Setpoint,
         dt: f64,
     ) -> Option<WindEstimate> {
-        self.step_disturbance(a, s, translation, setpoint, dt);
         self.wind_age_s += dt;
         if self.wind_age_s >= WIND_PERIOD_S {
             self.wind_age_s = 0.0;
