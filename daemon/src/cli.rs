@@ -25,7 +25,7 @@ pub struct Cli {
 /// A flight's flags; each one given wins over the `--config` file.
 #[derive(Debug, Default, Args)]
 pub struct FlightArgs {
-    /// Settings file (TOML): every key mirrors a flag below (source, instance, count, airframe,
+    /// Settings file (TOML): every key mirrors a flag below (source, gps, instance, count, airframe,
     /// params, params_dir, takeoff_m, hover_s, speed, seed, sensors, truth_csv, flight_csv,
     /// log_dir, tlog, ulog, ftp_root, ftp_read_only, loop_hz, loop_spin_us, loop_cpu, loop_stats_s,
     /// mavlink, param_store); flags given here win. Paths in it are relative to its directory.
@@ -43,6 +43,12 @@ pub struct FlightArgs {
     /// flight board streaming HIL messages).
     #[arg(long, value_name = "URL")]
     pub source: Option<String>,
+    /// A GPS receiver on a serial port, instead of the sensor source's GPS:
+    /// `serial:///dev/ttyUSB1?baud=115200&protocol=ublox&rate=5` (a u-blox M8, M9, M10 or F9P,
+    /// found at any baud, moved to `baud` and configured for `rate` solutions a second) or
+    /// `…?protocol=nmea&baud=9600` (any NMEA 0183 receiver, read as it is).
+    #[arg(long, value_name = "URL")]
+    pub gps: Option<String>,
     /// Instance number N: the UDP sensor port is offset by N (several vehicles on one machine)
     /// and the vehicle speaks as MAVLink system N + 1 [default: 0].
     #[arg(short = 'i', long, value_parser = clap::value_parser!(u16).range(0..=250))]

@@ -7,6 +7,7 @@
 mod app;
 mod cli;
 mod control_loop;
+mod devices;
 #[cfg(test)]
 mod fuzz;
 mod gcs_links;

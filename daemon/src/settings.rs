@@ -51,6 +51,8 @@ impl SpeedSetting {
 pub struct Settings {
     /// Sensor source URL (`sim`, `udp://…`, `json://…`, `serial://…`); a flight needs one.
     pub source: Option<String>,
+    /// A GPS receiver's serial port URL (`serial://…`), instead of the source's GPS.
+    pub gps: Option<String>,
     /// Instance number.
     pub instance: u16,
     /// Vehicles flown together in the embedded simulator.
@@ -107,6 +109,7 @@ impl Default for Settings {
     fn default() -> Self {
         Self {
             source: None,
+            gps: None,
             instance: 0,
             count: 1,
             airframe: "quad_x".into(),
@@ -305,6 +308,10 @@ impl Settings {
         }
         if let Some(x) = f.loop_stats_s {
             self.loop_stats_s = number(x, "loop-stats-s", &LOOP_STATS_RANGE_S, "s")?;
+        }
+        if let Some(g) = &f.gps {
+            crate::devices::GpsSpec::parse(g)?;
+            self.gps = Some(g.clone());
         }
         // Checked by the parser: instance and count in their ranges. Checked where used: the
         // sensor preset (an external simulator has none).

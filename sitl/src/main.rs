@@ -7,6 +7,7 @@
 //! `--open-loop` it flies the scenario's actuator script with no autopilot at all.
 
 mod control;
+mod gps_device;
 mod jsbsim;
 mod json_physics;
 mod run;
@@ -90,6 +91,13 @@ pub struct SitlCli {
     /// (`sitl serial: /dev/pts/N`) for `autopilot --source serial:///dev/pts/N`.
     #[arg(long, value_name = "DEVICE|pty")]
     pub serial: Option<String>,
+    /// Play a GPS receiver on a serial port instead of sending HIL_GPS: `m8`, `m9`, `m10`,
+    /// `f9p` (a u-blox of that generation, at its power-on defaults, answering its
+    /// configuration) or `nmea` (NMEA 0183 only, 5 Hz at 38 400 baud), on a new pseudo-terminal
+    /// (printed as `sitl gps: /dev/pts/N`, for `autopilot --gps serial:///dev/pts/N`) or
+    /// `MODEL:/dev/ttyUSB1`.
+    #[arg(long, value_name = "MODEL[:DEVICE]", conflicts_with_all = ["open_loop", "json"])]
+    pub gps_device: Option<String>,
     /// Baud rate of --serial (a pseudo-terminal ignores it).
     #[arg(long, default_value_t = 921_600)]
     pub baud: u32,

@@ -6,6 +6,7 @@ mod console;
 mod prepare;
 
 use crate::control_loop::{self, FlightReport, LoopCommand, Onboard, Pacing, Ports};
+use crate::devices::{GpsPort, GpsSpec, WithDevices};
 use crate::gcs_links;
 use crate::links::sim::{self, EmbeddedSim};
 use crate::links::{SensorLink, SerialLink, Source, UdpLink, json_link};
@@ -52,6 +53,12 @@ pub fn fly(cfg: Settings) -> Result<()> {
         gcs,
     } = prepare(&cfg, &source, &airframe, cfg.instance)?;
     let deadlines = deadline_pacing(&cfg);
+    let gps = cfg
+        .gps
+        .as_deref()
+        .map(GpsSpec::parse)
+        .transpose()?
+        .map(GpsPort::new);
     let (commands, telemetry) = (gcs.commands.clone(), gcs.telemetry.clone());
     // The control loop on its own thread owns the vehicle and the sensor link; this thread runs
     // the tasks that talk to it (ground stations, status line, Ctrl-C).
@@ -68,15 +75,17 @@ pub fn fly(cfg: Settings) -> Result<()> {
             }
             match source {
                 Source::Embedded => {
-                    let mut link = embedded_link(&cfg, &airframe, cfg.instance)?;
+                    let link = embedded_link(&cfg, &airframe, cfg.instance)?;
+                    let mut link = WithDevices::new(link, gps);
                     let report =
                         control_loop::fly(onboard(&mut link, &mut autopilot, &mut records, ports), Pacing::Lockstep)?;
-                    link.finish()?;
+                    link.inner_mut().finish()?;
                     finish(&mut records, report)
                 }
                 Source::Udp { addr, lockstep } => {
-                    let mut link = UdpLink::bind(addr, lockstep, system_id)?;
+                    let link = UdpLink::bind(addr, lockstep, system_id)?;
                     tracing::info!(listening = %link.local_addr()?, airframe = %airframe.name, "waiting for a simulator");
+                    let mut link = WithDevices::new(link, gps);
                     let pacing = if lockstep { Pacing::Lockstep } else { deadlines };
                     let report = control_loop::fly(onboard(&mut link, &mut autopilot, &mut records, ports), pacing)?;
                     finish(&mut records, report)
@@ -84,7 +93,7 @@ pub fn fly(cfg: Settings) -> Result<()> {
                 Source::Json { addr, channels } => {
                     let channels = json_channels(channels, &airframe)?;
                     let sensors = sensor_preset(&cfg)?;
-                    let mut link = json_link::JsonLink::connect(
+                    let link = json_link::JsonLink::connect(
                         addr,
                         channels,
                         sensors,
@@ -93,6 +102,7 @@ pub fn fly(cfg: Settings) -> Result<()> {
                     )
                     .with_context(|| format!("opening a UDP socket for {addr}"))?;
                     tracing::info!(physics = %addr, airframe = %airframe.name, "sending servo packets to a JSON physics");
+                    let mut link = WithDevices::new(link, gps);
                     let report =
                         control_loop::fly(onboard(&mut link, &mut autopilot, &mut records, ports), Pacing::Lockstep)?;
                     finish(&mut records, report)
@@ -102,8 +112,9 @@ pub fn fly(cfg: Settings) -> Result<()> {
                     baud,
                     lockstep,
                 } => {
-                    let mut link = SerialLink::open(path, baud, lockstep, system_id)?;
+                    let link = SerialLink::open(path, baud, lockstep, system_id)?;
                     tracing::info!(port = %link.describe(), airframe = %airframe.name, "waiting for the flight board");
+                    let mut link = WithDevices::new(link, gps);
                     let pacing = if lockstep { Pacing::Lockstep } else { deadlines };
                     let report = control_loop::fly(onboard(&mut link, &mut autopilot, &mut records, ports), pacing)?;
                     finish(&mut records, report)
@@ -334,6 +345,11 @@ fn refuse_one_vehicles_files(cfg: &Settings, source: &Source) -> Result<()> {
     if *source != Source::Embedded {
         bail!(
             "--count flies vehicles in the embedded simulator (--sim); with simulator processes or flight boards run one autopilot per vehicle, each with its own --instance"
+        );
+    }
+    if cfg.gps.is_some() {
+        bail!(
+            "--gps names one vehicle's serial port; --count flies vehicles without their own devices"
         );
     }
     if cfg.truth_csv.is_some()

@@ -88,6 +88,7 @@ pub fn close(u: &mut SensorUpdate) -> Option<LinkFrame> {
             vel_ned_m_s: g.vel_ned_m_s,
             h_acc_m: g.h_acc_m,
             satellites: g.satellites,
+            details: Default::default(),
         }),
         // The pack's state as last reported (ESC_STATUS comes at its own rate).
         battery_v: u.battery_v,

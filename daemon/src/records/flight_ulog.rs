@@ -328,19 +328,30 @@ impl FlightUlog {
         if let Some(g) = s.gps {
             let since_start = t.saturating_sub(self.first_us.unwrap_or(t));
             let v = g.vel_ned_m_s;
+            let d = &g.details;
+            let nan = f64::NAN;
+            // The receiver's own UTC when it says it, else the computer's clock.
+            let utc = d
+                .time_utc_usec
+                .unwrap_or(self.start.unix_start_us + since_start);
             let row = UlogRow::at(t)
                 .u64(t)
-                .u64(self.start.unix_start_us + since_start)
+                .u64(utc)
                 .f64(g.position.lat_deg)
                 .f64(g.position.lon_deg)
                 .f64(g.position.alt_m)
                 .f32(g.h_acc_m)
+                .f32(d.v_acc_m.unwrap_or(nan))
+                .f32(d.dop.map_or(nan, |(h, _)| h))
+                .f32(d.dop.map_or(nan, |(_, v)| v))
+                .f32(d.s_acc_m_s.unwrap_or(nan))
+                .f32(d.heading_acc_deg.map_or(nan, f64::to_radians))
                 .f32(v.xy().norm())
                 .f32s(v.as_slice())
                 .f32(v.y.atan2(v.x))
                 .u8(g.fix_type)
                 .u8(g.satellites)
-                .bool(true);
+                .bool(!d.no_horizontal_velocity);
             self.data(id::VEHICLE_GPS_POSITION, row);
         }
         if let Some(alt) = s.baro_alt_m {

@@ -75,6 +75,8 @@ pub struct UbloxDriver {
     protocol: Option<f64>,
     config: Vec<ConfigMessage>,
     interface: Interface,
+    /// Configuration messages refused or unanswered in this pass.
+    refusals: u32,
     /// The last (class, id) acknowledged or refused, and which.
     ack: Option<((u8, u8), bool)>,
     /// The baud `MON-VER` was last polled at while scanning.
@@ -123,6 +125,7 @@ impl UbloxDriver {
             protocol: None,
             config: Vec::new(),
             interface: Interface::Legacy,
+            refusals: 0,
             ack: None,
             polled_at: None,
             last_valid: None,
@@ -187,7 +190,9 @@ impl UbloxDriver {
             };
         }
         match frame {
-            UbxRead::Pvt(mut s) if self.stage == DriverStage::Running => {
+            // Taken in every stage once found: a receiver configured beforehand (or a recording)
+            // streams solutions while the dialogue is still going on, or without answering it.
+            UbxRead::Pvt(mut s) => {
                 if let Some((hdop, vdop)) = self.dop {
                     (s.hdop, s.vdop) = (Some(hdop), Some(vdop));
                 }
@@ -223,6 +228,7 @@ impl UbloxDriver {
     fn identified(&mut self, t_s: f64) {
         self.interface = Interface::for_protocol(self.protocol);
         self.config = ublox_config::messages(self.interface, self.target_baud, self.period_ms);
+        self.refusals = 0;
         self.stage = if self.baud == self.target_baud {
             Self::configure_from_start()
         } else {
@@ -304,9 +310,12 @@ impl UbloxDriver {
         events: &mut Vec<GpsEvent>,
     ) {
         let Some(message) = self.config.get(index) else {
-            events.push(GpsEvent::Configured {
-                interface: self.interface.name(),
-            });
+            // Said only when every message was taken; each refusal was said as it came.
+            if self.refusals == 0 {
+                events.push(GpsEvent::Configured {
+                    interface: self.interface.name(),
+                });
+            }
             self.stage = DriverStage::Running;
             self.last_solution = Some(t_s);
             return;
@@ -331,6 +340,7 @@ impl UbloxDriver {
                         ublox_config::messages(self.interface, self.target_baud, self.period_ms);
                     self.stage = next(0);
                 } else {
+                    self.refusals += 1;
                     self.stage = next(index + 1);
                 }
             }
@@ -348,6 +358,7 @@ impl UbloxDriver {
                     message: message.name,
                     nak: false,
                 });
+                self.refusals += 1;
                 self.stage = next(index + 1);
             }
         }

@@ -114,6 +114,8 @@ pub struct GpsFix {
     pub h_acc_m: f64,
     /// Vertical position accuracy 1σ (m).
     pub v_acc_m: f64,
+    /// Speed accuracy 1σ (m/s).
+    pub s_acc_m_s: f64,
     /// Satellites used.
     pub satellites: u8,
 }
@@ -326,6 +328,11 @@ impl SensorSuite {
         }
     }
 
+    /// The injected state of one sensor.
+    pub fn health_of(&self, kind: SensorKind) -> SensorHealth {
+        self.health[kind_index(kind)]
+    }
+
     /// Sets the injected state of one sensor.
     pub fn set_health(&mut self, kind: SensorKind, health: SensorHealth) {
         self.health[kind_index(kind)] = health;
@@ -502,6 +509,7 @@ impl SensorSuite {
                     vel_ned_m_s: Vector3::zeros(),
                     h_acc_m: 999.0,
                     v_acc_m: 999.0,
+                    s_acc_m_s: 999.0,
                     satellites: 0,
                 }
             } else {
@@ -512,6 +520,7 @@ impl SensorSuite {
                     vel_ned_m_s: t.vel_ned_m_s + vel_noise,
                     h_acc_m: c.gps_h_sigma.max(0.05),
                     v_acc_m: c.gps_v_sigma.max(0.05),
+                    s_acc_m_s: c.gps_vel_sigma.max(0.05),
                     satellites: c.gps_satellites,
                 }
             };

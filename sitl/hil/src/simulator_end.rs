@@ -36,6 +36,8 @@ pub struct SimulatorEnd {
     /// What the hand is doing on request, and when a request last came (s).
     hand: HandRequest,
     hand_heard_s: f64,
+    /// The GPS goes out as `HIL_GPS` (else a GPS device on a serial port carries it).
+    hil_gps: bool,
 }
 
 impl SimulatorEnd {
@@ -54,6 +56,7 @@ impl SimulatorEnd {
             controls: [0.0; MAX_ROTORS],
             hand: HandRequest::None,
             hand_heard_s: f64::NEG_INFINITY,
+            hil_gps: true,
         }
     }
 
@@ -64,8 +67,29 @@ impl SimulatorEnd {
         let frame = self.acc.frame();
         let rotors = self.sim.airframe().rotors.len();
         let truth = self.sim.truth();
-        encode_exchange(&mut self.encoder, out, frame, &truth, rotors, send_state);
+        if self.hil_gps || frame.gps.is_none() {
+            encode_exchange(&mut self.encoder, out, frame, &truth, rotors, send_state);
+        } else {
+            let without_gps = SensorFrame {
+                gps: None,
+                ..frame.clone()
+            };
+            encode_exchange(
+                &mut self.encoder,
+                out,
+                &without_gps,
+                &truth,
+                rotors,
+                send_state,
+            );
+        }
         frame.time_usec
+    }
+
+    /// Sends the GPS as `HIL_GPS` (the default), or not: a GPS device on its own serial port
+    /// carries it instead.
+    pub fn set_hil_gps(&mut self, on: bool) {
+        self.hil_gps = on;
     }
 
     /// The current exchange as an autopilot decodes it from [`Self::encode_frame`]'s bytes,

@@ -2,6 +2,7 @@
 //! actuator commands back, in lockstep or real time.
 
 use super::*;
+use sitl_core::sensors::SensorKind;
 
 /// The link to the autopilot the command line names: a serial line, PX4's TCP, or UDP (the
 /// default); and what to call it.
@@ -57,6 +58,16 @@ pub fn hil(
     let mut dynamics = Dynamics::start(cli, scenario, &sim)?;
     let mut truth = open_truth(cli, &sim)?;
     let mut end = SimulatorEnd::new(sim, cli.hil_rate);
+    let mut gps = match &cli.gps_device {
+        Some(spec) => {
+            let d = crate::gps_device::GpsDevice::open(spec)?;
+            // Scripts read this line to learn the GPS's device.
+            println!("sitl gps: {}", d.name());
+            end.set_hil_gps(false);
+            Some(d)
+        }
+        None => None,
+    };
     let (transport, target) = open_transport(cli)?;
     tracing::info!(
         airframe = %end.sim().airframe().name, autopilot = %target,
@@ -83,6 +94,11 @@ pub fn hil(
         if cli.mode == Mode::Lockstep {
             // A cap, if `--speed` gives one: the frame waits for its wall-clock time.
             x.pacer.wait_until(end.sim().time_s());
+        }
+        if let Some(g) = gps.as_mut() {
+            // Before the frame: the autopilot reads the device when the frame arrives.
+            let health = end.sim().sensors().health_of(SensorKind::Gps);
+            g.step(end.frame().gps.as_ref(), health)?;
         }
         x.link.out.clear();
         let time_usec = end.encode_frame(&mut x.link.out);

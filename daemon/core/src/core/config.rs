@@ -81,6 +81,8 @@ impl FlightCoreConfig {
                 tau_z_s: t.tau_z_s,
                 tau_vel_s: t.tau_vel_s,
                 gps_delay_s: t.gps_delay_s,
+                gps_p_noise_m: t.gps_p_noise_m,
+                gps_v_noise_m_s: t.gps_v_noise_m_s,
                 gps_max_h_acc_m: t.gps_max_h_acc_m,
                 gps_timeout_s: t.gps_timeout_s,
                 baro_timeout_s: t.baro_timeout_s,

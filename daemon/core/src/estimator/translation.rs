@@ -30,6 +30,10 @@ pub struct TranslationParams {
     pub tau_vel_s: f64,
     /// Age of a GPS solution on arrival (s).
     pub gps_delay_s: f64,
+    /// The GPS position accuracy (m) at which `tau_xy_s` applies as set.
+    pub gps_p_noise_m: f64,
+    /// The GPS speed accuracy (m/s) at which `tau_vel_s` applies as set.
+    pub gps_v_noise_m_s: f64,
     /// Worst horizontal accuracy (m) accepted from the GPS.
     pub gps_max_h_acc_m: f64,
     /// Local position is invalid after this long without GPS (s).
@@ -47,6 +51,8 @@ impl Default for TranslationParams {
             tau_z_s: 2.0, // 1 s: landings up to 0.63 m/s from baro noise in the vertical speed; 2 s: ≤ 0.44 m/s
             tau_vel_s: 0.5,
             gps_delay_s: 0.1,
+            gps_p_noise_m: 0.5,
+            gps_v_noise_m_s: 0.3,
             gps_max_h_acc_m: 5.0,
             gps_timeout_s: 1.0,
             baro_timeout_s: 0.5,
@@ -68,6 +74,40 @@ pub struct GpsMeasurement {
     pub h_acc_m: f64,
     /// Satellites visible.
     pub satellites: u8,
+    /// What a receiver on a serial port says beyond that (none from `HIL_GPS`).
+    pub details: GpsDetails,
+}
+
+/// What a GPS receiver says of its solution beyond position, velocity and horizontal
+/// accuracy (u-blox's `NAV-PVT` and `NAV-DOP`, NMEA's `GSA` and `GST`); `None` where it is
+/// silent.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct GpsDetails {
+    /// Vertical accuracy, 1σ (m).
+    pub v_acc_m: Option<f64>,
+    /// Speed accuracy, 1σ (m/s).
+    pub s_acc_m_s: Option<f64>,
+    /// Heading accuracy, 1σ (deg).
+    pub heading_acc_deg: Option<f64>,
+    /// Horizontal and vertical dilution of precision.
+    pub dop: Option<(f64, f64)>,
+    /// The solution's UTC time (µs since the Unix epoch).
+    pub time_utc_usec: Option<u64>,
+    /// The receiver sent no velocity over the ground with this solution (an NMEA `GGA`
+    /// without `RMC` or `VTG`): the north and east components are 0, and it is not fused.
+    pub no_horizontal_velocity: bool,
+    /// The receiver measures no vertical velocity (NMEA): the down component is 0.
+    pub no_vertical_velocity: bool,
+}
+
+/// How much longer than its own a time constant is for a GPS of stated accuracy `acc` (1σ)
+/// over the noise floor `floor`: the steady-state Kalman filter of a double integrator has a
+/// bandwidth ∝ (q/r)^¼, so a time constant ∝ √σ. A receiver at or below the floor (or one
+/// that says nothing) is fused at the filter's own time constants, as EKF2 floors the
+/// receiver's accuracy with `EKF2_GPS_P_NOISE` and `EKF2_GPS_V_NOISE`.
+fn stretch(acc: Option<f64>, floor: f64) -> f64 {
+    acc.filter(|a| a.is_finite() && floor > 0.0)
+        .map_or(1.0, |a| (a / floor).max(1.0).sqrt())
 }
 
 /// The estimate.
@@ -186,7 +226,10 @@ impl TranslationEstimator {
         .iter()
         .all(|x| x.is_finite())
             && gps.vel_ned_m_s.iter().all(|x| x.is_finite());
-        gps.fix_type >= 3 && finite && gps.h_acc_m <= self.params.gps_max_h_acc_m
+        gps.fix_type >= 3
+            && finite
+            && gps.h_acc_m <= self.params.gps_max_h_acc_m
+            && !gps.details.no_horizontal_velocity
     }
 
     /// A GPS solution's velocity and age, if the filter takes the solution: the attitude
@@ -306,14 +349,17 @@ impl TranslationEstimator {
         let then = self.past(t_usec.saturating_sub((self.params.gps_delay_s * 1e6) as u64));
         let e = measured - then.pos;
         self.status.gps_innovation_m = e.xy().norm();
-        self.correct([true, true, false], &e, self.params.tau_xy_s, interval);
+        let tau_xy = self.params.tau_xy_s * stretch(Some(gps.h_acc_m), self.params.gps_p_noise_m);
+        self.correct([true, true, false], &e, tau_xy, interval);
         let ev = gps.vel_ned_m_s - then.vel;
         let ev = Vector3::new(ev.x, ev.y, 0.0);
         if std::mem::take(&mut self.take_next_gps_velocity) {
             self.vel += ev;
             self.vel_resets += ev;
         } else {
-            self.vel += ev * (interval / self.params.tau_vel_s).min(1.0);
+            let tau_vel =
+                self.params.tau_vel_s * stretch(gps.details.s_acc_m_s, self.params.gps_v_noise_m_s);
+            self.vel += ev * (interval / tau_vel).min(1.0);
         }
         self.status.gps_fused += 1;
     }
@@ -370,6 +416,10 @@ crate::params::param_group! {
         tau_vel_s: f64 = 0.5, "EST_VEL_TAU", "s", [0.05, 30.0], "GPS velocity correction time constant";
         /// GPS latency.
         gps_delay_s: f64 = 0.1, "EST_GPS_DELAY", "s", [0.0, 0.5], "Age of a GPS solution when it arrives";
+        /// The GPS position noise floor.
+        gps_p_noise_m: f64 = 0.5, "EST_GPS_P_NOISE", "m", [0.01, 10.0], "GPS position accuracy at which the horizontal time constant applies as set: a receiver stating a worse one is fused more slowly (by the square root of the ratio)";
+        /// The GPS velocity noise floor.
+        gps_v_noise_m_s: f64 = 0.3, "EST_GPS_V_NOISE", "m/s", [0.01, 5.0], "GPS speed accuracy at which the velocity time constant applies as set: a receiver stating a worse one is fused more slowly";
         /// Worst GPS accuracy accepted.
         gps_max_h_acc_m: f64 = 5.0, "EST_GPS_MAX_ACC", "m", [0.1, 100.0], "Worst horizontal accuracy accepted from the GPS";
         /// GPS timeout.
@@ -387,6 +437,42 @@ mod tests {
     use crate::math::geo::LatLonAlt;
     use sitl_core::environment::isa;
     use sitl_core::sensors::{EarthField, SensorConfig, SensorPreset, SensorSuite, Truth, fields};
+
+    /// A receiver's stated accuracy weights its fusion: one 4× less sure of its position
+    /// (2 m against the 0.5 m floor) pulls a 10 m offset in half as fast (τ × √4), and one at
+    /// or under the floor, or saying nothing of its speed, exactly as the filter's own τ.
+    #[test]
+    fn a_gps_less_sure_of_itself_is_fused_more_slowly() {
+        assert_eq!(stretch(Some(0.3), 0.5), 1.0);
+        assert_eq!(stretch(None, 0.3), 1.0);
+        assert_eq!(stretch(Some(f64::NAN), 0.5), 1.0);
+        assert!((stretch(Some(2.0), 0.5) - 2.0).abs() < 1e-12);
+        let pull = |h_acc_m: f64| {
+            let mut est = TranslationEstimator::new(TranslationParams::default());
+            let origin = LatLonAlt::default();
+            let gps = |t_usec: u64, north_m: f64| GpsMeasurement {
+                fix_type: 3,
+                position: LocalFrame::new(origin).to_geodetic(&Vector3::new(north_m, 0.0, 0.0)),
+                vel_ned_m_s: Vector3::zeros(),
+                h_acc_m,
+                satellites: 12,
+                details: GpsDetails::default(),
+            };
+            est.fuse_gps(0, &gps(0, 0.0));
+            for k in 1..=10u64 {
+                est.predict(
+                    k * 100_000,
+                    &Vector3::new(0.0, 0.0, -crate::GRAVITY_M_S2),
+                    &UnitQuaternion::identity(),
+                    0.1,
+                );
+                est.fuse_gps(k * 100_000, &gps(k * 100_000, 10.0));
+            }
+            est.estimate().pos_ned_m.x
+        };
+        let (sure, unsure) = (pull(0.5), pull(2.0));
+        assert!(sure > 1.5 * unsure && unsure > 0.0, "{sure} {unsure}");
+    }
 
     /// A 20 m circle at 5 m/s with a 3 m altitude swing, level flight, typical sensors.
     #[test]
@@ -466,6 +552,7 @@ mod tests {
                         vel_ned_m_s: g.vel_ned_m_s,
                         h_acc_m: g.h_acc_m,
                         satellites: g.satellites,
+                        details: Default::default(),
                     },
                 );
             }
@@ -518,6 +605,7 @@ mod tests {
             vel_ned_m_s: Vector3::zeros(),
             h_acc_m: 0.5,
             satellites: 10,
+            details: Default::default(),
         };
         est.fuse_gps(
             0,
@@ -531,6 +619,7 @@ mod tests {
             &GpsMeasurement {
                 h_acc_m: 50.0,
                 satellites: 10,
+                details: Default::default(),
                 ..good
             },
         );

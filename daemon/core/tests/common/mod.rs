@@ -87,6 +87,7 @@ pub fn control_interval(sim: &mut Simulator, commands: &[f64]) -> SensorSample {
                 vel_ned_m_s: g.vel_ned_m_s,
                 h_acc_m: g.h_acc_m,
                 satellites: g.satellites,
+                details: Default::default(),
             });
         }
     }

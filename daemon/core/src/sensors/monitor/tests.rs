@@ -42,6 +42,7 @@ fn flight(k: u64, yaw_rate: f64, climb: f64, n: f64) -> SensorSample {
             vel_ned_m_s: Vector3::new(10.0 * w(11), 0.0, -climb),
             h_acc_m: 1.0,
             satellites: 10,
+            details: Default::default(),
         }),
         battery_v: Some(16.0),
         esc_current_a: None,
