@@ -73,53 +73,8 @@ pub fn fly(cfg: Settings) -> Result<()> {
                 control_loop::deadline::pin_to_cpu(cpu)?;
                 tracing::info!(cpu, "control loop pinned");
             }
-            match source {
-                Source::Embedded => {
-                    let link = embedded_link(&cfg, &airframe, cfg.instance)?;
-                    let mut link = WithDevices::new(link, gps);
-                    let report =
-                        control_loop::fly(onboard(&mut link, &mut autopilot, &mut records, ports), Pacing::Lockstep)?;
-                    link.inner_mut().finish()?;
-                    finish(&mut records, report)
-                }
-                Source::Udp { addr, lockstep } => {
-                    let link = UdpLink::bind(addr, lockstep, system_id)?;
-                    tracing::info!(listening = %link.local_addr()?, airframe = %airframe.name, "waiting for a simulator");
-                    let mut link = WithDevices::new(link, gps);
-                    let pacing = if lockstep { Pacing::Lockstep } else { deadlines };
-                    let report = control_loop::fly(onboard(&mut link, &mut autopilot, &mut records, ports), pacing)?;
-                    finish(&mut records, report)
-                }
-                Source::Json { addr, channels } => {
-                    let channels = json_channels(channels, &airframe)?;
-                    let sensors = sensor_preset(&cfg)?;
-                    let link = json_link::JsonLink::connect(
-                        addr,
-                        channels,
-                        sensors,
-                        cfg.seed,
-                        sitl_core::geo::home_for_instance(&LatLonAlt::default(), cfg.instance),
-                    )
-                    .with_context(|| format!("opening a UDP socket for {addr}"))?;
-                    tracing::info!(physics = %addr, airframe = %airframe.name, "sending servo packets to a JSON physics");
-                    let mut link = WithDevices::new(link, gps);
-                    let report =
-                        control_loop::fly(onboard(&mut link, &mut autopilot, &mut records, ports), Pacing::Lockstep)?;
-                    finish(&mut records, report)
-                }
-                Source::Serial {
-                    path,
-                    baud,
-                    lockstep,
-                } => {
-                    let link = SerialLink::open(path, baud, lockstep, system_id)?;
-                    tracing::info!(port = %link.describe(), airframe = %airframe.name, "waiting for the flight board");
-                    let mut link = WithDevices::new(link, gps);
-                    let pacing = if lockstep { Pacing::Lockstep } else { deadlines };
-                    let report = control_loop::fly(onboard(&mut link, &mut autopilot, &mut records, ports), pacing)?;
-                    finish(&mut records, report)
-                }
-            }
+            let vehicle = (&mut autopilot, &mut records, ports);
+            fly_link(source, &cfg, &airframe, gps, system_id, deadlines, vehicle)
         })
         .context("starting the control loop")?;
     let exits = serve(
@@ -136,6 +91,81 @@ pub fn fly(cfg: Settings) -> Result<()> {
         reboot()?;
     }
     Ok(())
+}
+
+/// The vehicle's parts the control loop flies, borrowed for one flight.
+type Parts<'a> = (&'a mut Autopilot, &'a mut FlightRecords, &'a mut Ports);
+
+/// One vehicle flown on its source's link, its own devices (a GPS) beside it, to the
+/// flight's report.
+fn fly_link(
+    source: Source,
+    cfg: &Settings,
+    airframe: &Airframe,
+    gps: Option<GpsPort>,
+    system_id: u8,
+    deadlines: Pacing,
+    (autopilot, records, ports): Parts<'_>,
+) -> Result<FlightReport> {
+    match source {
+        Source::Embedded => {
+            let link = embedded_link(cfg, airframe, cfg.instance)?;
+            let mut link = WithDevices::new(link, gps);
+            let report = control_loop::fly(
+                onboard(&mut link, autopilot, records, ports),
+                Pacing::Lockstep,
+            )?;
+            link.inner_mut().finish()?;
+            finish(records, report)
+        }
+        Source::Udp { addr, lockstep } => {
+            let link = UdpLink::bind(addr, lockstep, system_id)?;
+            tracing::info!(listening = %link.local_addr()?, airframe = %airframe.name, "waiting for a simulator");
+            let mut link = WithDevices::new(link, gps);
+            let pacing = if lockstep {
+                Pacing::Lockstep
+            } else {
+                deadlines
+            };
+            let report = control_loop::fly(onboard(&mut link, autopilot, records, ports), pacing)?;
+            finish(records, report)
+        }
+        Source::Json { addr, channels } => {
+            let channels = json_channels(channels, airframe)?;
+            let sensors = sensor_preset(cfg)?;
+            let link = json_link::JsonLink::connect(
+                addr,
+                channels,
+                sensors,
+                cfg.seed,
+                sitl_core::geo::home_for_instance(&LatLonAlt::default(), cfg.instance),
+            )
+            .with_context(|| format!("opening a UDP socket for {addr}"))?;
+            tracing::info!(physics = %addr, airframe = %airframe.name, "sending servo packets to a JSON physics");
+            let mut link = WithDevices::new(link, gps);
+            let report = control_loop::fly(
+                onboard(&mut link, autopilot, records, ports),
+                Pacing::Lockstep,
+            )?;
+            finish(records, report)
+        }
+        Source::Serial {
+            path,
+            baud,
+            lockstep,
+        } => {
+            let link = SerialLink::open(path, baud, lockstep, system_id)?;
+            tracing::info!(port = %link.describe(), airframe = %airframe.name, "waiting for the flight board");
+            let mut link = WithDevices::new(link, gps);
+            let pacing = if lockstep {
+                Pacing::Lockstep
+            } else {
+                deadlines
+            };
+            let report = control_loop::fly(onboard(&mut link, autopilot, records, ports), pacing)?;
+            finish(records, report)
+        }
+    }
 }
 
 /// The pacing of a loop that does not wait for its link: the settings' deadlines.

@@ -450,7 +450,7 @@ mod tests {
         let pull = |h_acc_m: f64| {
             let mut est = TranslationEstimator::new(TranslationParams::default());
             let origin = LatLonAlt::default();
-            let gps = |t_usec: u64, north_m: f64| GpsMeasurement {
+            let gps = |north_m: f64| GpsMeasurement {
                 fix_type: 3,
                 position: LocalFrame::new(origin).to_geodetic(&Vector3::new(north_m, 0.0, 0.0)),
                 vel_ned_m_s: Vector3::zeros(),
@@ -458,7 +458,7 @@ mod tests {
                 satellites: 12,
                 details: GpsDetails::default(),
             };
-            est.fuse_gps(0, &gps(0, 0.0));
+            est.fuse_gps(0, &gps(0.0));
             for k in 1..=10u64 {
                 est.predict(
                     k * 100_000,
@@ -466,7 +466,7 @@ mod tests {
                     &UnitQuaternion::identity(),
                     0.1,
                 );
-                est.fuse_gps(k * 100_000, &gps(k * 100_000, 10.0));
+                est.fuse_gps(k * 100_000, &gps(10.0));
             }
             est.estimate().pos_ned_m.x
         };
