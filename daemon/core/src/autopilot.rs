@@ -93,7 +93,8 @@ pub struct AutopilotOutput {
     /// The set-point flown.
     pub setpoint: Setpoint,
     /// The sample as stepped, raw (before the IMU's calibration): after failure injection
-    /// and the sensor monitor. What the logs record.
+    /// and the sensor monitor, but for the GPS solution, which is the receiver's whether or not
+    /// the monitor took it (a 2D fix, a frozen receiver). What the logs record.
     pub raw_sample: SensorSample,
     /// The sensor source started again before this sample (its clock went back by more than
     /// [`SOURCE_RESTART_S`]): the autopilot started afresh, and so do the records.
@@ -299,6 +300,8 @@ impl Autopilot {
         let mut sample = *sample;
         self.power_and_gps(&sample, t_usec);
         self.injected.apply_to_sample(&mut sample);
+        // What the receiver said, for the logs, whether or not the estimators take it.
+        let received_gps = sample.gps;
         // Lost sensors are taken out: the estimators fall back as for a sensor that is off.
         self.monitor.update(&mut sample);
         if let Some(commands) = self.imu_frozen(t_usec) {
@@ -345,7 +348,10 @@ impl Autopilot {
             kind: StepKind::Flown,
             estimate: output,
             setpoint,
-            raw_sample: sample,
+            raw_sample: SensorSample {
+                gps: received_gps,
+                ..sample
+            },
             restarted,
         };
         self.last_answer = Some(answer);

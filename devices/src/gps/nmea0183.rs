@@ -142,6 +142,11 @@ impl NmeaDriver {
         match parsed {
             Ok(ParseResult::GGA(gga)) => {
                 self.new_epoch(gga.fix_time, events);
+                // The first GGA of an epoch: a receiver may send one per constellation
+                // (GPGGA, GLGGA) of the same fix.
+                if self.epoch.gga.is_some() {
+                    return;
+                }
                 self.epoch.gga = Some(Position {
                     fix: gga.fix_type,
                     lat_deg: gga.latitude,
