@@ -13,6 +13,7 @@
 """
 
 import calendar
+import csv as csvlib
 import io
 import math
 import os
@@ -334,3 +335,70 @@ def test_recorded_nmea_receivers_decode_as_pynmeagps_decodes_them(tmp_path, name
         ap.stop()
         line.close()
     assert_rows_are(gps_rows(ap.logs), expected, name, undated=1)
+
+
+def fly_with(tmp_path, gps_device=None, scenario=None, hover_s=30):
+    """A lockstep take-off, hover and landing on sitl (seed 7, typical sensors), its GPS as
+    HIL_GPS or, with `gps_device` (a model), a receiver on a pseudo-terminal. Returns the
+    autopilot's stderr, its summary (a dict) and its flight CSV's hover rows."""
+    port = free_udp_port()
+    args = ["--mode", "lockstep", "--seed", "7", "--sensors", "typical", "--duration", "200"]
+    args += ["--gps-device", gps_device] if gps_device else []
+    args += ["--scenario", str(scenario)] if scenario else []
+    sitl = run_sitl(args, port)
+    try:
+        gps = []
+        if gps_device:
+            first = sitl.stdout.readline()
+            assert first.startswith("sitl gps: "), first
+            gps = ["--gps", "serial://" + first.split(": ", 1)[1].strip()]
+        csv = tmp_path / f"{gps_device or 'hil'}.csv"
+        ap = subprocess.run(
+            [str(binary("autopilot")), "--params-dir", str(ROOT / "params"),
+             "--source", f"udp://127.0.0.1:{port}", *gps, "--takeoff", "5",
+             "--hover", str(hover_s), "--mavlink", "none", "--param-store", "none",
+             "--log-dir", "none", "--flight-csv", str(csv)],
+            capture_output=True, text=True, timeout=180)
+    finally:
+        sitl.kill()
+        sitl.wait()
+    assert ap.returncode == 0, ap.stderr[-3000:]
+    line = next(l for l in ap.stdout.splitlines() if l.startswith("autopilot summary:"))
+    summary = dict(kv.split("=", 1) for kv in line.split()[2:] if "=" in kv)
+    with open(csv) as f:
+        # The hover's rows that carry the simulator's truth (HIL_STATE_QUATERNION, 50 Hz).
+        rows = [r for r in csvlib.DictReader(f)
+                if r["mode"] == "LOITER" and r["armed"] == "1" and r["true_n_m"] != ""]
+    return ap.stderr, summary, rows
+
+
+def horizontal_error_rms(rows):
+    """The estimate's horizontal distance from the truth, RMS over the rows (m)."""
+    sq = [(float(r["n_m"]) - float(r["true_n_m"])) ** 2 + (float(r["e_m"]) - float(r["true_e_m"])) ** 2
+          for r in rows]
+    return math.sqrt(sum(sq) / len(sq))
+
+
+def test_a_flight_on_a_device_gps_holds_its_place_as_on_hil_gps(tmp_path):
+    _, hil, hil_rows = fly_with(tmp_path)
+    _, dev, dev_rows = fly_with(tmp_path, gps_device="m9")
+    errors = horizontal_error_rms(hil_rows), horizontal_error_rms(dev_rows)
+    drifts = float(hil["hover_drift_rms_m"]), float(dev["hover_drift_rms_m"])
+    print(f"estimate's horizontal error RMS: HIL_GPS {errors[0]:.3f} m, u-blox M9 on a "
+          f"pseudo-terminal {errors[1]:.3f} m; hover drift RMS {drifts[0]:.3f} m, {drifts[1]:.3f} m")
+    assert len(dev_rows) > 1000 and len(hil_rows) > 1000
+    assert abs(errors[1] - errors[0]) <= 0.1, errors
+    assert abs(drifts[1] - drifts[0]) <= 0.1, drifts
+    assert dev["landed"] == hil["landed"] == "true"
+
+
+def test_a_receiver_unplugged_in_flight_is_a_lost_gps_then_found_again(tmp_path, scenario):
+    path = scenario('airframe = "quad_x"\nduration_s = 200.0\n'
+                    '[[events]]\nt_s = 20.0\nkind = "sensor_off"\nsensor = "gps"\nduration_s = 4.0\n')
+    err, summary, _ = fly_with(tmp_path, gps_device="m9", scenario=path)
+    said = [l for l in err.splitlines() if "GPS" in l or "failsafe" in l]
+    assert sum("GPS silent" in l for l in said) == 1, said
+    assert sum("GPS lost: looking for it" in l for l in said) == 1, said
+    assert sum('GPS configured' in l for l in said) == 2, said
+    assert any("failsafe: position estimate invalid" in l for l in said), said
+    assert summary["landed"] == "true" and summary["failsafe"] == "true", summary
