@@ -7,8 +7,11 @@
 //! - [`gps`]: a u-blox receiver (UBX: baud detection, configuration through the generation-9
 //!   `CFG-VALSET` interface or the older `CFG-PRT`/`CFG-MSG`/`CFG-RATE`, `NAV-PVT` and
 //!   `NAV-DOP`) or any NMEA 0183 receiver (GGA, RMC, VTG, GSA, GST).
+//! - [`rc`]: an RC receiver: CRSF (ExpressLRS, TBS Crossfire: channels, link statistics, and
+//!   the telemetry a transmitter shows) or SBUS (channels, frame-lost and failsafe flags).
 //! - [`sim`]: the same devices as the simulator plays them, so that the autopilot flies
 //!   through the real protocols in SITL.
 
 pub mod gps;
+pub mod rc;
 pub mod sim;
