@@ -563,9 +563,9 @@ def test_position_mode_flies_the_sticks_and_holds_then_holds_on_their_loss(vehic
         assert worst < 0.5, f"position hold: {worst:.2f} m off"
     finally:
         sticks.stop()
-    # The sticks stop: Hold after COM_RC_LOSS_T, with a reason.
-    wait(gcs, "STATUSTEXT", lambda m: "manual control lost" in m.text, 5)
-    wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER" and armed(m), timeout=3)
+    # The sticks stop: NAV_RCL_ACT's Return (PX4's default) after COM_RC_LOSS_T, with a reason.
+    wait(gcs, "STATUSTEXT", lambda m: "manual control lost: RTL" in m.text, 5)
+    wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "RTL" and armed(m), timeout=3)
     gcs.set_mode("LAND")
     assert ack(gcs, mavutil.mavlink.MAV_CMD_DO_SET_MODE) == 0
     wait(gcs, "HEARTBEAT", lambda m: not armed(m), timeout=60)

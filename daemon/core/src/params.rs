@@ -54,6 +54,10 @@ impl ParamValue for u32 {
     const KIND: ParamKind = ParamKind::Int32;
 }
 
+impl ParamValue for i32 {
+    const KIND: ParamKind = ParamKind::Int32;
+}
+
 /// A rejected parameter value.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ParamViolation {
@@ -152,10 +156,11 @@ pub use crate::estimator::attitude::{ATTITUDE_META, AttitudeParams};
 pub use crate::estimator::translation::{TRANSLATION_META, TranslationGroup};
 pub use crate::safety::failsafe::{SAFETY_META, SafetyParams};
 pub use crate::sensors::battery::{BATTERY_META, BatteryGroup};
+pub use crate::commander::rc_input::{RC_META, RcGroup};
 pub use crate::sensors::imu_correction::{IMU_META, ImuCalParams};
 
 /// Each group's title in the parameter reference, in [`FlightParams::metadata`]'s order.
-const GROUP_TITLES: [(&str, &str); 10] = [
+const GROUP_TITLES: [(&str, &str); 11] = [
     ("attitude", "Attitude estimator"),
     ("translation", "Position and velocity estimator"),
     ("position", "Position loops"),
@@ -166,6 +171,7 @@ const GROUP_TITLES: [(&str, &str); 10] = [
     ("safety", "Failsafes and arming checks"),
     ("battery", "Flight battery"),
     ("imu", "IMU calibration and board mounting"),
+    ("rc", "RC transmitter: sticks, switches, calibration"),
 ];
 
 /// Every flight-core parameter, as in `params/flight.toml`.
@@ -192,6 +198,8 @@ pub struct FlightParams {
     pub battery: BatteryGroup,
     /// The gyro and accelerometer calibrations and the board's mounting angles.
     pub imu: ImuCalParams,
+    /// The RC transmitter's sticks, switches and calibration.
+    pub rc: RcGroup,
 }
 
 /// Why a parameter value was refused (for the operator, `STATUSTEXT`).
@@ -226,6 +234,7 @@ impl FlightParams {
         v.extend(self.safety.validate());
         v.extend(self.battery.validate());
         v.extend(self.imu.validate());
+        v.extend(self.rc.validate());
         v.extend(
             self.battery
                 .inconsistencies()
@@ -274,6 +283,7 @@ impl FlightParams {
             "safety" => self.safety.get(key),
             "battery" => self.battery.get(key),
             "imu" => self.imu.get(key),
+            "rc" => self.rc.get(key),
             _ => None,
         }
     }
@@ -290,6 +300,7 @@ impl FlightParams {
             "safety" => self.safety.set(key, value),
             "battery" => self.battery.set(key, value),
             "imu" => self.imu.set(key, value),
+            "rc" => self.rc.set(key, value),
             _ => false,
         }
     }
@@ -362,6 +373,7 @@ impl FlightParams {
             ("safety", SAFETY_META),
             ("battery", BATTERY_META),
             ("imu", IMU_META),
+            ("rc", RC_META),
         ]
         .into_iter()
         .flat_map(|(g, m)| m.iter().map(move |p| (g, p)))
@@ -500,7 +512,22 @@ mod tests {
                 "SYS_FAILURE_EN",
                 "BAT1_N_CELLS",
                 "CAL_GYRO0_ID",
-                "CAL_ACC0_ID"
+                "CAL_ACC0_ID",
+                "RC_MAP_ROLL",
+                "RC_MAP_PITCH",
+                "RC_MAP_THROTTLE",
+                "RC_MAP_YAW",
+                "RC_MAP_FLTMODE",
+                "RC_MAP_ARM_SW",
+                "COM_FLTMODE1",
+                "COM_FLTMODE2",
+                "COM_FLTMODE3",
+                "COM_FLTMODE4",
+                "COM_FLTMODE5",
+                "COM_FLTMODE6",
+                "COM_RC_IN_MODE",
+                "COM_RC_OVERRIDE",
+                "MAN_ARM_GESTURE"
             ]
         );
         assert!(FlightParams::default().validate().is_empty());

@@ -28,9 +28,10 @@ impl Notices {
         let losses = t.status().map_or(0, |s| s.manual_losses);
         if losses > self.manual_losses {
             self.manual_losses = losses;
+            let mode = t.status().map_or("Hold", |s| s.mode.name());
             out.say(
                 MavSeverity::MAV_SEVERITY_CRITICAL,
-                "manual control lost: Hold",
+                &format!("manual control lost: {mode}"),
             );
         }
         let losses = t.status().map_or(0, |s| s.offboard_losses);

@@ -459,7 +459,7 @@ impl Commander {
     }
 
     /// The stream a mode flies on has stopped: the sticks (PX4's manual-control-loss
-    /// failsafe: Hold) or the offboard set-points (`COM_OBL_RC_ACT`'s mode, a stick mode only
+    /// failsafe: `NAV_RCL_ACT`'s mode) or the offboard set-points (`COM_OBL_RC_ACT`'s mode, a stick mode only
     /// with a joystick, else Hold). This update holds where braking stops the vehicle (on the
     /// ground: stays there, in Hold). `None`: the stream is there, or the mode needs none.
     fn stream_lost(&mut self, t: &Tick) -> Option<PositionSetpoint> {
@@ -471,7 +471,11 @@ impl Commander {
                 if t.sticks.is_none() =>
             {
                 self.manual_losses += 1;
-                FlightMode::Loiter
+                match self.flight.params.manual_loss_action {
+                    2 if self.flight.home.is_some() => FlightMode::Rtl,
+                    3 => FlightMode::Land,
+                    _ => FlightMode::Loiter,
+                }
             }
             FlightMode::Offboard if t.offboard.is_none() => {
                 self.offboard_losses += 1;
@@ -517,6 +521,7 @@ mod mission_run;
 mod offboard;
 mod orbit;
 mod params;
+pub mod rc_input;
 mod rtl;
 mod stabilized;
 mod status;

@@ -44,7 +44,9 @@ crate::params::param_group! {
         /// Stick dead zone around the centre (fraction of full travel).
         stick_deadzone: f64 = 0.1, "MPC_HOLD_DZ", "", [0.0, 0.5], "Stick dead zone around the centre, where the vehicle holds";
         /// Manual control older than this is lost (s).
-        manual_loss_s: f64 = 0.5, "COM_RC_LOSS_T", "s", [0.1, 35.0], "Manual control lost after this long without MANUAL_CONTROL: manual modes switch to Hold";
+        manual_loss_s: f64 = 0.5, "COM_RC_LOSS_T", "s", [0.1, 35.0], "Manual control lost after this long without sticks (RC or MANUAL_CONTROL): manual modes switch to NAV_RCL_ACT's";
+        /// What flies when the sticks are lost in a manual mode.
+        manual_loss_action: u32 = 2, "NAV_RCL_ACT", "", [1.0, 3.0], "Manual control lost in a manual mode: 1 Hold, 2 Return (Hold without a home), 3 Land";
         /// Thrust at zero throttle stick in the stick-to-attitude modes (fraction of full thrust).
         manual_thrust_min: f64 = 0.08, "MPC_MANTHR_MIN", "", [0.0, 0.3], "Thrust at zero throttle stick in Stabilized and Manual (fraction of full thrust)";
         /// Offboard set-points older than this are lost (s).

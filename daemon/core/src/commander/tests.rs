@@ -558,11 +558,11 @@ fn position_mode_flies_the_sticks_and_holds_when_they_centre() {
     assert!(sp.pos_ned_m.x.is_nan() && sp.vel_ned_m_s.x.is_nan());
     assert!((sp.accel_ned_m_s2.x + a).abs() < 1e-9, "{sp:?}");
 
-    // The sticks stop: after COM_RC_LOSS_T, Hold.
+    // The sticks stop: after COM_RC_LOSS_T, NAV_RCL_ACT's Return (PX4's default).
     step(&mut c, &at(1.3, there, z, 0.0));
     assert_eq!(c.mode(), FlightMode::Altctl);
     step(&mut c, &at(1.6, there, z, 0.0));
-    assert_eq!(c.mode(), FlightMode::Loiter);
+    assert_eq!(c.mode(), FlightMode::Rtl);
     assert_eq!(c.status().manual_losses, 1);
 }
 
@@ -738,14 +738,14 @@ fn stabilized_lands_on_low_throttle_and_holds_without_sticks() {
     let t = disarmed_at.unwrap();
     assert!((2.65..2.85).contains(&t), "disarmed at {t}");
     assert_eq!(c.mode(), FlightMode::Stabilized);
-    // Again in the air, then the sticks stop: Hold.
+    // Again in the air, then the sticks stop: Return, holding first where it brakes.
     c.arm(false).unwrap();
     for t in [4.0, 4.1, 4.2] {
         c.manual_control(sticks(0.8));
         attitude(&mut c, &at(t, up, z, 0.0));
     }
     let (sp, armed) = step(&mut c, &at(4.8, up, z, 0.0));
-    assert!(armed && c.mode() == FlightMode::Loiter, "{:?}", c.mode());
+    assert!(armed && c.mode() == FlightMode::Rtl, "{:?}", c.mode());
     assert_eq!(sp.pos_ned_m, up);
     assert_eq!(c.status().manual_losses, 1);
 }

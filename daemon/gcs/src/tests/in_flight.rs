@@ -41,10 +41,11 @@ fn manual_control_reaches_the_vehicle_as_sticks_and_a_loss_is_reported() {
     g.poll(0.0, &t, &mut out);
     if let Some(s) = t.vehicle.as_mut().map(|v| &mut v.status) {
         s.manual_losses = 1;
+        s.mode = FlightMode::Rtl;
     }
     g.poll(0.01, &t, &mut out);
     g.poll(0.02, &t, &mut out);
-    assert_eq!(statustexts(&out), ["manual control lost: Hold"]);
+    assert_eq!(statustexts(&out), ["manual control lost: RTL"]);
 }
 
 #[test]

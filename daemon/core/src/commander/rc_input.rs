@@ -1,0 +1,172 @@
+//! An RC transmitter's channels as the commander takes them, as PX4's `rc_update` and
+//! `manual_control` read them: each channel normalised by its calibration (`RCn_MIN`,
+//! `RCn_TRIM`, `RCn_MAX`, `RCn_REV`, `RCn_DZ`), the sticks by `RC_MAP_*`, the mode switch's
+//! travel cut in six slots (`COM_FLTMODE1`…`6`: a three-position switch selects 1, 4 and 6),
+//! the arm switch against `RC_ARMSWITCH_TH`, and the stick gesture (throttle low, yaw right
+//! for a second arms; yaw left disarms on the ground).
+
+mod params;
+
+pub use params::{RC_META, RcGroup};
+
+use super::{FlightMode, Sticks};
+
+/// The channels an RC frame carries at most.
+pub const RC_CHANNELS: usize = 16;
+
+/// One frame from the RC receiver, as the autopilot takes it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RcFrame {
+    /// Channels (µs).
+    pub channels: [u16; RC_CHANNELS],
+    /// How many are carried.
+    pub count: u8,
+    /// The receiver is in failsafe (the transmitter is gone): the channels are not the pilot's.
+    pub failsafe: bool,
+}
+
+/// What the transmitter asks for in one frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RcDemand {
+    /// The sticks.
+    pub sticks: Sticks,
+    /// The mode switch's slot (0–5), when a switch is mapped.
+    pub mode_slot: Option<usize>,
+    /// The arm switch, when one is mapped.
+    pub arm_switch: Option<bool>,
+}
+
+/// How long the arm gesture is held (s), PX4's `COM_RC_ARM_HYST`.
+pub const GESTURE_S: f64 = 1.0;
+
+/// The mode of a `COM_FLTMODEn` value (PX4's main-mode numbers); `None` for unassigned or a
+/// mode this autopilot does not fly from a switch (Acro, Offboard, Follow Me, …).
+pub fn px4_mode(number: i32) -> Option<FlightMode> {
+    Some(match number {
+        0 => FlightMode::Manual,
+        1 => FlightMode::Altctl,
+        2 => FlightMode::Posctl,
+        3 => FlightMode::Mission,
+        4 => FlightMode::Loiter,
+        5 => FlightMode::Rtl,
+        8 => FlightMode::Stabilized,
+        10 => FlightMode::Takeoff,
+        11 => FlightMode::Land,
+        14 => FlightMode::Orbit,
+        _ => return None,
+    })
+}
+
+impl RcGroup {
+    /// Channel `c`'s (1-based) calibration: min, trim, max, reversed, dead zone.
+    fn calibration(&self, c: usize) -> Option<(f64, f64, f64, bool, f64)> {
+        let key = |what: &str| self.get(&format!("rc{c}_{what}"));
+        Some((
+            key("min")?,
+            key("trim")?,
+            key("max")?,
+            key("rev")? < 0.0,
+            key("dz")?,
+        ))
+    }
+
+    /// Channel `c` (1-based; 0 is none) of `frame`, normalised to −1…1 about its trim.
+    pub fn centred(&self, frame: &RcFrame, c: u32) -> Option<f64> {
+        let (v, (min, trim, max, rev, dz)) = self.raw(frame, c)?;
+        let n = if v > trim + dz {
+            (v - trim - dz) / (max - trim - dz).max(1.0)
+        } else if v < trim - dz {
+            (v - trim + dz) / (trim - min - dz).max(1.0)
+        } else {
+            0.0
+        };
+        let n = n.clamp(-1.0, 1.0);
+        Some(if rev { -n } else { n })
+    }
+
+    /// Channel `c` of `frame` as a fraction 0…1 of its travel (the throttle, the switches).
+    pub fn travel(&self, frame: &RcFrame, c: u32) -> Option<f64> {
+        let (v, (min, _, max, rev, _)) = self.raw(frame, c)?;
+        let t = ((v - min) / (max - min).max(1.0)).clamp(0.0, 1.0);
+        Some(if rev { 1.0 - t } else { t })
+    }
+
+    fn raw(&self, frame: &RcFrame, c: u32) -> Option<(f64, (f64, f64, f64, bool, f64))> {
+        let c = usize::try_from(c).ok().filter(|&c| c >= 1 && c <= usize::from(frame.count))?;
+        Some((f64::from(*frame.channels.get(c - 1)?), self.calibration(c)?))
+    }
+
+    /// What `frame` asks for.
+    pub fn demand(&self, frame: &RcFrame) -> RcDemand {
+        let stick = |c| self.centred(frame, c).unwrap_or(0.0);
+        RcDemand {
+            sticks: Sticks {
+                forward: stick(self.map_pitch),
+                right: stick(self.map_roll),
+                throttle: self.travel(frame, self.map_throttle).unwrap_or(0.5),
+                yaw: stick(self.map_yaw),
+            },
+            mode_slot: self
+                .travel(frame, self.map_mode)
+                .map(|t| ((t * 6.0) as usize).min(5)),
+            arm_switch: self
+                .travel(frame, self.map_arm)
+                .map(|t| t > self.arm_threshold),
+        }
+    }
+
+    /// The mode of slot `slot` (0–5), `None` when unassigned.
+    pub fn slot_mode(&self, slot: usize) -> Option<FlightMode> {
+        let number = [
+            self.fltmode1,
+            self.fltmode2,
+            self.fltmode3,
+            self.fltmode4,
+            self.fltmode5,
+            self.fltmode6,
+        ];
+        px4_mode(*number.get(slot)?)
+    }
+}
+
+/// The stick gesture: which way it is held, since when.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Gesture {
+    held: Option<(bool, f64)>,
+}
+
+impl Gesture {
+    /// The sticks at `t_s`: `Some(true)` once throttle low and yaw right have been held for
+    /// [`GESTURE_S`] (arm), `Some(false)` for yaw left (disarm); once each time it is held.
+    pub fn update(&mut self, t_s: f64, s: &Sticks) -> Option<bool> {
+        let now = (s.throttle < 0.1).then_some(()).and_then(|()| {
+            if s.yaw > 0.9 {
+                Some(true)
+            } else if s.yaw < -0.9 {
+                Some(false)
+            } else {
+                None
+            }
+        });
+        match (now, self.held) {
+            (None, _) => {
+                self.held = None;
+                None
+            }
+            (Some(arm), Some((was, since))) if arm == was => {
+                if since.is_finite() && t_s - since >= GESTURE_S {
+                    self.held = Some((arm, f64::INFINITY)); // said once
+                    return Some(arm);
+                }
+                None
+            }
+            (Some(arm), _) => {
+                self.held = Some((arm, t_s));
+                None
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;
