@@ -25,7 +25,7 @@ pub struct Cli {
 /// A flight's flags; each one given wins over the `--config` file.
 #[derive(Debug, Default, Args)]
 pub struct FlightArgs {
-    /// Settings file (TOML): every key mirrors a flag below (source, gps, instance, count, airframe,
+    /// Settings file (TOML): every key mirrors a flag below (source, gps, rc, instance, count, airframe,
     /// params, params_dir, takeoff_m, hover_s, speed, seed, sensors, truth_csv, flight_csv,
     /// log_dir, tlog, ulog, ftp_root, ftp_read_only, loop_hz, loop_spin_us, loop_cpu, loop_stats_s,
     /// mavlink, param_store); flags given here win. Paths in it are relative to its directory.
@@ -49,6 +49,11 @@ pub struct FlightArgs {
     /// `…?protocol=nmea&baud=9600` (any NMEA 0183 receiver, read as it is).
     #[arg(long, value_name = "URL")]
     pub gps: Option<String>,
+    /// An RC receiver on a serial port: `serial:///dev/ttyS2?protocol=crsf` (ExpressLRS or
+    /// TBS Crossfire, 420 000 baud) or `…?protocol=sbus` (100 000 baud 8E2, inverted on the
+    /// wire); its sticks and switches fly as PX4's RC_MAP_*, COM_FLTMODE* and COM_RC_* say.
+    #[arg(long, value_name = "URL")]
+    pub rc: Option<String>,
     /// Instance number N: the UDP sensor port is offset by N (several vehicles on one machine)
     /// and the vehicle speaks as MAVLink system N + 1 [default: 0].
     #[arg(short = 'i', long, value_parser = clap::value_parser!(u16).range(0..=250))]

@@ -53,6 +53,8 @@ pub struct Settings {
     pub source: Option<String>,
     /// A GPS receiver's serial port URL (`serial://…`), instead of the source's GPS.
     pub gps: Option<String>,
+    /// An RC receiver's serial port URL (`serial://…?protocol=crsf|sbus`).
+    pub rc: Option<String>,
     /// Instance number.
     pub instance: u16,
     /// Vehicles flown together in the embedded simulator.
@@ -110,6 +112,7 @@ impl Default for Settings {
         Self {
             source: None,
             gps: None,
+            rc: None,
             instance: 0,
             count: 1,
             airframe: "quad_x".into(),
@@ -312,6 +315,10 @@ impl Settings {
         if let Some(g) = &f.gps {
             crate::devices::GpsSpec::parse(g)?;
             self.gps = Some(g.clone());
+        }
+        if let Some(r) = &f.rc {
+            crate::devices::RcSpec::parse(r)?;
+            self.rc = Some(r.clone());
         }
         // Checked by the parser: instance and count in their ranges. Checked where used: the
         // sensor preset (an external simulator has none).

@@ -16,6 +16,7 @@ mod auto_flight;
 mod blind;
 mod calibration;
 pub mod command;
+pub mod rc;
 mod state;
 
 pub use auto_flight::AutoFlight;
@@ -52,6 +53,8 @@ pub struct StepInputs {
     /// Wall-clock time since the last ground-station heartbeat (s; `None` before the first),
     /// for the link-loss failsafe: the control loop measures it.
     pub gcs_link_age_s: Option<f64>,
+    /// A frame from the RC receiver, when one arrived with this sample.
+    pub rc: Option<crate::commander::rc_input::RcFrame>,
 }
 
 /// What a step did with its sample.
@@ -153,6 +156,8 @@ pub struct Autopilot {
     /// When the IMU froze while armed (sensor time): the loops cannot fly without it, and it
     /// is not trusted again before the motors stop.
     imu_frozen_since_usec: Option<u64>,
+    /// The RC transmitter's switches and the sticks' sources between frames.
+    rc: rc::RcState,
 }
 
 impl Autopilot {
@@ -191,6 +196,7 @@ impl Autopilot {
             source_restarts: 0,
             rotors: airframe.rotors.len(),
             max_thrust_n: core.config().position.max_thrust_n,
+            rc: None,
         };
         let mut autopilot = Self {
             core,
@@ -223,6 +229,7 @@ impl Autopilot {
             estimate_resets: (0, 0),
             blind: None,
             imu_frozen_since_usec: None,
+            rc: rc::RcState::default(),
         };
         autopilot.publish();
         Ok(autopilot)
@@ -316,6 +323,9 @@ impl Autopilot {
             let dt = self.dt_since_last(t_usec);
             let p = &self.core.config().attitude;
             self.mag_field.update(flown.mag, &flown.accel, p, dt);
+        }
+        if let Some(frame) = &inputs.rc {
+            self.rc_frame(t_s, frame);
         }
         let (setpoint, armed) = self.command_setpoint(t_s, inputs);
         let spooling = self.set_flight_phase();

@@ -147,6 +147,7 @@ macro_rules! param_group_impl {
 }
 pub(crate) use param_group_impl as param_group;
 
+pub use crate::commander::rc_input::{RC_META, RcGroup};
 pub use crate::commander::{COMMANDER_META, CommanderParams};
 pub use crate::control::attitude::{ATTITUDE_CONTROL_META, AttitudeControlGroup};
 pub use crate::control::motor::{MOTOR_META, MotorGroup};
@@ -156,7 +157,6 @@ pub use crate::estimator::attitude::{ATTITUDE_META, AttitudeParams};
 pub use crate::estimator::translation::{TRANSLATION_META, TranslationGroup};
 pub use crate::safety::failsafe::{SAFETY_META, SafetyParams};
 pub use crate::sensors::battery::{BATTERY_META, BatteryGroup};
-pub use crate::commander::rc_input::{RC_META, RcGroup};
 pub use crate::sensors::imu_correction::{IMU_META, ImuCalParams};
 
 /// Each group's title in the parameter reference, in [`FlightParams::metadata`]'s order.

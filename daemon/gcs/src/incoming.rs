@@ -273,6 +273,7 @@ impl GroundStation {
             MAV_DATA_STREAM_EXTRA1 => &[ATTITUDE_DATA::ID],
             MAV_DATA_STREAM_EXTRA2 => &[VFR_HUD_DATA::ID],
             MAV_DATA_STREAM_EXTRA3 => &[BATTERY_STATUS_DATA::ID, SYSTEM_TIME_DATA::ID],
+            MAV_DATA_STREAM_RC_CHANNELS => &[RC_CHANNELS_DATA::ID],
             _ => return,
         };
         let all: Vec<u32>;

@@ -50,7 +50,7 @@ pub const COMPONENT_ID: u8 = 1;
 const FORCE_MAGIC: f32 = 21196.0;
 
 /// Messages sent without being asked, with their default rates (Hz), PX4-like.
-const DEFAULT_STREAMS: [(u32, f64); 18] = [
+const DEFAULT_STREAMS: [(u32, f64); 20] = [
     (HEARTBEAT_DATA::ID, 1.0),
     (SYS_STATUS_DATA::ID, 1.0),
     (EXTENDED_SYS_STATE_DATA::ID, 1.0),
@@ -71,6 +71,9 @@ const DEFAULT_STREAMS: [(u32, f64); 18] = [
     // In Orbit only, at PX4's rate of its normal stream set.
     (ORBIT_EXECUTION_STATUS_DATA::ID, 2.0),
     (WIND_COV_DATA::ID, 1.0), // once the vehicle has flown and learned it
+    // Once an RC receiver is read (PX4's normal stream set has RC_CHANNELS at 5 Hz).
+    (RC_CHANNELS_DATA::ID, 5.0),
+    (RADIO_STATUS_DATA::ID, 1.0),
 ];
 
 /// Slowest and fastest stream rates a ground station may ask for (Hz); sensor messages may

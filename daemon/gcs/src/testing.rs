@@ -48,6 +48,7 @@ pub fn telemetry(armed: bool, mode: FlightMode) -> Telemetry {
             source_restarts: 0,
             rotors: 4,
             max_thrust_n: 0.0,
+            rc: None,
         }),
         link: LinkState {
             t_s: 12.0,

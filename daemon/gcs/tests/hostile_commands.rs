@@ -159,6 +159,7 @@ impl Vehicle {
                 source_restarts: 0,
                 rotors: state.rotors,
                 max_thrust_n: 0.0,
+                rc: None,
             }),
             link: LinkState {
                 t_s: self.sim.time_s(),

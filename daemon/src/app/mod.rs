@@ -6,7 +6,7 @@ mod console;
 mod prepare;
 
 use crate::control_loop::{self, FlightReport, LoopCommand, Onboard, Pacing, Ports};
-use crate::devices::{GpsPort, GpsSpec, WithDevices};
+use crate::devices::{GpsPort, GpsSpec, RcPort, RcSpec, WithDevices};
 use crate::gcs_links;
 use crate::links::sim::{self, EmbeddedSim};
 use crate::links::{SensorLink, SerialLink, Source, UdpLink, json_link};
@@ -59,6 +59,12 @@ pub fn fly(cfg: Settings) -> Result<()> {
         .map(GpsSpec::parse)
         .transpose()?
         .map(GpsPort::new);
+    let rc = cfg
+        .rc
+        .as_deref()
+        .map(RcSpec::parse)
+        .transpose()?
+        .map(RcPort::new);
     let (commands, telemetry) = (gcs.commands.clone(), gcs.telemetry.clone());
     // The control loop on its own thread owns the vehicle and the sensor link; this thread runs
     // the tasks that talk to it (ground stations, status line, Ctrl-C).
@@ -74,7 +80,15 @@ pub fn fly(cfg: Settings) -> Result<()> {
                 tracing::info!(cpu, "control loop pinned");
             }
             let vehicle = (&mut autopilot, &mut records, ports);
-            fly_link(source, &cfg, &airframe, gps, system_id, deadlines, vehicle)
+            fly_link(
+                source,
+                &cfg,
+                &airframe,
+                (gps, rc),
+                system_id,
+                deadlines,
+                vehicle,
+            )
         })
         .context("starting the control loop")?;
     let exits = serve(
@@ -102,7 +116,7 @@ fn fly_link(
     source: Source,
     cfg: &Settings,
     airframe: &Airframe,
-    gps: Option<GpsPort>,
+    (gps, rc): (Option<GpsPort>, Option<RcPort>),
     system_id: u8,
     deadlines: Pacing,
     (autopilot, records, ports): Parts<'_>,
@@ -110,7 +124,7 @@ fn fly_link(
     match source {
         Source::Embedded => {
             let link = embedded_link(cfg, airframe, cfg.instance)?;
-            let mut link = WithDevices::new(link, gps);
+            let mut link = WithDevices::new(link, gps, rc);
             let report = control_loop::fly(
                 onboard(&mut link, autopilot, records, ports),
                 Pacing::Lockstep,
@@ -121,7 +135,7 @@ fn fly_link(
         Source::Udp { addr, lockstep } => {
             let link = UdpLink::bind(addr, lockstep, system_id)?;
             tracing::info!(listening = %link.local_addr()?, airframe = %airframe.name, "waiting for a simulator");
-            let mut link = WithDevices::new(link, gps);
+            let mut link = WithDevices::new(link, gps, rc);
             let pacing = if lockstep {
                 Pacing::Lockstep
             } else {
@@ -142,7 +156,7 @@ fn fly_link(
             )
             .with_context(|| format!("opening a UDP socket for {addr}"))?;
             tracing::info!(physics = %addr, airframe = %airframe.name, "sending servo packets to a JSON physics");
-            let mut link = WithDevices::new(link, gps);
+            let mut link = WithDevices::new(link, gps, rc);
             let report = control_loop::fly(
                 onboard(&mut link, autopilot, records, ports),
                 Pacing::Lockstep,
@@ -156,7 +170,7 @@ fn fly_link(
         } => {
             let link = SerialLink::open(path, baud, lockstep, system_id)?;
             tracing::info!(port = %link.describe(), airframe = %airframe.name, "waiting for the flight board");
-            let mut link = WithDevices::new(link, gps);
+            let mut link = WithDevices::new(link, gps, rc);
             let pacing = if lockstep {
                 Pacing::Lockstep
             } else {

@@ -336,6 +336,7 @@ impl<'a> ControlLoop<'a> {
     fn frames(&mut self) -> Result<Flow> {
         let inputs = StepInputs {
             gcs_link_age_s: self.gcs_heartbeat.map(|t| t.elapsed().as_secs_f64()),
+            rc: None,
         };
         let received = std::mem::take(&mut self.received.frames);
         let flow = self.step_on(&received, inputs);
@@ -346,6 +347,10 @@ impl<'a> ControlLoop<'a> {
     /// Steps on `frames` in order, answering each.
     fn step_on(&mut self, frames: &[frames::LinkFrame], inputs: StepInputs) -> Result<Flow> {
         for frame in frames {
+            let inputs = StepInputs {
+                rc: frame.rc,
+                ..inputs
+            };
             let Some(step) = self.autopilot.step(&frame.sample, &inputs) else {
                 continue;
             };

@@ -6,17 +6,13 @@
 //! back, as EKF2's `EKF2_GPS_DELAY` does.
 
 use super::GpsSpec;
+use super::serial_device::DevicePort;
 use devices::gps::{GpsCounters, GpsDriver, GpsEvent, GpsSolution};
 use flight_core::estimator::translation::{GpsDetails, GpsMeasurement};
 use flight_core::math::geo::LatLonAlt;
 use nalgebra::Vector3;
-use serialport::{SerialPort, TTYPort};
-use std::io::Read;
-use std::io::Write;
-use std::time::Duration;
+use serialport::{Parity, StopBits};
 
-/// How often a port that cannot be opened is tried again (s, sensor clock).
-const REOPEN_S: f64 = 1.0;
 /// The standard deviation of one metre of HDOP, for a receiver that states no accuracy
 /// (NMEA without `GST`): a user equivalent range error of about 1.5 m, as single-frequency
 /// receivers without corrections have.
@@ -24,16 +20,10 @@ const UERE_M: f64 = 1.5;
 
 /// The port and its driver.
 pub struct GpsPort {
-    spec: GpsSpec,
-    port: Option<TTYPort>,
-    port_baud: u32,
+    port: DevicePort,
     driver: GpsDriver,
-    retry_at: f64,
-    /// The last failure said, so that one is said once.
-    said: Option<String>,
     events: Vec<GpsEvent>,
     out: Vec<u8>,
-    buf: Vec<u8>,
 }
 
 impl GpsPort {
@@ -41,20 +31,15 @@ impl GpsPort {
     pub fn new(spec: GpsSpec) -> Self {
         Self {
             driver: GpsDriver::new(spec.protocol, spec.baud, spec.rate_hz),
-            port_baud: spec.baud,
-            spec,
-            port: None,
-            retry_at: f64::NEG_INFINITY,
-            said: None,
+            port: DevicePort::new("GPS", spec.path, spec.baud, Parity::None, StopBits::One),
             events: Vec::new(),
             out: Vec::new(),
-            buf: vec![0; 4096],
         }
     }
 
     /// What the port is, for messages.
     pub fn describe(&self) -> String {
-        format!("GPS on {}", self.spec.path.display())
+        format!("GPS on {}", self.port.path())
     }
 
     /// What the driver has counted.
@@ -68,7 +53,7 @@ impl Drop for GpsPort {
     fn drop(&mut self) {
         let c = self.counters();
         tracing::info!(
-            port = %self.spec.path.display(),
+            port = %self.port.path(),
             bytes = c.bytes,
             frames = c.frames,
             refused = c.bad_frames,
@@ -82,88 +67,22 @@ impl GpsPort {
     /// At `t_s` (the sensor clock): reads what the port holds, runs the driver, writes what
     /// it asks for. Returns the newest solution read.
     pub fn poll(&mut self, t_s: f64) -> Option<GpsMeasurement> {
-        self.open_if_due(t_s);
-        let mut newest = None;
-        if let Some(port) = self.port.as_mut() {
-            match read_available(port, &mut self.buf) {
-                Ok(0) => {}
-                Ok(n) => self.driver.receive(t_s, &self.buf[..n], &mut self.events),
-                Err(e) => self.lost(t_s, &format!("reading it: {e}")),
-            }
+        let bytes = self.port.read(t_s);
+        if !bytes.is_empty() {
+            self.driver.receive(t_s, bytes, &mut self.events);
         }
         self.out.clear();
         self.driver.poll(t_s, &mut self.out, &mut self.events);
-        if let Some(port) = self.port.as_mut() {
-            let result = if self.driver.baud() != self.port_baud {
-                port.set_baud_rate(self.driver.baud())
-                    .map(|()| self.port_baud = self.driver.baud())
-                    .map_err(std::io::Error::from)
-            } else {
-                Ok(())
-            }
-            .and_then(|()| port.write_all(&self.out));
-            if let Err(e) = result {
-                self.lost(t_s, &format!("writing it: {e}"));
-            }
-        }
+        self.port.write(t_s, self.driver.baud(), &self.out);
+        let mut newest = None;
+        let path = self.port.path();
         for event in self.events.drain(..) {
             match event {
                 GpsEvent::Solution(s) => newest = Some(measurement(&s)),
-                other => say(&self.spec.path.display().to_string(), &other),
+                other => say(&path, &other),
             }
         }
         newest
-    }
-
-    fn open_if_due(&mut self, t_s: f64) {
-        if self.port.is_some() || t_s < self.retry_at {
-            return;
-        }
-        self.retry_at = t_s + REOPEN_S;
-        let path = self.spec.path.to_string_lossy();
-        match serialport::new(path.as_ref(), self.driver.baud())
-            .timeout(Duration::ZERO)
-            .open_native()
-        {
-            Ok(port) => {
-                self.port_baud = self.driver.baud();
-                self.port = Some(port);
-                self.said = None;
-                tracing::info!(port = %path, baud = self.port_baud, "GPS port open");
-            }
-            Err(e) => self.say_once(format!("cannot open it ({e}): trying again every second")),
-        }
-    }
-
-    fn lost(&mut self, t_s: f64, why: &str) {
-        self.port = None;
-        self.retry_at = t_s + REOPEN_S;
-        self.say_once(format!("port lost {why}"));
-    }
-
-    fn say_once(&mut self, what: String) {
-        if self.said.as_deref() != Some(what.as_str()) {
-            tracing::warn!(port = %self.spec.path.display(), "GPS: {what}");
-            self.said = Some(what);
-        }
-    }
-}
-
-/// Reads what `port` holds now, without waiting: 0 when nothing.
-fn read_available(port: &mut TTYPort, buf: &mut [u8]) -> std::io::Result<usize> {
-    let n = port.bytes_to_read().map_err(std::io::Error::from)? as usize;
-    if n == 0 {
-        return Ok(0);
-    }
-    let n = n.min(buf.len());
-    match port.read(&mut buf[..n]) {
-        Ok(0) => Err(std::io::Error::new(
-            std::io::ErrorKind::UnexpectedEof,
-            "the device closed",
-        )),
-        Ok(n) => Ok(n),
-        Err(e) if e.kind() == std::io::ErrorKind::TimedOut => Ok(0),
-        Err(e) => Err(e),
     }
 }
 

@@ -4,9 +4,12 @@
 //! sensor link's GPS.
 
 mod gps_port;
+mod rc_port;
+mod serial_device;
 mod with_devices;
 
 pub use gps_port::GpsPort;
+pub use rc_port::{RcPort, RcSpec};
 pub use with_devices::WithDevices;
 
 use anyhow::{Result, bail};

@@ -1,7 +1,7 @@
 //! A sensor link with the vehicle's own devices beside it: every read of the link also reads
 //! the devices' ports, on the link's clock, and what they give goes into the newest frame.
 
-use super::GpsPort;
+use super::{GpsPort, RcPort};
 use crate::links::SensorLink;
 use crate::links::frames::Received;
 use hil::ActuatorCommand;
@@ -12,15 +12,20 @@ use std::time::Duration;
 pub struct WithDevices<L> {
     inner: L,
     gps: Option<GpsPort>,
+    rc: Option<RcPort>,
 }
 
 impl<L: SensorLink> WithDevices<L> {
-    /// `inner` with a GPS on its own port (which then replaces the link's GPS).
-    pub fn new(inner: L, gps: Option<GpsPort>) -> Self {
+    /// `inner` with a GPS on its own port (which then replaces the link's GPS) and an RC
+    /// receiver.
+    pub fn new(inner: L, gps: Option<GpsPort>, rc: Option<RcPort>) -> Self {
         if let Some(g) = &gps {
             tracing::info!("{} replaces the GPS of {}", g.describe(), inner.describe());
         }
-        Self { inner, gps }
+        if let Some(r) = &rc {
+            tracing::info!("{} beside {}", r.describe(), inner.describe());
+        }
+        Self { inner, gps, rc }
     }
 
     /// The link itself.
@@ -42,6 +47,11 @@ impl<L: SensorLink> SensorLink for WithDevices<L> {
                 newest.sample.gps = gps.poll(newest.sample.t_usec as f64 * 1e-6);
             }
         }
+        if let Some(rc) = self.rc.as_mut()
+            && let Some(newest) = into.frames[first..].last_mut()
+        {
+            newest.rc = rc.poll(newest.sample.t_usec as f64 * 1e-6);
+        }
         Ok(arrived)
     }
 
@@ -50,10 +60,17 @@ impl<L: SensorLink> SensorLink for WithDevices<L> {
     }
 
     fn describe(&self) -> String {
-        match &self.gps {
-            Some(g) => format!("{} with the {}", self.inner.describe(), g.describe()),
-            None => self.inner.describe(),
+        let mut d = self.inner.describe();
+        for device in [
+            self.gps.as_ref().map(GpsPort::describe),
+            self.rc.as_ref().map(RcPort::describe),
+        ]
+        .into_iter()
+        .flatten()
+        {
+            d += &format!(" with the {device}");
         }
+        d
     }
 
     fn silence_clock_s(&self) -> Option<f64> {

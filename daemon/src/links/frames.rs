@@ -4,6 +4,7 @@
 //! simulator folds the same messages without the bytes.
 
 use flight_core::autopilot::AutopilotOutput;
+use flight_core::commander::rc_input::RcFrame;
 use flight_core::core::SensorSample;
 use flight_core::estimator::translation::GpsMeasurement;
 use flight_core::math::geo::LatLonAlt;
@@ -19,6 +20,8 @@ pub struct LinkFrame {
     pub sample: SensorSample,
     /// The simulator's truth, when this frame carried it (for logs and scoring only).
     pub truth: Option<TruthReport>,
+    /// A frame from the RC receiver on its own port ([`crate::devices`]), when one arrived.
+    pub rc: Option<RcFrame>,
 }
 
 /// What reads of a link brought.
@@ -96,6 +99,7 @@ pub fn close(u: &mut SensorUpdate) -> Option<LinkFrame> {
         rotor_speed_rad_s: u.rotor_speed_rad_s.take(),
     };
     Some(LinkFrame {
+        rc: None,
         sample,
         truth: u.truth.take(),
     })

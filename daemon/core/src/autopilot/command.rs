@@ -140,7 +140,7 @@ impl Autopilot {
             AutopilotCommand::Takeoff(alt) => self.commander.takeoff(alt),
             AutopilotCommand::SetHome(p) => self.commander.set_home(p),
             AutopilotCommand::Sticks(s) => {
-                self.commander.manual_control(s);
+                self.joystick(s);
                 Ok(())
             }
             AutopilotCommand::InjectFailure(i) => self.inject_failure(i),

@@ -39,6 +39,8 @@ pub struct VehicleState {
     pub rotors: usize,
     /// The largest collective thrust (N): what `ATTITUDE_TARGET`'s thrust is a fraction of.
     pub max_thrust_n: f64,
+    /// The RC receiver's last frame.
+    pub rc: Option<super::rc::RcReport>,
 }
 
 impl Autopilot {

@@ -23,6 +23,22 @@ pub struct RcFrame {
     pub count: u8,
     /// The receiver is in failsafe (the transmitter is gone): the channels are not the pilot's.
     pub failsafe: bool,
+    /// The radio link's quality, when the receiver says (CRSF's `LINK_STATISTICS`).
+    pub link: Option<RcLinkQuality>,
+}
+
+/// What an RC link says of itself, for the ground stations (`RC_CHANNELS.rssi`,
+/// `RADIO_STATUS`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RcLinkQuality {
+    /// Uplink RSSI (dBm).
+    pub rssi_dbm: i16,
+    /// Uplink link quality (% of packets received).
+    pub quality_pct: u8,
+    /// Uplink signal-to-noise ratio (dB).
+    pub snr_db: i8,
+    /// Downlink (telemetry) link quality (%).
+    pub downlink_quality_pct: u8,
 }
 
 /// What the transmitter asks for in one frame.
@@ -57,22 +73,33 @@ pub fn px4_mode(number: i32) -> Option<FlightMode> {
     })
 }
 
+/// One channel's calibration (`RCn_MIN`, `RCn_TRIM`, `RCn_MAX`, `RCn_REV`, `RCn_DZ`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Calibration {
+    min: f64,
+    trim: f64,
+    max: f64,
+    reversed: bool,
+    dead_zone: f64,
+}
+
 impl RcGroup {
-    /// Channel `c`'s (1-based) calibration: min, trim, max, reversed, dead zone.
-    fn calibration(&self, c: usize) -> Option<(f64, f64, f64, bool, f64)> {
+    /// Channel `c`'s (1-based) calibration.
+    fn calibration(&self, c: usize) -> Option<Calibration> {
         let key = |what: &str| self.get(&format!("rc{c}_{what}"));
-        Some((
-            key("min")?,
-            key("trim")?,
-            key("max")?,
-            key("rev")? < 0.0,
-            key("dz")?,
-        ))
+        Some(Calibration {
+            min: key("min")?,
+            trim: key("trim")?,
+            max: key("max")?,
+            reversed: key("rev")? < 0.0,
+            dead_zone: key("dz")?,
+        })
     }
 
     /// Channel `c` (1-based; 0 is none) of `frame`, normalised to −1…1 about its trim.
     pub fn centred(&self, frame: &RcFrame, c: u32) -> Option<f64> {
-        let (v, (min, trim, max, rev, dz)) = self.raw(frame, c)?;
+        let (v, k) = self.raw(frame, c)?;
+        let (min, trim, max, dz) = (k.min, k.trim, k.max, k.dead_zone);
         let n = if v > trim + dz {
             (v - trim - dz) / (max - trim - dz).max(1.0)
         } else if v < trim - dz {
@@ -81,18 +108,20 @@ impl RcGroup {
             0.0
         };
         let n = n.clamp(-1.0, 1.0);
-        Some(if rev { -n } else { n })
+        Some(if k.reversed { -n } else { n })
     }
 
     /// Channel `c` of `frame` as a fraction 0…1 of its travel (the throttle, the switches).
     pub fn travel(&self, frame: &RcFrame, c: u32) -> Option<f64> {
-        let (v, (min, _, max, rev, _)) = self.raw(frame, c)?;
-        let t = ((v - min) / (max - min).max(1.0)).clamp(0.0, 1.0);
-        Some(if rev { 1.0 - t } else { t })
+        let (v, k) = self.raw(frame, c)?;
+        let t = ((v - k.min) / (k.max - k.min).max(1.0)).clamp(0.0, 1.0);
+        Some(if k.reversed { 1.0 - t } else { t })
     }
 
-    fn raw(&self, frame: &RcFrame, c: u32) -> Option<(f64, (f64, f64, f64, bool, f64))> {
-        let c = usize::try_from(c).ok().filter(|&c| c >= 1 && c <= usize::from(frame.count))?;
+    fn raw(&self, frame: &RcFrame, c: u32) -> Option<(f64, Calibration)> {
+        let c = usize::try_from(c)
+            .ok()
+            .filter(|&c| c >= 1 && c <= usize::from(frame.count))?;
         Some((f64::from(*frame.channels.get(c - 1)?), self.calibration(c)?))
     }
 

@@ -31,6 +31,8 @@ mod local_position_ned;
 mod orbit_execution_status;
 mod position_target_local_ned;
 mod protocol_version;
+mod radio_status;
+mod rc_channels;
 mod scaled_imu;
 mod servo_output_raw;
 mod sys_status;
@@ -189,6 +191,8 @@ pub fn build(id: u32, t: &Telemetry, unix_usec: u64) -> Option<MavMessage> {
         PROTOCOL_VERSION_DATA::ID => protocol_version::message(&s),
         ORBIT_EXECUTION_STATUS_DATA::ID => orbit_execution_status::message(&s),
         WIND_COV_DATA::ID => wind_cov::message(&s),
+        RC_CHANNELS_DATA::ID => rc_channels::message(&s),
+        RADIO_STATUS_DATA::ID => radio_status::message(&s),
         _ => None,
     }
 }

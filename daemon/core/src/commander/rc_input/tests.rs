@@ -5,6 +5,7 @@ fn frame(channels: &[u16]) -> RcFrame {
         channels: [1500; RC_CHANNELS],
         count: 16,
         failsafe: false,
+        link: None,
     };
     f.channels[..channels.len()].copy_from_slice(channels);
     f
@@ -19,8 +20,10 @@ fn sticks_are_the_mapped_channels_about_their_trims_and_dead_zones() {
     assert!((d.sticks.forward - 245.0 / 490.0).abs() < 1e-12, "{d:?}");
     assert_eq!(d.sticks.throttle, 0.25);
     assert_eq!(d.sticks.yaw, 0.0);
-    let mut reversed = RcGroup::default();
-    reversed.rc1_rev = -1.0;
+    let reversed = RcGroup {
+        rc1_rev: -1.0,
+        ..RcGroup::default()
+    };
     assert_eq!(reversed.demand(&frame(&[2000])).sticks.right, -1.0);
     // A channel the frame does not carry, or none mapped: centred.
     let mut short = frame(&[1000, 1000, 1000, 1000]);
@@ -31,15 +34,26 @@ fn sticks_are_the_mapped_channels_about_their_trims_and_dead_zones() {
 
 #[test]
 fn a_three_position_switch_selects_slots_one_four_and_six_and_the_arm_switch_its_threshold() {
-    let mut rc = RcGroup::default();
-    rc.map_arm = 6;
+    let rc = RcGroup {
+        map_arm: 6,
+        ..RcGroup::default()
+    };
     let slot = |us| rc.demand(&frame(&[1500, 1500, 1000, 1500, us])).mode_slot;
-    assert_eq!([slot(1000), slot(1500), slot(2000)], [Some(0), Some(3), Some(5)]);
+    assert_eq!(
+        [slot(1000), slot(1500), slot(2000)],
+        [Some(0), Some(3), Some(5)]
+    );
     assert_eq!(rc.slot_mode(0), Some(FlightMode::Posctl));
     assert_eq!(rc.slot_mode(3), Some(FlightMode::Loiter));
     assert_eq!(rc.slot_mode(5), Some(FlightMode::Land));
-    let arm = |us| rc.demand(&frame(&[1500, 1500, 1000, 1500, 1500, us])).arm_switch;
-    assert_eq!([arm(1000), arm(1740), arm(1760)], [Some(false), Some(false), Some(true)]);
+    let arm = |us| {
+        rc.demand(&frame(&[1500, 1500, 1000, 1500, 1500, us]))
+            .arm_switch
+    };
+    assert_eq!(
+        [arm(1000), arm(1740), arm(1760)],
+        [Some(false), Some(false), Some(true)]
+    );
     assert_eq!(px4_mode(7), None, "Offboard is not a switch's mode");
 }
 

@@ -1,0 +1,178 @@
+//! An RC receiver's serial port: CRSF (ExpressLRS, TBS Crossfire) at 420 000 baud 8N1, or
+//! SBUS at 100 000 baud 8E2 (inverted on the wire: a UART that inverts, or an inverter in
+//! front of it). Read on every sensor frame; the newest frame of channels goes to the
+//! autopilot with the link's last statistics.
+
+use super::serial_device::DevicePort;
+use anyhow::{Result, bail};
+use devices::rc::crsf::{self, CrsfReader};
+use devices::rc::sbus::{self, SbusReader};
+use devices::rc::{RcCounters, RcEvent, RcInput, RcLink};
+use flight_core::commander::rc_input::{RcFrame, RcLinkQuality};
+use serialport::{Parity, StopBits};
+use std::path::PathBuf;
+
+/// The protocols an RC port can speak.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RcProtocol {
+    /// CRSF.
+    Crsf,
+    /// SBUS.
+    Sbus,
+}
+
+/// An RC receiver on a serial port, as `serial:///dev/ttyX?protocol=crsf|sbus` gives it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RcSpec {
+    /// The port.
+    pub path: PathBuf,
+    /// The protocol.
+    pub protocol: RcProtocol,
+}
+
+impl RcSpec {
+    /// Parses the URL.
+    pub fn parse(url: &str) -> Result<Self> {
+        let Some(rest) = url.strip_prefix("serial://") else {
+            bail!("--rc {url:?}: expected serial:///dev/ttyX?protocol=crsf (or sbus)");
+        };
+        let (path, query) = rest.split_once('?').unwrap_or((rest, ""));
+        if path.is_empty() {
+            bail!("--rc {url:?}: no device path");
+        }
+        let mut protocol = RcProtocol::Crsf;
+        for kv in query.split('&').filter(|kv| !kv.is_empty()) {
+            protocol = match kv {
+                "protocol=crsf" => RcProtocol::Crsf,
+                "protocol=sbus" => RcProtocol::Sbus,
+                _ => bail!(
+                    "--rc {url:?}: unknown option {kv:?} (known: protocol=crsf, protocol=sbus)"
+                ),
+            };
+        }
+        Ok(Self {
+            path: PathBuf::from(path),
+            protocol,
+        })
+    }
+}
+
+enum Reader {
+    Crsf(CrsfReader),
+    Sbus(SbusReader),
+}
+
+/// The port and its reader.
+pub struct RcPort {
+    port: DevicePort,
+    reader: Reader,
+    link: Option<RcLinkQuality>,
+    events: Vec<RcEvent>,
+}
+
+impl RcPort {
+    /// The port of `spec`, opened at the first [`Self::poll`].
+    pub fn new(spec: RcSpec) -> Self {
+        let (baud, parity, stop, reader) = match spec.protocol {
+            RcProtocol::Crsf => (
+                crsf::BAUD,
+                Parity::None,
+                StopBits::One,
+                Reader::Crsf(CrsfReader::default()),
+            ),
+            RcProtocol::Sbus => (
+                sbus::BAUD,
+                Parity::Even,
+                StopBits::Two,
+                Reader::Sbus(SbusReader::default()),
+            ),
+        };
+        Self {
+            port: DevicePort::new("RC receiver", spec.path, baud, parity, stop),
+            reader,
+            link: None,
+            events: Vec::new(),
+        }
+    }
+
+    /// What the port is, for messages.
+    pub fn describe(&self) -> String {
+        format!("RC receiver on {}", self.port.path())
+    }
+
+    fn counters(&self) -> RcCounters {
+        match &self.reader {
+            Reader::Crsf(r) => r.counters(),
+            Reader::Sbus(r) => r.counters(),
+        }
+    }
+
+    /// At `t_s` (the sensor clock): the newest frame of channels the port brought.
+    pub fn poll(&mut self, t_s: f64) -> Option<RcFrame> {
+        let bytes = self.port.read(t_s);
+        match &mut self.reader {
+            Reader::Crsf(r) => r.receive(bytes, &mut self.events),
+            Reader::Sbus(r) => r.receive(bytes, &mut self.events),
+        }
+        let mut newest = None;
+        for e in self.events.drain(..) {
+            match e {
+                RcEvent::Channels(c) => newest = Some(c),
+                RcEvent::Link(l) => self.link = Some(quality(&l)),
+            }
+        }
+        newest.map(|c: RcInput| RcFrame {
+            channels: c.channels,
+            count: c.count,
+            failsafe: c.failsafe,
+            link: self.link,
+        })
+    }
+}
+
+fn quality(l: &RcLink) -> RcLinkQuality {
+    RcLinkQuality {
+        rssi_dbm: l.rssi_dbm,
+        quality_pct: l.link_quality,
+        snr_db: l.snr_db,
+        downlink_quality_pct: l.downlink_link_quality,
+    }
+}
+
+impl Drop for RcPort {
+    /// What the port brought over the run, said once at its end.
+    fn drop(&mut self) {
+        let c = self.counters();
+        tracing::info!(
+            port = %self.port.path(),
+            bytes = c.bytes,
+            frames = c.frames,
+            refused = c.bad_frames,
+            "RC receiver port closed"
+        );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_rc_url_gives_its_port_and_protocol_and_a_bad_one_says_why() {
+        let s = RcSpec::parse("serial:///dev/ttyS2?protocol=sbus").expect("valid");
+        assert_eq!(
+            (s.path, s.protocol),
+            (PathBuf::from("/dev/ttyS2"), RcProtocol::Sbus)
+        );
+        let s = RcSpec::parse("serial:///dev/ttyACM1").expect("valid");
+        assert_eq!(s.protocol, RcProtocol::Crsf);
+        for (bad, says) in [
+            ("/dev/ttyS2", "expected serial://"),
+            ("serial://", "no device path"),
+            ("serial:///dev/x?protocol=ppm", "unknown option"),
+        ] {
+            let e = RcSpec::parse(bad).expect_err(bad).to_string();
+            assert!(e.contains(says), "{bad}: {e}");
+        }
+    }
+}

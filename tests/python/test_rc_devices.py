@@ -1,0 +1,156 @@
+"""An RC receiver on a serial port, flown by frames made by crsf-parser (PyPI), which nobody here
+wrote: the autopilot reads CRSF's RC_CHANNELS_PACKED and LINK_STATISTICS from a pseudo-terminal
+and a pymavlink ground station watches what it makes of them.
+
+The flight is a pilot's: the channels say exactly what crsf-parser encoded (RC_CHANNELS), the
+link's quality goes to RC_CHANNELS and RADIO_STATUS, the mode switch enters its slots' modes,
+the stick gesture arms, the throttle takes off in Position mode, the sticks take over from Hold,
+and the transmitter switched off is lost sticks: NAV_RCL_ACT's Return lands the vehicle.
+"""
+
+import os
+import threading
+import time
+import tty
+
+import pytest
+from crsf_parser.handling import crsf_build_frame
+from crsf_parser.payloads import PacketsTypes
+from pymavlink import mavutil
+
+from conftest import Daemon
+from test_ground_station import armed, ready_to_arm, wait
+
+# CRSF's channel values: 172 (988 µs), 992 (1500 µs), 1811 (2012 µs).
+LOW, MID, HIGH = 172, 992, 1811
+LINK = {
+    "uplink_rssi_ant_1": 64, "uplink_rssi_ant_2": 70, "uplink_link_quality": 93,
+    "uplink_snr": 9, "diversity_active_antenna": "ANTENNA_1", "rf_mode": "RF_150_FPS",
+    "uplink_tx_power": "TX_POWER_100_MW", "downlink_rssi": 75, "downlink_link_quality": 88,
+    "downlink_snr": 7,
+}
+
+
+def us(ticks):
+    """A CRSF value as a pulse width (TBS: 1500 µs at 992, 0.625 µs a step)."""
+    return round(1500 + (ticks - 992) * 0.625)
+
+
+def mode_switch(slot):
+    """The channel value that puts the mode switch in the middle of `slot` (0–5: COM_FLTMODE1
+    to 6; its travel from RC5_MIN to RC5_MAX, 1000 to 2000 µs, cut in six)."""
+    pulse = 1000 + (slot + 0.5) / 6 * 1000
+    return round(992 + (pulse - 1500) / 0.625)
+
+
+def channels_frame(channels):
+    """RC_CHANNELS_PACKED of `channels` (channel 1 first), built by crsf-parser. Its `channels`
+    array reads the byte-swapped payload big-endian, so its first element is channel 16: the
+    channels go in last first, and channel 1 lands in the payload's first 11 bits, where
+    TBS's specification, ExpressLRS and Betaflight put it (checked)."""
+    frame = crsf_build_frame(PacketsTypes.RC_CHANNELS_PACKED, {"channels": channels[::-1]})
+    assert (frame[3] | frame[4] << 8) & 0x7FF == channels[0]
+    return frame
+
+
+class Transmitter:
+    """An ExpressLRS receiver's output: RC_CHANNELS_PACKED at 50 Hz and LINK_STATISTICS at 5 Hz,
+    built by crsf-parser, on a pseudo-terminal whose far end (`device`) the autopilot opens.
+    AETR: channel 1 roll, 2 pitch, 3 throttle, 4 yaw, 5 the mode switch."""
+
+    def __init__(self):
+        self.master, slave = os.openpty()
+        tty.setraw(self.master)
+        self.device = os.ttyname(slave)
+        self._slave = slave
+        self.channels = [MID] * 16
+        self.channels[2] = LOW
+        self.on = True
+        self.running = True
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    def set(self, **named):
+        for name, value in named.items():
+            self.channels[["roll", "pitch", "throttle", "yaw", "mode"].index(name)] = value
+
+    def _run(self):
+        k = 0
+        while self.running:
+            if self.on:
+                frame = channels_frame(self.channels)
+                if k % 10 == 0:
+                    frame += crsf_build_frame(PacketsTypes.LINK_STATISTICS, LINK)
+                os.write(self.master, frame)
+            k += 1
+            time.sleep(0.02)  # the receiver's frame period, not a wait for the vehicle
+
+    def close(self):
+        self.running = False
+        self.thread.join()
+        os.close(self.master)
+        os.close(self._slave)
+
+
+@pytest.fixture
+def piloted(tmp_path):
+    tx = Transmitter()
+    d = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0",
+               ap_args=["--rc", f"serial://{tx.device}?protocol=crsf"])
+    try:
+        assert d.gcs.wait_heartbeat(timeout=30), "no heartbeat"
+        yield d.gcs, tx
+    finally:
+        d.close()
+        tx.close()
+
+
+def altitude(gcs):
+    return wait(gcs, "GLOBAL_POSITION_INT", lambda m: True).relative_alt / 1000
+
+
+def test_a_crsf_transmitter_flies_position_mode_switches_modes_and_fails_safe(piloted):
+    gcs, tx = piloted
+    gcs.mav.request_data_stream_send(1, 1, mavutil.mavlink.MAV_DATA_STREAM_ALL, 10, 1)
+    # The channels as crsf-parser encoded them, the link's quality as it said it.
+    tx.set(roll=1234, pitch=567, mode=mode_switch(3))
+    rc = wait(gcs, "RC_CHANNELS", lambda m: m.chan1_raw == us(1234) and m.chan2_raw == us(567), 10)
+    assert (rc.chancount, rc.chan3_raw, rc.chan4_raw) == (16, us(LOW), us(MID))
+    assert rc.rssi == 93 * 254 // 100
+    radio = wait(gcs, "RADIO_STATUS", lambda m: True, 10)
+    assert (radio.rssi, radio.remrssi) == (93 * 254 // 100, 88 * 254 // 100)
+    tx.set(roll=MID, pitch=MID)
+
+    # The mode switch moved to its first slot: Position (COM_FLTMODE1).
+    ready_to_arm(gcs)
+    tx.set(mode=mode_switch(0))
+    wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "POSCTL", 10)
+
+    # The stick gesture arms: throttle low, yaw right, a second.
+    tx.set(yaw=HIGH)
+    wait(gcs, "HEARTBEAT", armed, 10)
+    tx.set(yaw=MID)
+    # Throttle up climbs; centred holds.
+    tx.set(throttle=1500)
+    wait(gcs, "GLOBAL_POSITION_INT", lambda m: m.relative_alt > 4000, 30)
+    tx.set(throttle=MID)
+    wait(gcs, "GLOBAL_POSITION_INT", lambda m: abs(m.vz) < 20, 10)
+
+    # Hold from the switch (COM_FLTMODE4); sticks beyond COM_RC_STICK_OV take over into Position.
+    tx.set(mode=mode_switch(3))
+    wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "LOITER", 10)
+    tx.set(roll=1500)
+    wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "POSCTL", 10)
+    tx.set(roll=MID)
+    # Return from the switch (COM_FLTMODE5), then Position again.
+    tx.set(mode=mode_switch(4))
+    wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "RTL", 10)
+    tx.set(mode=mode_switch(0))
+    wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "POSCTL", 10)
+
+    # The transmitter off: lost sticks, NAV_RCL_ACT's Return, landed, disarmed.
+    assert altitude(gcs) > 2.0
+    tx.on = False
+    wait(gcs, "STATUSTEXT", lambda m: "manual control lost: RTL" in m.text, 10)
+    wait(gcs, "HEARTBEAT", lambda m: not armed(m), 90)
+    assert altitude(gcs) < 0.5
