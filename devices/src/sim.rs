@@ -3,6 +3,7 @@
 //! ([`NmeaReceiver`]), each fed the simulator's fix at its epochs and the autopilot's bytes.
 
 pub mod nmea_sentences;
+pub mod rc_frames;
 pub mod ublox_receiver;
 pub mod ubx_frame;
 

@@ -10,6 +10,7 @@ mod control;
 mod gps_device;
 mod jsbsim;
 mod json_physics;
+mod rc_device;
 mod run;
 mod tcp;
 mod transport;
@@ -98,6 +99,12 @@ pub struct SitlCli {
     /// `MODEL:/dev/ttyUSB1`.
     #[arg(long, value_name = "MODEL[:DEVICE]", conflicts_with_all = ["open_loop", "json"])]
     pub gps_device: Option<String>,
+    /// Play an RC receiver on a serial port, its transmitter flown by the scenario's pilot
+    /// script ([[pilot]]): `crsf` (ExpressLRS) or `sbus`, on a new pseudo-terminal (printed as
+    /// `sitl rc: /dev/pts/N`, for `autopilot --rc serial:///dev/pts/N?protocol=crsf`) or
+    /// `PROTOCOL:/dev/ttyUSB2`.
+    #[arg(long, value_name = "PROTOCOL[:DEVICE]", conflicts_with_all = ["open_loop", "json"])]
+    pub rc_device: Option<String>,
     /// Baud rate of --serial (a pseudo-terminal ignores it).
     #[arg(long, default_value_t = 921_600)]
     pub baud: u32,

@@ -8,7 +8,11 @@ the stick gesture arms, the throttle takes off in Position mode, the sticks take
 and the transmitter switched off is lost sticks: NAV_RCL_ACT's Return lands the vehicle.
 """
 
+import csv as csvlib
+import math
 import os
+import signal
+import subprocess
 import threading
 import time
 import tty
@@ -18,7 +22,7 @@ from crsf_parser.handling import crsf_build_frame
 from crsf_parser.payloads import PacketsTypes
 from pymavlink import mavutil
 
-from conftest import Daemon
+from conftest import ROOT, Daemon, binary, free_udp_port, run_sitl
 from test_ground_station import armed, ready_to_arm, wait
 
 # CRSF's channel values: 172 (988 µs), 992 (1500 µs), 1811 (2012 µs).
@@ -154,3 +158,100 @@ def test_a_crsf_transmitter_flies_position_mode_switches_modes_and_fails_safe(pi
     wait(gcs, "STATUSTEXT", lambda m: "manual control lost: RTL" in m.text, 10)
     wait(gcs, "HEARTBEAT", lambda m: not armed(m), 90)
     assert altitude(gcs) < 0.5
+
+
+PILOT = """airframe = "quad_x"
+seed = 7
+duration_s = 150.0
+[[pilot]]
+t_s = 0.0
+switch = 0        # Position (COM_FLTMODE1)
+throttle = 0.0
+[[pilot]]
+t_s = 8.0
+yaw = 1.0         # the arm gesture
+[[pilot]]
+t_s = 10.0
+yaw = 0.0
+throttle = 0.85   # climb
+[[pilot]]
+t_s = 14.0
+throttle = 0.5    # hold
+[[pilot]]
+t_s = 35.0
+switch = 4        # Return (COM_FLTMODE5)
+[[pilot]]
+t_s = 40.0
+switch = 0        # Position again
+[[pilot]]
+t_s = 45.0
+transmitter = false
+"""
+
+
+def fly_piloted(tmp_path, gps_device):
+    """The scenario's pilot flies sitl's CRSF receiver on a pseudo-terminal, in lockstep; the GPS
+    a u-blox M9 on another (`gps_device`) or HIL_GPS. Returns the autopilot's stderr, both
+    summaries and the flight CSV's rows."""
+    scenario = tmp_path / "pilot.toml"
+    scenario.write_text(PILOT)
+    port = free_udp_port()
+    sitl = run_sitl(["--scenario", str(scenario), "--mode", "lockstep", "--rc-device", "crsf",
+                     *(["--gps-device", "m9"] if gps_device else [])], port)
+    devices = {}
+    for _ in range(2 if gps_device else 1):
+        kind, _, path = sitl.stdout.readline().strip().partition(": ")
+        devices[kind] = path
+    gps = ["--gps", f"serial://{devices['sitl gps']}"] if gps_device else []
+    csv = tmp_path / f"piloted-{'gps' if gps_device else 'hil'}.csv"
+    ap = subprocess.Popen(
+        [str(binary("autopilot")), "--params-dir", str(ROOT / "params"),
+         "--source", f"udp://127.0.0.1:{port}", *gps,
+         "--rc", f"serial://{devices['sitl rc']}?protocol=crsf", "--mavlink", "none",
+         "--param-store", "none", "--log-dir", "none", "--flight-csv", str(csv)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        sitl_out, _ = sitl.communicate(timeout=300)
+    finally:
+        sitl.kill()
+        # Ctrl-C twice: the simulator has ended, no frame will come to land on.
+        ap.send_signal(signal.SIGINT)
+        try:
+            ap.wait(timeout=2)
+        except subprocess.TimeoutExpired:
+            ap.send_signal(signal.SIGINT)
+        ap_out, ap_err = ap.communicate(timeout=60)
+    summary = lambda text, name: dict(  # noqa: E731
+        kv.split("=", 1) for kv in next(l for l in text.splitlines()
+                                        if l.startswith(name)).split()[2:] if "=" in kv)
+    with open(csv) as f:
+        rows = list(csvlib.DictReader(f))
+    return ap_err, summary(ap_out, "autopilot summary:"), summary(sitl_out, "sitl summary:"), rows
+
+
+def test_a_piloted_lockstep_flight_on_a_crsf_receiver_and_a_ublox_only(tmp_path):
+    err, ap, sim, rows = fly_piloted(tmp_path, gps_device=True)
+    said = [l for l in err.splitlines() if "RC " in l or "GPS configured" in l]
+    for expected in ['GPS configured', 'RC arm gesture', 'RC mode switch mode="RTL"',
+                     'RC mode switch mode="POSCTL"']:
+        assert any(expected in l for l in said), (expected, said)
+    assert sim["landed"] == "true" and ap["disarmed"] == "true", (sim, ap)
+    flown = [r for r in rows if r["armed"] == "1"]
+    assert max(-float(r["d_m"]) for r in flown) > 5.0
+    # After the transmitter went off (45 s): NAV_RCL_ACT's Return flew it down.
+    after = {r["mode"] for r in flown if float(r["t_s"]) > 46.0}
+    assert after == {"RTL"}, after
+
+    # The same flight on HIL_GPS: the estimate's error against the truth in the hold.
+    _, _, _, hil_rows = fly_piloted(tmp_path, gps_device=False)
+
+    def hold_error(rows):
+        hold = [r for r in rows if 16.0 <= float(r["t_s"]) <= 34.0 and r["true_n_m"] != ""]
+        sq = [(float(r["n_m"]) - float(r["true_n_m"])) ** 2
+              + (float(r["e_m"]) - float(r["true_e_m"])) ** 2 for r in hold]
+        return math.sqrt(sum(sq) / len(sq))
+
+    errors = hold_error(hil_rows), hold_error(rows)
+    print(f"estimate's horizontal error in the hold: HIL_GPS {errors[0]:.3f} m, u-blox M9 and "
+          f"CRSF on pseudo-terminals {errors[1]:.3f} m")
+    assert abs(errors[1] - errors[0]) <= 0.1, errors

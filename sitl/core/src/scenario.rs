@@ -26,6 +26,9 @@
 //! [[open_loop]]
 //! t_s = 0.0
 //! hover_delta = 0.05           # or: throttle = 0.6, or: controls = [..]
+//! [[pilot]]                    # an RC transmitter's sticks and switch (pilot.rs)
+//! t_s = 8.0
+//! throttle = 0.7
 //! ```
 
 use crate::airframe::Airframe;
@@ -38,6 +41,9 @@ use nalgebra::{UnitQuaternion, Vector3};
 use navmath::geo::LatLonAlt;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
+
+mod pilot;
+pub use pilot::{PilotInput, PilotScript};
 
 mod events;
 use events::resolve_event;
@@ -166,6 +172,8 @@ struct ScenarioFile {
     events: Vec<EventFile>,
     #[serde(default)]
     open_loop: Vec<OpenLoopFile>,
+    #[serde(default)]
+    pilot: Vec<pilot::PilotFile>,
 }
 
 fn default_seed() -> u64 {
@@ -208,6 +216,8 @@ pub struct Scenario {
     pub events: Vec<Event>,
     /// Open-loop script, sorted by time; empty when an autopilot flies.
     pub open_loop: Vec<(f64, OpenLoopCommand)>,
+    /// The pilot's script for a simulated RC transmitter.
+    pub pilot: PilotScript,
 }
 
 impl Scenario {
@@ -238,6 +248,7 @@ impl Scenario {
             duration_s,
             events: Vec::new(),
             open_loop: Vec::new(),
+            pilot: PilotScript::default(),
         }
     }
 
@@ -256,6 +267,7 @@ impl Scenario {
             resolve_event(&mut c, i, e, &mut events);
         }
         let open_loop = resolve_open_loop(&mut c, &raw.open_loop);
+        let pilot = PilotScript::resolve(&mut c, &raw.pilot);
         c.finish(file)?;
 
         let airframe_path = resolve_airframe(&raw.airframe, base, airframe_dir);
@@ -296,6 +308,7 @@ impl Scenario {
             duration_s: raw.duration_s,
             events,
             open_loop,
+            pilot,
         })
     }
 

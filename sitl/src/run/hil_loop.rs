@@ -68,6 +68,15 @@ pub fn hil(
         }
         None => None,
     };
+    let mut rc = match &cli.rc_device {
+        Some(spec) => {
+            let d = crate::rc_device::RcDevice::open(spec)?;
+            // Scripts read this line to learn the RC receiver's device.
+            println!("sitl rc: {}", d.name());
+            Some(d)
+        }
+        None => None,
+    };
     let (transport, target) = open_transport(cli)?;
     tracing::info!(
         airframe = %end.sim().airframe().name, autopilot = %target,
@@ -99,6 +108,10 @@ pub fn hil(
             // Before the frame: the autopilot reads the device when the frame arrives.
             let health = end.sim().sensors().health_of(SensorKind::Gps);
             g.step(end.frame().gps.as_ref(), health)?;
+        }
+        if let Some(r) = rc.as_mut() {
+            let t_s = end.sim().time_s();
+            r.step(t_s, &scenario.pilot.at(t_s))?;
         }
         x.link.out.clear();
         let time_usec = end.encode_frame(&mut x.link.out);
