@@ -18,7 +18,11 @@ import time
 import tty
 
 import pytest
-from crsf_parser.handling import crsf_build_frame
+import select
+import struct
+
+from crsf_parser.frames import crsf_frame
+from crsf_parser.handling import crsf_build_frame, crsf_crc
 from crsf_parser.payloads import PacketsTypes
 from pymavlink import mavutil
 
@@ -70,6 +74,8 @@ class Transmitter:
         self.channels = [MID] * 16
         self.channels[2] = LOW
         self.on = True
+        # What the autopilot sends back (telemetry for the transmitter).
+        self.heard = bytearray()
         self.running = True
         self.thread = threading.Thread(target=self._run, daemon=True)
         self.thread.start()
@@ -78,9 +84,29 @@ class Transmitter:
         for name, value in named.items():
             self.channels[["roll", "pitch", "throttle", "yaw", "mode"].index(name)] = value
 
+    def _read_back(self):
+        if select.select([self.master], [], [], 0)[0]:
+            self.heard += os.read(self.master, 4096)
+
+    def told(self):
+        """The telemetry frames heard, by type, each's CRC checked by crsf-parser's
+        `crsf_crc`: (type, payload bytes)."""
+        frames, data, i = {}, bytes(self.heard), 0
+        while i + 2 < len(data):
+            if data[i] != 0xC8 or not 2 <= data[i + 1] <= 62 or i + 2 + data[i + 1] > len(data):
+                i += 1
+                continue
+            n = data[i + 1]
+            body, crc = data[i + 2:i + 1 + n], data[i + 1 + n]
+            assert crsf_crc(body) == crc, data[i:i + 2 + n]
+            frames.setdefault(body[0], []).append(data[i:i + 2 + n])
+            i += 2 + n
+        return frames
+
     def _run(self):
         k = 0
         while self.running:
+            self._read_back()
             if self.on:
                 frame = channels_frame(self.channels)
                 if k % 10 == 0:
@@ -151,6 +177,20 @@ def test_a_crsf_transmitter_flies_position_mode_switches_modes_and_fails_safe(pi
     wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "RTL", 10)
     tx.set(mode=mode_switch(0))
     wait(gcs, "HEARTBEAT", lambda m: gcs.flightmode == "POSCTL", 10)
+
+    # The telemetry a CRSF receiver passes on to the transmitter: the battery as crsf-parser
+    # parses it; GPS and attitude (which crsf-parser 0.3.2 fails on: its default payload
+    # refers to a field it does not have) and the flight mode (a type it does not know) by
+    # TBS's layout; every CRC checked with crsf-parser's.
+    battery = wait(gcs, "BATTERY_STATUS", lambda m: True, 5)
+    position = wait(gcs, "GPS_RAW_INT", lambda m: True, 5)
+    told = tx.told()
+    volts = crsf_frame.parse(told[0x08][-1]).payload.voltage / 10
+    assert abs(volts - battery.voltages[0] / 1000) < 0.3, (volts, battery)
+    lat, lon = struct.unpack(">ii", told[0x02][-1][3:11])
+    assert abs(lat - position.lat) < 200 and abs(lon - position.lon) < 200, (lat, lon, position)
+    assert len(told[0x1E][-1]) == 10
+    assert told[0x21][-1][3:-1] == b"POSCTL\0", told[0x21][-1]
 
     # The transmitter off: lost sticks, NAV_RCL_ACT's Return, landed, disarmed.
     assert altitude(gcs) > 2.0

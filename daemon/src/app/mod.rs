@@ -124,7 +124,7 @@ fn fly_link(
     match source {
         Source::Embedded => {
             let link = embedded_link(cfg, airframe, cfg.instance)?;
-            let mut link = WithDevices::new(link, gps, rc);
+            let mut link = WithDevices::new(link, gps, rc).telling(ports.telemetry.subscribe());
             let report = control_loop::fly(
                 onboard(&mut link, autopilot, records, ports),
                 Pacing::Lockstep,
@@ -135,7 +135,7 @@ fn fly_link(
         Source::Udp { addr, lockstep } => {
             let link = UdpLink::bind(addr, lockstep, system_id)?;
             tracing::info!(listening = %link.local_addr()?, airframe = %airframe.name, "waiting for a simulator");
-            let mut link = WithDevices::new(link, gps, rc);
+            let mut link = WithDevices::new(link, gps, rc).telling(ports.telemetry.subscribe());
             let pacing = if lockstep {
                 Pacing::Lockstep
             } else {
@@ -156,7 +156,7 @@ fn fly_link(
             )
             .with_context(|| format!("opening a UDP socket for {addr}"))?;
             tracing::info!(physics = %addr, airframe = %airframe.name, "sending servo packets to a JSON physics");
-            let mut link = WithDevices::new(link, gps, rc);
+            let mut link = WithDevices::new(link, gps, rc).telling(ports.telemetry.subscribe());
             let report = control_loop::fly(
                 onboard(&mut link, autopilot, records, ports),
                 Pacing::Lockstep,
@@ -170,7 +170,7 @@ fn fly_link(
         } => {
             let link = SerialLink::open(path, baud, lockstep, system_id)?;
             tracing::info!(port = %link.describe(), airframe = %airframe.name, "waiting for the flight board");
-            let mut link = WithDevices::new(link, gps, rc);
+            let mut link = WithDevices::new(link, gps, rc).telling(ports.telemetry.subscribe());
             let pacing = if lockstep {
                 Pacing::Lockstep
             } else {

@@ -8,6 +8,7 @@ use anyhow::{Result, bail};
 use devices::rc::crsf::{self, CrsfReader};
 use devices::rc::sbus::{self, SbusReader};
 use devices::rc::{RcCounters, RcEvent, RcInput, RcLink};
+use flight_core::autopilot::VehicleState;
 use flight_core::commander::rc_input::{RcFrame, RcLinkQuality};
 use serialport::{Parity, StopBits};
 use std::path::PathBuf;
@@ -65,10 +66,17 @@ enum Reader {
 /// The port and its reader.
 pub struct RcPort {
     port: DevicePort,
+    baud: u32,
     reader: Reader,
     link: Option<RcLinkQuality>,
     events: Vec<RcEvent>,
+    /// When telemetry last went to the transmitter (s, sensor time).
+    told_at: f64,
+    out: Vec<u8>,
 }
+
+/// How often a CRSF receiver is given the vehicle's telemetry (s): 5 Hz, as PX4's `crsf_rc`.
+const TELEMETRY_S: f64 = 0.2;
 
 impl RcPort {
     /// The port of `spec`, opened at the first [`Self::poll`].
@@ -89,9 +97,12 @@ impl RcPort {
         };
         Self {
             port: DevicePort::new("RC receiver", spec.path, baud, parity, stop),
+            baud,
             reader,
             link: None,
             events: Vec::new(),
+            told_at: f64::NEG_INFINITY,
+            out: Vec::new(),
         }
     }
 
@@ -127,6 +138,54 @@ impl RcPort {
             failsafe: c.failsafe,
             link: self.link,
         })
+    }
+}
+
+impl RcPort {
+    /// Whether the transmitter is due its telemetry at `t_s`.
+    pub fn telemetry_due(&self, t_s: f64) -> bool {
+        matches!(self.reader, Reader::Crsf(_)) && t_s - self.told_at >= TELEMETRY_S
+    }
+
+    /// At `t_s`, every [`TELEMETRY_S`]: the vehicle's battery, attitude, GPS and flight mode
+    /// to a CRSF receiver, which sends them on to the transmitter's screen (SBUS is one-way).
+    pub fn tell(&mut self, t_s: f64, v: &VehicleState) {
+        if !self.telemetry_due(t_s) {
+            return;
+        }
+        self.told_at = t_s;
+        use crsf::telemetry;
+        self.out.clear();
+        let b = &v.battery;
+        telemetry::battery(
+            v.battery_v,
+            b.current_a.unwrap_or(0.0),
+            b.consumed_mah.unwrap_or(0.0),
+            b.remaining
+                .map_or(0, |r| (r * 100.0).round().clamp(0.0, 100.0) as u8),
+            &mut self.out,
+        );
+        if let Some(a) = v.estimate.and_then(|e| e.attitude) {
+            let (roll, pitch, yaw) = a.q.euler_angles();
+            telemetry::attitude(pitch, roll, yaw, &mut self.out);
+        }
+        if let Some(g) = v.gps {
+            let vel = g.vel_ned_m_s;
+            let heading = vel.y.atan2(vel.x).to_degrees();
+            let p = &g.position;
+            let (speed, sats) = (vel.xy().norm(), g.satellites);
+            telemetry::gps(
+                p.lat_deg,
+                p.lon_deg,
+                speed,
+                heading,
+                p.alt_m,
+                sats,
+                &mut self.out,
+            );
+        }
+        telemetry::flight_mode(v.status.mode.name(), &mut self.out);
+        self.port.write(t_s, self.baud, &self.out);
     }
 }
 

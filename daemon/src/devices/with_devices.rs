@@ -4,15 +4,19 @@
 use super::{GpsPort, RcPort};
 use crate::links::SensorLink;
 use crate::links::frames::Received;
+use gcs::telemetry::Telemetry;
 use hil::ActuatorCommand;
 use std::io;
 use std::time::Duration;
+use tokio::sync::watch;
 
 /// The link and its devices.
 pub struct WithDevices<L> {
     inner: L,
     gps: Option<GpsPort>,
     rc: Option<RcPort>,
+    /// The vehicle as last published, for the RC receiver's telemetry.
+    vehicle: Option<watch::Receiver<Telemetry>>,
 }
 
 impl<L: SensorLink> WithDevices<L> {
@@ -25,7 +29,18 @@ impl<L: SensorLink> WithDevices<L> {
         if let Some(r) = &rc {
             tracing::info!("{} beside {}", r.describe(), inner.describe());
         }
-        Self { inner, gps, rc }
+        Self {
+            inner,
+            gps,
+            rc,
+            vehicle: None,
+        }
+    }
+
+    /// The telemetry the RC receiver passes on to the transmitter comes from `vehicle`.
+    pub fn telling(mut self, vehicle: watch::Receiver<Telemetry>) -> Self {
+        self.vehicle = Some(vehicle);
+        self
     }
 
     /// The link itself.
@@ -50,7 +65,13 @@ impl<L: SensorLink> SensorLink for WithDevices<L> {
         if let Some(rc) = self.rc.as_mut()
             && let Some(newest) = into.frames[first..].last_mut()
         {
-            newest.rc = rc.poll(newest.sample.t_usec as f64 * 1e-6);
+            let t_s = newest.sample.t_usec as f64 * 1e-6;
+            newest.rc = rc.poll(t_s);
+            if rc.telemetry_due(t_s)
+                && let Some(v) = self.vehicle.as_ref().and_then(|t| t.borrow().vehicle)
+            {
+                rc.tell(t_s, &v);
+            }
         }
         Ok(arrived)
     }
