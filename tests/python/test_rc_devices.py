@@ -229,25 +229,25 @@ transmitter = false
 """
 
 
-def fly_piloted(tmp_path, gps_device):
+def fly_piloted(tmp_path, gps_device, rc="crsf"):
     """The scenario's pilot flies sitl's CRSF receiver on a pseudo-terminal, in lockstep; the GPS
     a u-blox M9 on another (`gps_device`) or HIL_GPS. Returns the autopilot's stderr, both
     summaries and the flight CSV's rows."""
     scenario = tmp_path / "pilot.toml"
     scenario.write_text(PILOT)
     port = free_udp_port()
-    sitl = run_sitl(["--scenario", str(scenario), "--mode", "lockstep", "--rc-device", "crsf",
+    sitl = run_sitl(["--scenario", str(scenario), "--mode", "lockstep", "--rc-device", rc,
                      *(["--gps-device", "m9"] if gps_device else [])], port)
     devices = {}
     for _ in range(2 if gps_device else 1):
         kind, _, path = sitl.stdout.readline().strip().partition(": ")
         devices[kind] = path
     gps = ["--gps", f"serial://{devices['sitl gps']}"] if gps_device else []
-    csv = tmp_path / f"piloted-{'gps' if gps_device else 'hil'}.csv"
+    csv = tmp_path / f"piloted-{rc}-{'gps' if gps_device else 'hil'}.csv"
     ap = subprocess.Popen(
         [str(binary("autopilot")), "--params-dir", str(ROOT / "params"),
          "--source", f"udp://127.0.0.1:{port}", *gps,
-         "--rc", f"serial://{devices['sitl rc']}?protocol=crsf", "--mavlink", "none",
+         "--rc", f"serial://{devices['sitl rc']}?protocol={rc}", "--mavlink", "none",
          "--param-store", "none", "--log-dir", "none", "--flight-csv", str(csv)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
@@ -281,6 +281,10 @@ def test_a_piloted_lockstep_flight_on_a_crsf_receiver_and_a_ublox_only(tmp_path)
     # After the transmitter went off (45 s): NAV_RCL_ACT's Return flew it down.
     after = {r["mode"] for r in flown if float(r["t_s"]) > 46.0}
     assert after == {"RTL"}, after
+    # The switch to Return at 35 s (a frame then: CRSF's go every 20 ms from 0) is flown on the
+    # step of the sensor frame it came with: the simulator writes it before that frame.
+    first_rtl = next(float(r["t_s"]) for r in flown if r["mode"] == "RTL")
+    assert 35.0 <= first_rtl <= 35.0 + 0.004, first_rtl
 
     # The same flight on HIL_GPS: the estimate's error against the truth in the hold.
     _, _, _, hil_rows = fly_piloted(tmp_path, gps_device=False)
@@ -295,3 +299,12 @@ def test_a_piloted_lockstep_flight_on_a_crsf_receiver_and_a_ublox_only(tmp_path)
     print(f"estimate's horizontal error in the hold: HIL_GPS {errors[0]:.3f} m, u-blox M9 and "
           f"CRSF on pseudo-terminals {errors[1]:.3f} m")
     assert abs(errors[1] - errors[0]) <= 0.1, errors
+
+
+def test_an_sbus_receiver_flies_the_same_and_its_failsafe_flag_is_lost_sticks(tmp_path):
+    err, ap, sim, rows = fly_piloted(tmp_path, gps_device=False, rc="sbus")
+    assert 'RC arm gesture' in err and 'RC mode switch mode="RTL"' in err, err[-2000:]
+    assert sim["landed"] == "true" and ap["disarmed"] == "true", (sim, ap)
+    flown = [r for r in rows if r["armed"] == "1"]
+    assert max(-float(r["d_m"]) for r in flown) > 5.0
+    assert {r["mode"] for r in flown if float(r["t_s"]) > 46.0} == {"RTL"}
