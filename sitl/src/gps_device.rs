@@ -10,14 +10,15 @@
 //! (`sensor_off`, `sensor = "gps"`) is the receiver unplugged; switched on again, it is
 //! plugged back in at its power-on defaults.
 
+use crate::device_line::DeviceLine;
 use anyhow::{Context, Result, bail};
 use devices::gps::FixType;
 use devices::sim::ublox_receiver::{ReceiverModel, UbloxReceiver};
 use devices::sim::{NmeaReceiver, ReceiverFix, misread};
-use serialport::{SerialPort, TTYPort};
+use serialport::SerialPort;
 use sitl_core::sensors::{GpsFix, SensorHealth};
-use std::io::{Read, Write};
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use std::io::Read;
+use std::time::{SystemTime, UNIX_EPOCH};
 
 /// The receiver played.
 enum Played {
@@ -43,11 +44,7 @@ impl Played {
 
 /// The device.
 pub struct GpsDevice {
-    port: TTYPort,
-    /// The autopilot's end of a pseudo-terminal, held open so the line stays up until the
-    /// autopilot opens it by name.
-    _peer: Option<TTYPort>,
-    name: String,
+    line: DeviceLine,
     played: Played,
     /// UTC at simulation time 0 (µs since the Unix epoch): the wall clock when the run began.
     utc_start_usec: u64,
@@ -56,8 +53,6 @@ pub struct GpsDevice {
     inbuf: Vec<u8>,
     out: Vec<u8>,
     wire: Vec<u8>,
-    /// Bytes dropped because nobody read them (the autopilot not there yet).
-    pub dropped: u64,
 }
 
 impl GpsDevice {
@@ -69,25 +64,12 @@ impl GpsDevice {
             ("nmea", None) => Played::Nmea(NmeaReceiver::new(38_400, 5.0)),
             _ => bail!("--gps-device {spec:?}: the model is m8, m9, m10, f9p or nmea"),
         };
-        let (port, peer, name) = if device == "pty" {
-            let (mut ours, theirs) = TTYPort::pair().context("opening a pseudo-terminal pair")?;
-            ours.set_timeout(Duration::ZERO)?;
-            let name = theirs.name().context("the pseudo-terminal has no name")?;
-            (ours, Some(theirs), name)
-        } else {
-            let port = serialport::new(device, played.baud())
-                .timeout(Duration::ZERO)
-                .open_native()
-                .with_context(|| format!("opening {device}"))?;
-            (port, None, device.to_owned())
-        };
+        let line = DeviceLine::open(device, played.baud())?;
         let utc_start_usec = SystemTime::now()
             .duration_since(UNIX_EPOCH)
             .map_or(0, |d| d.as_micros() as u64);
         Ok(Self {
-            port,
-            _peer: peer,
-            name,
+            line,
             played,
             utc_start_usec,
             next_epoch_usec: 0,
@@ -95,19 +77,18 @@ impl GpsDevice {
             inbuf: vec![0; 4096],
             out: Vec::new(),
             wire: Vec::new(),
-            dropped: 0,
         })
     }
 
     /// The device the autopilot opens.
     pub fn name(&self) -> &str {
-        &self.name
+        self.line.name()
     }
 
     /// The baud the autopilot's end is at: a pseudo-terminal's settings are shared by its two
     /// ends; a real port reports its own.
-    fn line_baud(&self) -> u32 {
-        self.port.baud_rate().unwrap_or(0)
+    fn line_baud(&mut self) -> u32 {
+        self.line.port().baud_rate().unwrap_or(0)
     }
 
     /// One exchange: the autopilot's bytes read and answered, and `fix` (the simulator's GPS
@@ -119,7 +100,7 @@ impl GpsDevice {
             if let Played::Ublox(r) = &mut self.played {
                 r.restart();
             }
-            tracing::info!(device = %self.name, "GPS plugged in again, at its defaults");
+            tracing::info!(device = %self.line.name(), "GPS plugged in again, at its defaults");
         }
         self.unplugged = unplugged;
         let line = self.line_baud();
@@ -178,18 +159,20 @@ impl GpsDevice {
 
     /// What the autopilot wrote since the last exchange.
     fn read(&mut self) -> Result<Vec<u8>> {
-        let n = match self.port.bytes_to_read() {
+        let name = self.line.name().to_owned();
+        let port = self.line.port();
+        let n = match port.bytes_to_read() {
             Ok(n) => n as usize,
-            Err(e) => return Err(e).with_context(|| format!("reading {}", self.name)),
+            Err(e) => return Err(e).with_context(|| format!("reading {name}")),
         };
         if n == 0 {
             return Ok(Vec::new());
         }
         let n = n.min(self.inbuf.len());
-        match self.port.read(&mut self.inbuf[..n]) {
+        match port.read(&mut self.inbuf[..n]) {
             Ok(k) => Ok(self.inbuf[..k].to_vec()),
             Err(e) if e.kind() == std::io::ErrorKind::TimedOut => Ok(Vec::new()),
-            Err(e) => Err(e).with_context(|| format!("reading {}", self.name)),
+            Err(e) => Err(e).with_context(|| format!("reading {name}")),
         }
     }
 
@@ -206,19 +189,6 @@ impl GpsDevice {
             misread(&self.out, ours, line, &mut self.wire);
             &self.wire
         };
-        match self.port.write(bytes) {
-            Ok(k) => self.dropped += (bytes.len() - k) as u64,
-            // The line's buffer is full: nobody reads it (yet). A UART's bytes are lost too.
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    std::io::ErrorKind::TimedOut | std::io::ErrorKind::WouldBlock
-                ) =>
-            {
-                self.dropped += bytes.len() as u64;
-            }
-            Err(e) => return Err(e).with_context(|| format!("writing {}", self.name)),
-        }
-        Ok(())
+        self.line.write(bytes)
     }
 }

@@ -7,6 +7,7 @@
 //! `--open-loop` it flies the scenario's actuator script with no autopilot at all.
 
 mod control;
+mod device_line;
 mod gps_device;
 mod jsbsim;
 mod json_physics;

@@ -5,12 +5,10 @@
 //! 5 Hz) or an SBUS receiver (a frame every 14 ms) writes them. The transmitter switched off
 //! is what each does then: CRSF stops sending, SBUS sends its failsafe flag.
 
-use anyhow::{Context, Result, bail};
+use crate::device_line::DeviceLine;
+use anyhow::{Result, bail};
 use devices::sim::rc_frames;
-use serialport::{SerialPort, TTYPort};
 use sitl_core::scenario::PilotInput;
-use std::io::Write;
-use std::time::Duration;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Protocol {
@@ -20,15 +18,11 @@ enum Protocol {
 
 /// The device.
 pub struct RcDevice {
-    port: TTYPort,
-    _peer: Option<TTYPort>,
-    name: String,
+    line: DeviceLine,
     protocol: Protocol,
     next_s: f64,
     frames: u64,
     out: Vec<u8>,
-    /// Bytes nobody read (the autopilot not there yet).
-    pub dropped: u64,
 }
 
 impl RcDevice {
@@ -40,38 +34,23 @@ impl RcDevice {
             "sbus" => Protocol::Sbus,
             _ => bail!("--rc-device {spec:?}: the protocol is crsf or sbus"),
         };
-        let (port, peer, name) = if device == "pty" {
-            let (mut ours, theirs) = TTYPort::pair().context("opening a pseudo-terminal pair")?;
-            ours.set_timeout(Duration::ZERO)?;
-            let name = theirs.name().context("the pseudo-terminal has no name")?;
-            (ours, Some(theirs), name)
+        let baud = if protocol == Protocol::Crsf {
+            420_000
         } else {
-            let baud = if protocol == Protocol::Crsf {
-                420_000
-            } else {
-                100_000
-            };
-            let port = serialport::new(device, baud)
-                .timeout(Duration::ZERO)
-                .open_native()
-                .with_context(|| format!("opening {device}"))?;
-            (port, None, device.to_owned())
+            100_000
         };
         Ok(Self {
-            port,
-            _peer: peer,
-            name,
+            line: DeviceLine::open(device, baud)?,
             protocol,
             next_s: 0.0,
             frames: 0,
             out: Vec::new(),
-            dropped: 0,
         })
     }
 
     /// The device the autopilot opens.
     pub fn name(&self) -> &str {
-        &self.name
+        self.line.name()
     }
 
     /// At `t_s`: the frames due, from what the pilot gives.
@@ -106,18 +85,6 @@ impl RcDevice {
         if self.out.is_empty() {
             return Ok(());
         }
-        match self.port.write(&self.out) {
-            Ok(k) => self.dropped += (self.out.len() - k) as u64,
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    std::io::ErrorKind::TimedOut | std::io::ErrorKind::WouldBlock
-                ) =>
-            {
-                self.dropped += self.out.len() as u64;
-            }
-            Err(e) => return Err(e).with_context(|| format!("writing {}", self.name)),
-        }
-        Ok(())
+        self.line.write(&self.out)
     }
 }
