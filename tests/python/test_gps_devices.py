@@ -402,3 +402,45 @@ def test_a_receiver_unplugged_in_flight_is_a_lost_gps_then_found_again(tmp_path,
     assert sum('GPS configured' in l for l in said) == 2, said
     assert any("failsafe: position estimate invalid" in l for l in said), said
     assert summary["landed"] == "true" and summary["failsafe"] == "true", summary
+
+
+def test_nmea_built_by_pynmeagps_decodes_as_pynmeagps_reads_it(tmp_path):
+    from pynmeagps import GET, NMEAMessage
+    from datetime import date, time as clock
+    line = ReplayLine()
+    ap = Autopilot(tmp_path, f"serial://{line.device}?protocol=nmea&baud=38400")
+    sentences, expected = [], []
+    for k in range(20):
+        lat, lon = (-33.8651437 + k * 2e-6) * (-1) ** k, 151.2099001 - k * 3e-6
+        at, day = clock(12, 0, k // 5, (k % 5) * 200_000), date(2026, 11, 29)
+        fix = dict(lat=lat, lon=lon, time=at)  # pynmeagps sets the hemispheres from the signs
+        epoch = [
+            NMEAMessage("GN", "GGA", GET, quality=1, numSV=9 + k % 3, HDOP=0.8, alt=39.4 + k,
+                        altUnit="M", sep=0.0, sepUnit="M", **fix),
+            NMEAMessage("GN", "RMC", GET, status="A", spd=5.8, cog=90.0, date=day,
+                        posMode="A", **fix),
+            NMEAMessage("GN", "VTG", GET, cogt=90.0, cogtUnit="T", sogn=5.8, sognUnit="N",
+                        sogk=10.7, sogkUnit="K", posMode="A"),
+            NMEAMessage("GN", "GST", GET, time=at, rangeRms=1.0, stdMajor=1.2, stdMinor=0.8,
+                        orient=0.0, stdLat=0.6 + k / 100, stdLong=0.8, stdAlt=1.5),
+        ]
+        sentences += [m.serialize() for m in epoch]
+        gga = NMEAReader.parse(epoch[0].serialize())
+        stamp = datetime.combine(day, gga.time, tzinfo=timezone.utc)
+        expected.append((gga.lat, gga.lon, float(gga.alt), int(stamp.timestamp() * 1e6)))
+    try:
+        ap.wait_for("GPS port open")
+        line.write_all(sentences, pause_s=0.005)
+        time.sleep(0.3)
+    finally:
+        ap.stop()
+        line.close()
+    rows = gps_rows(ap.logs)
+    # The first epoch's GGA comes before any RMC gave the date: logged at the computer's time.
+    assert_rows_are(rows, expected, "pynmeagps's stream", undated=1)
+    # GST's deviations as the accuracies (from the second epoch: GST follows its GGA).
+    by_time = {e[3] // 1000: k for k, e in enumerate(expected)}
+    for r in rows[1:]:
+        k = by_time[int(r["time_utc_usec"]) // 1000]
+        assert abs(r["eph"] - math.hypot(0.6 + (k - 1) / 100, 0.8)) < 0.02, (k, r["eph"])
+        assert abs(r["epv"] - 1.5) < 1e-6 and abs(r["vel_e_m_s"] - 5.8 * 1852 / 3600) < 1e-3

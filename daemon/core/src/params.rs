@@ -500,6 +500,7 @@ mod tests {
                 "CAL_MAG0_ID",
                 "MC_ATT_LAW",
                 "MC_RATE_CTRL",
+                "NAV_RCL_ACT",
                 "COM_OBL_RC_ACT",
                 "FLW_TGT_ALT_M",
                 "NAV_DLL_ACT",

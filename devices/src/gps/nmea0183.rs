@@ -126,12 +126,20 @@ impl NmeaDriver {
     }
 
     fn sentence(&mut self, t_s: f64, line: &[u8], events: &mut Vec<GpsEvent>) {
-        let parsed = match std::str::from_utf8(line) {
-            Ok(text) if nmea_checksum_ok(line) => nmea::parse_str(text),
+        let text = match std::str::from_utf8(line) {
+            Ok(text) if nmea_checksum_ok(line) => text,
             _ => {
                 self.counters.bad_frames += 1;
                 return;
             }
+        };
+        let mended;
+        let parsed = match nmea::parse_str(text) {
+            Err(_) if let Some(m) = rmc_without_lone_variation(text) => {
+                mended = m;
+                nmea::parse_str(&mended)
+            }
+            p => p,
         };
         self.counters.frames += 1;
         self.last_valid = Some(t_s);
@@ -282,6 +290,24 @@ impl NmeaDriver {
             self.epoch = Epoch::default();
         }
     }
+}
+
+/// An `RMC` whose magnetic variation has no hemisphere (`…,0.0,,A*hh`, as some receivers and
+/// pynmeagps write it) with the variation left out, its checksum made again: the `nmea` crate
+/// refuses the sentence whole for it, and its time, position, speed and date are good.
+fn rmc_without_lone_variation(text: &str) -> Option<String> {
+    let body = text.trim_end().strip_prefix('$')?.split('*').next()?;
+    let mut fields: Vec<&str> = body.split(',').collect();
+    if !fields.first()?.ends_with("RMC") || fields.len() < 12 {
+        return None;
+    }
+    if fields[10].is_empty() || !fields[11].is_empty() {
+        return None;
+    }
+    fields[10] = "";
+    let body = fields.join(",");
+    let sum = body.bytes().fold(0u8, |a, b| a ^ b);
+    Some(format!("${body}*{sum:02X}"))
 }
 
 #[cfg(test)]

@@ -116,3 +116,18 @@ fn silence_is_said_once_and_the_scan_starts_again() {
     assert_eq!(events, [GpsEvent::Silent, GpsEvent::Lost]);
     assert_eq!(d.baud(), 9_600, "the scan starts at the configured baud");
 }
+
+#[test]
+fn an_rmc_with_an_empty_navigation_status_still_gives_the_date() {
+    let mut d = NmeaDriver::new(38_400);
+    let mut events = Vec::new();
+    for s in [
+        "GNGGA,120000.00,3351.60000,S,15112.00000,E,1,9,0.8,39.4,M,0.0,M,,",
+        "GNRMC,120000.00,A,3351.60000,S,15112.00000,E,5.8,90.0,291126,0.0,,A,",
+    ] {
+        d.receive(0.0, &with_checksum(s), &mut events);
+    }
+    let s = solutions(&events);
+    assert_eq!(s.len(), 1, "{events:?} {:?}", d.counters());
+    assert_eq!(s[0].time_utc_usec, Some(1_795_953_600_000_000));
+}
