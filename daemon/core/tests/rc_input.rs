@@ -136,3 +136,28 @@ fn the_arm_switch_arms_only_when_moved_and_the_mode_switch_enters_its_slots_mode
     b.steps(5, Some(frame(3, 1000, false)));
     assert!(!b.autopilot.status().armed, "off on the ground disarms");
 }
+
+#[test]
+fn during_a_radio_calibration_the_channels_are_reported_not_flown() {
+    let mut b = Bench::new(FlightParams::default());
+    b.steps(1500, Some(frame(0, 1000, false)));
+    assert_eq!(b.autopilot.status().mode, FlightMode::Posctl);
+    b.autopilot
+        .command(AutopilotCommand::CalibrateRadio)
+        .unwrap();
+    b.steps(5, Some(frame(3, 1000, false)));
+    assert_eq!(
+        b.autopilot.status().mode,
+        FlightMode::Posctl,
+        "the switch not flown"
+    );
+    assert!(b.autopilot.state().rc.is_some(), "but reported");
+    let armed = b.autopilot.command(AutopilotCommand::Arm { force: false });
+    assert!(armed.is_err(), "{armed:?}");
+    b.autopilot
+        .command(AutopilotCommand::CancelCalibration)
+        .unwrap();
+    b.steps(5, Some(frame(0, 1000, false)));
+    b.steps(5, Some(frame(3, 1000, false)));
+    assert_eq!(b.autopilot.status().mode, FlightMode::Loiter);
+}

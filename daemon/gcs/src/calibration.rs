@@ -226,6 +226,12 @@ mod tests {
             crate::testing::requested(&out)[0].0,
             AutopilotCommand::CancelCalibration
         );
+        // QGroundControl's radio setup: param4 1, RC input off until every param is 0.
+        let out = command(&mut g, [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]);
+        assert_eq!(
+            crate::testing::requested(&out)[0].0,
+            AutopilotCommand::CalibrateRadio
+        );
         // As MAVSDK asks for the others: gyro param1 1, accelerometer param5 1, level param5 2.
         for (p, kind) in [
             (

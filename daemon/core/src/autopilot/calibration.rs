@@ -49,6 +49,9 @@ impl Autopilot {
         if self.mag_cal.as_ref().is_some_and(MagCalibrator::collecting) {
             return Some("magnetometer");
         }
+        if self.calibrating_radio() {
+            return Some("radio");
+        }
         self.imu_cal
             .as_ref()
             .filter(|c| c.collecting())
@@ -60,7 +63,7 @@ impl Autopilot {
     }
 
     /// Refused armed, or while another calibration runs.
-    fn may_calibrate(&self) -> Result<(), Denial> {
+    pub(super) fn may_calibrate(&self) -> Result<(), Denial> {
         if self.commander.status().armed {
             return Err(Denial::CalibrationArmed);
         }

@@ -103,6 +103,10 @@ pub enum AutopilotCommand {
     /// Start an onboard gyro, accelerometer or level-horizon calibration
     /// (`MAV_CMD_PREFLIGHT_CALIBRATION` param1 1, param5 1 or 2).
     CalibrateImu(ImuCalKind),
+    /// A ground station calibrates the radio (`MAV_CMD_PREFLIGHT_CALIBRATION` param4 1, as
+    /// QGroundControl's radio setup sends): the RC channels are reported, not flown, until
+    /// the calibration ends (every param 0), as PX4 disables RC input then.
+    CalibrateRadio,
     /// Cancel a calibration under way (`MAV_CMD_PREFLIGHT_CALIBRATION`, every param 0).
     CancelCalibration,
 }
@@ -130,8 +134,10 @@ impl Autopilot {
         match c {
             AutopilotCommand::CalibrateMag => self.start_mag_calibration(),
             AutopilotCommand::CalibrateImu(kind) => self.start_imu_calibration(kind),
+            AutopilotCommand::CalibrateRadio => self.calibrate_radio(),
             AutopilotCommand::CancelCalibration => {
                 self.cancel_calibration();
+                self.end_radio_calibration();
                 Ok(())
             }
             AutopilotCommand::Arm { force } => self.commander.arm(force),

@@ -28,6 +28,8 @@ pub(super) struct RcState {
     joystick_at: Option<f64>,
     /// `COM_RC_IN_MODE` 3: the source that came first, while it lasts.
     owner: Option<StickSource>,
+    /// A ground station calibrates the radio: its channels are reported, not flown.
+    calibrating: bool,
 }
 
 /// The last RC frame and when it came, for the ground stations (`RC_CHANNELS`).
@@ -83,10 +85,30 @@ impl Autopilot {
         self.rc.joystick_at = Some(t_s);
     }
 
+    /// The radio calibration starts: RC input off until it ends (refused armed).
+    pub(super) fn calibrate_radio(&mut self) -> Result<(), crate::commander::Denial> {
+        self.may_calibrate()?;
+        self.rc.calibrating = true;
+        tracing::info!("radio calibration: RC input off until it ends");
+        Ok(())
+    }
+
+    /// The radio calibration ends (or none ran).
+    pub(super) fn end_radio_calibration(&mut self) {
+        if std::mem::take(&mut self.rc.calibrating) {
+            tracing::info!("radio calibration over: RC input on");
+        }
+    }
+
+    /// The radio is being calibrated.
+    pub(super) fn calibrating_radio(&self) -> bool {
+        self.rc.calibrating
+    }
+
     /// One frame from the RC receiver at `t_s`.
     pub(super) fn rc_frame(&mut self, t_s: f64, frame: &RcFrame) {
         self.published.rc = Some(RcReport { frame: *frame, t_s });
-        if frame.failsafe || !self.sticks_from(StickSource::Rc, t_s) {
+        if self.rc.calibrating || frame.failsafe || !self.sticks_from(StickSource::Rc, t_s) {
             return;
         }
         self.rc.rc_at = Some(t_s);

@@ -88,7 +88,8 @@ impl GroundStation {
 enum NotOnboard {
     #[error(
         "calibration: param{param} = {value} is not calibrated onboard (gyro: param1 1, \
-         magnetometer: param2 1, accelerometer: param5 1, level horizon: param5 2)"
+         magnetometer: param2 1, radio: param4 1, accelerometer: param5 1, level horizon: \
+         param5 2)"
     )]
     Calibration { param: usize, value: f32 },
     #[error("calibration: one at a time (more than one param set)")]
@@ -96,8 +97,9 @@ enum NotOnboard {
 }
 
 /// The calibration `MAV_CMD_PREFLIGHT_CALIBRATION`'s params ask for, as PX4 reads them: param1
-/// 1 the gyro, param2 1 the magnetometer, param5 1 the accelerometer, param5 2 the level
-/// horizon; every param 0 cancels. One at a time. NaN is a reserved param left unset (MAVSDK
+/// 1 the gyro, param2 1 the magnetometer, param4 1 the radio (the ground station's, RC input
+/// off meanwhile), param5 1 the accelerometer, param5 2 the level horizon; every param 0
+/// cancels or ends. One at a time. NaN is a reserved param left unset (MAVSDK
 /// leaves 6 and 7 so): 0.
 fn calibration(p: &[f32; 7]) -> Result<AutopilotCommand, NotOnboard> {
     let set: Vec<(usize, f32)> = p
@@ -110,6 +112,7 @@ fn calibration(p: &[f32; 7]) -> Result<AutopilotCommand, NotOnboard> {
         [] => Ok(AutopilotCommand::CancelCalibration),
         [(1, 1.0)] => Ok(AutopilotCommand::CalibrateImu(ImuCalKind::Gyro)),
         [(2, 1.0)] => Ok(AutopilotCommand::CalibrateMag),
+        [(4, 1.0)] => Ok(AutopilotCommand::CalibrateRadio),
         [(5, 1.0)] => Ok(AutopilotCommand::CalibrateImu(ImuCalKind::Accel)),
         [(5, 2.0)] => Ok(AutopilotCommand::CalibrateImu(ImuCalKind::Level)),
         [(param, value)] => Err(NotOnboard::Calibration {
