@@ -94,8 +94,9 @@ class GpsRelay:
 
     def heard_whole(self, power_on_baud, switch):
         """What the receiver sent while the line was at the receiver's baud: `power_on_baud`
-        until the autopilot's message `switch` (raw bytes, which moves it) went by, and the
-        baud that message set after it. What it sent at another baud was misread."""
+        until the autopilot's message `switch` went by (its end's offset in what the autopilot
+        sent, and the baud it sets; `None` for a receiver never moved), that baud after it. What
+        it sent at another baud was misread."""
         to_end, switched_at = 0, None
         for k, (d, _, data) in enumerate(self.chunks):
             if d == "to":

@@ -444,3 +444,35 @@ def test_nmea_built_by_pynmeagps_decodes_as_pynmeagps_reads_it(tmp_path):
         k = by_time[int(r["time_utc_usec"]) // 1000]
         assert abs(r["eph"] - math.hypot(0.6 + (k - 1) / 100, 0.8)) < 0.02, (k, r["eph"])
         assert abs(r["epv"] - 1.5) < 1e-6 and abs(r["vel_e_m_s"] - 5.8 * 1852 / 3600) < 1e-3
+
+
+def test_a_flight_on_the_simulators_nmea_receiver_parses_in_pynmeagps(tmp_path):
+    port = free_udp_port()
+    sitl = run_sitl(["--gps-device", "nmea", "--mode", "lockstep", "--speed", "4",
+                     "--duration", "60"], port)
+    relay = None
+    try:
+        first = sitl.stdout.readline()
+        relay = GpsRelay(first.split(": ", 1)[1].strip())
+        logs = tmp_path / "logs"
+        ap = subprocess.run(
+            [str(binary("autopilot")), "--params-dir", str(ROOT / "params"),
+             "--source", f"udp://127.0.0.1:{port}",
+             "--gps", f"serial://{relay.device}?protocol=nmea&baud=38400",
+             "--takeoff", "5", "--hover", "10", "--mavlink", "none",
+             "--param-store", "none", "--log-dir", str(logs)],
+            capture_output=True, text=True, timeout=180)
+    finally:
+        sitl.kill()
+        sitl.wait()
+        if relay:
+            relay.close()
+    assert ap.returncode == 0 and "landed=true" in ap.stdout, ap.stderr[-3000:]
+    assert relay.sent() == b"", "an NMEA receiver is told nothing"
+    # Everything the receiver sent at its baud (38 400) parses in pynmeagps.
+    heard = relay.heard_whole(38400, None)
+    reader = NMEAReader(io.BytesIO(heard), quitonerror=2)
+    sentences = [parsed for _, parsed in reader]
+    kinds = {m.msgID for m in sentences}
+    assert {"GGA", "RMC", "VTG", "GSA", "GST"} <= kinds, kinds
+    assert_rows_are(gps_rows(logs), nmea_epochs(heard), "sitl's NMEA receiver", undated=1)
