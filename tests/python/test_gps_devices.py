@@ -157,6 +157,7 @@ def test_a_flight_on_the_simulators_ublox_parses_in_pyubx2_both_ways(tmp_path, m
                   hasattr(c, "CFG_MSGOUT_UBX_NAV_PVT_UART1")][-1]
         assert (valset.CFG_MSGOUT_UBX_NAV_PVT_UART1, valset.CFG_RATE_MEAS,
                 valset.CFG_UART1OUTPROT_NMEA) == (1, 200, 0), valset
+        assert (valset.CFG_MSGOUT_UBX_NAV_PVT_USB, valset.CFG_USBOUTPROT_NMEA) == (1, 0), valset
     else:
         prt = [c for c in commands if c.identity == "CFG-PRT"][-1]
         assert (prt.baudRate, prt.outUBX, prt.outNMEA) == (115200, 1, 0), prt

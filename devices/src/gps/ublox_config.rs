@@ -104,9 +104,12 @@ pub fn baud_switch(interface: Interface, baud: u32) -> ConfigMessage {
 }
 
 /// The configuration at the final baud: UBX out only, `NAV-PVT` and `NAV-DOP` every epoch,
-/// a measurement every `period_ms`.
+/// a measurement every `period_ms`. The legacy `CFG-MSG` of three bytes sets the rate on the
+/// port it arrives on, whichever that is; `CFG-VALSET` names UART1 and USB both.
 pub fn messages(interface: Interface, baud: u32, period_ms: u16) -> Vec<ConfigMessage> {
     match interface {
+        // UART1 and USB alike: the driver cannot tell which of them it is on (a receiver on a
+        // USB cable is as common as one on a UART), as PX4 configures both.
         Interface::Valset => vec![valset(
             "CFG-VALSET",
             &[
@@ -115,6 +118,11 @@ pub fn messages(interface: Interface, baud: u32, period_ms: u16) -> Vec<ConfigMe
                 CfgVal::Uart1OutProtNmea(false),
                 CfgVal::MsgOutUbxNavPvtUart1(1),
                 CfgVal::MsgOutUbxNavDopUart1(1),
+                CfgVal::UsbInProtUbx(true),
+                CfgVal::UsbOutProtUbx(true),
+                CfgVal::UsbOutProtNmea(false),
+                CfgVal::MsgOutUbxNavPvtUsb(1),
+                CfgVal::MsgOutUbxNavDopUsb(1),
                 CfgVal::RateMeas(period_ms),
                 CfgVal::RateNav(1),
             ],

@@ -106,6 +106,15 @@ const KEY_PVT_UART1: u32 = 0x2091_0007;
 const KEY_DOP_UART1: u32 = 0x2091_0039;
 const KEY_RATE_MEAS: u32 = 0x3021_0001;
 const KEY_RATE_NAV: u32 = 0x3021_0002;
+/// USB's protocols and message rates: known, not this UART's (the simulated receiver is on
+/// UART1).
+const KEYS_USB: [u32; 5] = [
+    0x1077_0001,
+    0x1078_0001,
+    0x1078_0002,
+    0x2091_0009,
+    0x2091_003B,
+];
 
 impl UbloxReceiver {
     /// A receiver at its power-on defaults.
@@ -247,6 +256,7 @@ impl UbloxReceiver {
             KEY_DOP_UART1 => self.dop_rate = value as u8,
             KEY_RATE_MEAS => return self.set_period(value as u16),
             KEY_RATE_NAV => return value == 1,
+            k if KEYS_USB.contains(&k) => {}
             _ => return false,
         }
         true
