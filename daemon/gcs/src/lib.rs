@@ -365,6 +365,7 @@ impl GroundStation {
         let unix = self.unix_start_usec + (now_s * 1e6) as u64;
         self.sample_rate.observe(t.link.t_s, t.link.frames);
         self.events_poll(now_s, t, out);
+        self.params.poll_list(out);
         self.announce(now_s, t, unix, out);
         for (link, id) in self.rates.due(now_s) {
             if [HIGHRES_IMU_DATA::ID, SCALED_IMU_DATA::ID].contains(&id) {

@@ -19,7 +19,14 @@ use mavlink::dialects::common::*;
 pub struct Parameters {
     values: FlightParams,
     store: ParamStore,
+    /// A `PARAM_REQUEST_LIST` being answered: the next index to send.
+    listing: Option<usize>,
 }
+
+/// Parameters sent per poll (10 ms) while a list is answered: the list goes out in a few tens
+/// of milliseconds without a burst that a link's socket buffer would drop the end of (each
+/// datagram costs the kernel about 1 KB of buffer, so a few hundred at once overflow it).
+const LIST_PER_POLL: usize = 24;
 
 /// What a parameter message changed, for the caller to act on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -73,7 +80,11 @@ fn decode(kind: ParamKind, raw: f32) -> f64 {
 impl Parameters {
     /// The table with `values`, changes recorded in `store`.
     pub fn new(values: FlightParams, store: ParamStore) -> Self {
-        Self { values, store }
+        Self {
+            values,
+            store,
+            listing: None,
+        }
     }
 
     /// The values flown.
@@ -98,11 +109,26 @@ impl Parameters {
         })
     }
 
-    /// Every parameter, in index order.
-    fn list(&self, out: &mut Outbox) {
-        for (i, (group, m)) in FlightParams::metadata().enumerate() {
+    /// Every parameter, in index order, from the next poll on (a list asked for again starts
+    /// again).
+    fn list(&mut self) {
+        self.listing = Some(0);
+    }
+
+    /// The next parameters of a list being answered.
+    pub(crate) fn poll_list(&mut self, out: &mut Outbox) {
+        let Some(from) = self.listing else {
+            return;
+        };
+        for (i, (group, m)) in FlightParams::metadata()
+            .enumerate()
+            .skip(from)
+            .take(LIST_PER_POLL)
+        {
             out.send(self.value_message(i, group, m));
         }
+        let next = from + LIST_PER_POLL;
+        self.listing = (next < FlightParams::count()).then_some(next);
     }
 
     /// PX4's `_HASH_CHECK`: the CRC-32 (MAVLink FTP's variant, from 0) of every parameter's
@@ -153,7 +179,8 @@ impl Parameters {
     fn set(&mut self, s: &PARAM_SET_DATA, out: &mut Outbox) -> ParamChange {
         let name = s.param_id.to_str().unwrap_or("");
         if name == HASH_CHECK {
-            // QGroundControl's "the cache matched, stop sending": the list is sent at once.
+            // QGroundControl's "the cache matched, stop sending", as PX4 takes it.
+            self.listing = None;
             return ParamChange::default();
         }
         let Some((i, group, m)) = FlightParams::find(name) else {
@@ -241,7 +268,7 @@ impl GroundStation {
             MavMessage::PARAM_REQUEST_LIST(r)
                 if self.for_us(r.target_system, Some(r.target_component)) =>
             {
-                self.params.list(out);
+                self.params.list();
                 Some(ParamChange::default())
             }
             MavMessage::PARAM_REQUEST_READ(r)

@@ -24,8 +24,16 @@ fn the_parameter_list_has_a_constant_count_stable_indices_and_bytewise_integers(
         target_component: 0,
     });
     g.on_message(&gcs_header(), &list, &t, &mut out);
-    let values = param_values(&out);
+    // Sent over the next polls, a few tens at a time (a burst of all would overflow a link's
+    // socket buffer), each once.
     let n = FlightParams::count();
+    let mut polls = 0;
+    while param_values(&out).len() < n {
+        g.poll(polls as f64 * 0.01, &t, &mut out);
+        polls += 1;
+        assert!(polls <= n.div_ceil(24), "{polls} polls");
+    }
+    let values = param_values(&out);
     assert_eq!(values.len(), n);
     for (i, v) in values.iter().enumerate() {
         assert_eq!((v.param_index as usize, v.param_count as usize), (i, n));
@@ -245,4 +253,25 @@ fn storage_reset_and_reboot_are_for_a_disarmed_vehicle() {
     let mut out = Outbox::default();
     g.on_message(&gcs_header(), &reboot(2.0), &ground, &mut out);
     assert_eq!(out.actions, [HostAction::Shutdown]);
+}
+
+#[test]
+fn a_hash_check_set_stops_the_list_as_qgroundcontrol_asks_when_its_cache_matched() {
+    let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
+    let t = telemetry(false, FlightMode::Loiter);
+    let mut out = Outbox::default();
+    let list = MavMessage::PARAM_REQUEST_LIST(PARAM_REQUEST_LIST_DATA {
+        target_system: 1,
+        target_component: 0,
+    });
+    g.on_message(&gcs_header(), &list, &t, &mut out);
+    g.poll(0.0, &t, &mut out);
+    let first = param_values(&out).len();
+    assert!(first > 0 && first < FlightParams::count());
+    let stop = param_set("_HASH_CHECK", 0.0, MavParamType::MAV_PARAM_TYPE_UINT32);
+    g.on_message(&gcs_header(), &stop, &t, &mut out);
+    for k in 1..20 {
+        g.poll(f64::from(k) * 0.01, &t, &mut out);
+    }
+    assert_eq!(param_values(&out).len(), first);
 }
