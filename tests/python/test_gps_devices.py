@@ -116,9 +116,10 @@ MODELS = {
 }
 
 
-@pytest.mark.parametrize("model", sorted(MODELS))
-def test_a_flight_on_the_simulators_ublox_parses_in_pyubx2_both_ways(tmp_path, model):
-    default_baud, interface, sent = MODELS[model]
+def fly_through_relay(tmp_path, model, options):
+    """A lockstep take-off, hover and landing, the GPS sitl's `model` seen through a relay
+    (`GpsRelay`), the autopilot's `--gps` URL options `options`. Returns the autopilot's
+    completed run (landed), the relay and the log directory."""
     port = free_udp_port()
     # Lockstep at up to 4× real time: the relay takes milliseconds of wall time for each chunk,
     # which at full lockstep speed would be a large part of a second of the receiver's time.
@@ -133,7 +134,7 @@ def test_a_flight_on_the_simulators_ublox_parses_in_pyubx2_both_ways(tmp_path, m
         ap = subprocess.run(
             [str(binary("autopilot")), "--params-dir", str(ROOT / "params"),
              "--source", f"udp://127.0.0.1:{port}",
-             "--gps", f"serial://{relay.device}?baud=115200",
+             "--gps", f"serial://{relay.device}?{options}",
              "--takeoff", "5", "--hover", "10", "--mavlink", "none",
              "--param-store", "none", "--log-dir", str(logs)],
             capture_output=True, text=True, timeout=180)
@@ -144,6 +145,13 @@ def test_a_flight_on_the_simulators_ublox_parses_in_pyubx2_both_ways(tmp_path, m
             relay.close()
     assert ap.returncode == 0, ap.stderr[-3000:]
     assert "landed=true" in ap.stdout, ap.stdout
+    return ap, relay, logs
+
+
+@pytest.mark.parametrize("model", sorted(MODELS))
+def test_a_flight_on_the_simulators_ublox_parses_in_pyubx2_both_ways(tmp_path, model):
+    default_baud, interface, sent = MODELS[model]
+    ap, relay, logs = fly_through_relay(tmp_path, model, "baud=115200")
     assert f"GPS found port=\"{relay.device}\" baud={default_baud}" in ap.stderr, ap.stderr[-3000:]
     assert f'interface="{interface}"' in ap.stderr, ap.stderr[-3000:]
 
@@ -448,27 +456,7 @@ def test_nmea_built_by_pynmeagps_decodes_as_pynmeagps_reads_it(tmp_path):
 
 
 def test_a_flight_on_the_simulators_nmea_receiver_parses_in_pynmeagps(tmp_path):
-    port = free_udp_port()
-    sitl = run_sitl(["--gps-device", "nmea", "--mode", "lockstep", "--speed", "4",
-                     "--duration", "60"], port)
-    relay = None
-    try:
-        first = sitl.stdout.readline()
-        relay = GpsRelay(first.split(": ", 1)[1].strip())
-        logs = tmp_path / "logs"
-        ap = subprocess.run(
-            [str(binary("autopilot")), "--params-dir", str(ROOT / "params"),
-             "--source", f"udp://127.0.0.1:{port}",
-             "--gps", f"serial://{relay.device}?protocol=nmea&baud=38400",
-             "--takeoff", "5", "--hover", "10", "--mavlink", "none",
-             "--param-store", "none", "--log-dir", str(logs)],
-            capture_output=True, text=True, timeout=180)
-    finally:
-        sitl.kill()
-        sitl.wait()
-        if relay:
-            relay.close()
-    assert ap.returncode == 0 and "landed=true" in ap.stdout, ap.stderr[-3000:]
+    ap, relay, logs = fly_through_relay(tmp_path, "nmea", "protocol=nmea&baud=38400")
     assert relay.sent() == b"", "an NMEA receiver is told nothing"
     # Everything the receiver sent at its baud (38 400) parses in pynmeagps.
     heard = relay.heard_whole(38400, None)
