@@ -84,15 +84,38 @@ struct Calibration {
 }
 
 impl RcGroup {
-    /// Channel `c`'s (1-based) calibration.
+    /// Channel `c`'s (1-based) calibration, read from its fields (no lookup by name on a
+    /// frame's path).
     fn calibration(&self, c: usize) -> Option<Calibration> {
-        let key = |what: &str| self.get(&format!("rc{c}_{what}"));
-        Some(Calibration {
-            min: key("min")?,
-            trim: key("trim")?,
-            max: key("max")?,
-            reversed: key("rev")? < 0.0,
-            dead_zone: key("dz")?,
+        macro_rules! k {
+            ($min:ident, $trim:ident, $max:ident, $rev:ident, $dz:ident) => {
+                Calibration {
+                    min: self.$min,
+                    trim: self.$trim,
+                    max: self.$max,
+                    reversed: self.$rev < 0.0,
+                    dead_zone: self.$dz,
+                }
+            };
+        }
+        Some(match c {
+            1 => k!(rc1_min, rc1_trim, rc1_max, rc1_rev, rc1_dz),
+            2 => k!(rc2_min, rc2_trim, rc2_max, rc2_rev, rc2_dz),
+            3 => k!(rc3_min, rc3_trim, rc3_max, rc3_rev, rc3_dz),
+            4 => k!(rc4_min, rc4_trim, rc4_max, rc4_rev, rc4_dz),
+            5 => k!(rc5_min, rc5_trim, rc5_max, rc5_rev, rc5_dz),
+            6 => k!(rc6_min, rc6_trim, rc6_max, rc6_rev, rc6_dz),
+            7 => k!(rc7_min, rc7_trim, rc7_max, rc7_rev, rc7_dz),
+            8 => k!(rc8_min, rc8_trim, rc8_max, rc8_rev, rc8_dz),
+            9 => k!(rc9_min, rc9_trim, rc9_max, rc9_rev, rc9_dz),
+            10 => k!(rc10_min, rc10_trim, rc10_max, rc10_rev, rc10_dz),
+            11 => k!(rc11_min, rc11_trim, rc11_max, rc11_rev, rc11_dz),
+            12 => k!(rc12_min, rc12_trim, rc12_max, rc12_rev, rc12_dz),
+            13 => k!(rc13_min, rc13_trim, rc13_max, rc13_rev, rc13_dz),
+            14 => k!(rc14_min, rc14_trim, rc14_max, rc14_rev, rc14_dz),
+            15 => k!(rc15_min, rc15_trim, rc15_max, rc15_rev, rc15_dz),
+            16 => k!(rc16_min, rc16_trim, rc16_max, rc16_rev, rc16_dz),
+            _ => return None,
         })
     }
 
