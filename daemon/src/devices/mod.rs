@@ -12,7 +12,8 @@ pub use gps_port::GpsPort;
 pub use rc_port::{RcPort, RcSpec};
 pub use with_devices::WithDevices;
 
-use anyhow::{Result, bail};
+use crate::links::parse_options;
+use anyhow::{Result, anyhow, bail};
 use devices::gps::GpsProtocol;
 use std::path::PathBuf;
 
@@ -45,39 +46,39 @@ impl GpsSpec {
             protocol: GpsProtocol::Ublox,
             rate_hz: 5.0,
         };
-        for kv in query.split('&').filter(|kv| !kv.is_empty()) {
-            let Some((k, v)) = kv.split_once('=') else {
-                bail!("--gps {url:?}: option {kv:?} needs a value (known: baud, protocol, rate)");
-            };
-            match k {
-                "baud" => {
-                    spec.baud = v
-                        .parse()
-                        .ok()
-                        .filter(|b| (1_200..=4_000_000).contains(b))
-                        .ok_or_else(|| {
-                            anyhow::anyhow!("--gps {url:?}: baud {v:?} is not a baud rate")
-                        })?;
-                }
-                "protocol" => {
-                    spec.protocol = match v {
-                        "ublox" | "ubx" => GpsProtocol::Ublox,
-                        "nmea" => GpsProtocol::Nmea,
-                        _ => bail!("--gps {url:?}: protocol {v:?} is not ublox or nmea"),
+        let url = format!("--gps {url}");
+        parse_options(
+            &url,
+            query,
+            |k, v| {
+                match k {
+                    "baud" => {
+                        spec.baud = v
+                            .parse()
+                            .ok()
+                            .filter(|b| (1_200..=4_000_000).contains(b))
+                            .ok_or_else(|| anyhow!("{url:?}: baud {v:?} is not a baud rate"))?;
                     }
+                    "protocol" => {
+                        spec.protocol = match v {
+                            "ublox" | "ubx" => GpsProtocol::Ublox,
+                            "nmea" => GpsProtocol::Nmea,
+                            _ => bail!("{url:?}: protocol {v:?} is not ublox or nmea"),
+                        }
+                    }
+                    "rate" => {
+                        spec.rate_hz = v
+                            .parse()
+                            .ok()
+                            .filter(|r: &f64| (1.0..=10.0).contains(r))
+                            .ok_or_else(|| anyhow!("{url:?}: rate {v:?} is not 1 to 10 Hz"))?;
+                    }
+                    _ => return Ok(false),
                 }
-                "rate" => {
-                    spec.rate_hz = v
-                        .parse()
-                        .ok()
-                        .filter(|r: &f64| (1.0..=10.0).contains(r))
-                        .ok_or_else(|| {
-                            anyhow::anyhow!("--gps {url:?}: rate {v:?} is not 1 to 10 Hz")
-                        })?;
-                }
-                _ => bail!("--gps {url:?}: unknown option {kv:?} (known: baud, protocol, rate)"),
-            }
-        }
+                Ok(true)
+            },
+            "baud, protocol, rate",
+        )?;
         Ok(spec)
     }
 }

@@ -4,6 +4,7 @@
 //! autopilot with the link's last statistics.
 
 use super::serial_device::DevicePort;
+use crate::links::parse_options;
 use anyhow::{Result, bail};
 use devices::rc::crsf::{self, CrsfReader};
 use devices::rc::sbus::{self, SbusReader};
@@ -42,15 +43,20 @@ impl RcSpec {
             bail!("--rc {url:?}: no device path");
         }
         let mut protocol = RcProtocol::Crsf;
-        for kv in query.split('&').filter(|kv| !kv.is_empty()) {
-            protocol = match kv {
-                "protocol=crsf" => RcProtocol::Crsf,
-                "protocol=sbus" => RcProtocol::Sbus,
-                _ => bail!(
-                    "--rc {url:?}: unknown option {kv:?} (known: protocol=crsf, protocol=sbus)"
-                ),
-            };
-        }
+        let url = format!("--rc {url}");
+        parse_options(
+            &url,
+            query,
+            |k, v| {
+                protocol = match (k, v) {
+                    ("protocol", "crsf") => RcProtocol::Crsf,
+                    ("protocol", "sbus") => RcProtocol::Sbus,
+                    _ => return Ok(false),
+                };
+                Ok(true)
+            },
+            "protocol=crsf, protocol=sbus",
+        )?;
         Ok(Self {
             path: PathBuf::from(path),
             protocol,

@@ -71,8 +71,8 @@ pub enum Source {
     },
 }
 
-/// Parses `key=value&…` options of a source URL with `apply`.
-fn parse_options(
+/// Parses `key=value&…` options of a source URL with `apply` (true: the key is known).
+pub(crate) fn parse_options(
     url: &str,
     query: &str,
     mut apply: impl FnMut(&str, &str) -> Result<bool>,
