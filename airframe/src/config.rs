@@ -135,16 +135,29 @@ pub fn parse_toml<T: serde::de::DeserializeOwned>(
     })
 }
 
-/// The parameter directory: `given`, else `./params` when it holds `airframes/`, else the source
-/// tree's `params/` (so the binaries run from anywhere in a checkout).
+/// The parameter directory: `given`, else `./params` when it holds `airframes/`, else the one
+/// installed beside the running binary (`<prefix>/bin/autopilot` reads
+/// `<prefix>/share/autopilot/params`, as the Python wheel and `make install`-style layouts put
+/// it), else the source tree's `params/` (so the binaries run from anywhere in a checkout).
 pub fn params_dir(given: Option<&std::path::Path>) -> std::path::PathBuf {
     if let Some(d) = given {
         return d.to_path_buf();
     }
     let local = std::path::PathBuf::from("params");
     if local.join("airframes").is_dir() {
-        local
-    } else {
-        std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../params")
+        return local;
     }
+    if let Some(installed) = installed_params_dir()
+        && installed.join("airframes").is_dir()
+    {
+        return installed;
+    }
+    std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../params")
+}
+
+/// `<prefix>/share/autopilot/params` for a binary at `<prefix>/bin/`.
+fn installed_params_dir() -> Option<std::path::PathBuf> {
+    let exe = std::env::current_exe().ok()?;
+    let prefix = exe.parent()?.parent()?;
+    Some(prefix.join("share").join("autopilot").join("params"))
 }

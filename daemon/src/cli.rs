@@ -25,10 +25,11 @@ pub struct Cli {
 /// A flight's flags; each one given wins over the `--config` file.
 #[derive(Debug, Default, Args)]
 pub struct FlightArgs {
-    /// Settings file (TOML): every key mirrors a flag below (source, gps, rc, instance, count, airframe,
-    /// params, params_dir, takeoff_m, hover_s, speed, seed, sensors, truth_csv, flight_csv,
-    /// log_dir, tlog, ulog, ftp_root, ftp_read_only, loop_hz, loop_spin_us, loop_cpu, loop_stats_s,
-    /// mavlink, param_store); flags given here win. Paths in it are relative to its directory.
+    /// Settings file (TOML): every key mirrors a flag below (source, gps, rc, instance, count,
+    /// airframe, params, params_dir, takeoff_m, hover_s, speed, seed, sensors, truth_csv,
+    /// scenario, sim_control, paused, flight_csv, log_dir, tlog, ulog, ftp_root, ftp_read_only,
+    /// loop_hz, loop_spin_us, loop_cpu, loop_stats_s, mavlink, param_store); flags given here
+    /// win. Paths in it are relative to its directory.
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
     /// Fly in the embedded simulator (the physics of `sitl`, in-process, behind the same HIL
@@ -72,7 +73,8 @@ pub struct FlightArgs {
     /// Flight parameters file [default: PARAMS_DIR/flight.toml].
     #[arg(long, value_name = "FILE")]
     pub params: Option<PathBuf>,
-    /// Directory holding airframes/ and flight.toml [default: ./params, else the source tree's].
+    /// Directory holding airframes/ and flight.toml [default: ./params, else the installed
+    /// PREFIX/share/autopilot/params beside PREFIX/bin, else the source tree's].
     #[arg(long, value_name = "DIR")]
     pub params_dir: Option<PathBuf>,
     /// Fly on its own, without a ground station: arm as soon as the estimator is ready, take
@@ -98,6 +100,21 @@ pub struct FlightArgs {
     /// the same columns as `sitl --truth-csv`).
     #[arg(long, value_name = "FILE")]
     pub truth_csv: Option<PathBuf>,
+    /// Embedded simulator: fly in the world of this scenario file (as `sitl --scenario`: its
+    /// wind, turbulence, start, battery and timed events); it must name the airframe flown, and
+    /// the seed and sensors stay --seed's and --sensors'.
+    #[arg(long, value_name = "FILE")]
+    pub scenario: Option<PathBuf>,
+    /// Embedded simulator: its own MAVLink endpoint on this UDP address (the port offset by
+    /// --instance), as `sitl --control`: the weather (SIM_WIND_*, SIM_GUST_*), the clock
+    /// (SIM_SPEEDUP, SIM_PAUSE, SIM_RUN_S) by the parameter protocol, and the truth
+    /// (HIL_STATE_QUATERNION, LOCAL_POSITION_NED) by MAV_CMD_REQUEST_MESSAGE.
+    #[arg(long, value_name = "ADDR")]
+    pub sim_control: Option<String>,
+    /// Embedded simulator: start paused after the first sensor frame, until SIM_PAUSE is set
+    /// to 0 (or SIM_RUN_S runs a stretch) on --sim-control.
+    #[arg(long)]
+    pub paused: bool,
     /// Write the flight data (estimate, set-points, motor commands, loop timing and, from a
     /// simulator, the truth) to this CSV file, one row per sensor frame [default:
     /// LOG_DIR/<start time>.csv].
@@ -145,9 +162,11 @@ pub struct FlightArgs {
     /// pushes to HOST:PORT from the LOCAL port and answers every peer writing to it;
     /// `udpin://ADDR:PORT` answers every peer writing to it; `tcpin://ADDR:PORT` is a TCP
     /// server. Every port is offset by --instance, but a udpout target marked `shared` (one
-    /// ground station hearing every vehicle, as PX4 does it) [default:
+    /// ground station hearing every vehicle, as PX4 does it) and a port 0 (any free one; each
+    /// endpoint's port is printed as `autopilot endpoint: system=N KIND://ADDR:PORT`).
+    /// `mode=onboard` streams at the rates of PX4's onboard set (its MAVSDK link) [default:
     /// udpout://127.0.0.1:14550?bind=18570&shared (QGroundControl, pymavlink, MAVProxy),
-    /// udpout://127.0.0.1:14540?bind=14580 (MAVSDK), tcpin://127.0.0.1:5760].
+    /// udpout://127.0.0.1:14540?bind=14580&mode=onboard (MAVSDK), tcpin://127.0.0.1:5760].
     #[arg(long, value_name = "URL")]
     pub mavlink: Vec<String>,
     /// Where the parameters a ground station changes are kept (applied over the flight
@@ -231,8 +250,8 @@ pub struct BatchArgs {
     /// Airframe: a name in PARAMS_DIR/airframes/ or a .toml file.
     #[arg(long, default_value = "quad_x")]
     pub airframe: String,
-    /// Directory holding airframes/ and flight.toml [default: ./params, else the source
-    /// tree's].
+    /// Directory holding airframes/ and flight.toml [default: ./params, else the installed
+    /// PREFIX/share/autopilot/params beside PREFIX/bin, else the source tree's].
     #[arg(long)]
     pub params_dir: Option<PathBuf>,
     /// Flight parameters file [default: PARAMS_DIR/flight.toml].

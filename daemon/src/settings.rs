@@ -77,6 +77,13 @@ pub struct Settings {
     pub sensors: String,
     /// Truth CSV (embedded simulator).
     pub truth_csv: Option<PathBuf>,
+    /// Scenario whose world the embedded simulator flies (wind, start, battery, events).
+    pub scenario: Option<PathBuf>,
+    /// The embedded simulator's own MAVLink endpoint (UDP address; the port offset by the
+    /// instance): weather, clock and truth.
+    pub sim_control: Option<String>,
+    /// The embedded simulator starts paused (its clock set on `sim_control`).
+    pub paused: bool,
     /// Flight-data CSV (none: `LOG_DIR/<start time>.csv`).
     pub flight_csv: Option<PathBuf>,
     /// Directory of every run's logs, or `"none"` (none given: `logs`); see [`Self::log_dir`].
@@ -124,6 +131,9 @@ impl Default for Settings {
             seed: 1,
             sensors: "typical".into(),
             truth_csv: None,
+            scenario: None,
+            sim_control: None,
+            paused: false,
             flight_csv: None,
             log_dir: None,
             tlog: None,
@@ -256,6 +266,7 @@ impl Settings {
         rebase(&mut self.params);
         rebase(&mut self.params_dir);
         rebase(&mut self.truth_csv);
+        rebase(&mut self.scenario);
         rebase(&mut self.flight_csv);
         rebase(&mut self.tlog);
         rebase(&mut self.ulog);
@@ -330,6 +341,14 @@ impl Settings {
         given(&f.params, &mut self.params);
         given(&f.params_dir, &mut self.params_dir);
         given(&f.truth_csv, &mut self.truth_csv);
+        given(&f.scenario, &mut self.scenario);
+        if let Some(a) = &f.sim_control {
+            self.sim_control = Some(a.clone());
+        }
+        self.paused |= f.paused;
+        if self.paused && self.sim_control.is_none() {
+            bail!("--paused needs --sim-control: its SIM_PAUSE is what starts the clock");
+        }
         given(&f.flight_csv, &mut self.flight_csv);
         given(&f.log_dir, &mut self.log_dir);
         given(&f.tlog, &mut self.tlog);

@@ -6,7 +6,6 @@
 //! `HIL_ACTUATOR_CONTROLS`, in lockstep (default) or real time. With
 //! `--open-loop` it flies the scenario's actuator script with no autopilot at all.
 
-mod control;
 mod device_line;
 mod gps_device;
 mod jsbsim;
@@ -57,7 +56,8 @@ pub struct SitlCli {
     /// path to a .toml file. Overrides the scenario's.
     #[arg(long, value_name = "NAME|FILE")]
     pub airframe: Option<String>,
-    /// Directory that holds airframes/ [default: ./params, else the source tree's params/].
+    /// Directory that holds airframes/ [default: ./params, else the installed
+    /// PREFIX/share/autopilot/params beside PREFIX/bin, else the source tree's params/].
     #[arg(long, value_name = "DIR")]
     pub params_dir: Option<PathBuf>,
     /// Fly the scenario's open-loop actuator script with no autopilot (a physics demo).

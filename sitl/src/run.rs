@@ -75,6 +75,10 @@ pub(crate) fn with_instance(
     stride: u16,
     flag: &str,
 ) -> Result<std::net::SocketAddr> {
+    if addr.port() == 0 {
+        // Any free port (the bound one is printed), never offset.
+        return Ok(addr);
+    }
     let port = instance
         .checked_mul(stride)
         .and_then(|offset| addr.port().checked_add(offset));

@@ -4,6 +4,7 @@
 
 mod console;
 mod prepare;
+mod world;
 
 use crate::control_loop::{self, FlightReport, LoopCommand, Onboard, Pacing, Ports};
 use crate::devices::{GpsPort, GpsSpec, RcPort, RcSpec, WithDevices};
@@ -19,8 +20,6 @@ use flight_core::math::geo::LatLonAlt;
 use gcs::telemetry::Telemetry;
 use prepare::{Prepared, prepare, sensor_preset};
 use sitl_core::Airframe;
-use sitl_core::sensors::SensorConfig;
-use sitl_core::sim::SimConfig;
 use std::time::Duration;
 use tokio::sync::{mpsc, watch};
 
@@ -32,6 +31,11 @@ pub fn fly(cfg: Settings) -> Result<()> {
     if source != Source::Embedded && cfg.truth_csv.is_some() {
         bail!(
             "--truth-csv is for the embedded simulator; an external one writes its own (sitl --truth-csv)"
+        );
+    }
+    if source != Source::Embedded && (cfg.scenario.is_some() || cfg.sim_control.is_some()) {
+        bail!(
+            "--scenario and --sim-control are for the embedded simulator; an external one takes its own (sitl --scenario, sitl --control)"
         );
     }
     if cfg.count > 1 {
@@ -123,7 +127,7 @@ fn fly_link(
 ) -> Result<FlightReport> {
     match source {
         Source::Embedded => {
-            let link = embedded_link(cfg, airframe, cfg.instance)?;
+            let link = world::embedded_link(cfg, airframe, cfg.instance)?;
             let mut link = WithDevices::new(link, gps, rc).telling(ports.telemetry.subscribe());
             let report = control_loop::fly(
                 onboard(&mut link, autopilot, records, ports),
@@ -134,7 +138,10 @@ fn fly_link(
         }
         Source::Udp { addr, lockstep } => {
             let link = UdpLink::bind(addr, lockstep, system_id)?;
-            tracing::info!(listening = %link.local_addr()?, airframe = %airframe.name, "waiting for a simulator");
+            let local = link.local_addr()?;
+            tracing::info!(listening = %local, airframe = %airframe.name, "waiting for a simulator");
+            // Scripts read this line to learn the port (a port 0 is the system's choice).
+            println!("autopilot sensor-link: system={system_id} udp://{local}");
             let mut link = WithDevices::new(link, gps, rc).telling(ports.telemetry.subscribe());
             let pacing = if lockstep {
                 Pacing::Lockstep
@@ -214,24 +221,6 @@ fn onboard<'a>(
     }
 }
 
-/// The embedded simulator of vehicle `instance`: the settings' seed, sensors and speed, its
-/// home placed as `sitl -i` places it.
-fn embedded_link(cfg: &Settings, airframe: &Airframe, instance: u16) -> Result<EmbeddedSim> {
-    let world = SimConfig {
-        seed: cfg.seed,
-        sensors: SensorConfig::preset(sensor_preset(cfg)?),
-        home: sitl_core::geo::home_for_instance(&LatLonAlt::default(), instance),
-        ..SimConfig::default()
-    };
-    EmbeddedSim::with_world(
-        airframe,
-        world,
-        &[],
-        cfg.realtime_factor()?,
-        cfg.truth_csv.as_deref(),
-    )
-}
-
 /// The servo channel of each rotor on a JSON physics: as given (one per rotor), or in order.
 fn json_channels(channels: Vec<usize>, airframe: &Airframe) -> Result<Vec<usize>> {
     let rotors = airframe.rotors.len();
@@ -309,18 +298,12 @@ fn serve(
 fn fly_together(cfg: Settings, source: Source) -> Result<()> {
     refuse_one_vehicles_files(&cfg, &source)?;
     let airframe = Airframe::load(&cfg.airframe_path())?;
-    let sensors = sensor_preset(&cfg)?;
     let mut vehicles = Vec::with_capacity(cfg.count.into());
     let mut sims = Vec::with_capacity(cfg.count.into());
     for k in 0..cfg.count {
         let p = prepare(&cfg, &source, &airframe, cfg.instance + k)?;
-        let world = SimConfig {
-            seed: cfg.seed.wrapping_add(k.into()),
-            sensors: SensorConfig::preset(sensors),
-            home: sitl_core::geo::home_for_instance(&LatLonAlt::default(), cfg.instance + k),
-            ..SimConfig::default()
-        };
-        sims.push(EmbeddedSim::with_world(&airframe, world, &[], None, None)?);
+        let sim = world::simulator(&cfg, &airframe, cfg.instance + k, k)?;
+        sims.push(EmbeddedSim::around(sim, None, None)?);
         vehicles.push(p);
     }
     // They share the log directory: none may erase or change another's logs being written.
@@ -389,6 +372,11 @@ fn refuse_one_vehicles_files(cfg: &Settings, source: &Source) -> Result<()> {
     if *source != Source::Embedded {
         bail!(
             "--count flies vehicles in the embedded simulator (--sim); with simulator processes or flight boards run one autopilot per vehicle, each with its own --instance"
+        );
+    }
+    if cfg.sim_control.is_some() {
+        bail!(
+            "--sim-control sets one vehicle's clock; vehicles flown together share one, paced by --speed"
         );
     }
     if cfg.gps.is_some() {

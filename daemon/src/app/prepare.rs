@@ -110,6 +110,7 @@ pub(super) fn prepare(
     let (mut ports, ends) = Ports::new(16);
     let (params_tx, params_rx) = watch::channel(params.clone());
     ports.params = Some(params_rx);
+    ports.announce_ready = Some(system_id);
     Ok(Prepared {
         system_id,
         autopilot,

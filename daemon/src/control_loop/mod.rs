@@ -86,6 +86,9 @@ pub struct Ports {
     pub params: Option<watch::Receiver<FlightParams>>,
     /// The answers to answered requests (never full: at most one per request admitted).
     pub answers: mpsc::UnboundedSender<Answer>,
+    /// The system id to announce on stdout (`autopilot ready: system=N …`) the first time the
+    /// vehicle passes its pre-arm checks, for scripts that wait for it; none: say nothing.
+    pub announce_ready: Option<u8>,
 }
 
 /// The other ends of a control loop's channels, for the tasks around it.
@@ -110,6 +113,7 @@ impl Ports {
             telemetry,
             params: None,
             answers,
+            announce_ready: None,
         };
         let ends = LoopEnds {
             commands: tx,
@@ -344,6 +348,16 @@ impl<'a> ControlLoop<'a> {
         flow
     }
 
+    /// The first time the vehicle could arm: a line on stdout, if asked for.
+    fn announce_ready(&mut self) {
+        if let Some(system) = self.ports.announce_ready
+            && self.autopilot.status().prearm_ok
+        {
+            self.ports.announce_ready = None;
+            println!("autopilot ready: system={system} t_s={:.3}", self.t_s);
+        }
+    }
+
     /// Steps on `frames` in order, answering each.
     fn step_on(&mut self, frames: &[frames::LinkFrame], inputs: StepInputs) -> Result<Flow> {
         for frame in frames {
@@ -368,6 +382,7 @@ impl<'a> ControlLoop<'a> {
             self.t_s = step.t_usec as f64 * 1e-6;
             let pose = self.pose_to_send();
             self.send(&frames::answer(&step, self.rotors, pose))?;
+            self.announce_ready();
             let changed = self.autopilot.take_changed();
             let now = self.last_frame;
             if now >= self.published + TELEMETRY_INTERVAL || changed {

@@ -57,7 +57,7 @@ use vehicle_files::{FileServices, FilesConfig};
 /// and a TCP server.
 pub const DEFAULT_ENDPOINTS: [&str; 3] = [
     "udpout://127.0.0.1:14550?bind=18570&shared",
-    "udpout://127.0.0.1:14540?bind=14580",
+    "udpout://127.0.0.1:14540?bind=14580&mode=onboard",
     "tcpin://127.0.0.1:5760",
 ];
 
@@ -199,7 +199,7 @@ impl Links {
             .with_unix_start(unix_usec());
         for (link, e) in endpoints.iter().enumerate() {
             let link = LinkId::try_from(link).unwrap_or(LinkId::MAX);
-            gcs.add_link(link);
+            gcs.add_link_with(link, e.options.streams);
             let guard = Guard {
                 options: e.options.clone(),
                 signing: signing.clone(),
@@ -208,7 +208,14 @@ impl Links {
             };
             let optional = e.options.optional;
             match open(e, guard, &inbound_tx, &frames, &notices_tx).await {
-                Ok(()) => {}
+                // Scripts read this line to learn the ports (a port 0 is the system's choice).
+                Ok(Some((kind, local))) => {
+                    println!(
+                        "autopilot endpoint: system={} {kind}://{local}",
+                        v.system_id
+                    );
+                }
+                Ok(None) => {}
                 Err(e) if optional => {
                     tracing::warn!("optional ground-station endpoint not opened: {e:#}")
                 }

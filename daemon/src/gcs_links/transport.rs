@@ -422,21 +422,22 @@ fn serial(
     }
 }
 
-/// Opens `endpoint`; its task runs until the frames channel closes. A port that cannot be
-/// bound is reported and skipped (another vehicle may hold it: give it `-i N`).
+/// Opens `endpoint`; its task runs until the frames channel closes. Returns the kind and the
+/// local address of a socket (a port 0 is the one the system chose), none for a serial line.
 pub(super) async fn open(
     spec: &EndpointSpec,
     guard: Guard,
     inbound: &mpsc::Sender<Inbound>,
     frames: &Frames,
     notices: &Notices,
-) -> Result<()> {
-    match &spec.endpoint {
+) -> Result<Option<(&'static str, SocketAddr)>> {
+    Ok(Some(match &spec.endpoint {
         Endpoint::UdpOut { target, bind } => {
             let s = UdpSocket::bind(bind)
                 .await
                 .with_context(|| format!("binding UDP {bind}"))?;
-            tracing::info!(local = %s.local_addr()?, push_to = %target, "MAVLink UDP endpoint");
+            let local = s.local_addr()?;
+            tracing::info!(%local, push_to = %target, "MAVLink UDP endpoint");
             tokio::spawn(udp(
                 s,
                 Some(*target),
@@ -444,20 +445,25 @@ pub(super) async fn open(
                 inbound.clone(),
                 frames.subscribe(),
             ));
+            ("udpout", local)
         }
         Endpoint::UdpIn { bind } => {
             let s = UdpSocket::bind(bind)
                 .await
                 .with_context(|| format!("binding UDP {bind}"))?;
-            tracing::info!(local = %s.local_addr()?, "MAVLink UDP endpoint");
+            let local = s.local_addr()?;
+            tracing::info!(%local, "MAVLink UDP endpoint");
             tokio::spawn(udp(s, None, guard, inbound.clone(), frames.subscribe()));
+            ("udpin", local)
         }
         Endpoint::TcpIn { bind } => {
             let l = TcpListener::bind(bind)
                 .await
                 .with_context(|| format!("listening on TCP {bind}"))?;
-            tracing::info!(local = %l.local_addr()?, "MAVLink TCP server");
+            let local = l.local_addr()?;
+            tracing::info!(%local, "MAVLink TCP server");
             tokio::spawn(tcp_server(l, guard, inbound.clone(), frames.clone()));
+            ("tcpin", local)
         }
         Endpoint::Serial { path, baud } => {
             let (path, baud, inbound, frames, notices) = (
@@ -471,9 +477,9 @@ pub(super) async fn open(
                 .name("gcs-serial".into())
                 .spawn(move || serial(path, baud, guard, inbound, frames, notices))
                 .context("starting the serial endpoint")?;
+            return Ok(None);
         }
-    }
-    Ok(())
+    }))
 }
 
 #[cfg(test)]

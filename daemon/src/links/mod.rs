@@ -179,9 +179,12 @@ impl Source {
             let mut a: SocketAddr = addr.parse().with_context(|| {
                 format!("{url:?}: expected udp://ADDRESS:PORT, e.g. udp://0.0.0.0:4560")
             })?;
-            a.set_port(a.port().checked_add(instance).with_context(|| {
-                format!("{url:?}: instance {instance} pushes the port past 65535")
-            })?);
+            if a.port() != 0 {
+                // A port 0 is any free one (printed once bound), never offset.
+                a.set_port(a.port().checked_add(instance).with_context(|| {
+                    format!("{url:?}: instance {instance} pushes the port past 65535")
+                })?);
+            }
             let mut lockstep = true;
             parse_options(
                 url,

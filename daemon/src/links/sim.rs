@@ -8,6 +8,7 @@
 use super::SensorLink;
 use super::frames::{Received, close};
 use anyhow::{Context, Result};
+use hil::control::Control;
 use hil::{ActuatorCommand, SensorUpdate, SimulatorEnd};
 use sitl_core::sim::{Event, SimConfig, Simulator};
 use sitl_core::truth_csv::TruthCsv;
@@ -24,8 +25,9 @@ pub struct EmbeddedSim {
     end: SimulatorEnd,
     /// What the exchanges so far have told the autopilot's side.
     update: SensorUpdate,
-    started: Option<Instant>,
-    speed: Option<f64>,
+    pacer: WallClockPacer,
+    /// Its own MAVLink endpoint (`--sim-control`): weather, clock, truth.
+    control: Option<Control>,
     truth: Option<TruthCsv>,
     truth_error: Option<io::Error>,
     first: bool,
@@ -61,21 +63,66 @@ impl EmbeddedSim {
     ) -> Result<Self> {
         let mut sim = Simulator::new(airframe, config, BodyState::default())?;
         sim.schedule(events)?;
+        Self::around(sim, speed, truth_csv)
+    }
+
+    /// The link around a simulator built and scheduled (a scenario's), otherwise as
+    /// [`Self::with_world`].
+    pub fn around(sim: Simulator, speed: Option<f64>, truth_csv: Option<&Path>) -> Result<Self> {
+        let rotors = sim.airframe().rotors.len();
         let truth = truth_csv
             .map(|p| {
-                TruthCsv::create(p, 100.0, airframe.rotors.len())
+                TruthCsv::create(p, 100.0, rotors)
                     .with_context(|| format!("creating truth CSV {}", p.display()))
             })
             .transpose()?;
         Ok(Self {
             end: SimulatorEnd::new(sim, EXCHANGE_HZ),
             update: SensorUpdate::default(),
-            started: None,
-            speed,
+            pacer: WallClockPacer {
+                anchor: None,
+                speed,
+            },
+            control: None,
             truth,
             truth_error: None,
             first: true,
         })
+    }
+
+    /// Served with its own MAVLink endpoint, whose clock (if offered) paces it from now on.
+    pub fn with_control(mut self, control: Control) -> Self {
+        self.control = Some(control);
+        self
+    }
+
+    /// Answers the control endpoint and applies the weather it set; whether the clock lets
+    /// simulated time run now, waiting up to `timeout` for it to if not (a paused clock).
+    fn clock_runs(&mut self, timeout: Duration) -> bool {
+        let Some(control) = self.control.as_mut() else {
+            return true;
+        };
+        let mut waited = false;
+        loop {
+            for action in control.poll(self.end.sim()) {
+                self.end.sim_mut().apply(action);
+            }
+            let t_s = self.end.sim().time_s();
+            let Some(pace) = control.pace() else {
+                return true;
+            };
+            if !pace.holds(t_s) {
+                self.pacer.set_speed(pace.speedup_at(t_s), t_s);
+                return true;
+            }
+            if waited {
+                // Held: from now on, as if the clock had started when it resumes.
+                self.pacer.anchor = None;
+                return false;
+            }
+            control.wait(timeout);
+            waited = true;
+        }
     }
 
     /// Steps physics over one exchange with the last command, without a frame.
@@ -130,21 +177,47 @@ impl EmbeddedSim {
     }
 }
 
+/// Keeps simulated time at `speed` × the wall clock's from an anchor, moved whenever the pace
+/// changes or the clock held (no burst to catch up).
+struct WallClockPacer {
+    /// A wall-clock instant and the simulated time due then.
+    anchor: Option<(Instant, f64)>,
+    /// × real time; `None`: unpaced.
+    speed: Option<f64>,
+}
+
+impl WallClockPacer {
+    /// Paces at `speed` from simulated time `t_s` on, if it changed.
+    fn set_speed(&mut self, speed: Option<f64>, t_s: f64) {
+        if speed != self.speed {
+            self.speed = speed;
+            self.anchor = Some((Instant::now(), t_s));
+        }
+    }
+
+    /// Sleeps until simulated time `t_s` is due.
+    fn wait_until(&mut self, t_s: f64) {
+        let Some(f) = self.speed else { return };
+        let (at, from_s) = *self.anchor.get_or_insert_with(|| (Instant::now(), t_s));
+        let due = at + Duration::from_secs_f64((t_s - from_s).max(0.0) / f);
+        if let Some(wait) = due.checked_duration_since(Instant::now()) {
+            std::thread::sleep(wait);
+        }
+    }
+}
+
 impl SensorLink for EmbeddedSim {
     /// Steps physics over one exchange with the last answer (lockstep: the answer, or the last
     /// command if none came, as `sitl` does on a timeout) and hands over the next frame.
-    fn receive(&mut self, _timeout: Duration, into: &mut Received) -> io::Result<bool> {
+    fn receive(&mut self, timeout: Duration, into: &mut Received) -> io::Result<bool> {
         if !self.first {
+            if !self.clock_runs(timeout) {
+                return Ok(false);
+            }
             self.advance_world();
         }
         self.first = false;
-        let started = *self.started.get_or_insert_with(Instant::now);
-        if let Some(f) = self.speed {
-            let due = started + Duration::from_secs_f64(self.end.sim().time_s() / f);
-            if let Some(wait) = due.checked_duration_since(Instant::now()) {
-                std::thread::sleep(wait);
-            }
-        }
+        self.pacer.wait_until(self.end.sim().time_s());
         self.end.frame_update(&mut self.update);
         into.frames.extend(close(&mut self.update));
         Ok(true)

@@ -7,6 +7,8 @@
 //! the byte transports (feature `transport`) and the truth report are `mavwire`'s, re-exported
 //! here.
 
+#[cfg(feature = "transport")]
+pub mod control;
 pub mod hand;
 pub mod json;
 mod simulator_end;

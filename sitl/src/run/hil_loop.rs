@@ -32,15 +32,20 @@ fn open_transport(cli: &SitlCli) -> Result<(Box<dyn Transport>, String)> {
 }
 
 /// The weather control port, if the command line opens one.
-fn open_control(cli: &SitlCli, scenario: &Scenario) -> Result<Option<crate::control::Control>> {
+fn open_control(cli: &SitlCli, scenario: &Scenario) -> Result<Option<hil::control::Control>> {
     Ok(match cli.control {
         Some(addr) => {
-            let c = crate::control::Control::bind(
-                with_instance(addr, cli.instance, 1, "--control")?,
+            let addr = with_instance(addr, cli.instance, 1, "--control")?;
+            let c = hil::control::Control::bind(
+                addr,
                 &scenario.sim.wind,
                 scenario.sim.calibration_hand,
-            )?;
-            tracing::info!(control = %c.local_addr()?, "weather control listening");
+            )
+            .with_context(|| format!("binding --control {addr}"))?;
+            let local = c.local_addr()?;
+            tracing::info!(control = %local, "weather control listening");
+            // Scripts read this line to learn the port (a port 0 is the system's choice).
+            println!("sitl control: udp://{local}");
             Some(c)
         }
         None => None,
@@ -96,7 +101,7 @@ pub fn hil(
         }
         status.maybe_print(end.sim(), started);
         if let Some(c) = control.as_mut() {
-            for action in c.poll(end.sim().time_s()) {
+            for action in c.poll(end.sim()) {
                 end.sim_mut().apply(action);
             }
         }
