@@ -68,6 +68,7 @@ impl GroundStation {
         match msg {
             MavMessage::HEARTBEAT(h) if h.mavtype == MavType::MAV_TYPE_GCS => {
                 out.gcs_heartbeat = true;
+                self.heard_ground_station(from);
             }
             MavMessage::COMMAND_LONG(_) | MavMessage::COMMAND_INT(_) | MavMessage::SET_MODE(_) => {
                 self.on_command_message(from, msg, t, out);

@@ -17,6 +17,9 @@ pub mod component_metadata;
 pub mod events;
 mod incoming;
 mod link_rates;
+mod stream_sets;
+use stream_sets::DEFAULT_STREAMS;
+pub use stream_sets::StreamSet;
 pub mod mission;
 pub mod modes;
 mod notices;
@@ -48,33 +51,6 @@ pub const COMPONENT_ID: u8 = 1;
 
 /// `MAV_CMD_COMPONENT_ARM_DISARM` param2 that forces the command.
 const FORCE_MAGIC: f32 = 21196.0;
-
-/// Messages sent without being asked, with their default rates (Hz), PX4-like.
-const DEFAULT_STREAMS: [(u32, f64); 20] = [
-    (HEARTBEAT_DATA::ID, 1.0),
-    (SYS_STATUS_DATA::ID, 1.0),
-    (EXTENDED_SYS_STATE_DATA::ID, 1.0),
-    (GLOBAL_POSITION_INT_DATA::ID, 5.0),
-    (LOCAL_POSITION_NED_DATA::ID, 5.0),
-    (GPS_RAW_INT_DATA::ID, 2.0),
-    (ATTITUDE_DATA::ID, 10.0),
-    (ATTITUDE_QUATERNION_DATA::ID, 10.0),
-    (VFR_HUD_DATA::ID, 4.0),
-    (BATTERY_STATUS_DATA::ID, 1.0),
-    (HOME_POSITION_DATA::ID, 0.5),
-    (ALTITUDE_DATA::ID, 1.0),
-    (SYSTEM_TIME_DATA::ID, 1.0),
-    (CURRENT_MODE_DATA::ID, 1.0),
-    // The set-points flown, echoed (PX4's normal stream set has them too).
-    (ATTITUDE_TARGET_DATA::ID, 2.0),
-    (POSITION_TARGET_LOCAL_NED_DATA::ID, 1.0),
-    // In Orbit only, at PX4's rate of its normal stream set.
-    (ORBIT_EXECUTION_STATUS_DATA::ID, 2.0),
-    (WIND_COV_DATA::ID, 1.0), // once the vehicle has flown and learned it
-    // Once an RC receiver is read (PX4's normal stream set has RC_CHANNELS at 5 Hz).
-    (RC_CHANNELS_DATA::ID, 5.0),
-    (RADIO_STATUS_DATA::ID, 1.0),
-];
 
 /// Slowest and fastest stream rates a ground station may ask for (Hz); sensor messages may
 /// go faster, up to the sensor rate.
@@ -246,9 +222,28 @@ pub struct GroundStation {
     cal_said: calibration::Said,
     /// A reboot restarts the process: refused for one of several vehicles in it (`--count`).
     reboot_allowed: bool,
+    /// The ground stations heard (link, system, component), at most [`MAX_GROUND_STATIONS`]:
+    /// one heard for the first time gets every stream of its link at once, so that it need not
+    /// wait a second for the first heartbeat and status.
+    ground_stations: Vec<(LinkId, u32, u8)>,
 }
 
+/// Ground stations remembered for [`GroundStation::ground_stations`]; past them, a new one waits
+/// for the streams' own times (a flood of made-up ids cannot buy bursts).
+const MAX_GROUND_STATIONS: usize = 64;
+
 impl GroundStation {
+    /// A ground station's heartbeat from `from` on the current link: one heard there for the
+    /// first time gets the link's streams at once.
+    fn heard_ground_station(&mut self, from: &mavlink::MavHeader) {
+        let key = (self.link, from.system_id, from.component_id);
+        if !self.ground_stations.contains(&key) && self.ground_stations.len() < MAX_GROUND_STATIONS
+        {
+            self.ground_stations.push(key);
+            self.rates.restart(self.link);
+        }
+    }
+
     /// The protocol for system `system_id`, a vehicle of `mav_type`.
     pub fn new(system_id: u8, mav_type: MavType) -> Self {
         Self {
@@ -273,6 +268,7 @@ impl GroundStation {
             imu_sent: Vec::new(),
             cal_said: Default::default(),
             reboot_allowed: true,
+            ground_stations: Vec::new(),
         }
     }
 
@@ -357,6 +353,11 @@ impl GroundStation {
     /// always is one.
     pub fn add_link(&mut self, link: LinkId) {
         self.rates.add(link);
+    }
+
+    /// A link the vehicle streams on, starting with stream set `set`.
+    pub fn add_link_with(&mut self, link: LinkId, set: StreamSet) {
+        self.rates.add_with(link, set);
     }
 
     /// Sends what is due at `now_s`: streams, requested messages, and a heartbeat at once when

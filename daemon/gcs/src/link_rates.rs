@@ -4,7 +4,7 @@
 //! default streams. Sensor messages may be asked up to the rate the sensors deliver
 //! ([`SampleRate`]); every other stream up to [`RATE_RANGE_HZ`].
 
-use super::{DEFAULT_STREAMS, RATE_RANGE_HZ};
+use super::{RATE_RANGE_HZ, StreamSet};
 use mavlink::MessageData;
 use mavlink::dialects::common::{
     ATTITUDE_DATA, ATTITUDE_QUATERNION_DATA, HIGHRES_IMU_DATA, SCALED_IMU_DATA,
@@ -37,10 +37,10 @@ struct Stream {
     next_s: f64,
 }
 
-/// The streams of every link.
+/// The streams of every link, and the set each started with.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct LinkRates {
-    links: Vec<(LinkId, Vec<Stream>)>,
+    links: Vec<(LinkId, StreamSet, Vec<Stream>)>,
 }
 
 impl Default for LinkRates {
@@ -55,27 +55,46 @@ impl Default for LinkRates {
 impl LinkRates {
     /// A link with the default streams (nothing if it exists).
     pub(crate) fn add(&mut self, link: LinkId) {
-        self.streams(link);
+        if !self.links.iter().any(|l| l.0 == link) {
+            self.add_with(link, StreamSet::Normal);
+        }
+    }
+
+    /// A link with the streams of `set`: a link that exists starts again with them if it had
+    /// another set (link 0 is there from the start, with the default one).
+    pub(crate) fn add_with(&mut self, link: LinkId, set: StreamSet) {
+        let streams = || {
+            set.rates()
+                .iter()
+                .map(|&(id, hz)| Stream {
+                    id,
+                    interval_s: 1.0 / hz,
+                    next_s: 0.0,
+                })
+                .collect()
+        };
+        match self.links.iter_mut().find(|l| l.0 == link) {
+            Some(l) if l.1 != set => *l = (link, set, streams()),
+            Some(_) => {}
+            None => self.links.push((link, set, streams())),
+        }
     }
 
     /// The streams of `link`, which starts with the default ones if it is new.
     fn streams(&mut self, link: LinkId) -> &mut Vec<Stream> {
-        let k = match self.links.iter().position(|l| l.0 == link) {
-            Some(k) => k,
-            None => {
-                let streams = DEFAULT_STREAMS
-                    .iter()
-                    .map(|&(id, hz)| Stream {
-                        id,
-                        interval_s: 1.0 / hz,
-                        next_s: 0.0,
-                    })
-                    .collect();
-                self.links.push((link, streams));
-                self.links.len() - 1
-            }
-        };
-        &mut self.links[k].1
+        self.add(link);
+        let k = self.links.iter().position(|l| l.0 == link).unwrap_or(0);
+        &mut self.links[k].2
+    }
+
+    /// The rate message `id` starts with on `link` (Hz), if its set streams it.
+    pub(crate) fn default_hz(&self, link: LinkId, id: u32) -> Option<f64> {
+        let set = self
+            .links
+            .iter()
+            .find(|l| l.0 == link)
+            .map_or(StreamSet::Normal, |l| l.1);
+        set.rates().iter().find(|s| s.0 == id).map(|s| s.1)
     }
 
     /// Sets message `id` on `link` to `hz` (`None`: off), from the slowest allowed rate to
@@ -93,22 +112,30 @@ impl LinkRates {
         }
     }
 
+    /// Every stream of `link` due at once (a ground station just arrived there); each keeps
+    /// its interval from then on.
+    pub(crate) fn restart(&mut self, link: LinkId) {
+        for s in self.streams(link) {
+            s.next_s = f64::NEG_INFINITY;
+        }
+    }
+
     /// The interval of message `id` on `link` (s), if it is streamed there.
     pub(crate) fn interval_s(&self, link: LinkId, id: u32) -> Option<f64> {
-        let streams = &self.links.iter().find(|l| l.0 == link)?.1;
+        let streams = &self.links.iter().find(|l| l.0 == link)?.2;
         streams.iter().find(|s| s.id == id).map(|s| s.interval_s)
     }
 
     /// The fastest stream of any link (Hz; 0 with none).
     pub(crate) fn fastest_hz(&self) -> f64 {
-        let streams = self.links.iter().flat_map(|l| &l.1);
+        let streams = self.links.iter().flat_map(|l| &l.2);
         streams.map(|s| 1.0 / s.interval_s).fold(0.0, f64::max)
     }
 
     /// Message `id` was just sent on every link at `now_s` (a heartbeat on a change): each
     /// link's next one is an interval later.
     pub(crate) fn sent_everywhere(&mut self, id: u32, now_s: f64) {
-        for (_, streams) in &mut self.links {
+        for (_, _, streams) in &mut self.links {
             if let Some(s) = streams.iter_mut().find(|s| s.id == id) {
                 s.next_s = now_s + s.interval_s;
             }
@@ -120,7 +147,7 @@ impl LinkRates {
     /// in a burst).
     pub(crate) fn due(&mut self, now_s: f64) -> Vec<(LinkId, u32)> {
         let mut due = Vec::new();
-        for (link, streams) in &mut self.links {
+        for (link, _, streams) in &mut self.links {
             let due_now =
                 |s: &&mut Stream| now_s >= s.next_s - (EARLY * s.interval_s).min(EARLY_MAX_S);
             for s in streams.iter_mut().filter(due_now) {
@@ -203,7 +230,7 @@ mod tests {
     fn streams_polled_on_samples_keep_the_rate_asked() {
         for hz in [200.0, 250.0, 90.0] {
             let mut r = LinkRates { links: Vec::new() };
-            r.links.push((0, Vec::new()));
+            r.links.push((0, StreamSet::Normal, Vec::new()));
             r.set(0, ATTITUDE_DATA::ID, Some(hz), 250.0);
             let mut sent = 0;
             for k in 0..2500 {

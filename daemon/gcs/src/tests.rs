@@ -208,6 +208,90 @@ fn heartbeats_show_px4_modes_and_follow_a_change_at_once() {
     assert_eq!(hb[0].system_status, MavState::MAV_STATE_ACTIVE);
 }
 
+/// A ground station heard for the first time gets the heartbeat and the status at once, not
+/// at the streams' next second; one heard before waits for their times.
+#[test]
+fn a_new_ground_station_gets_the_streams_at_once() {
+    let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
+    let t = telemetry(false, FlightMode::Loiter);
+    let gcs_beat = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        mavtype: MavType::MAV_TYPE_GCS,
+        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+        ..HEARTBEAT_DATA::default()
+    });
+    let sent = |out: &Outbox, id: u32| {
+        let streamed = out.streamed.iter().map(|(_, m)| m);
+        out.messages
+            .iter()
+            .chain(streamed)
+            .filter(|m| matches!(m, Outgoing::Message(m) if m.message_id() == id))
+            .count()
+    };
+    g.add_link(1);
+    let mut out = Outbox::default();
+    g.poll(0.0, &t, &mut out);
+    assert_eq!(
+        sent(&out, HEARTBEAT_DATA::ID),
+        1,
+        "to every link at the start"
+    );
+    // 0.3 s later a ground station speaks on link 1: everything of link 1 at the next poll.
+    let mut out = Outbox::default();
+    g.on_link_message(1, &gcs_header(), &gcs_beat, &t, &mut out);
+    g.poll(0.31, &t, &mut out);
+    assert_eq!(sent(&out, HEARTBEAT_DATA::ID), 1, "its heartbeat at once");
+    assert_eq!(sent(&out, SYS_STATUS_DATA::ID), 1, "its status at once");
+    // Heard again, it waits for the streams' times; so does a link nobody new spoke on.
+    let mut out = Outbox::default();
+    g.on_link_message(1, &gcs_header(), &gcs_beat, &t, &mut out);
+    g.poll(0.5, &t, &mut out);
+    assert_eq!(sent(&out, HEARTBEAT_DATA::ID), 0);
+    let mut out = Outbox::default();
+    g.poll(1.0, &t, &mut out);
+    assert_eq!(sent(&out, HEARTBEAT_DATA::ID), 1, "link 0's, on its second");
+    let mut out = Outbox::default();
+    g.poll(1.31, &t, &mut out);
+    assert_eq!(
+        sent(&out, HEARTBEAT_DATA::ID),
+        1,
+        "link 1's, a second after its start"
+    );
+}
+
+/// A link of PX4's onboard set (MAVSDK's) streams the status five times as often as a normal
+/// one, link 0 included.
+#[test]
+fn an_onboard_link_streams_the_status_at_five_hz() {
+    let mut g = GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR);
+    g.add_link_with(0, StreamSet::Onboard);
+    g.add_link(1);
+    let t = telemetry(false, FlightMode::Loiter);
+    // A message heard on a link leaves its set as it is.
+    let mut out = Outbox::default();
+    g.on_link_message(
+        0,
+        &gcs_header(),
+        &MavMessage::HEARTBEAT(HEARTBEAT_DATA::default()),
+        &t,
+        &mut out,
+    );
+    let mut counts = [0; 2];
+    for k in 0..100 {
+        let mut out = Outbox::default();
+        g.poll(f64::from(k) * 0.01, &t, &mut out);
+        for (link, m) in &out.streamed {
+            if matches!(m, Outgoing::Message(MavMessage::SYS_STATUS(_))) {
+                counts[usize::from(*link)] += 1;
+            }
+        }
+    }
+    assert_eq!(
+        counts,
+        [5, 1],
+        "SYS_STATUS in 1 s on the onboard and the normal link"
+    );
+}
+
 /// An IMU stream faster than the samples come (a vehicle slower than the wall clock) sends each
 /// sample once, not the last one again.
 #[test]

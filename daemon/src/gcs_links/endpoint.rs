@@ -145,6 +145,8 @@ pub struct LinkOptions {
     pub allowed_systems: Vec<u8>,
     /// A port that cannot be opened is a warning, not a start-up error.
     pub optional: bool,
+    /// The streams it starts with (`mode=normal|onboard`, PX4's `mavlink start -m`).
+    pub streams: gcs::StreamSet,
 }
 
 /// An endpoint and its options, as written on the command line.
@@ -158,7 +160,7 @@ pub struct EndpointSpec {
 
 impl EndpointSpec {
     /// Parses `URL[?options]`: the options every endpoint takes (`trusted`, `sysids=A,B`,
-    /// `optional`), the rest as [`Endpoint::parse`].
+    /// `optional`, `mode=normal|onboard`), the rest as [`Endpoint::parse`].
     pub fn parse(url: &str, instance: u16) -> Result<Self> {
         let (base, query) = url.split_once('?').unwrap_or((url, ""));
         let mut options = LinkOptions::default();
@@ -167,6 +169,11 @@ impl EndpointSpec {
             match kv.split_once('=') {
                 None if kv == "trusted" => options.trusted = true,
                 None if kv == "optional" => options.optional = true,
+                Some(("mode", mode)) => {
+                    options.streams = gcs::StreamSet::from_name(mode).with_context(|| {
+                        format!("{url:?}: mode={mode}: the stream sets are normal and onboard")
+                    })?;
+                }
                 Some(("sysids", list)) => {
                     for id in list.split(',') {
                         let id: u8 = id.parse().ok().filter(|&i| i > 0).with_context(|| {

@@ -108,7 +108,18 @@ fn endpoint_options_trusted_and_allow_lists_parse_on_every_kind() {
     assert!(!e.options.trusted);
     let e = EndpointSpec::parse("serial:///dev/ttyACM0?baud=115200&trusted", 0).unwrap();
     assert!(e.options.trusted && e.options.allowed_systems.is_empty());
+    assert_eq!(e.options.streams, gcs::StreamSet::Normal);
+    // PX4's stream sets; a port 0 is any port, never offset by the instance.
+    let e = EndpointSpec::parse("udpin://127.0.0.1:0?mode=onboard", 3).unwrap();
+    assert_eq!(e.options.streams, gcs::StreamSet::Onboard);
+    assert_eq!(
+        e.endpoint,
+        Endpoint::UdpIn {
+            bind: "127.0.0.1:0".parse().unwrap()
+        }
+    );
     for bad in [
+        "udpin://0.0.0.0:1?mode=fast",
         "udpin://0.0.0.0:1?sysids=0",
         "udpin://0.0.0.0:1?sysids=256",
         "udpin://0.0.0.0:1?sysids=255,x",

@@ -2,7 +2,6 @@
 //! `REQUEST_AUTOPILOT_CAPABILITIES`.
 
 use super::Call;
-use crate::DEFAULT_STREAMS;
 use crate::{GroundStation, Outbox};
 use mavlink::dialects::common::*;
 use mavlink::{Message, MessageData};
@@ -25,7 +24,7 @@ impl GroundStation {
                 let us = p[1];
                 let hz = match us {
                     -1.0 => None,
-                    0.0 => DEFAULT_STREAMS.iter().find(|s| s.0 == id).map(|s| s.1),
+                    0.0 => self.rates.default_hz(self.link, id),
                     x if x > 0.0 && x.is_finite() => Some(1e6 / x as f64),
                     x => {
                         return self.deny(to, out, &format!("message interval: bad interval {x}"));
