@@ -236,3 +236,73 @@ impl SensorLink for EmbeddedSim {
         None
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use hil::control::params::Pace;
+    use mavlink::dialects::common::{MavMessage, MavParamType, PARAM_SET_DATA};
+    use sitl_core::environment::WindConfig;
+    use std::net::UdpSocket;
+
+    /// A script's PARAM_SET of `name` to the endpoint at `to`.
+    fn set(script: &UdpSocket, to: std::net::SocketAddr, name: &str, value: f32) {
+        let mut out = Vec::new();
+        hil::Encoder::with_ids(255, 190).push(
+            &mut out,
+            &MavMessage::PARAM_SET(PARAM_SET_DATA {
+                param_value: value,
+                target_system: 1,
+                target_component: 25,
+                param_id: name.into(),
+                param_type: MavParamType::MAV_PARAM_TYPE_REAL32,
+            }),
+        );
+        script.send_to(&out, to).unwrap();
+    }
+
+    /// Frames taken until the link holds (at most `limit`).
+    fn frames_until_held(sim: &mut EmbeddedSim, limit: usize) -> usize {
+        let mut into = Received::default();
+        (0..limit)
+            .take_while(|_| sim.receive(Duration::from_millis(20), &mut into).unwrap())
+            .count()
+    }
+
+    /// Paused after its first frame, the world holds (the loop's wait ends with no frame); a
+    /// stretch set on the endpoint runs exactly that long, unpaced, and holds again; resumed,
+    /// it runs on.
+    #[test]
+    fn a_paused_clock_holds_runs_a_stretch_and_resumes() {
+        let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../params");
+        let airframe = Airframe::load(&dir.join("airframes/quad_x.toml")).unwrap();
+        let control = Control::bind("127.0.0.1:0".parse().unwrap(), &WindConfig::default(), true)
+            .unwrap()
+            .with_clock(Pace::new(Some(1.0), true));
+        let to = control.local_addr().unwrap();
+        let mut sim = EmbeddedSim::new(
+            &airframe,
+            1,
+            sitl_core::sensors::SensorPreset::Ideal,
+            Some(1.0),
+            None,
+        )
+        .unwrap()
+        .with_control(control);
+        assert_eq!(
+            frames_until_held(&mut sim, 10),
+            1,
+            "the first frame, then held"
+        );
+        assert_eq!(sim.time_s(), 0.0);
+        let script = UdpSocket::bind("127.0.0.1:0").unwrap();
+        // 0.2 s at 250 exchanges a second: 50 frames.
+        set(&script, to, "SIM_RUN_S", 0.2);
+        assert_eq!(frames_until_held(&mut sim, 1000), 50);
+        assert!((sim.time_s() - 0.2).abs() < 1e-9, "{}", sim.time_s());
+        assert_eq!(frames_until_held(&mut sim, 10), 0, "held again");
+        set(&script, to, "SIM_SPEEDUP", 0.0);
+        set(&script, to, "SIM_PAUSE", 0.0);
+        assert_eq!(frames_until_held(&mut sim, 100), 100, "running, unpaced");
+    }
+}

@@ -303,6 +303,9 @@ impl Pace {
                 if !self.paused {
                     return Err("SIM_RUN_S runs a paused clock: set SIM_PAUSE 1 first".into());
                 }
+                // To the microsecond: a value sent as REAL32 (0.2 arrives as 0.200000003) ends
+                // the stretch where it was meant to, not an exchange later.
+                let value = (value * 1e6).round() / 1e6;
                 self.run_until_s = (value > 0.0).then_some(t_s + value);
             }
         }
