@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Runs every test of the project on a fresh machine: formatting, lints, the Rust tests, the
 # Python end-to-end tests (pymavlink, MAVSDK-Python, MAVProxy) from a pinned virtual environment
-# this script creates, then a short coverage-guided fuzzing run of every target.
+# this script creates, the Python package's wheel installed into a fresh one with its examples
+# run, then a short coverage-guided fuzzing run of every target.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -32,6 +33,9 @@ if ! cat tests/requirements.txt tests/requirements-nodeps.txt | cmp -s - "$stamp
 fi
 # -rs: the summary says why a test was skipped (the BROAD data not fetched, and how to fetch it).
 "$venv/bin/python" -m pytest -q -rs --durations=20 tests/python
+
+echo "== the Python package: its wheel in a fresh venv, its examples through the plugin (at $SECONDS s)"
+tools/check_wheel.sh
 
 echo "== fuzz (coverage-guided, a short run of each target) (at $SECONDS s)"
 tools/fuzz.sh 12

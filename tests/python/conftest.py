@@ -23,6 +23,14 @@ from pymavlink import mavutil  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 
+# The Python package's API and pytest plugin (python/autopilot_sitl), on the binaries
+# tools/test.sh built: the `vehicle`, `swarm` and `make_vehicle` fixtures.
+sys.path.insert(0, str(ROOT / "python"))
+os.environ.setdefault(
+    "AUTOPILOT_SITL_BIN_DIR",
+    str(Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target")) / os.environ.get("PROFILE", "debug")))
+pytest_plugins = ["autopilot_sitl.pytest_plugin"]
+
 
 def binary(name: str) -> Path:
     """A binary built by tools/test.sh (debug profile unless PROFILE says otherwise)."""
@@ -376,28 +384,24 @@ async def first(stream, condition, timeout):
 
 
 @contextlib.asynccontextmanager
-async def mavsdk_autopilot(gcs_port):
-    """MAVSDK's native binding as a ground station on `gcs_port`, and the autopilot it found."""
+async def mavsdk_autopilot(url):
+    """MAVSDK's native binding as a ground station connected by `url`, and the autopilot it
+    found."""
     from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
 
     config = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
     async with Mavsdk(config) as mavsdk:
-        await mavsdk.add_any_connection(f"udpin://127.0.0.1:{gcs_port}")
+        await mavsdk.add_any_connection(url)
         system = await mavsdk.first_autopilot(timeout_s=30.0)
         assert system is not None, "no autopilot found"
         yield system
 
 
-def run_mavsdk_flight(tmp_path, flight, airframe="quad_x"):
-    """Runs the coroutine `flight(gcs_port)` against a fresh sitl + autopilot of `airframe` whose
-    ground-station endpoint sends to `gcs_port` (where MAVSDK listens), in lockstep at up to six
-    times real time (the flights' times are the simulator's), and stops them after."""
-    daemon = Daemon(tmp_path, "udpout://127.0.0.1:{port}?bind=0", connect=False,
-                    airframe=airframe, lockstep=True, speed=6)
-    try:
-        asyncio.run(flight(daemon.gcs_port))
-    finally:
-        daemon.close()
+def run_mavsdk_flight(make_vehicle, flight, airframe="quad_x"):
+    """Runs the coroutine `flight(vehicle)` against a fresh vehicle of `airframe` (the plugin's
+    `make_vehicle`: the embedded simulator in lockstep at six times real time, the flights'
+    times being the simulator's); the plugin stops it after."""
+    asyncio.run(flight(make_vehicle(airframe=airframe, speed=6)))
 
 
 async def land_and_disarm(action, telemetry):

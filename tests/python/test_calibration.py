@@ -127,7 +127,7 @@ def test_mavsdk_calibrates_the_magnetometer_with_its_calibration_plugin(tmp_path
                sim_args=["--sensors", "noisy"], lockstep=True, speed=8)
 
     async def run():
-        async with mavsdk_autopilot(d.gcs_port) as system:
+        async with mavsdk_autopilot(f"udpin://127.0.0.1:{d.gcs_port}") as system:
             calibration = CalibrationAsync(system)
             progress, results = [], []
 

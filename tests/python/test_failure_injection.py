@@ -23,8 +23,8 @@ async def collect(stream, into):
         into.append(item)
 
 
-async def hexa_loses_a_motor(gcs_port):
-    async with mavsdk_autopilot(gcs_port) as system:
+async def hexa_loses_a_motor(vehicle):
+    async with mavsdk_autopilot(vehicle.mavsdk_url) as system:
         telemetry, action = TelemetryAsync(system), ActionAsync(system)
         param, failure = ParamAsync(system), FailureAsync(system)
         texts = []
@@ -73,8 +73,8 @@ async def hexa_loses_a_motor(gcs_port):
         await land_and_disarm(action, telemetry)
 
 
-async def quad_loses_a_motor(gcs_port):
-    async with mavsdk_autopilot(gcs_port) as system:
+async def quad_loses_a_motor(vehicle):
+    async with mavsdk_autopilot(vehicle.mavsdk_url) as system:
         telemetry, action = TelemetryAsync(system), ActionAsync(system)
         param, failure = ParamAsync(system), FailureAsync(system)
         await first(telemetry.subscribe_health_all_ok(), bool, 60)
@@ -115,9 +115,9 @@ async def quad_loses_a_motor(gcs_port):
         assert not await first(telemetry.subscribe_in_air(), lambda a: True, 5)
 
 
-def test_a_quad_that_loses_a_motor_says_so_spins_on_three_and_lands(tmp_path):
-    run_mavsdk_flight(tmp_path, quad_loses_a_motor, airframe="quad_x")
+def test_a_quad_that_loses_a_motor_says_so_spins_on_three_and_lands(make_vehicle):
+    run_mavsdk_flight(make_vehicle, quad_loses_a_motor, airframe="quad_x")
 
 
-def test_motor_cut_in_hold_is_found_and_flown_through(tmp_path):
-    run_mavsdk_flight(tmp_path, hexa_loses_a_motor, airframe="hexa_x")
+def test_motor_cut_in_hold_is_found_and_flown_through(make_vehicle):
+    run_mavsdk_flight(make_vehicle, hexa_loses_a_motor, airframe="hexa_x")

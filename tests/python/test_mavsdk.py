@@ -7,12 +7,12 @@ import pytest
 from mavsdk_grpc.param import ParamError
 from mavsdk_grpc.telemetry import FlightMode, LandedState
 
-from conftest import first, free_tcp_port, run_mavsdk_flight
+from conftest import first, run_mavsdk_flight
 
 
-async def fly(gcs_port):
-    drone = mavsdk.System(port=free_tcp_port())
-    await drone.connect(system_address=f"udpin://127.0.0.1:{gcs_port}")
+async def fly(vehicle):
+    drone = mavsdk.System(port=vehicle.mavsdk_server_port)
+    await drone.connect(system_address=vehicle.mavsdk_url)
     try:
         await first(drone.core.connection_state(), lambda s: s.is_connected, 30)
         # Health: gyro, accelerometer, magnetometer, local and global position (SYS_STATUS), home
@@ -76,5 +76,5 @@ async def fly(gcs_port):
         drone._stop_mavsdk_server()
 
 
-def test_mavsdk_connects_reads_telemetry_and_parameters_and_flies(tmp_path):
-    run_mavsdk_flight(tmp_path, fly)
+def test_mavsdk_connects_reads_telemetry_and_parameters_and_flies(make_vehicle):
+    run_mavsdk_flight(make_vehicle, fly)

@@ -23,8 +23,8 @@ async def joystick(manual, sticks):
         await asyncio.sleep(0.05)  # the stream's period, not a wait for the vehicle
 
 
-async def fly(gcs_port):
-    async with mavsdk_autopilot(gcs_port) as system:
+async def fly(vehicle):
+    async with mavsdk_autopilot(vehicle.mavsdk_url) as system:
         # Component 1, autopilot PX4, a multicopter from the heartbeat's type.
         assert await system.autopilot_type() == Autopilot.PX4
         assert await system.vehicle_type() == Vehicle.MULTICOPTER
@@ -67,5 +67,5 @@ async def fly(gcs_port):
             stream.cancel()
 
 
-def test_native_mavsdk_finds_the_autopilot_flies_and_takes_a_joystick(tmp_path):
-    run_mavsdk_flight(tmp_path, fly)
+def test_native_mavsdk_finds_the_autopilot_flies_and_takes_a_joystick(make_vehicle):
+    run_mavsdk_flight(make_vehicle, fly)

@@ -58,8 +58,8 @@ def same_item(a, b):
     return a.is_fly_through == b.is_fly_through and a.vehicle_action == b.vehicle_action
 
 
-async def fly_square(gcs_port):
-    async with mavsdk_autopilot(gcs_port) as system:
+async def fly_square(url):
+    async with mavsdk_autopilot(url) as system:
         telemetry, action = TelemetryAsync(system), ActionAsync(system)
         mission, param = MissionAsync(system), ParamAsync(system)
         await first(telemetry.subscribe_health_all_ok(), bool, 60)
@@ -129,7 +129,7 @@ def test_mavsdk_uploads_downloads_and_flies_a_square_mission_home(tmp_path):
                     speed=6)
     try:
         start = time.monotonic()
-        asyncio.run(fly_square(daemon.gcs_port))
+        asyncio.run(fly_square(f"udpin://127.0.0.1:{daemon.gcs_port}"))
         print(f"square mission flown in {time.monotonic() - start:.0f} s wall")
     finally:
         daemon.close()
@@ -231,8 +231,8 @@ def test_pymavlink_uploads_a_mission_by_hand_and_gets_each_item_reached(fast_veh
 
 
 
-async def goto(gcs_port):
-    async with mavsdk_autopilot(gcs_port) as system:
+async def goto(vehicle):
+    async with mavsdk_autopilot(vehicle.mavsdk_url) as system:
         telemetry, action = TelemetryAsync(system), ActionAsync(system)
         await first(telemetry.subscribe_health_all_ok(), bool, 60)
         home = await first(telemetry.subscribe_home(), lambda h: True, 5)
@@ -255,8 +255,8 @@ async def goto(gcs_port):
         await land_and_disarm(action, telemetry)
 
 
-def test_mavsdk_goto_location_flies_there_and_holds(tmp_path):
-    run_mavsdk_flight(tmp_path, goto)
+def test_mavsdk_goto_location_flies_there_and_holds(make_vehicle):
+    run_mavsdk_flight(make_vehicle, goto)
 
 
 if __name__ == "__main__":

@@ -136,8 +136,8 @@ async def hover_thrust(system):
     return json.loads(target.fields_json)["thrust"]
 
 
-async def fly_offboard(gcs_port):
-    async with mavsdk_autopilot(gcs_port) as system:
+async def fly_offboard(vehicle):
+    async with mavsdk_autopilot(vehicle.mavsdk_url) as system:
         telemetry, action = TelemetryAsync(system), ActionAsync(system)
         offboard = OffboardAsync(system)
         await first(telemetry.subscribe_health_all_ok(), bool, 60)
@@ -190,8 +190,8 @@ async def fly_offboard(gcs_port):
         await land_and_disarm(action, telemetry)
 
 
-def test_mavsdk_offboard_flies_a_square_velocity_and_attitude_and_fails_safe(tmp_path):
-    run_mavsdk_flight(tmp_path, fly_offboard)
+def test_mavsdk_offboard_flies_a_square_velocity_and_attitude_and_fails_safe(make_vehicle):
+    run_mavsdk_flight(make_vehicle, fly_offboard)
 
 
 if __name__ == "__main__":
