@@ -4,8 +4,8 @@
 1. How long a vehicle takes to be ready: from `Vehicle(...)` to its return (the autopilot
    started, the estimator settled, its first heartbeat and health sendable), and from then to
    MAVSDK's own `health_all_ok` (the native binding, in-process), over --vehicles vehicles.
-2. A suite of 20 tests, each on a fresh `vehicle` (ten take off with MAVSDK-Python, ten with
-   pymavlink), run --runs times in a row with `pytest -n 2`: how many runs passed, the wall time
+2. A suite of 20 tests, each on a fresh `vehicle` (ten are docs/python.md's MAVSDK-Python
+   example, python/examples/test_takeoff.py; ten take off with pymavlink), run --runs times in a row with `pytest -n 2`: how many runs passed, the wall time
    of each, and whether any process of a run outlived it.
 
     .venv/bin/python tools/bench_plugin.py --vehicles 20 --runs 50
@@ -29,30 +29,18 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "python"))
 os.environ.setdefault("AUTOPILOT_SITL_BIN_DIR", str(ROOT / "target" / "debug"))
 
-SUITE = '''
-import asyncio, os
+SUITE = f'''
+import math, os, sys
 import pytest
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil
-import mavsdk_grpc as mavsdk
+sys.path.insert(0, {str(ROOT / "python" / "examples")!r})
+from test_takeoff import test_takeoff_reaches_5_m
 
 
 @pytest.mark.parametrize("k", range(10))
 def test_mavsdk_takes_off(vehicle, k):
-    async def fly():
-        drone = mavsdk.System(port=vehicle.mavsdk_server_port)
-        await drone.connect(system_address=vehicle.mavsdk_url)
-        async for state in drone.core.connection_state():
-            if state.is_connected:
-                break
-        await drone.action.set_takeoff_altitude(3.0)
-        await drone.action.arm()
-        await drone.action.takeoff()
-        async for p in drone.telemetry.position():
-            if p.relative_altitude_m > 2.8:
-                return
-    asyncio.run(asyncio.wait_for(fly(), 60))
-    assert vehicle.truth().height_m > 2.5
+    test_takeoff_reaches_5_m(vehicle)
 
 
 @pytest.mark.parametrize("k", range(10))
@@ -63,7 +51,7 @@ def test_pymavlink_takes_off(vehicle, k):
                             0, 0, 0)
     ack = c.recv_match(type="COMMAND_ACK", blocking=True, timeout=10)
     assert ack is not None and ack.result == 0, ack
-    nan = float("nan")
+    nan = math.nan
     c.mav.command_long_send(1, 1, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, nan, nan,
                             nan, nan)
     m = c.recv_match(type="GLOBAL_POSITION_INT", blocking=True, timeout=60,

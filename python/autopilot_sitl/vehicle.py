@@ -105,7 +105,36 @@ class _Member:
         return f"tcp:{self._endpoints['tcpin']}"
 
 
-class Vehicle(_Member):
+class _Run:
+    """A run of processes: stopped (and killed if it will not stop) when done, as a context
+    manager too; its logs stay in its `log_dir`."""
+
+    def stop(self, timeout_s: float = 30.0):
+        raise NotImplementedError
+
+    def kill(self) -> None:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        """Stops the run, killing it if it will not stop."""
+        try:
+            self.stop()
+        except VehicleError:
+            pass
+        finally:
+            self.kill()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        try:
+            self.stop()
+        finally:
+            self.kill()
+
+
+class Vehicle(_Member, _Run):
     """One vehicle in the embedded simulator (`lockstep=True`, the default: simulated time runs
     at `speed` × the wall clock, or as fast as it can with "max", and can be paused) or in a
     `sitl` process in real time (`lockstep=False`: its clock is the wall clock's times `speed`).
@@ -277,28 +306,9 @@ class Vehicle(_Member):
             self.control.close()
         self._release()
 
-    def close(self) -> None:
-        """Stops the vehicle, killing it if it will not stop; its logs stay in `log_dir`."""
-        try:
-            if self.summary is None:
-                self.stop()
-        except VehicleError:
-            pass
-        finally:
-            self.kill()
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        try:
-            if self.summary is None:
-                self.stop()
-        finally:
-            self.kill()
 
 
-class Swarm:
+class Swarm(_Run):
     """N vehicles flown together in one autopilot process on one clock (`--count N`): systems 1
     … N, each 3 m east of the one before, with its own seed (`seed` + k), ground-station ports
     and logs. Its clock runs at `speed`; pausing it, the weather and the truth are a single
@@ -353,25 +363,6 @@ class Swarm:
         for v in self.vehicles:
             v._release()
 
-    def close(self) -> None:
-        """Stops the swarm, killing it if it will not stop; its logs stay in `log_dir`."""
-        try:
-            if self.summaries is None:
-                self.stop()
-        except VehicleError:
-            pass
-        finally:
-            self.kill()
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        try:
-            if self.summaries is None:
-                self.stop()
-        finally:
-            self.kill()
 
 
 def _fields(line: str) -> dict:
