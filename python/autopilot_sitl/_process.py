@@ -97,11 +97,11 @@ class Child:
         text = self.log.read_text(errors="replace")
         return text[-chars:]
 
-    def interrupt(self, timeout_s: float) -> int:
-        """Ctrl-C, as a user ends a run (logs flushed, summary printed); killed if it has not
-        ended within `timeout_s`. Its exit status (negative: the signal that ended it)."""
+    def interrupt(self, timeout_s: float, sig=signal.SIGINT) -> int:
+        """Ctrl-C (or `sig`), as a user ends a run (logs flushed, summary printed); killed if it
+        has not ended within `timeout_s`. Its exit status (negative: the signal that ended it)."""
         if self.running():
-            self.proc.send_signal(signal.SIGINT)
+            self.proc.send_signal(sig)
             try:
                 self.proc.wait(timeout_s)
             except subprocess.TimeoutExpired:

@@ -10,6 +10,7 @@ Options: `--autopilot-speed` (simulated seconds per wall-clock second, or "max";
 `--autopilot-airframe` (quad_x), `--autopilot-sensors` (typical), `--autopilot-keep-logs`
 (keep the logs of tests that passed too; a failed test's are always kept).
 
+After the test each vehicle is stopped at once (SIGTERM: its logs flushed), in the air or not.
 When a test fails, its report gets a section naming each vehicle's logs (ULog, .tlog, CSV, the
 processes' output) with the end of the autopilot's output, and the paths as user properties
 (`--junitxml` writes them). No vehicle outlives its test: each is stopped in teardown, killed if
@@ -102,7 +103,9 @@ def _teardown(request, started):
     failed = False
     for v in started:
         try:
-            v.stop()
+            # At once, wherever it is (SIGTERM: logs flushed, summary printed): a test that
+            # ended with its vehicle in the air does not wait for it to land.
+            v.stop(land=False)
         except Exception:  # noqa: BLE001 - reported below with the logs
             failed = True
         finally:

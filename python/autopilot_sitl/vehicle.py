@@ -4,6 +4,7 @@ bound by the process itself on 127.0.0.1 port 0 and read back from its output, s
 started side by side (pytest -n) never take each other's ports."""
 
 import re
+import signal
 import socket
 import tempfile
 from dataclasses import dataclass
@@ -109,7 +110,7 @@ class _Run:
     """A run of processes: stopped (and killed if it will not stop) when done, as a context
     manager too; its logs stay in its `log_dir`."""
 
-    def stop(self, timeout_s: float = 30.0):
+    def stop(self, timeout_s: float = 60.0, land: bool = True):
         raise NotImplementedError
 
     def kill(self) -> None:
@@ -279,13 +280,14 @@ class Vehicle(_Member, _Run):
         return Logs(self.log_dir, newest("*.ulg"), newest("*.tlog"), newest("*.csv"),
                     self.ap.log, self.sim.log if self.sim else None)
 
-    def stop(self, timeout_s: float = 30.0) -> dict:
-        """Ends the run as Ctrl-C does (in the air it lands first; logs flushed) and returns the
-        flight summary (`autopilot summary:` as a dict of strings); killed if not ended within
-        `timeout_s`, and VehicleError if it ended in an error."""
+    def stop(self, timeout_s: float = 60.0, land: bool = True) -> dict:
+        """Ends the run as Ctrl-C does (in the air it lands first; logs flushed), or with
+        `land=False` as SIGTERM does (at once, wherever it is), and returns the flight summary
+        (`autopilot summary:` as a dict of strings); killed if not ended within `timeout_s`, and
+        VehicleError if it ended in an error."""
         if self.summary is not None:
             return self.summary
-        code = self.ap.interrupt(timeout_s)
+        code = self.ap.interrupt(timeout_s, signal.SIGINT if land else signal.SIGTERM)
         if self.sim is not None:
             self.sim.interrupt(10)
         if self.control is not None:
@@ -346,10 +348,11 @@ class Swarm(_Run):
     def __getitem__(self, k):
         return self.vehicles[k]
 
-    def stop(self, timeout_s: float = 60.0) -> list:
-        """Ends the run (airborne vehicles land first); each vehicle's summary, in order."""
+    def stop(self, timeout_s: float = 60.0, land: bool = True) -> list:
+        """Ends the run (airborne vehicles land first; with `land=False` at once); each
+        vehicle's summary, in order."""
         if self.summaries is None:
-            code = self.ap.interrupt(timeout_s)
+            code = self.ap.interrupt(timeout_s, signal.SIGINT if land else signal.SIGTERM)
             found = [_fields(line) for line in self.ap.lines
                      if line.startswith("autopilot summary:") and "system_id=" in line]
             if code != 0 or not found:
