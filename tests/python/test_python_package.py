@@ -153,3 +153,13 @@ def test_a_test_run_killed_mid_flight_leaves_no_vehicle(tmp_path):
     while processes_mentioning(str(tmp_path / "v")) and time.monotonic() < end:
         time.sleep(0.05)
     assert processes_mentioning(str(tmp_path / "v")) == []
+
+
+def test_a_scenario_gives_the_embedded_world_and_must_name_the_airframe(make_vehicle, scenario):
+    windy = scenario('airframe = "quad_x"\nduration_s = 60.0\n[wind]\nmean_ned_m_s = [0.0, -5.0, 0.0]\n')
+    v = make_vehicle(scenario=windy, speed="max")
+    # Air moving west: a 5 m/s wind from the east, read back from the simulator.
+    assert v.control.get("SIM_WIND_SPD") == pytest.approx(5.0)
+    assert v.control.get("SIM_WIND_DIR") == pytest.approx(90.0)
+    with pytest.raises(VehicleError, match="give --airframe quad_x"):
+        make_vehicle(scenario=windy, airframe="hexa_x")
