@@ -354,7 +354,16 @@ impl<'a> ControlLoop<'a> {
             && self.autopilot.status().prearm_ok
         {
             self.ports.announce_ready = None;
-            println!("autopilot ready: system={system} t_s={:.3}", self.t_s);
+            // On a terminal, over the status line being rewritten there (it goes on below).
+            let clear = if std::io::IsTerminal::is_terminal(&std::io::stdout()) {
+                "\r\x1b[K"
+            } else {
+                ""
+            };
+            println!(
+                "{clear}autopilot ready: system={system} t_s={:.3}",
+                self.t_s
+            );
         }
     }
 
