@@ -47,6 +47,7 @@ esac
     --param-store none 2>/dev/null | grep "autopilot summary:.*landed=true" >/dev/null
 echo "-- the examples, through the plugin (pytest -n 2)"
 "${run[@]}" python -m pytest -q -n 2 -p no:cacheprovider --basetemp="$work/tmp" .
+command -v pgrep >/dev/null || { echo "pgrep (procps) is needed to look for leftovers" >&2; exit 1; }
 left=$(pgrep -f "$work" || true)
 if [ -n "$left" ]; then
     echo "processes outlived the run: $left" >&2

@@ -45,13 +45,20 @@ class Logs:
         return {k: p for k, p in kinds.items() if p is not None and p.exists()}
 
 
-def _speed_arg(speed) -> str:
+def _speed_factor(speed) -> Optional[float]:
+    """Simulated seconds per wall-clock second; None for "max" (as fast as it can)."""
     if speed == "max" or speed is None:
-        return "max"
+        return None
     speed = float(speed)
     if not 0.01 <= speed <= 10000:
         raise ValueError(f"speed must be in [0.01, 10000] or 'max', got {speed}")
-    return repr(speed)
+    return speed
+
+
+def _speed_arg(speed) -> str:
+    """`--speed`'s argument."""
+    factor = _speed_factor(speed)
+    return "max" if factor is None else repr(factor)
 
 
 def _param_store(path: Path, params: dict) -> None:
@@ -243,7 +250,7 @@ class Vehicle(_Member, _Run):
 
     def set_speed(self, speed) -> None:
         """Simulated seconds per wall-clock second ("max": as fast as it can)."""
-        self._clock().set("SIM_SPEEDUP", 0.0 if speed == "max" else float(_speed_arg(speed)))
+        self._clock().set("SIM_SPEEDUP", _speed_factor(speed) or 0.0)
         self.speed = speed
 
     # The world.

@@ -230,10 +230,10 @@ impl Control {
     fn command(&mut self, command: MavCmd, message_id: f32, sim: &Simulator) {
         let answer = match command {
             MavCmd::MAV_CMD_REQUEST_MESSAGE => {
-                let truth = sim.truth();
                 if message_id == HIL_STATE_QUATERNION_ID {
-                    Some(crate::hil_state_quaternion(&truth))
+                    Some(crate::hil_state_quaternion(&sim.truth()))
                 } else if message_id == LOCAL_POSITION_NED_ID {
+                    let truth = sim.truth();
                     let (p, v) = (truth.body.pos_ned_m, truth.body.vel_ned_m_s);
                     Some(MavMessage::LOCAL_POSITION_NED(LOCAL_POSITION_NED_DATA {
                         time_boot_ms: (truth.time_usec / 1000) as u32,
