@@ -21,7 +21,7 @@ const POLL: Duration = Duration::from_millis(100);
 /// The rotors' commands of a servo packet (PWM on the first `rotors` channels), applied.
 fn apply_servos(end: &mut SimulatorEnd, packet: &ServoPacket, rotors: usize) {
     let mut controls = [0.0; 16];
-    for (c, &pwm) in controls.iter_mut().zip(&packet.pwm).take(rotors) {
+    for (c, &pwm) in controls.iter_mut().zip(packet.pwm()).take(rotors) {
         *c = command_from_pwm(pwm);
     }
     end.apply(&ActuatorCommand {
@@ -139,7 +139,7 @@ pub fn run(
             }
         };
         end.advance_with(|sim, u| dynamics.step(sim, u), record)?;
-        reply = state(&end).to_json();
+        state(&end).write_json(&mut reply);
         socket.send_to(reply.as_bytes(), from)?;
         summary.frames_sent += 1;
         last = Some((packet.frame_count, from));

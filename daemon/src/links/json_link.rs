@@ -52,6 +52,8 @@ pub struct JsonLink {
     last_timestamp_s: Option<f64>,
     next_truth_usec: u64,
     buf: Vec<u8>,
+    /// The socket's read timeout as last set.
+    read_timeout: Option<Duration>,
     /// What the states so far have told the autopilot's side.
     update: SensorUpdate,
     /// States dropped as older than the last (a resend crossing a reply).
@@ -93,6 +95,7 @@ impl JsonLink {
             last_timestamp_s: None,
             next_truth_usec: 0,
             buf: vec![0; 65_536],
+            read_timeout: None,
             update: SensorUpdate::default(),
             stale: 0,
         })
@@ -101,7 +104,7 @@ impl JsonLink {
     /// The servo packet for these rotor commands (disarmed: every channel at 1000 µs).
     fn servo_packet(&mut self, controls: &[f64], armed: bool) {
         let n = self.channels.iter().max().map_or(0, |&c| c + 1).max(16);
-        let mut pwm = vec![hil::json::PWM_MIN; n];
+        let mut pwm = [hil::json::PWM_MIN; hil::json::MAX_CHANNELS];
         for (rotor, &channel) in self.channels.iter().enumerate() {
             let c = if armed {
                 controls.get(rotor).copied().unwrap_or(0.0)
@@ -112,12 +115,7 @@ impl JsonLink {
         }
         self.frame_count = self.frame_count.wrapping_add(1);
         self.packet.clear();
-        ServoPacket {
-            frame_rate: FRAME_RATE_HZ,
-            frame_count: self.frame_count,
-            pwm,
-        }
-        .encode(&mut self.packet);
+        ServoPacket::new(FRAME_RATE_HZ, self.frame_count, &pwm[..n]).encode(&mut self.packet);
     }
 
     fn send_packet(&mut self) -> io::Result<()> {
@@ -188,10 +186,15 @@ impl SensorLink for JsonLink {
             self.send_packet()?;
         }
         let deadline = Instant::now() + timeout;
+        let mut wait = timeout;
         loop {
-            let left = deadline.saturating_duration_since(Instant::now());
-            self.socket
-                .set_read_timeout(Some(left.max(Duration::from_micros(1))))?;
+            // One system call fewer per exchange: the timeout is set only when it changes.
+            let wait_for = Some(wait.max(Duration::from_micros(1)));
+            if self.read_timeout != wait_for {
+                self.socket.set_read_timeout(wait_for)?;
+                self.read_timeout = wait_for;
+            }
+            wait = deadline.saturating_duration_since(Instant::now());
             let (n, from) = match self.socket.recv_from(&mut self.buf) {
                 Ok(r) => r,
                 Err(e)
@@ -304,7 +307,7 @@ mod tests {
         assert!(!link.receive(Duration::from_millis(20), &mut into).unwrap());
         let (first, from) = packet(&physics);
         assert_eq!((first.frame_count, first.frame_rate), (1, FRAME_RATE_HZ));
-        assert!(first.pwm.iter().all(|&p| p == 1000), "{:?}", first.pwm);
+        assert!(first.pwm().iter().all(|&p| p == 1000), "{:?}", first.pwm());
 
         physics
             .send_to(reply(0.004, -2.0).as_bytes(), from)
@@ -337,7 +340,7 @@ mod tests {
         assert_eq!(second.frame_count, 2);
         let commands: Vec<f64> = [2, 0, 3, 1]
             .iter()
-            .map(|&c| command_from_pwm(second.pwm[c]))
+            .map(|&c| command_from_pwm(second.pwm()[c]))
             .collect();
         assert_eq!(commands, [0.1, 0.2, 0.3, 0.4]);
 

@@ -55,31 +55,54 @@ impl std::fmt::Display for JsonError {
 
 impl std::error::Error for JsonError {}
 
-/// The autopilot's servo output.
-#[derive(Debug, Clone, PartialEq, Eq)]
+/// Channels in the wide servo packet.
+pub const MAX_CHANNELS: usize = 32;
+
+/// The autopilot's servo output: a plain value, encoded and decoded without allocating.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ServoPacket {
     /// The autopilot's loop rate (Hz).
     pub frame_rate: u16,
     /// Packet number: one more every packet, the same again for a resend.
     pub frame_count: u32,
-    /// PWM of each channel (µs): 16 or 32 of them.
-    pub pwm: Vec<u16>,
+    /// PWM of each channel (µs); the first [`ServoPacket::channels`] are sent.
+    pub pwm_us: [u16; MAX_CHANNELS],
+    /// 16 or 32: the packet's layout.
+    pub channels: usize,
 }
 
 impl ServoPacket {
-    /// Appends the packet's bytes to `out`: the 16-channel layout, or the 32-channel one when
-    /// there are more than 16 channels (missing channels 0).
+    /// A packet of `pwm` (µs, channel 0 first): the 16-channel layout, or the 32-channel one
+    /// for more than 16 channels (missing channels 0). Channels past 32 are dropped.
+    pub fn new(frame_rate: u16, frame_count: u32, pwm: &[u16]) -> Self {
+        let mut pwm_us = [0; MAX_CHANNELS];
+        let n = pwm.len().min(MAX_CHANNELS);
+        pwm_us[..n].copy_from_slice(&pwm[..n]);
+        Self {
+            frame_rate,
+            frame_count,
+            pwm_us,
+            channels: if n > 16 { MAX_CHANNELS } else { 16 },
+        }
+    }
+
+    /// The PWM of the channels the packet carries (µs).
+    pub fn pwm(&self) -> &[u16] {
+        &self.pwm_us[..self.channels]
+    }
+
+    /// Appends the packet's bytes to `out`.
     pub fn encode(&self, out: &mut Vec<u8>) {
-        let (magic, n) = if self.pwm.len() > 16 {
-            (MAGIC_32, 32)
+        let magic = if self.channels > 16 {
+            MAGIC_32
         } else {
-            (MAGIC_16, 16)
+            MAGIC_16
         };
         out.extend_from_slice(&magic.to_le_bytes());
         out.extend_from_slice(&self.frame_rate.to_le_bytes());
         out.extend_from_slice(&self.frame_count.to_le_bytes());
-        for i in 0..n {
-            out.extend_from_slice(&self.pwm.get(i).copied().unwrap_or(0).to_le_bytes());
+        for pwm in self.pwm() {
+            out.extend_from_slice(&pwm.to_le_bytes());
         }
     }
 
@@ -94,7 +117,7 @@ impl ServoPacket {
         let u16_at = |i: usize| u16::from_le_bytes([bytes[i], bytes[i + 1]]);
         let n = match u16_at(0) {
             MAGIC_16 => 16,
-            MAGIC_32 => 32,
+            MAGIC_32 => MAX_CHANNELS,
             m => return Err(JsonError::Packet(format!("unknown magic {m}"))),
         };
         if bytes.len() != 8 + 2 * n {
@@ -104,10 +127,15 @@ impl ServoPacket {
                 8 + 2 * n
             )));
         }
+        let mut pwm_us = [0; MAX_CHANNELS];
+        for (i, pwm) in pwm_us[..n].iter_mut().enumerate() {
+            *pwm = u16_at(8 + 2 * i);
+        }
         Ok(Self {
             frame_rate: u16_at(2),
             frame_count: u32::from_le_bytes([bytes[4], bytes[5], bytes[6], bytes[7]]),
-            pwm: (0..n).map(|i| u16_at(8 + 2 * i)).collect(),
+            pwm_us,
+            channels: n,
         })
     }
 }
@@ -154,62 +182,69 @@ impl PhysicsState {
     /// after a colon) between newlines, the attitude as a quaternion. The newline before it
     /// matters too: ArduPilot takes the text between the last two newlines it has.
     pub fn to_json(&self) -> String {
-        let v = |v: &Vector3<f64>| format!("[{:e},{:e},{:e}]", v.x, v.y, v.z);
+        let mut s = String::with_capacity(512);
+        self.write_json(&mut s);
+        s
+    }
+
+    /// [`PhysicsState::to_json`] into `out` (cleared first), which keeps its allocation from
+    /// one reply to the next.
+    pub fn write_json(&self, out: &mut String) {
+        use std::fmt::Write;
+        out.clear();
         let q = self.q_ned_from_frd.quaternion();
-        let mut s = format!(
-            "\n{{\"timestamp\":{:e},\"imu\":{{\"gyro\":{},\"accel_body\":{}}},\"position\":{},\"velocity\":{},\"quaternion\":[{:e},{:e},{:e},{:e}]",
-            self.timestamp_s,
-            v(&self.gyro_frd_rad_s),
-            v(&self.accel_frd_m_s2),
-            v(&self.pos_ned_m),
-            v(&self.vel_ned_m_s),
-            q.w,
-            q.i,
-            q.j,
-            q.k
-        );
+        let v = |v: &Vector3<f64>| [v.x, v.y, v.z];
+        // Writing to a String cannot fail.
+        let _ = write!(out, "\n{{\"timestamp\":{:e},\"imu\":{{", self.timestamp_s);
+        write_array(out, "gyro", &v(&self.gyro_frd_rad_s));
+        out.push(',');
+        write_array(out, "accel_body", &v(&self.accel_frd_m_s2));
+        out.push_str("},");
+        write_array(out, "position", &v(&self.pos_ned_m));
+        out.push(',');
+        write_array(out, "velocity", &v(&self.vel_ned_m_s));
+        out.push(',');
+        write_array(out, "quaternion", &[q.w, q.i, q.j, q.k]);
         if let Some(airspeed) = self.airspeed_m_s {
-            s += &format!(",\"airspeed\":{airspeed:e}");
+            let _ = write!(out, ",\"airspeed\":{airspeed:e}");
         }
         if let Some((voltage, current)) = self.battery {
-            s += &format!(",\"battery\":{{\"voltage\":{voltage:e},\"current\":{current:e}}}");
+            let _ = write!(
+                out,
+                ",\"battery\":{{\"voltage\":{voltage:e},\"current\":{current:e}}}"
+            );
         }
-        s + "}\n"
+        out.push_str("}\n");
     }
 
     /// Parses one JSON state; unknown keys are ignored, every required one must be there and
-    /// finite, and a quaternion must have a length (it is normalised).
+    /// finite, and a quaternion must have a length (it is normalised). The text is read
+    /// in one pass by a reader written for it (`json/scan.rs`): no document tree, no allocation.
     pub fn parse(text: &str) -> Result<Self, JsonError> {
+        Self::from_wire(scan::read_state(text.as_bytes())?)
+    }
+
+    /// The state of the keys read, checked.
+    fn from_wire(w: scan::WireState) -> Result<Self, JsonError> {
         let bad = |why: String| JsonError::State(why);
-        let root: serde_json::Value =
-            serde_json::from_str(text).map_err(|e| bad(format!("not JSON: {e}")))?;
-        let number = |v: Option<&serde_json::Value>, name: &str| -> Result<f64, JsonError> {
-            let x = v
-                .and_then(serde_json::Value::as_f64)
-                .ok_or_else(|| bad(format!("{name}: missing or not a number")))?;
-            if x.is_finite() {
-                Ok(x)
-            } else {
-                Err(bad(format!("{name}: not finite")))
-            }
+        let finite = |x: Option<f64>, name: &str| match x {
+            Some(x) if x.is_finite() => Ok(x),
+            Some(_) => Err(bad(format!("{name}: not finite"))),
+            None => Err(bad(format!("{name}: missing"))),
         };
-        let array = |v: Option<&serde_json::Value>, name: &str, n: usize| {
-            let items = v
-                .and_then(serde_json::Value::as_array)
-                .filter(|a| a.len() == n)
-                .ok_or_else(|| bad(format!("{name}: missing or not {n} numbers")))?;
-            items
-                .iter()
-                .map(|x| number(Some(x), name))
-                .collect::<Result<Vec<f64>, JsonError>>()
+        let vector = |v: Option<[f64; 3]>, name: &str| {
+            let v = v.ok_or_else(|| bad(format!("{name}: missing")))?;
+            Ok(Vector3::new(
+                finite(Some(v[0]), name)?,
+                finite(Some(v[1]), name)?,
+                finite(Some(v[2]), name)?,
+            ))
         };
-        let vector = |v: Option<&serde_json::Value>, name: &str| {
-            array(v, name, 3).map(|a| Vector3::new(a[0], a[1], a[2]))
-        };
-        let imu = root.get("imu");
-        let q_ned_from_frd = match (root.get("quaternion"), root.get("attitude")) {
+        let q_ned_from_frd = match (w.quaternion, w.attitude) {
             (Some(q), _) => {
-                let q = array(Some(q), "quaternion", 4)?;
+                for x in q {
+                    finite(Some(x), "quaternion")?;
+                }
                 let q = nalgebra::Quaternion::new(q[0], q[1], q[2], q[3]);
                 if q.norm() < 1e-6 {
                     return Err(bad("quaternion: zero length".into()));
@@ -222,43 +257,49 @@ impl PhysicsState {
             }
             (None, None) => return Err(bad("neither quaternion nor attitude".into())),
         };
-        let battery = match root.get("battery") {
-            Some(b) => Some((
-                number(b.get("voltage"), "battery.voltage")?,
-                b.get("current")
-                    .map_or(Ok(0.0), |c| number(Some(c), "battery.current"))?,
+        let battery = match w.battery {
+            Some((voltage, current)) => Some((
+                finite(voltage, "battery.voltage")?,
+                finite(Some(current), "battery.current")?,
             )),
             None => None,
         };
-        let airspeed_m_s = match root.get("airspeed") {
-            Some(a) => Some(number(Some(a), "airspeed")?),
-            None => None,
-        };
         Ok(Self {
-            timestamp_s: number(root.get("timestamp"), "timestamp")?,
-            gyro_frd_rad_s: vector(imu.and_then(|i| i.get("gyro")), "imu.gyro")?,
-            accel_frd_m_s2: vector(imu.and_then(|i| i.get("accel_body")), "imu.accel_body")?,
-            pos_ned_m: vector(root.get("position"), "position")?,
-            vel_ned_m_s: vector(root.get("velocity"), "velocity")?,
+            timestamp_s: finite(w.timestamp, "timestamp")?,
+            gyro_frd_rad_s: vector(w.gyro, "imu.gyro")?,
+            accel_frd_m_s2: vector(w.accel_body, "imu.accel_body")?,
+            pos_ned_m: vector(w.position, "position")?,
+            vel_ned_m_s: vector(w.velocity, "velocity")?,
             q_ned_from_frd,
             battery,
-            airspeed_m_s,
+            airspeed_m_s: w
+                .airspeed
+                .map(|a| finite(Some(a), "airspeed"))
+                .transpose()?,
         })
     }
 
     /// The newest state in a datagram (several lines may have queued): its last line that is
     /// not blank.
     pub fn parse_latest(datagram: &[u8]) -> Result<Self, JsonError> {
-        let text =
-            std::str::from_utf8(datagram).map_err(|_| JsonError::State("not UTF-8 text".into()))?;
-        let line = text
-            .lines()
-            .rev()
-            .find(|l| !l.trim().is_empty())
-            .ok_or_else(|| JsonError::State("empty".into()))?;
-        Self::parse(line)
+        Self::from_wire(scan::read_latest(datagram)?)
     }
 }
+
+/// `"name":[a,b,c]`, each number in the shortest form that reads back exactly.
+fn write_array(out: &mut String, name: &str, values: &[f64]) {
+    use std::fmt::Write;
+    let _ = write!(out, "\"{name}\":[");
+    for (i, x) in values.iter().enumerate() {
+        if i > 0 {
+            out.push(',');
+        }
+        let _ = write!(out, "{x:e}");
+    }
+    out.push(']');
+}
+
+mod scan;
 
 #[cfg(test)]
 mod tests;

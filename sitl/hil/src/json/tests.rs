@@ -4,11 +4,7 @@ use super::*;
 
 #[test]
 fn the_servo_packet_is_laid_out_as_ardupilot_declares_it() {
-    let p = ServoPacket {
-        frame_rate: 400,
-        frame_count: 0x0102_0304,
-        pwm: vec![1000, 1500, 2000, 1100],
-    };
+    let p = ServoPacket::new(400, 0x0102_0304, &[1000, 1500, 2000, 1100]);
     let mut bytes = Vec::new();
     p.encode(&mut bytes);
     // struct { uint16_t magic = 18458; uint16_t frame_rate; uint32_t frame_count;
@@ -21,22 +17,18 @@ fn the_servo_packet_is_laid_out_as_ardupilot_declares_it() {
     assert_eq!(&bytes[8..12], &[0xE8, 0x03, 0xDC, 0x05]);
     assert!(bytes[16..].iter().all(|&b| b == 0), "unused channels 0");
     let back = ServoPacket::decode(&bytes).unwrap();
-    assert_eq!(back.pwm.len(), 16);
-    assert_eq!(&back.pwm[..4], &p.pwm[..]);
+    assert_eq!(back.pwm().len(), 16);
+    assert_eq!(&back.pwm()[..4], &[1000, 1500, 2000, 1100]);
     assert_eq!((back.frame_rate, back.frame_count), (400, 0x0102_0304));
 
-    let wide = ServoPacket {
-        frame_rate: 1000,
-        frame_count: 7,
-        pwm: vec![1234; 20],
-    };
+    let wide = ServoPacket::new(1000, 7, &[1234; 20]);
     let mut bytes = Vec::new();
     wide.encode(&mut bytes);
     assert_eq!(
         (bytes.len(), u16::from_le_bytes([bytes[0], bytes[1]])),
         (72, MAGIC_32)
     );
-    assert_eq!(ServoPacket::decode(&bytes).unwrap().pwm[19], 1234);
+    assert_eq!(ServoPacket::decode(&bytes).unwrap().pwm()[19], 1234);
 
     for bad in [&bytes[..7], &bytes[..40], &[0u8; 40][..]] {
         assert!(ServoPacket::decode(bad).is_err(), "{bad:?}");
@@ -298,4 +290,98 @@ fn the_rule_refuses_what_it_refused_before_compact_output() {
     assert!(ardupilot_rule::parse_sensors(doc).is_ok());
     // A state without the newline before it is not read until the next one arrives.
     assert_eq!(ardupilot_rule::last_line(b"{\"timestamp\":1}\n"), None);
+}
+
+#[test]
+fn the_reader_skips_every_kind_of_value_and_refuses_what_is_not_json() {
+    let good = r#"{"timestamp": 1, "imu": {"gyro": [0,0,0], "accel_body": [0,0,-9.8]}, "position": [0,0,0], "velocity": [0,0,0], "quaternion": [1,0,0,0]}"#;
+    // Keys it does not know, of every kind, are checked and skipped, at every level.
+    let extra = r#"{"rng_1": 4.5e-1, "name": "q\"u\\ad\u00e9", "ok": true, "no": false, "x": null,
+        "list": [[], {}, [1, [2, {"a": [3]}]], "s"], "obj": {"k": {"j": -0.0}},
+        "imu": {"temperature": 30, "gyro": [0,0,0], "accel_body": [0,0,-9.8]},
+        "battery": {"voltage": 12.6, "cells": [4.2, 4.2, 4.2]},
+        "timestamp": 1, "position": [0,0,0], "velocity": [0,0,0], "quaternion": [1,0,0,0]}"#;
+    let s = PhysicsState::parse(&extra.replace('\n', " ")).unwrap();
+    assert_eq!(s.battery, Some((12.6, 0.0)));
+    assert_eq!(
+        s,
+        PhysicsState {
+            battery: Some((12.6, 0.0)),
+            ..PhysicsState::parse(good).unwrap()
+        }
+    );
+    let deep = format!("{}{}", "[".repeat(100_000), "]".repeat(100_000));
+    for bad in [
+        "",
+        "[]",
+        "{",
+        "{\"timestamp\" 1}",
+        "{\"timestamp\": 1,}",
+        "{\"timestamp\": tru}",
+        "{\"timestamp\": 1} x",
+        "{\"a\": \"unterminated}",
+        "{\"a\": [1 2]}",
+        "{\"a\": .5}",
+        "{\"a\": \"\u{1}\"}",
+        &format!("{{\"a\": {deep}}}"),
+        &good.replace("[0,0,-9.8]", "[0,0,-9.8,1]"),
+        &good.replace("\"timestamp\": 1", "\"timestamp\": \"1\""),
+        &good.replace("\"timestamp\": 1", "\"timestamp\": 1e5e5"),
+    ] {
+        assert!(PhysicsState::parse(bad).is_err(), "{bad:.80}");
+    }
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(4096))]
+    /// The reader's numbers are the standard library's, bit for bit: every double written in
+    /// both of Rust's shortest forms, and decimal strings of any length and exponent.
+    #[test]
+    fn numbers_read_exactly_as_the_standard_library_reads_them(
+        bits in proptest::num::u64::ANY,
+        digits in "[0-9]{1,25}",
+        fraction in "[0-9]{0,25}",
+        exp in -340i32..340,
+    ) {
+        let x = f64::from_bits(bits);
+        let mut texts = vec![
+            format!("-{digits}.{fraction}e{exp}").replace(".e", "e"),
+            format!("{digits}.{fraction}").trim_end_matches('.').to_string(),
+            // Within the fast cases: up to 19 digits, small exponents.
+            format!("{}.{}e{}", &digits[..digits.len().min(9)], &fraction[..fraction.len().min(10)], exp % 30)
+                .replace(".e", "e"),
+        ];
+        if x.is_finite() {
+            texts.push(format!("{x:e}"));
+            texts.push(format!("{x}"));
+        }
+        for t in texts {
+            let doc = format!(r#"{{"timestamp": {t}, "imu": {{"gyro": [0,0,0], "accel_body": [0,0,-9.8]}}, "position": [0,0,0], "velocity": [0,0,0], "quaternion": [1,0,0,0]}}"#);
+            let expect: f64 = t.parse().unwrap();
+            match PhysicsState::parse(&doc) {
+                Ok(s) => proptest::prop_assert_eq!(s.timestamp_s.to_bits(), expect.to_bits(), "{}", t),
+                Err(_) => proptest::prop_assert!(!expect.is_finite(), "{}", t),
+            }
+        }
+    }
+}
+
+#[test]
+fn the_latest_line_of_a_datagram_is_the_state() {
+    let ours = our_state();
+    let good = ours.to_json();
+    let crlf = good.trim().to_string() + "\r\n";
+    for (datagram, ok) in [
+        (format!("{{\"broken\": \n{good}"), true),
+        (format!("{good}{{\"broken\": \n"), false),
+        (format!("{good}  \n\n"), true),
+        (format!("garbage\n{crlf}"), true),
+        (format!("{good} x\n"), false),
+        ("\n \n".to_string(), false),
+    ] {
+        let r = PhysicsState::parse_latest(datagram.as_bytes());
+        assert_eq!(r.is_ok(), ok, "{datagram:?}: {r:?}");
+    }
+    let bad_utf8 = [&b"{\"name\": \"\xff\", "[..], &good.as_bytes()[2..]].concat();
+    assert!(PhysicsState::parse_latest(&bad_utf8).is_err());
 }

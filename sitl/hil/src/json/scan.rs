@@ -1,0 +1,369 @@
+//! A JSON reader written for the one document the link reads a thousand times a second: the
+//! physics' state. It walks the text once, reads the keys it knows straight into a
+//! [`WireState`] and checks and skips every other value, with no tree and no allocation; numbers
+//! go through the standard library's float parser (Eisel–Lemire), a few hundred instructions
+//! each where a general deserializer took a thousand. Nesting deeper than [`MAX_DEPTH`] is
+//! refused, so no datagram can exhaust the stack.
+
+use super::JsonError;
+
+/// Deepest nesting of arrays and objects read (skipped values included).
+const MAX_DEPTH: usize = 32;
+
+/// The state's keys as the JSON carries them; `None`: absent.
+#[derive(Debug, Default)]
+pub(super) struct WireState {
+    pub timestamp: Option<f64>,
+    pub gyro: Option<[f64; 3]>,
+    pub accel_body: Option<[f64; 3]>,
+    pub position: Option<[f64; 3]>,
+    pub velocity: Option<[f64; 3]>,
+    pub quaternion: Option<[f64; 4]>,
+    pub attitude: Option<[f64; 3]>,
+    /// `battery.voltage`, `battery.current` (0 when absent): present when `battery` is.
+    pub battery: Option<(Option<f64>, f64)>,
+    pub airspeed: Option<f64>,
+}
+
+/// Reads one JSON object into a [`WireState`]; anything after it but blanks is an error.
+pub(super) fn read_state(text: &[u8]) -> Result<WireState, JsonError> {
+    let mut s = Scanner { b: text, at: 0 };
+    let w = s.state()?;
+    s.blanks();
+    if s.at < s.b.len() {
+        return Err(s.error("text after the object"));
+    }
+    Ok(w)
+}
+
+/// The newest state in `datagram`, one per line: the outcome of its last line that is not
+/// blank. Read from the start, so the usual datagram of one state is walked once.
+pub(super) fn read_latest(datagram: &[u8]) -> Result<WireState, JsonError> {
+    let mut s = Scanner { b: datagram, at: 0 };
+    let mut latest = Err(JsonError::State("empty".into()));
+    loop {
+        s.blanks();
+        let line_start = s.at;
+        if line_start >= datagram.len() {
+            return latest;
+        }
+        latest = s.state().and_then(|w| {
+            while let Some(b' ' | b'\t' | b'\r') = s.b.get(s.at) {
+                s.at += 1;
+            }
+            match s.b.get(s.at) {
+                None | Some(b'\n') => Ok(w),
+                Some(_) => Err(s.error("text after the object")),
+            }
+        });
+        if latest.is_err() {
+            // The next line, whatever this one held.
+            match datagram[line_start..].iter().position(|&c| c == b'\n') {
+                Some(n) => s.at = line_start + n + 1,
+                None => return latest,
+            }
+        }
+    }
+}
+
+impl Scanner<'_> {
+    /// One state object.
+    fn state(&mut self) -> Result<WireState, JsonError> {
+        let s = self;
+        let mut w = WireState::default();
+        s.object(0, |s, key| {
+            match key {
+                b"timestamp" => w.timestamp = Some(s.number()?),
+                b"position" => w.position = Some(s.numbers()?),
+                b"velocity" => w.velocity = Some(s.numbers()?),
+                b"quaternion" => w.quaternion = Some(s.numbers()?),
+                b"attitude" => w.attitude = Some(s.numbers()?),
+                b"airspeed" => w.airspeed = Some(s.number()?),
+                b"imu" => s.object(1, |s, key| {
+                    match key {
+                        b"gyro" => w.gyro = Some(s.numbers()?),
+                        b"accel_body" => w.accel_body = Some(s.numbers()?),
+                        _ => s.skip(2)?,
+                    }
+                    Ok(())
+                })?,
+                b"battery" => {
+                    let (mut voltage, mut current) = (None, 0.0);
+                    s.object(1, |s, key| {
+                        match key {
+                            b"voltage" => voltage = Some(s.number()?),
+                            b"current" => current = s.number()?,
+                            _ => s.skip(2)?,
+                        }
+                        Ok(())
+                    })?;
+                    w.battery = Some((voltage, current));
+                }
+                _ => s.skip(1)?,
+            }
+            Ok(())
+        })?;
+        Ok(w)
+    }
+}
+
+struct Scanner<'a> {
+    b: &'a [u8],
+    at: usize,
+}
+
+impl<'a> Scanner<'a> {
+    fn error(&self, what: &str) -> JsonError {
+        JsonError::State(format!("not JSON: {what} at byte {}", self.at))
+    }
+
+    fn blanks(&mut self) {
+        while let Some(b' ' | b'\t' | b'\n' | b'\r') = self.b.get(self.at) {
+            self.at += 1;
+        }
+    }
+
+    /// The next byte after blanks, not taken.
+    fn peek(&mut self) -> Option<u8> {
+        self.blanks();
+        self.b.get(self.at).copied()
+    }
+
+    fn expect(&mut self, byte: u8) -> Result<(), JsonError> {
+        if self.peek() != Some(byte) {
+            return Err(self.error(&format!("expected '{}'", byte as char)));
+        }
+        self.at += 1;
+        Ok(())
+    }
+
+    /// An object, each member's value read by `member(scanner, key)`.
+    fn object(
+        &mut self,
+        depth: usize,
+        mut member: impl FnMut(&mut Self, &[u8]) -> Result<(), JsonError>,
+    ) -> Result<(), JsonError> {
+        if depth >= MAX_DEPTH {
+            return Err(self.error("nested too deep"));
+        }
+        self.expect(b'{')?;
+        if self.peek() == Some(b'}') {
+            self.at += 1;
+            return Ok(());
+        }
+        loop {
+            let key = self.string()?;
+            self.expect(b':')?;
+            member(self, key)?;
+            match self.peek() {
+                Some(b',') => self.at += 1,
+                Some(b'}') => {
+                    self.at += 1;
+                    return Ok(());
+                }
+                _ => return Err(self.error("expected ',' or '}'")),
+            }
+        }
+    }
+
+    /// A string's raw bytes between its quotes (escapes checked, not decoded).
+    fn string(&mut self) -> Result<&'a [u8], JsonError> {
+        self.expect(b'"')?;
+        let start = self.at;
+        let mut non_ascii = false;
+        loop {
+            match self.b.get(self.at) {
+                None => return Err(self.error("unterminated string")),
+                Some(b'"') => break,
+                Some(&c) if c >= 0x80 => {
+                    non_ascii = true;
+                    self.at += 1;
+                }
+                Some(b'\\') => self.at += 2,
+                Some(&c) if c < 0x20 => return Err(self.error("control character in a string")),
+                Some(_) => self.at += 1,
+            }
+        }
+        let s = &self.b[start..self.at];
+        if non_ascii && std::str::from_utf8(s).is_err() {
+            return Err(self.error("a string not in UTF-8"));
+        }
+        self.at += 1;
+        Ok(s)
+    }
+
+    /// A number (JSON's grammar: a sign, digits, a fraction, an exponent), correctly rounded.
+    fn number(&mut self) -> Result<f64, JsonError> {
+        self.blanks();
+        let (b, start) = (self.b, self.at);
+        let negative = b.get(start) == Some(&b'-');
+        let mut i = start + usize::from(negative);
+        // The significant digits as one integer m (wrapping past 19 of them: then not exact),
+        // the value m × 10^e.
+        let (mut m, mut e, mut significant) = (0u64, 0i64, 0usize);
+        let int_start = i;
+        i = digits(b, i, &mut m, &mut significant);
+        let mut well_formed = i > int_start;
+        if b.get(i) == Some(&b'.') {
+            i += 1;
+            let fraction_start = i;
+            if m == 0 {
+                // 0.000123: the zeros only scale.
+                while b.get(i) == Some(&b'0') {
+                    i += 1;
+                }
+                significant = 0;
+            }
+            i = digits(b, i, &mut m, &mut significant);
+            well_formed &= i > fraction_start;
+            e -= (i - fraction_start) as i64;
+        }
+        if let Some(b'e' | b'E') = b.get(i) {
+            i += 1;
+            let negative_exp = b.get(i) == Some(&b'-');
+            i += usize::from(matches!(b.get(i), Some(b'-' | b'+')));
+            let (exp_start, mut x) = (i, 0i64);
+            while let Some(d @ 0..=9) = b.get(i).map(|c| c.wrapping_sub(b'0')) {
+                x = (x * 10 + i64::from(d)).min(100_000);
+                i += 1;
+            }
+            well_formed &= i > exp_start;
+            e += if negative_exp { -x } else { x };
+        }
+        let exact = significant <= 19;
+        self.at = i;
+        if !well_formed {
+            return Err(self.error("expected a number"));
+        }
+        let magnitude = match exact.then(|| decimal_to_f64(m, e)).flatten() {
+            Some(v) => v,
+            // Past the fast cases: the standard library's parser (Eisel–Lemire and its
+            // fallback), on the same ASCII token.
+            None => std::str::from_utf8(&b[start + usize::from(negative)..i])
+                .ok()
+                .and_then(|t| t.parse().ok())
+                .ok_or_else(|| self.error("not a number"))?,
+        };
+        Ok(if negative { -magnitude } else { magnitude })
+    }
+
+    /// An array of exactly `N` numbers.
+    fn numbers<const N: usize>(&mut self) -> Result<[f64; N], JsonError> {
+        self.expect(b'[')?;
+        let mut out = [0.0; N];
+        for (i, x) in out.iter_mut().enumerate() {
+            if i > 0 {
+                self.expect(b',')?;
+            }
+            *x = self.number()?;
+        }
+        self.expect(b']')
+            .map_err(|_| self.error(&format!("expected an array of {N} numbers")))?;
+        Ok(out)
+    }
+
+    /// Checks and passes over any value.
+    fn skip(&mut self, depth: usize) -> Result<(), JsonError> {
+        if depth >= MAX_DEPTH {
+            return Err(self.error("nested too deep"));
+        }
+        match self.peek() {
+            Some(b'{') => self.object(depth, |s, _| s.skip(depth + 1)),
+            Some(b'[') => {
+                self.at += 1;
+                if self.peek() == Some(b']') {
+                    self.at += 1;
+                    return Ok(());
+                }
+                loop {
+                    self.skip(depth + 1)?;
+                    match self.peek() {
+                        Some(b',') => self.at += 1,
+                        Some(b']') => {
+                            self.at += 1;
+                            return Ok(());
+                        }
+                        _ => return Err(self.error("expected ',' or ']'")),
+                    }
+                }
+            }
+            Some(b'"') => self.string().map(|_| ()),
+            Some(b't') => self.literal("true"),
+            Some(b'f') => self.literal("false"),
+            Some(b'n') => self.literal("null"),
+            _ => self.number().map(|_| ()),
+        }
+    }
+
+    fn literal(&mut self, word: &str) -> Result<(), JsonError> {
+        if self.b[self.at..].starts_with(word.as_bytes()) {
+            self.at += word.len();
+            Ok(())
+        } else {
+            Err(self.error("expected a value"))
+        }
+    }
+}
+
+/// Reads the run of ASCII digits at `i` into `m` (`m` × 10 + each, wrapping), counting them
+/// in `n`; where it ends. Eight at a time where eight are there (SWAR: one 64-bit load, a
+/// range check of all eight bytes and three multiplications, as fast_float does).
+fn digits(b: &[u8], mut i: usize, m: &mut u64, n: &mut usize) -> usize {
+    while let Some(eight) = b.get(i..i + 8) {
+        let mut chunk = [0; 8];
+        chunk.copy_from_slice(eight);
+        let v = u64::from_le_bytes(chunk);
+        let less = v.wrapping_sub(0x3030_3030_3030_3030);
+        let more = v.wrapping_add(0x4646_4646_4646_4646);
+        if (less | more) & 0x8080_8080_8080_8080 != 0 {
+            break;
+        }
+        // Pairs, then quads, then all eight (the first byte the most significant).
+        let pairs = less.wrapping_mul(10).wrapping_add(less >> 8);
+        let mask = 0x0000_00ff_0000_00ff;
+        let quads = ((pairs & mask).wrapping_mul(0x000f_4240_0000_0064)
+            + ((pairs >> 16) & mask).wrapping_mul(0x0000_2710_0000_0001))
+            >> 32;
+        *m = m.wrapping_mul(100_000_000).wrapping_add(quads);
+        *n += 8;
+        i += 8;
+    }
+    while let Some(d @ 0..=9) = b.get(i).map(|c| c.wrapping_sub(b'0')) {
+        *m = m.wrapping_mul(10).wrapping_add(u64::from(d));
+        *n += 1;
+        i += 1;
+    }
+    i
+}
+
+/// m × 10^e correctly rounded, when one of the exact fast cases covers it: Clinger's (m and
+/// 10^|e| both exact doubles, one rounding), or an integer division in 128 bits whose quotient
+/// keeps at least 56 bits and a sticky bit for the remainder (one rounding, in the cast).
+fn decimal_to_f64(m: u64, e: i64) -> Option<f64> {
+    const POW10: [f64; 23] = [
+        1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
+        1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
+    ];
+    if m == 0 {
+        return Some(0.0);
+    }
+    if m < 1 << 53 && (-22..=22).contains(&e) {
+        let p = POW10[e.unsigned_abs() as usize];
+        return Some(if e < 0 { m as f64 / p } else { m as f64 * p });
+    }
+    if e >= 0 {
+        // The integer itself, when it fits: the cast rounds once.
+        let scale = 10u128.checked_pow(u32::try_from(e).ok()?)?;
+        return u128::from(m).checked_mul(scale).map(|n| n as f64);
+    }
+    // m / 10^k for 10^k < 2^70: m shifted to the top of 128 bits over it leaves a quotient of
+    // at least 2^57.
+    let k = u32::try_from(-e).ok().filter(|&k| k <= 21)?;
+    let d = 10u128.pow(k);
+    let shift = u128::from(m).leading_zeros();
+    let n = u128::from(m) << shift;
+    let q = n / d;
+    let sticky = u128::from(n - q * d != 0);
+    // 2^-shift is exact (shift ≤ 127 - 0, the result far from the subnormals).
+    Some((q | sticky) as f64 * f64::powi(2.0, -(shift as i32)))
+}

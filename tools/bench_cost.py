@@ -1,0 +1,201 @@
+#!/usr/bin/env python3
+"""What a flight costs, in instructions (valgrind's callgrind: the same count on any day and
+any load) and in CPU time (ratios within one run), for one or more builds side by side:
+
+1. **An embedded hover frame** (`autopilot --sim`, no logs, no ground stations): instructions
+   per frame, and its compute floor, the instructions inside the flight-core step
+   (`FlightCore::step`) and the physics steps with their sensors (`Simulator::step`,
+   `Simulator::sample_sensors`). Both are differences between a 20 s and a 10 s hover, so
+   start-up, take-off and landing cancel out.
+2. **Start-up**: instructions from the process's start to its first frame (everything before
+   the control loop's `fly`), the minimal flight's whole process beside it.
+3. **Logs**: the same flight with the default logs (`.tlog`, ULog, flight CSV) against none:
+   the ratio of instructions (all threads) and of CPU time (user + system, median of --runs).
+4. **ArduPilot's JSON link**: the autopilot on `sitl --json --hil-rate 1000` (1 kHz lockstep):
+   its instructions and CPU time per simulated second, and the share of its instructions in
+   parsing the JSON state (`PhysicsState::parse_latest`).
+
+    tools/bench_cost.py                               # target/release
+    tools/bench_cost.py --bin /tmp/before --bin target/release   # two builds, one run
+
+Needs valgrind. Builds nothing: build with `cargo build --release -p autopilot -p sitl` first.
+"""
+
+import argparse
+import os
+import re
+import socket
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PARAMS = ROOT / "params"
+QUIET = ["--params-dir", str(PARAMS), "--param-store", "none", "--mavlink", "none"]
+# The floor's edge: the flight-core step and the physics steps with their sensors.
+FLOOR = [
+    "flight_core::core::step::<impl flight_core::core::FlightCore>::step",
+    "sitl_core::sim::Simulator::step",
+    "sitl_core::sim::Simulator::sample_sensors",
+]
+PARSE = ["hil::json::PhysicsState::parse_latest"]
+
+
+def callgrind(cmd, toggle=(), dump_before=None):
+    """Instructions of `cmd` (all threads), only inside `toggle`'s functions if given; with
+    `dump_before`, those before that function's first call. Returns (instructions, stdout)."""
+    with tempfile.TemporaryDirectory() as d:
+        out = Path(d) / "cg.out"
+        args = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}"]
+        args += [f"--toggle-collect={f}" for f in toggle]
+        if dump_before:
+            args.append(f"--dump-before={dump_before}")
+        run = subprocess.run(args + cmd, capture_output=True, text=True, check=True)
+        parts = sorted(Path(d).glob("cg.out*"))
+        totals = []
+        for p in parts:
+            m = re.search(r"^(?:summary|totals): (\d+)", p.read_text(errors="replace"), re.M)
+            totals.append(int(m.group(1)) if m else 0)
+        if dump_before:
+            # cg.out.1 is the part dumped before the first call; the rest come after.
+            first = [p for p in parts if p.name.endswith(".1")]
+            ir = totals[parts.index(first[0])] if first else 0
+        else:
+            ir = sum(totals)
+        return ir, run.stdout
+
+
+def field(summary, name):
+    m = re.search(rf"\b{name}=(\S+)", summary)
+    return float(m.group(1)) if m else float("nan")
+
+
+def timed(cmd):
+    """(CPU seconds of `cmd`, its stdout): user + system from wait4."""
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    out = b""
+    while chunk := p.stdout.read(65536):
+        out += chunk
+    _, status, usage = os.wait4(p.pid, 0)
+    if os.waitstatus_to_exitcode(status) != 0:
+        raise RuntimeError(f"{cmd[0]} failed")
+    return usage.ru_utime + usage.ru_stime, out.decode()
+
+
+def hover(bin_dir, hover_s, extra=()):
+    return [str(bin_dir / "autopilot"), "--sim", "--speed", "max", "--takeoff", "5",
+            "--hover", str(hover_s), *QUIET, *extra]
+
+
+def frame_cost(bin_dir):
+    """(instructions per hover frame, floor per frame)."""
+    per = {}
+    for h in (10, 20):
+        total, out = callgrind(hover(bin_dir, h, ["--log-dir", "none"]))
+        floor, _ = callgrind(hover(bin_dir, h, ["--log-dir", "none"]), toggle=FLOOR)
+        per[h] = (total, floor, field(out, "frames"))
+    frames = per[20][2] - per[10][2]
+    return (per[20][0] - per[10][0]) / frames, (per[20][1] - per[10][1]) / frames
+
+
+def startup_cost(bin_dir):
+    """(instructions before the first frame, the whole minimal flight's)."""
+    cmd = hover(bin_dir, 0, ["--log-dir", "none"])
+    cmd[cmd.index("--takeoff") + 1] = "1"
+    before, _ = callgrind(cmd, dump_before="autopilot::control_loop::fly")
+    whole, _ = callgrind(cmd)
+    return before, whole
+
+
+def logs_cost(bin_dir, runs):
+    """(instruction ratio, CPU ratio, CPU with, CPU without) of a 20 s hover with the default
+    logs against none."""
+    with tempfile.TemporaryDirectory() as logs:
+        on = hover(bin_dir, 20, ["--log-dir", logs])
+        off = hover(bin_dir, 20, ["--log-dir", "none"])
+        ir_on, _ = callgrind(on)
+        ir_off, _ = callgrind(off)
+        cpu_on, cpu_off = [], []
+        for _ in range(runs):
+            cpu_off.append(timed(off)[0])
+            cpu_on.append(timed(on)[0])
+    on_s, off_s = statistics.median(cpu_on), statistics.median(cpu_off)
+    return ir_on / ir_off, on_s / off_s, on_s, off_s
+
+
+def free_port():
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def json_flight(bin_dir, under):
+    """Runs the autopilot (under `under`, a command prefix) against `sitl --json` at 1 kHz;
+    returns (its result, its summary line)."""
+    port = free_port()
+    sitl = subprocess.Popen(
+        [str(bin_dir / "sitl"), "--json", f"127.0.0.1:{port}", "--hil-rate", "1000",
+         "--duration", "600", "--status-interval", "0", "--params-dir", str(PARAMS)],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        cmd = [str(bin_dir / "autopilot"), "--source", f"json://127.0.0.1:{port}",
+               "--takeoff", "5", "--hover", "10", "--log-dir", "none", *QUIET]
+        result = under(cmd)
+    finally:
+        sitl.kill()
+        sitl.wait()
+    out = result[1]
+    summary = next((l for l in out.splitlines() if "autopilot summary" in l), "")
+    return result[0], summary
+
+
+def json_cost(bin_dir, runs):
+    """(instructions per simulated second, parse share, CPU ms per simulated second)."""
+    total, s = json_flight(bin_dir, callgrind)
+    parse, s2 = json_flight(bin_dir, lambda c: callgrind(c, toggle=PARSE))
+    sim_s = field(s, "sim_time_s")
+    parse_share = parse / total * field(s, "frames") / field(s2, "frames")
+    cpu = []
+    for _ in range(runs):
+        c, s3 = json_flight(bin_dir, timed)
+        cpu.append(1e3 * c / field(s3, "sim_time_s"))
+    return total / sim_s, parse_share, statistics.median(cpu)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--bin", action="append", type=Path,
+                    help="a directory with autopilot and sitl (repeat to compare) "
+                    "[default: target/release]")
+    ap.add_argument("--runs", type=int, default=3, help="timed runs per CPU figure (median)")
+    a = ap.parse_args()
+    bins = a.bin or [ROOT / "target" / "release"]
+    rows = []
+    for b in bins:
+        print(f"measuring {b} ...", file=sys.stderr)
+        frame, floor = frame_cost(b)
+        start, whole = startup_cost(b)
+        ir_ratio, cpu_ratio, on_s, off_s = logs_cost(b, a.runs)
+        json_ir, share, json_ms = json_cost(b, a.runs)
+        rows.append([
+            ("hover frame, instructions (no logs, no ground stations)", f"{frame:,.0f}"),
+            ("  its compute floor (flight-core step, physics and sensors)", f"{floor:,.0f}"),
+            ("  frame / floor", f"{frame / floor:.3f}"),
+            ("start-up to the first frame, instructions", f"{start / 1e6:.1f} M"),
+            ("  the whole minimal flight (take-off to 1 m, land)", f"{whole / 1e6:.1f} M"),
+            ("logs on / off, instructions (20 s hover)", f"{ir_ratio:.2f}"),
+            ("logs on / off, CPU time", f"{cpu_ratio:.2f} ({on_s:.3f} / {off_s:.3f} s)"),
+            ("sitl --json at 1 kHz: autopilot instructions per sim s", f"{json_ir / 1e6:.1f} M"),
+            ("  parsing the JSON state, share", f"{100 * share:.1f} %"),
+            ("  autopilot CPU per simulated second", f"{json_ms:.2f} ms"),
+        ])
+    width = max(len(n) for n, _ in rows[0])
+    print(f"{'':{width}}  " + "  ".join(f"{str(b):>22}" for b in bins))
+    for i, (name, _) in enumerate(rows[0]):
+        print(f"{name:{width}}  " + "  ".join(f"{r[i][1]:>22}" for r in rows))
+
+
+if __name__ == "__main__":
+    main()
