@@ -2,17 +2,18 @@
 //! asked to do, what it commanded, the simulator's truth where one reports it, and how late the
 //! control loop woke. For plots (`tools/plot_flight.py`, any spreadsheet, pandas, gnuplot) and for
 //! finding where an error comes from. Every cell is a number at a fixed precision or a fixed word,
-//! so rows are written with `write!` rather than through the `csv` crate (whose job, quoting and
-//! escaping, has nothing to do here; the batch CSV, with free text, uses it). Rows are written by a
+//! so rows are written straight into a buffer ([`crate::records::fixed`]) rather than through the
+//! `csv` crate (whose job, quoting and escaping, has nothing to do here; the batch CSV, with free
+//! text, uses it). Rows are written by a
 //! thread of their own ([`crate::records::log_files`]): the control loop copies each row and never
 //! formats or waits on the disk.
 
+use crate::records::fixed::{push_fixed, push_int};
 use crate::records::log_files::LogFile;
 use airframe::MAX_ROTORS;
 use flight_core::autopilot::AutopilotOutput;
 use flight_core::commander::{CommanderStatus, LandedState};
 use nalgebra::{UnitQuaternion, Vector3};
-use std::io::Write;
 use std::path::Path;
 use std::time::Duration;
 
@@ -58,74 +59,90 @@ struct Row {
     commands: [f64; MAX_ROTORS],
 }
 
+/// The landed state as its column has always read (its `Debug` word).
+fn landed_word(l: LandedState) -> &'static str {
+    match l {
+        LandedState::OnGround => "OnGround",
+        LandedState::Takeoff => "Takeoff",
+        LandedState::InAir => "InAir",
+        LandedState::Landing => "Landing",
+    }
+}
+
+/// Cells at a precision: each followed by a comma but the last.
+fn cells(out: &mut Vec<u8>, values: &[f64], decimals: usize) {
+    for (i, &x) in values.iter().enumerate() {
+        if i > 0 {
+            out.push(b',');
+        }
+        push_fixed(out, x, decimals);
+    }
+}
+
 /// Roll, pitch, yaw (deg) of an optional quaternion, or empty cells.
-fn euler_deg(out: &mut dyn Write, q: Option<UnitQuaternion<f64>>) -> std::io::Result<()> {
+fn euler_deg(out: &mut Vec<u8>, q: Option<UnitQuaternion<f64>>) {
     match q {
         Some(q) => {
             let (r, p, y) = q.euler_angles();
-            write!(
-                out,
-                "{:.3},{:.3},{:.3}",
-                r.to_degrees(),
-                p.to_degrees(),
-                y.to_degrees()
-            )
+            cells(out, &[r.to_degrees(), p.to_degrees(), y.to_degrees()], 3);
         }
-        None => write!(out, ",,"),
+        None => out.extend_from_slice(b",,"),
     }
 }
 
 /// Formats `r` as a CSV line with `rotors` motor columns (on the writer thread).
-fn write_row(out: &mut dyn Write, r: &Row, rotors: usize) -> std::io::Result<()> {
+fn write_row(out: &mut Vec<u8>, r: &Row, rotors: usize) {
     let (p, v, s) = (r.pos, r.vel, r.sp_pos);
-    write!(
-        out,
-        "{:.4},{},{:?},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},",
-        r.t_s, r.mode, r.landed, r.armed as u8, p.x, p.y, p.z, v.x, v.y, v.z, s.x, s.y, s.z,
-    )?;
-    euler_deg(out, r.q)?;
-    write!(out, ",")?;
-    euler_deg(out, r.q_d)?;
-    write!(
-        out,
-        ",{:.5},{:.5},{:.5},",
-        r.rate_ref.x, r.rate_ref.y, r.rate_ref.z
-    )?;
+    push_fixed(out, r.t_s, 4);
+    out.push(b',');
+    out.extend_from_slice(r.mode.as_bytes());
+    out.push(b',');
+    out.extend_from_slice(landed_word(r.landed).as_bytes());
+    out.extend_from_slice(if r.armed { b",1," } else { b",0," });
+    cells(out, &[p.x, p.y, p.z, v.x, v.y, v.z, s.x, s.y, s.z], 4);
+    out.push(b',');
+    euler_deg(out, r.q);
+    out.push(b',');
+    euler_deg(out, r.q_d);
+    out.push(b',');
+    cells(out, &[r.rate_ref.x, r.rate_ref.y, r.rate_ref.z], 5);
+    out.push(b',');
     if let Some(t) = r.thrust_n {
-        write!(out, "{t:.3}")?;
+        push_fixed(out, t, 3);
     }
-    write!(out, ",")?;
-    if let Some(w) = r.wind {
-        write!(out, "{:.3},{:.3}", w.x, w.y)?;
-    } else {
-        write!(out, ",")?;
+    out.push(b',');
+    match r.wind {
+        Some(w) => cells(out, &[w.x, w.y], 3),
+        None => out.push(b','),
     }
-    write!(out, ",")?;
+    out.push(b',');
     match r.truth {
         Some((p, q)) => {
-            write!(out, "{:.4},{:.4},{:.4},", p.x, p.y, p.z)?;
-            euler_deg(out, Some(q))?;
+            cells(out, &[p.x, p.y, p.z], 4);
+            out.push(b',');
+            euler_deg(out, Some(q));
         }
-        None => write!(out, ",,,,,")?,
+        None => out.extend_from_slice(b",,,,,"),
     }
-    match r.loop_late {
-        Some(d) => write!(out, ",{}", d.as_micros())?,
-        None => write!(out, ",")?,
+    out.push(b',');
+    if let Some(d) = r.loop_late {
+        push_int(out, d.as_micros().try_into().unwrap_or(u64::MAX));
     }
+    out.push(b',');
     let (g, a) = (r.gyro, r.accel);
-    write!(
-        out,
-        ",{:.6},{:.6},{:.6},{:.5},{:.5},{:.5},",
-        g.x, g.y, g.z, a.x, a.y, a.z
-    )?;
+    cells(out, &[g.x, g.y, g.z], 6);
+    out.push(b',');
+    cells(out, &[a.x, a.y, a.z], 5);
+    out.push(b',');
     match r.mag {
-        Some(m) => write!(out, "{:.6},{:.6},{:.6}", m.x, m.y, m.z)?,
-        None => write!(out, ",,")?,
+        Some(m) => cells(out, &[m.x, m.y, m.z], 6),
+        None => out.extend_from_slice(b",,"),
     }
-    for c in &r.commands[..rotors] {
-        write!(out, ",{c:.4}")?;
+    for &c in &r.commands[..rotors] {
+        out.push(b',');
+        push_fixed(out, c, 4);
     }
-    writeln!(out)
+    out.push(b'\n');
 }
 
 impl FlightCsv {
@@ -145,8 +162,15 @@ impl FlightCsv {
             header += &format!(",motor{i}");
         }
         header.push('\n');
+        // Each chunk of rows formatted into one buffer, kept from chunk to chunk, and written
+        // with one call.
+        let mut text = Vec::new();
         let file = LogFile::create_with(path, header.as_bytes(), move |rows: Vec<Row>, out| {
-            rows.iter().try_for_each(|r| write_row(out, r, rotors))
+            text.clear();
+            for r in &rows {
+                write_row(&mut text, r, rotors);
+            }
+            out.write_all(&text)
         })?;
         let file = if lockstep { file.lossless() } else { file };
         Ok(Self {

@@ -250,7 +250,7 @@ impl FlightUlog {
                 (false, _) | (true, false) => f64::NAN,
                 (true, true) => step.commands[i],
             };
-            let control: Vec<f64> = (0..MOTORS).map(motor).collect();
+            let control: [f64; MOTORS] = std::array::from_fn(motor);
             self.data(
                 id::ACTUATOR_MOTORS,
                 UlogRow::at(t).u64(t).f32s(&control).u16(0),
@@ -262,7 +262,7 @@ impl FlightUlog {
                 true => 1000.0 + 1000.0 * step.commands[i].clamp(0.0, 1.0),
                 false => 0.0,
             };
-            let output: Vec<f64> = (0..OUTPUTS).map(pwm).collect();
+            let output: [f64; OUTPUTS] = std::array::from_fn(pwm);
             self.data(
                 id::ACTUATOR_OUTPUTS,
                 UlogRow::at(t).f32s(&output).u32(rotors as u32),

@@ -2,6 +2,7 @@
 //! the score against a simulator's truth, the telemetry log's files, the parameter store and
 //! the signing key's file with what signing remembers across restarts.
 
+mod fixed;
 pub mod flight_csv;
 pub mod flight_ulog;
 pub mod log_files;

@@ -283,10 +283,12 @@ pub fn subscription(out: &mut Vec<u8>, msg_id: u16, f: &Format) {
 
 /// Logged data (`D`) of subscription `msg_id`.
 pub fn data(out: &mut Vec<u8>, msg_id: u16, row: &UlogRow) {
-    let mut payload = Vec::with_capacity(2 + row.0.len());
-    payload.extend_from_slice(&msg_id.to_le_bytes());
-    payload.extend_from_slice(&row.0);
-    message(out, b'D', &payload);
+    // As `message` frames it, without copying the payload twice: a row is far below 64 KiB.
+    let size = u16::try_from(2 + row.0.len()).unwrap_or(u16::MAX);
+    out.extend_from_slice(&size.to_le_bytes());
+    out.push(b'D');
+    out.extend_from_slice(&msg_id.to_le_bytes());
+    out.extend_from_slice(&row.0[..usize::from(size) - 2]);
 }
 
 /// A logged string (`L`) at `t_us`.
