@@ -175,14 +175,6 @@ impl Autopilot {
         let mut commander = Commander::new(commander_params);
         commander.set_safety_params(params.safety);
         let core = FlightCore::new(airframe, FlightCoreConfig::from_params(params, airframe))?;
-        if airframe.rotors.len() == 4 {
-            for rotor in (0..4).filter(|&r| !core.flies_on_three_rotors(r)) {
-                tracing::warn!(
-                    motor = rotor + 1,
-                    "no relaxed hover without this rotor: its loss cannot be flown on three"
-                );
-            }
-        }
         let published = VehicleState {
             status: commander.status(),
             estimate: None,

@@ -106,7 +106,8 @@ pub(super) fn prepare(
         .flatten()
         .cloned()
         .collect();
-    let (files, metadata) = files_config(cfg, airframe, ulog.as_ref(), busy);
+    let served = !endpoints.is_empty();
+    let (files, metadata) = files_config(cfg, airframe, ulog.as_ref(), busy, served);
     let (mut ports, ends) = Ports::new(16);
     let (params_tx, params_rx) = watch::channel(params.clone());
     ports.params = Some(params_rx);
@@ -217,12 +218,14 @@ fn load_signing(
 
 /// What MAVLink FTP and the log download serve (the logs being written, `busy`, protected),
 /// with the component metadata in its virtual folder; the metadata's URI and CRC when FTP
-/// serves it.
+/// serves it. Without a ground-station endpoint (`served` false) nothing can ask for the
+/// metadata, and it is not made (a quarter of a minimal flight's start-up).
 fn files_config(
     cfg: &Settings,
     airframe: &Airframe,
     ulog: Option<&PathBuf>,
     busy: Vec<PathBuf>,
+    served: bool,
 ) -> (vehicle_files::FilesConfig, Option<(String, u32)>) {
     let mut files = vehicle_files::FilesConfig {
         ftp_root: cfg.ftp_root().map(Path::to_path_buf),
@@ -240,6 +243,9 @@ fn files_config(
         busy,
         virtual_dir: vehicle_files::VirtualDir::default(),
     };
+    if !served {
+        return (files, None);
+    }
     // The component metadata, read by FTP: named only when FTP serves it.
     let metadata = ComponentMetadata::new(&airframe.name, gcs::COMPONENT_ID);
     files.virtual_dir = vehicle_files::VirtualDir {

@@ -382,7 +382,7 @@ impl FlightCore {
         };
         let spinning = self
             .spinning_without
-            .and_then(|r| self.three_rotors.get(r).and_then(Option::as_ref));
+            .and_then(|r| self.three_rotor_control(r));
         if let Some(control) = spinning {
             // Mueller & D'Andrea: the primary axis turned toward the thrust direction asked
             // (upright when only rates are: the spin leaves no body rate to fly), the spin
