@@ -207,6 +207,9 @@ pub struct SensorSuite {
     pub gps_fix_lost: bool,
     /// Extra magnetic field added in NED (gauss), to inject disturbances.
     pub mag_disturbance_ned: Vector3<f64>,
+    /// The IMU's white noise and bias walk are drawn once per exchange by
+    /// [`SensorSuite::exchange_imu_noise`], not at every sample.
+    noise_per_exchange: bool,
 }
 
 /// sin(x) for x ∈ [−π, π] to within 1e-6: plenty for vibration, at a fraction of libm's cost.
@@ -324,8 +327,43 @@ impl SensorSuite {
             health: [SensorHealth::Ok; 5],
             gps_fix_lost: false,
             mag_disturbance_ned: Vector3::zeros(),
+            noise_per_exchange: false,
             cfg,
         }
+    }
+
+    /// From now on the IMU's samples carry no white noise and its biases hold between
+    /// exchanges: [`SensorSuite::exchange_imu_noise`] draws both once per exchange for the
+    /// average the autopilot is sent. The same statistics — the mean of n samples of white
+    /// noise of density N at interval Δt has σ = N / √(n Δt), and a random walk sampled at
+    /// the exchanges is the same walk —, a quarter of the Gaussian draws at 1 kHz physics
+    /// and 250 Hz exchanges.
+    pub fn draw_imu_noise_per_exchange(&mut self) {
+        self.noise_per_exchange = true;
+    }
+
+    /// The IMU's noise over an exchange of `interval_s` added to its average (`accel`, `gyro`,
+    /// board axes, clamped to the ranges), and the biases walked on for the next exchange.
+    /// Nothing while the IMU is not healthy (a stuck IMU repeats itself exactly).
+    pub fn exchange_imu_noise(
+        &mut self,
+        interval_s: f64,
+        accel: &mut Vector3<f64>,
+        gyro: &mut Vector3<f64>,
+    ) {
+        if !self.noise_per_exchange || interval_s <= 0.0 || self.health[0] != SensorHealth::Ok {
+            return;
+        }
+        let c = &self.cfg;
+        let rate_noise = 1.0 / interval_s.sqrt();
+        let a = *accel + self.accel_rng.normal3(c.accel_noise_density * rate_noise);
+        let g = *gyro + self.gyro_rng.normal3(c.gyro_noise_density * rate_noise);
+        *accel = a.map(|x| x.clamp(-c.accel_range, c.accel_range));
+        *gyro = g.map(|x| x.clamp(-c.gyro_range, c.gyro_range));
+        self.accel_bias += self
+            .accel_rng
+            .normal3(c.accel_bias_walk * interval_s.sqrt());
+        self.gyro_bias += self.gyro_rng.normal3(c.gyro_bias_walk * interval_s.sqrt());
     }
 
     /// The injected state of one sensor.
@@ -416,8 +454,17 @@ impl SensorSuite {
                 vib += self.vibration_axis[i] * (amp * fast_sin(phase));
             }
         }
-        self.accel_bias += self.accel_rng.normal3(c.accel_bias_walk * dt.sqrt());
-        self.gyro_bias += self.gyro_rng.normal3(c.gyro_bias_walk * dt.sqrt());
+        // White noise and the biases' walk here, or once per exchange.
+        let (accel_noise, gyro_noise) = if self.noise_per_exchange {
+            (Vector3::zeros(), Vector3::zeros())
+        } else {
+            self.accel_bias += self.accel_rng.normal3(c.accel_bias_walk * dt.sqrt());
+            self.gyro_bias += self.gyro_rng.normal3(c.gyro_bias_walk * dt.sqrt());
+            (
+                self.accel_rng.normal3(c.accel_noise_density * rate_noise),
+                self.gyro_rng.normal3(c.gyro_noise_density * rate_noise),
+            )
+        };
         match self.health[0] {
             SensorHealth::Ok => {
                 // In the board's axes, which the mounting error tilts from the body's.
@@ -425,10 +472,8 @@ impl SensorSuite {
                 let accel = specific.component_mul(&(Vector3::repeat(1.0) + self.accel_scale))
                     + self.accel_bias
                     + self.board.inverse_transform_vector(&vib)
-                    + self.accel_rng.normal3(c.accel_noise_density * rate_noise);
-                let gyro = self.board.inverse_transform_vector(&w)
-                    + self.gyro_bias
-                    + self.gyro_rng.normal3(c.gyro_noise_density * rate_noise);
+                    + accel_noise;
+                let gyro = self.board.inverse_transform_vector(&w) + self.gyro_bias + gyro_noise;
                 self.last.accel_frd_m_s2 = accel.map(|x| x.clamp(-c.accel_range, c.accel_range));
                 self.last.gyro_frd_rad_s = gyro.map(|x| x.clamp(-c.gyro_range, c.gyro_range));
                 updated |= fields::ACCEL | fields::GYRO;

@@ -251,6 +251,11 @@ impl Simulator {
         }
     }
 
+    /// The sensor models, to change how they draw their noise.
+    pub fn sensors_mut(&mut self) -> &mut SensorSuite {
+        &mut self.sensors
+    }
+
     /// The sensors, for fault injection and scoring (true biases).
     pub fn sensors(&self) -> &SensorSuite {
         &self.sensors

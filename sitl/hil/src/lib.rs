@@ -257,6 +257,14 @@ impl Accumulator {
         a.time_usec = f.time_usec;
     }
 
+    /// The interval's averaged accelerometer and gyro, to add what is drawn once per interval.
+    pub fn imu_mut(&mut self) -> (&mut Vector3<f64>, &mut Vector3<f64>) {
+        (
+            &mut self.frame.accel_frd_m_s2,
+            &mut self.frame.gyro_frd_rad_s,
+        )
+    }
+
     /// The frame of the interval so far.
     pub fn frame(&self) -> &SensorFrame {
         &self.frame

@@ -45,8 +45,11 @@ impl SimulatorEnd {
     pub fn new(mut sim: Simulator, exchange_hz: f64) -> Self {
         let physics_hz = 1.0 / sim.config().dt_s;
         let steps = (physics_hz / exchange_hz.max(1e-3)).round().max(1.0) as usize;
+        // The autopilot sees the IMU's average over each exchange: its noise is drawn once
+        // for that average (`SensorSuite::draw_imu_noise_per_exchange`).
+        sim.sensors_mut().draw_imu_noise_per_exchange();
         let acc = Accumulator::new(sim.sample_sensors());
-        Self {
+        let mut end = Self {
             sim,
             acc,
             encoder: crate::sim_encoder(),
@@ -57,7 +60,20 @@ impl SimulatorEnd {
             hand: HandRequest::None,
             hand_heard_s: f64::NEG_INFINITY,
             hil_gps: true,
-        }
+        };
+        end.exchange_noise();
+        end
+    }
+
+    /// The IMU noise of the exchange just stepped, on its average. (Never inlined: a function
+    /// of its own, `tools/bench_cost.py` counts it in the frame's compute floor.)
+    #[inline(never)]
+    fn exchange_noise(&mut self) {
+        let interval_s = self.steps_per_exchange as f64 * self.sim.config().dt_s;
+        let (accel, gyro) = self.acc.imu_mut();
+        self.sim
+            .sensors_mut()
+            .exchange_imu_noise(interval_s, accel, gyro);
     }
 
     /// Appends the current exchange's messages to `out` (`HIL_SENSOR` last; the truth when due)
@@ -197,6 +213,7 @@ impl SimulatorEnd {
             self.acc.add(self.sim.sample_sensors());
             each_step(&self.sim)?;
         }
+        self.exchange_noise();
         Ok(())
     }
 
@@ -222,6 +239,7 @@ impl SimulatorEnd {
             self.acc.add(self.sim.sample_sensors());
             each_step(&self.sim)?;
         }
+        self.exchange_noise();
         Ok(())
     }
 
