@@ -250,7 +250,8 @@ impl Autopilot {
 
     /// The commander's state.
     pub fn status(&self) -> CommanderStatus {
-        self.commander.status()
+        // Published after every change to the commander.
+        self.published.status
     }
 
     /// Whether the armed state or the mode changed since the last call.
@@ -265,7 +266,7 @@ impl Autopilot {
 
     /// The flight core's last output.
     fn estimate(&self) -> Option<StepOutput> {
-        self.last_answer.map(|a| a.estimate)
+        self.last_answer.as_ref().map(|a| a.estimate)
     }
 
     /// Samples that repeated or went back in time, answered or dropped without a step.
@@ -277,6 +278,16 @@ impl Autopilot {
     /// older than the last (stale: dropped). A sample more than [`SOURCE_RESTART_S`] older than
     /// the last is a source that started again: the autopilot does too.
     pub fn step(&mut self, sample: &SensorSample, inputs: &StepInputs) -> Option<AutopilotOutput> {
+        if self.step_in_place(sample, inputs) {
+            self.last_answer
+        } else {
+            None
+        }
+    }
+
+    /// [`Autopilot::step`] without copying its answer out: whether there is one, which
+    /// [`Autopilot::output`] then holds (the control loop's way: the answer is 2 kB).
+    pub fn step_in_place(&mut self, sample: &SensorSample, inputs: &StepInputs) -> bool {
         let t_usec = sample.t_usec;
         let mut restarted = false;
         if let Some(last) = &self.last_answer
@@ -286,15 +297,16 @@ impl Autopilot {
             self.source_restarted(back_s);
             restarted = true;
         }
-        if let Some(last) = &self.last_answer
+        if let Some(last) = self.last_answer.as_mut()
             && t_usec <= last.t_usec
         {
             // A sample seen before: answered again without stepping; an older one is dropped.
             self.repeated_frames += 1;
-            return (t_usec == last.t_usec).then_some(AutopilotOutput {
-                kind: StepKind::Repeated,
-                ..*last
-            });
+            if t_usec == last.t_usec {
+                last.kind = StepKind::Repeated;
+                return true;
+            }
+            return false;
         }
         let mut sample = *sample;
         self.power_and_gps(&sample, t_usec);
@@ -320,7 +332,9 @@ impl Autopilot {
             self.rc_frame(t_s, frame);
         }
         let (setpoint, armed) = self.command_setpoint(t_s, inputs);
-        let spooling = self.set_flight_phase();
+        // The commander's state once a step: nothing below changes it.
+        let status = self.commander.status();
+        let spooling = self.set_flight_phase(&status);
         let output = self.core.step(&flown, &setpoint, armed);
         self.report_core(&output);
         // Magnetometer and barometer as last seen (a sample carries them only when fresh).
@@ -343,7 +357,7 @@ impl Autopilot {
         let mut commands = output.commands;
         self.injected
             .apply_to_commands(&mut commands[..self.rotors]);
-        let answer = AutopilotOutput {
+        self.last_answer = Some(AutopilotOutput {
             t_usec,
             commands,
             armed,
@@ -355,11 +369,15 @@ impl Autopilot {
                 ..sample
             },
             restarted,
-        };
-        self.last_answer = Some(answer);
+        });
         self.published.estimate = Some(output);
-        self.publish();
-        Some(answer)
+        self.publish_with(status);
+        true
+    }
+
+    /// The last answer: the last step's, or the one before it repeated.
+    pub fn output(&self) -> Option<&AutopilotOutput> {
+        self.last_answer.as_ref()
     }
 
     /// The battery's voltage and charge, and the last GPS solution, from `sample`.
@@ -372,8 +390,8 @@ impl Autopilot {
             let current = sample
                 .esc_current_a
                 .map(|c| c[..self.rotors.min(c.len())].iter().sum::<f64>());
-            let throttle = self.estimate().map_or(0.0, |o| {
-                o.commands[..self.rotors].iter().sum::<f64>() / self.rotors.max(1) as f64
+            let throttle = self.last_answer.as_ref().map_or(0.0, |a| {
+                a.estimate.commands[..self.rotors].iter().sum::<f64>() / self.rotors.max(1) as f64
             });
             let dt = self.dt_since_last(t_usec);
             self.battery.step(v, current, throttle, dt);
@@ -382,8 +400,7 @@ impl Autopilot {
 
     /// Tells the flight core where the vehicle is in its flight (from the commander's state);
     /// returns whether it is spooling up on the ground.
-    fn set_flight_phase(&mut self) -> bool {
-        let status = self.commander.status();
+    fn set_flight_phase(&mut self, status: &CommanderStatus) -> bool {
         let spooling = status.armed && status.landed == LandedState::OnGround;
         if spooling {
             // Spooling up on the ground: the position loop starts fresh at take-off.
@@ -431,12 +448,13 @@ impl Autopilot {
 
     /// Time of the last answered sample (µs; 0 before the first).
     fn last_t_usec(&self) -> u64 {
-        self.last_answer.map_or(0, |a| a.t_usec)
+        self.last_answer.as_ref().map_or(0, |a| a.t_usec)
     }
 
     /// Seconds from the last step to `t_usec` (0 before the first).
     fn dt_since_last(&self, t_usec: u64) -> f64 {
         self.last_answer
+            .as_ref()
             .map_or(0.0, |a| t_usec.saturating_sub(a.t_usec) as f64 * 1e-6)
     }
 
@@ -468,13 +486,14 @@ impl Autopilot {
                 .as_mut()
                 .is_some_and(|f| f.update(&tr.pos_ned_m.xy(), &tr.vel_ned_m_s.xy(), in_air, brake));
         let p = &self.core.config().position;
+        let (roll, pitch, yaw) = e.attitude.map_or((0.0, 0.0, 0.0), |a| a.q.euler_angles());
         let out = self.commander.update(&CommanderInput {
             t_s,
             ready,
             horizontal_valid: tr.horizontal_valid,
             pos_ned_m: tr.pos_ned_m,
             vel_ned_m_s: tr.vel_ned_m_s,
-            yaw_rad: e.attitude.map_or(0.0, |a| a.q.euler_angles().2),
+            yaw_rad: yaw,
             hover_thrust: p.mass_kg * crate::GRAVITY_M_S2 / p.max_thrust_n.max(1e-9),
             thrust: self.core.thrust_fraction(),
             imu_still: e.attitude.is_some_and(|a| a.imu_still),
@@ -483,10 +502,7 @@ impl Autopilot {
                 attitude_valid,
                 gyro_bias_settled: e.attitude.is_some_and(|a| a.bias_settled),
                 altitude_valid: tr.vertical_valid,
-                roll_pitch_rad: e.attitude.map_or((0.0, 0.0), |a| {
-                    let (roll, pitch, _) = a.q.euler_angles();
-                    (roll, pitch)
-                }),
+                roll_pitch_rad: (roll, pitch),
                 gcs_link_age_s: inputs.gcs_link_age_s,
                 motor_failed: self
                     .core

@@ -133,8 +133,10 @@ impl Autopilot {
         commands: Option<[f64; MAX_ROTORS]>,
         sample: &SensorSample,
         restarted: bool,
-    ) -> Option<AutopilotOutput> {
-        let estimate = self.estimate()?;
+    ) -> bool {
+        let Some(estimate) = self.estimate() else {
+            return false;
+        };
         if !self.commander.armed() {
             self.imu_frozen_since_usec = None;
         }
@@ -157,6 +159,6 @@ impl Autopilot {
         };
         self.last_answer = Some(answer);
         self.publish();
-        Some(answer)
+        true
     }
 }
