@@ -15,7 +15,7 @@ use crate::estimator::translation::TranslationEstimator;
 use crate::mixer::{Mixer, MixerError, MixerOutput};
 use crate::safety::motor_failure::MotorFailureDetector;
 use airframe::{Airframe, DragSpec, MAX_ROTORS};
-use std::cell::OnceCell;
+use std::sync::OnceLock;
 
 mod config;
 mod step;
@@ -43,7 +43,7 @@ pub struct FlightCore {
     /// A quad's reduced-attitude controller for each rotor it may lose (empty for other
     /// airframes; `None` where that rotor's loss has no relaxed hover), each solved the first
     /// time it is asked for: about 1.4 ms of LQR work a rotor that most flights never need.
-    three_rotors: Vec<OnceCell<Option<ReducedAttitude>>>,
+    three_rotors: Vec<OnceLock<Option<ReducedAttitude>>>,
     /// The quad the three-rotor controllers are solved for.
     quad: Option<Box<Airframe>>,
     /// The rotor lost while a quad flies spinning on the other three.
@@ -113,7 +113,7 @@ impl FlightCore {
             motor: MotorSpeedLoop::new(airframe, config.motor),
             motor_failure: MotorFailureDetector::new(airframe, config.motor_failure),
             three_rotors: if airframe.rotors.len() == 4 {
-                vec![OnceCell::new(); 4]
+                vec![OnceLock::new(); 4]
             } else {
                 Vec::new()
             },
