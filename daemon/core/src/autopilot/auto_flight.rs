@@ -53,8 +53,9 @@ impl Autopilot {
         let Some(a) = self.auto else {
             return;
         };
+        // As published after the commander last changed: the same as computing it again.
+        let s = self.published.status;
         let c = &mut self.commander;
-        let s = c.status();
         if !self.end_when_disarmed {
             if s.ready && !s.armed {
                 if let Err(e) = c.takeoff(Some(a.takeoff_m)).and_then(|()| c.arm(false)) {
