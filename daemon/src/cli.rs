@@ -116,9 +116,9 @@ pub struct FlightArgs {
     #[arg(long)]
     pub paused: bool,
     /// Write the flight data (estimate, set-points, motor commands, loop timing and, from a
-    /// simulator, the truth) to this CSV file, one row per sensor frame [default:
-    /// LOG_DIR/<start time>.csv].
-    #[arg(long, value_name = "FILE")]
+    /// simulator, the truth) to this CSV file, one row per sensor frame, or `none` for no CSV
+    /// (the ULog holds the same flight) [default: LOG_DIR/<start time>.csv].
+    #[arg(long, value_name = "FILE|none")]
     pub flight_csv: Option<PathBuf>,
     /// Where every run leaves its logs, named by its start time (UTC): a MAVLink telemetry log
     /// (`.tlog`: mavlogdump.py, MAVExplorer, QGroundControl), the flight log (`.ulg`, PX4's

@@ -253,8 +253,8 @@ impl Settings {
         }
     }
 
-    /// Makes the relative paths of a file relative to its directory `dir` (but a log directory
-    /// or parameter store `"none"`, and an airframe given by name).
+    /// Makes the relative paths of a file relative to its directory `dir` (but a log directory,
+    /// flight-data CSV or parameter store `"none"`, and an airframe given by name).
     fn rebase(&mut self, dir: &Path) {
         let rebase = |p: &mut Option<PathBuf>| {
             if let Some(p) = p.as_mut()
@@ -267,7 +267,9 @@ impl Settings {
         rebase(&mut self.params_dir);
         rebase(&mut self.truth_csv);
         rebase(&mut self.scenario);
-        rebase(&mut self.flight_csv);
+        if self.flight_csv.as_deref() != Some(Path::new("none")) {
+            rebase(&mut self.flight_csv);
+        }
         rebase(&mut self.tlog);
         rebase(&mut self.ulog);
         if self.ftp_root.as_deref() != Some(Path::new("none")) {

@@ -119,6 +119,13 @@ def test_logs_go_where_asked_and_none_is_none(tmp_path):
     assert any(m.get_type() == "HEARTBEAT" for m in read_tlog(tmp_path / "a.tlog"))
 
 
+def test_the_flight_csv_can_be_left_out_and_the_other_logs_stay(tmp_path):
+    fly_with_a_ground_station(tmp_path, "--flight-csv", "none")
+    suffixes = sorted(p.suffix for p in (tmp_path / "logs").iterdir())
+    assert suffixes == [".tlog", ".ulg"], suffixes
+    assert not (tmp_path / "none").exists()
+
+
 def test_the_plot_tool_turns_a_flight_csv_into_figures(tmp_path):
     _, _, _ = fly_with_a_ground_station(tmp_path)
     log = next((tmp_path / "logs").glob("*.csv"))

@@ -385,7 +385,10 @@ fn refuse_one_vehicles_files(cfg: &Settings, source: &Source) -> Result<()> {
         );
     }
     if cfg.truth_csv.is_some()
-        || cfg.flight_csv.is_some()
+        || cfg
+            .flight_csv
+            .as_deref()
+            .is_some_and(|p| p != std::path::Path::new("none"))
         || cfg.tlog.is_some()
         || cfg.ulog.is_some()
     {

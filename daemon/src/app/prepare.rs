@@ -295,7 +295,11 @@ fn log_paths(cfg: &Settings, instance: u16, notices: &mut Vec<String>) -> LogPat
     });
     let default = |ext| stem.as_ref().map(|s| s.with_extension(ext));
     LogPaths {
-        flight_csv: cfg.flight_csv.clone().or_else(|| default("csv")),
+        flight_csv: match cfg.flight_csv.as_deref() {
+            Some(p) if p == Path::new("none") => None,
+            Some(p) => Some(p.to_path_buf()),
+            None => default("csv"),
+        },
         tlog: cfg.tlog.clone().or_else(|| default("tlog")),
         ulog: cfg.ulog.clone().or_else(|| default("ulg")),
     }
