@@ -28,6 +28,13 @@ printf '%-50s %s x real time (%s frames/s), %s of logs\n' "flight: embedded, 60 
     "$(du -sh "$logs" | cut -f1)"
 rm -rf "$logs"
 
+# What a frame, the start-up, the logs and ArduPilot's JSON link cost, in instructions
+# (callgrind: the same count on any machine and any day) and CPU ratios within the run.
+if command -v valgrind >/dev/null; then
+    echo "instruction counts (about 3 minutes)..." >&2
+    python3 tools/bench_cost.py --bin "$bin" | sed 's/^/cost: /'
+fi
+
 free_port() {
     python3 -c 'import socket; s=socket.socket(socket.AF_INET, socket.SOCK_DGRAM); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])'
 }

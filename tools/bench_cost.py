@@ -2,18 +2,20 @@
 """What a flight costs, in instructions (valgrind's callgrind: the same count on any day and
 any load) and in CPU time (ratios within one run), for one or more builds side by side:
 
-1. **An embedded hover frame** (`autopilot --sim`, no logs, no ground stations): instructions
-   per frame, and its compute floor, the instructions inside the flight-core step
-   (`FlightCore::step`) and the physics steps with their sensors (`Simulator::step`,
-   `Simulator::sample_sensors`). Both are differences between a 20 s and a 10 s hover, so
-   start-up, take-off and landing cancel out.
+1. **An embedded hover frame** (`autopilot --sim`, no logs, no ground stations): the control
+   loop thread's instructions per frame (but the telemetry's publication, which follows the
+   wall clock: at most once a millisecond, about 700 instructions), and its compute floor (FLOOR, DECISIONS below: the
+   functions that compute the flight, each counted inclusive). Both are differences between a
+   20 s and a 10 s hover, so start-up, take-off and landing cancel out; the main thread, whose
+   waits follow the wall clock, is left out, so the count is the same on every run.
 2. **Start-up**: instructions from the process's start to its first frame (everything before
    the control loop's `fly`), the minimal flight's whole process beside it.
 3. **Logs**: the same flight with the default logs (`.tlog`, ULog, flight CSV) against none:
-   the ratio of instructions (all threads) and of CPU time (user + system, median of --runs).
+   the ratio of instructions (every thread but the main one: the flight and the writers) and
+   of CPU time (user + system, median of --runs).
 4. **ArduPilot's JSON link**: the autopilot on `sitl --json --hil-rate 1000` (1 kHz lockstep):
-   its instructions and CPU time per simulated second, and the share of its instructions in
-   parsing the JSON state (`PhysicsState::parse_latest`).
+   its control loop's instructions and the process's CPU time per simulated second, and the
+   share of the loop's instructions in parsing the JSON state (`PhysicsState::parse_latest`).
 
     tools/bench_cost.py                               # target/release
     tools/bench_cost.py --bin /tmp/before --bin target/release   # two builds, one run
@@ -34,22 +36,39 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 PARAMS = ROOT / "params"
 QUIET = ["--params-dir", str(PARAMS), "--param-store", "none", "--mavlink", "none"]
-# The floor's edge: the flight-core step and the physics steps with their sensors.
+# The compute floor of a frame: the functions that compute the flight. The narrow edge is the
+# flight-core step and the physics steps with their sensors (their noise drawn once per
+# exchange); the wide edge adds what the autopilot decides around the core each frame (the
+# commander, the battery, sensor and magnetic-field monitors, the geofence, the IMU's
+# calibration, the blind descent's hover filter). Above either: status, copies, the HIL
+# frame's folding, the loop's glue.
 FLOOR = [
     "flight_core::core::step::<impl flight_core::core::FlightCore>::step",
     "sitl_core::sim::Simulator::step",
     "sitl_core::sim::Simulator::sample_sensors",
+    "hil::simulator_end::SimulatorEnd::exchange_noise",
 ]
+DECISIONS = [
+    "flight_core::commander::Commander::update",
+    "flight_core::sensors::battery::BatteryEstimator::step",
+    "flight_core::sensors::monitor::SensorMonitor::update",
+    "flight_core::safety::geofence::FenceMonitor::update",
+    "flight_core::sensors::imu_correction::ImuCorrection::apply",
+    "flight_core::sensors::mag_check::MagFieldMonitor::update",
+    "flight_core::safety::blind_descent::HoverCommands::update",
+]
+# How often the loop publishes its telemetry follows the wall clock (at most every millisecond):
+# counted apart, so the frame's count is the same on every run.
+WALL_PACED = ["autopilot::control_loop::ControlLoop::publish_telemetry"]
 PARSE = ["hil::json::PhysicsState::parse_latest"]
 
 
-def callgrind(cmd, toggle=(), dump_before=None):
-    """Instructions of `cmd` (all threads), only inside `toggle`'s functions if given; with
-    `dump_before`, those before that function's first call. Returns (instructions, stdout)."""
+def callgrind(cmd, dump_before=None):
+    """Instructions of `cmd` (all threads); with `dump_before`, those before that function's
+    first call. Returns (instructions, stdout)."""
     with tempfile.TemporaryDirectory() as d:
         out = Path(d) / "cg.out"
         args = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}"]
-        args += [f"--toggle-collect={f}" for f in toggle]
         if dump_before:
             args.append(f"--dump-before={dump_before}")
         run = subprocess.run(args + cmd, capture_output=True, text=True, check=True)
@@ -65,6 +84,22 @@ def callgrind(cmd, toggle=(), dump_before=None):
         else:
             ir = sum(totals)
         return ir, run.stdout
+
+
+def thread_profiles(cmd, d):
+    """Runs `cmd` under callgrind with a profile per thread in `d`: {thread number: (its
+    instructions, its profile's path)}, and the run's stdout. Thread 1 is the main thread,
+    whose idle waits follow the wall clock; the others' work follows the flight."""
+    out = Path(d) / "cg.out"
+    run = subprocess.run(["valgrind", "--tool=callgrind", "--separate-threads=yes",
+                          f"--callgrind-out-file={out}"] + cmd,
+                         capture_output=True, text=True, check=True)
+    threads = {}
+    for p in Path(d).glob("cg.out-*"):
+        text = p.read_text(errors="replace")
+        n = int(re.search(r"^thread: (\d+)", text, re.M).group(1))
+        threads[n] = (int(re.search(r"^totals: (\d+)", text, re.M).group(1)), p)
+    return threads, run.stdout
 
 
 def field(summary, name):
@@ -89,15 +124,43 @@ def hover(bin_dir, hover_s, extra=()):
             "--hover", str(hover_s), *QUIET, *extra]
 
 
+def inclusive(profile, functions):
+    """Each function's inclusive instructions in a callgrind profile; 0, and said, for one that
+    is not there (never called, absent from that build, or inlined away)."""
+    text = subprocess.run(["callgrind_annotate", "--inclusive=yes", "--threshold=100", profile],
+                          capture_output=True, text=True, check=True).stdout
+    found = {}
+    for line in text.splitlines():
+        # "  1,234 (5.6%)  /path/file.rs:crate::function [/path/binary]"
+        if not line.endswith("]") or ":" not in line:
+            continue
+        count, _, rest = line.strip().partition(" ")
+        name = rest.rsplit(" [", 1)[0].split(":", 1)[-1] if " [" in rest else ""
+        if name in functions and count.replace(",", "").isdigit():
+            found[name] = int(count.replace(",", ""))
+    for f in functions:
+        if f not in found:
+            print(f"  {profile.name}: {f} not in the profile, counted as 0", file=sys.stderr)
+            found[f] = 0
+    return found
+
+
 def frame_cost(bin_dir):
-    """(instructions per hover frame, floor per frame)."""
+    """(instructions per hover frame, the narrow floor's, the wide floor's), in the control
+    loop's thread (the busiest)."""
     per = {}
     for h in (10, 20):
-        total, out = callgrind(hover(bin_dir, h, ["--log-dir", "none"]))
-        floor, _ = callgrind(hover(bin_dir, h, ["--log-dir", "none"]), toggle=FLOOR)
-        per[h] = (total, floor, field(out, "frames"))
-    frames = per[20][2] - per[10][2]
-    return (per[20][0] - per[10][0]) / frames, (per[20][1] - per[10][1]) / frames
+        with tempfile.TemporaryDirectory() as d:
+            threads, stdout = thread_profiles(hover(bin_dir, h, ["--log-dir", "none"]), d)
+            total, profile = max(threads.values())
+            f = inclusive(profile, FLOOR + DECISIONS + WALL_PACED)
+            total -= f[WALL_PACED[0]]
+            narrow = sum(f[k] for k in FLOOR)
+            wide = narrow + sum(f[k] for k in DECISIONS)
+            per[h] = (total, narrow, wide, field(stdout, "frames"))
+            print(f"  {h} s hover: {per[h][3]:.0f} frames", file=sys.stderr)
+    frames = per[20][3] - per[10][3]
+    return tuple((per[20][i] - per[10][i]) / frames for i in range(3))
 
 
 def startup_cost(bin_dir):
@@ -115,8 +178,13 @@ def logs_cost(bin_dir, runs):
     with tempfile.TemporaryDirectory() as logs:
         on = hover(bin_dir, 20, ["--log-dir", logs])
         off = hover(bin_dir, 20, ["--log-dir", "none"])
-        ir_on, _ = callgrind(on)
-        ir_off, _ = callgrind(off)
+        ir = {}
+        for name, cmd in (("on", on), ("off", off)):
+            with tempfile.TemporaryDirectory() as d:
+                threads, _ = thread_profiles(cmd, d)
+                # All but the main thread: the flight, its writers, the start-up's runtime.
+                ir[name] = sum(t for n, (t, _) in threads.items() if n != 1)
+        ir_on, ir_off = ir["on"], ir["off"]
         cpu_on, cpu_off = [], []
         for _ in range(runs):
             cpu_off.append(timed(off)[0])
@@ -129,6 +197,12 @@ def free_port():
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
+
+
+def _busiest(cmd, d):
+    """The busiest thread's (instructions, profile), and stdout."""
+    threads, stdout = thread_profiles(cmd, d)
+    return max(threads.values()), stdout
 
 
 def json_flight(bin_dir, under):
@@ -152,11 +226,13 @@ def json_flight(bin_dir, under):
 
 
 def json_cost(bin_dir, runs):
-    """(instructions per simulated second, parse share, CPU ms per simulated second)."""
-    total, s = json_flight(bin_dir, callgrind)
-    parse, s2 = json_flight(bin_dir, lambda c: callgrind(c, toggle=PARSE))
+    """(instructions per simulated second, parse share, CPU ms per simulated second), the
+    instructions those of the control loop's thread."""
+    with tempfile.TemporaryDirectory() as d:
+        (total, profile), s = json_flight(bin_dir, lambda c: _busiest(c, d))
+        parse = inclusive(profile, PARSE)[PARSE[0]]
     sim_s = field(s, "sim_time_s")
-    parse_share = parse / total * field(s, "frames") / field(s2, "frames")
+    parse_share = parse / total
     cpu = []
     for _ in range(runs):
         c, s3 = json_flight(bin_dir, timed)
@@ -175,14 +251,16 @@ def main():
     rows = []
     for b in bins:
         print(f"measuring {b} ...", file=sys.stderr)
-        frame, floor = frame_cost(b)
+        frame, floor, wide = frame_cost(b)
         start, whole = startup_cost(b)
         ir_ratio, cpu_ratio, on_s, off_s = logs_cost(b, a.runs)
         json_ir, share, json_ms = json_cost(b, a.runs)
         rows.append([
             ("hover frame, instructions (no logs, no ground stations)", f"{frame:,.0f}"),
-            ("  its compute floor (flight-core step, physics and sensors)", f"{floor:,.0f}"),
-            ("  frame / floor", f"{frame / floor:.3f}"),
+            ("  compute floor: flight-core step, physics, sensors", f"{floor:,.0f}"),
+            ("  frame / that floor", f"{frame / floor:.3f}"),
+            ("  wide floor: and the autopilot's decisions", f"{wide:,.0f}"),
+            ("  frame / wide floor", f"{frame / wide:.3f}"),
             ("start-up to the first frame, instructions", f"{start / 1e6:.1f} M"),
             ("  the whole minimal flight (take-off to 1 m, land)", f"{whole / 1e6:.1f} M"),
             ("logs on / off, instructions (20 s hover)", f"{ir_ratio:.2f}"),
