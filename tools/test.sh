@@ -32,7 +32,8 @@ if ! cat tests/requirements.txt tests/requirements-nodeps.txt | cmp -s - "$stamp
     cat tests/requirements.txt tests/requirements-nodeps.txt > "$stamp"
 fi
 # -rs: the summary says why a test was skipped (the BROAD data not fetched, and how to fetch it).
-"$venv/bin/python" -m pytest -q -rs --durations=20 tests/python
+# -n 2: two workers, one per CPU of the CI machine (every test takes its own ports and files).
+"$venv/bin/python" -m pytest -q -rs -n 2 --durations=20 tests/python
 
 echo "== the Python package: its wheel in a fresh venv, its examples through the plugin (at $SECONDS s)"
 tools/check_wheel.sh

@@ -10,17 +10,38 @@
 use std::io::Write;
 
 const POW10: [f64; 10] = [1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9];
+const POW10_U64: [u64; 10] = [
+    1,
+    10,
+    100,
+    1_000,
+    10_000,
+    100_000,
+    1_000_000,
+    10_000_000,
+    100_000_000,
+    1_000_000_000,
+];
+const TWO_52: f64 = 4_503_599_627_370_496.0;
+/// "00" to "99": two digits per lookup.
+const PAIRS: &[u8; 200] = b"0001020304050607080910111213141516171819\
+2021222324252627282930313233343536373839\
+4041424344454647484950515253545556575859\
+6061626364656667686970717273747576777879\
+8081828384858687888990919293949596979899";
 
 /// Appends `x` with `decimals` (at most 9) digits after the point, as `{:.decimals$}` does.
 pub fn push_fixed(out: &mut Vec<u8>, x: f64, decimals: usize) {
     let d = decimals.min(POW10.len() - 1);
     let p = x.abs() * POW10[d];
-    if !p.is_finite() || p >= 4_503_599_627_370_496.0 {
+    if !p.is_finite() || p >= TWO_52 {
         // From 2^52, or not finite: the standard library (writing to a Vec cannot fail).
         let _ = write!(out, "{x:.d$}");
         return;
     }
-    let mut scaled = p.round_ties_even();
+    // Rounded half to even by the hardware's own rounding: below 2^52, adding 2^52 leaves no
+    // fraction bits (as `round_ties_even`, without a call to libm's `rint`).
+    let mut scaled = (p + TWO_52) - TWO_52;
     // Below 2^52, p - scaled is exact; off a half, the product's error (under half an ulp of
     // p) cannot carry the exact value past one.
     if (p - scaled).abs() == 0.5 {
@@ -31,26 +52,37 @@ pub fn push_fixed(out: &mut Vec<u8>, x: f64, decimals: usize) {
             scaled -= 1.0;
         }
     }
-    // The digits from the last: d of the fraction, the point, then the integer part.
-    let mut n = scaled as u64;
+    // The digits from the last, two at a time: d of the fraction, the point, the integer part.
+    let n = scaled as u64;
+    let unit = POW10_U64[d];
+    let (mut int, mut frac) = (n / unit, n % unit);
     let mut text = [0u8; 32];
     let mut at = text.len();
-    for _ in 0..d {
+    let mut left = d;
+    while left >= 2 {
+        at -= 2;
+        let pair = (frac % 100) as usize * 2;
+        text[at..at + 2].copy_from_slice(&PAIRS[pair..pair + 2]);
+        frac /= 100;
+        left -= 2;
+    }
+    if left == 1 {
         at -= 1;
-        text[at] = b'0' + (n % 10) as u8;
-        n /= 10;
+        text[at] = b'0' + frac as u8;
     }
     if d > 0 {
         at -= 1;
         text[at] = b'.';
     }
-    loop {
+    while int >= 10 {
+        at -= 2;
+        let pair = (int % 100) as usize * 2;
+        text[at..at + 2].copy_from_slice(&PAIRS[pair..pair + 2]);
+        int /= 100;
+    }
+    if at == text.len() || int > 0 || text[at] == b'.' {
         at -= 1;
-        text[at] = b'0' + (n % 10) as u8;
-        n /= 10;
-        if n == 0 {
-            break;
-        }
+        text[at] = b'0' + int as u8;
     }
     if x.is_sign_negative() {
         at -= 1;
