@@ -50,6 +50,8 @@ pub struct FlightUlog {
     armed_us: u64,
     takeoff_us: u64,
     mode_us: u64,
+    /// The last row's buffer, for the next.
+    spare_row: Vec<u8>,
 }
 
 /// The ground-station task's way into the flight log: logged strings and parameter changes,
@@ -141,6 +143,7 @@ impl FlightUlog {
             armed_us: 0,
             takeoff_us: 0,
             mode_us: 0,
+            spare_row: Vec::with_capacity(128),
         })
     }
 
@@ -168,6 +171,12 @@ impl FlightUlog {
     fn data(&mut self, id: usize, row: UlogRow) {
         debug_assert_eq!(row.0.len(), TOPICS[id].size(), "{}", TOPICS[id].name);
         ulog::data(&mut self.buf, id as u16, &row);
+        self.spare_row = row.0;
+    }
+
+    /// A row at `t` in the buffer the last row left.
+    fn row(&mut self, t: u64) -> UlogRow {
+        UlogRow::reusing(std::mem::take(&mut self.spare_row), t)
     }
 
     /// Logs one flown step.
@@ -199,7 +208,8 @@ impl FlightUlog {
         let q = est.attitude.map(|a| a.q);
         if self.due(id::SENSOR_COMBINED, t) {
             let dt = 2_000; // the loop's nominal period (µs)
-            let row = UlogRow::at(t)
+            let row = self
+                .row(t)
                 .f32s(s.gyro.as_slice())
                 .u32(dt)
                 .i32(0)
@@ -210,14 +220,13 @@ impl FlightUlog {
         if let Some(q) = q
             && self.due(id::VEHICLE_ATTITUDE, t)
         {
-            self.data(id::VEHICLE_ATTITUDE, UlogRow::at(t).u64(t).f32s(&quat(&q)));
+            let row = self.row(t).u64(t).f32s(&quat(&q));
+            self.data(id::VEHICLE_ATTITUDE, row);
         }
         if self.due(id::VEHICLE_ANGULAR_VELOCITY, t) {
             let rate = est.attitude.map_or(s.gyro, |a| a.rate);
-            self.data(
-                id::VEHICLE_ANGULAR_VELOCITY,
-                UlogRow::at(t).u64(t).f32s(rate.as_slice()),
-            );
+            let row = self.row(t).u64(t).f32s(rate.as_slice());
+            self.data(id::VEHICLE_ANGULAR_VELOCITY, row);
         }
     }
 
@@ -230,18 +239,13 @@ impl FlightUlog {
         let thrust_body = sp.map_or([f64::NAN; 3], |a| [0.0, 0.0, -a.thrust_n / max_thrust]);
         if self.due(id::VEHICLE_RATES_SETPOINT, t) {
             let r = est.rate_reference;
-            self.data(
-                3,
-                UlogRow::at(t).f32(r.x).f32(r.y).f32(r.z).f32s(&thrust_body),
-            );
+            let row = self.row(t).f32(r.x).f32(r.y).f32(r.z).f32s(&thrust_body);
+            self.data(3, row);
         }
         if let Some(a) = sp
             && self.due(id::VEHICLE_ATTITUDE_SETPOINT, t)
         {
-            let row = UlogRow::at(t)
-                .f32(0.0)
-                .f32s(&quat(&a.q_d))
-                .f32s(&thrust_body);
+            let row = self.row(t).f32(0.0).f32s(&quat(&a.q_d)).f32s(&thrust_body);
             self.data(id::VEHICLE_ATTITUDE_SETPOINT, row);
         }
         let rotors = vehicle.rotors;
@@ -251,10 +255,8 @@ impl FlightUlog {
                 (true, true) => step.commands[i],
             };
             let control: [f64; MOTORS] = std::array::from_fn(motor);
-            self.data(
-                id::ACTUATOR_MOTORS,
-                UlogRow::at(t).u64(t).f32s(&control).u16(0),
-            );
+            let row = self.row(t).u64(t).f32s(&control).u16(0);
+            self.data(id::ACTUATOR_MOTORS, row);
         }
         if self.due(id::ACTUATOR_OUTPUTS, t) {
             // PWM as a flight board would drive the ESCs: 1000 µs stopped, 2000 µs full.
@@ -263,10 +265,8 @@ impl FlightUlog {
                 false => 0.0,
             };
             let output: [f64; OUTPUTS] = std::array::from_fn(pwm);
-            self.data(
-                id::ACTUATOR_OUTPUTS,
-                UlogRow::at(t).f32s(&output).u32(rotors as u32),
-            );
+            let row = self.row(t).f32s(&output).u32(rotors as u32);
+            self.data(id::ACTUATOR_OUTPUTS, row);
         }
     }
 
@@ -278,7 +278,8 @@ impl FlightUlog {
             let (p, v, a) = (tr.pos_ned_m, tr.vel_ned_m_s, tr.accel_ned_m_s2);
             let origin = tr.origin;
             let heading = q.map_or(f64::NAN, |q| q.euler_angles().2);
-            let row = UlogRow::at(t)
+            let row = self
+                .row(t)
                 .u64(t)
                 .u64(self.first_us.unwrap_or(t))
                 .f64(origin.map_or(f64::NAN, |o| o.lat_deg))
@@ -300,7 +301,8 @@ impl FlightUlog {
             && self.due(id::VEHICLE_GLOBAL_POSITION, t)
         {
             let here = origin.offset_by_ned(&tr.pos_ned_m);
-            let row = UlogRow::at(t)
+            let row = self
+                .row(t)
                 .u64(t)
                 .f64(here.lat_deg)
                 .f64(here.lon_deg)
@@ -312,7 +314,8 @@ impl FlightUlog {
         if let Some(p) = step.setpoint.position()
             && self.due(id::VEHICLE_LOCAL_POSITION_SETPOINT, t)
         {
-            let row = UlogRow::at(t)
+            let row = self
+                .row(t)
                 .f32s(p.pos_ned_m.as_slice())
                 .f32(p.yaw_rad)
                 .f32s(p.vel_ned_m_s.as_slice())
@@ -334,7 +337,8 @@ impl FlightUlog {
             let utc = d
                 .time_utc_usec
                 .unwrap_or(self.start.unix_start_us + since_start);
-            let row = UlogRow::at(t)
+            let row = self
+                .row(t)
                 .u64(t)
                 .u64(utc)
                 .f64(g.position.lat_deg)
@@ -355,13 +359,12 @@ impl FlightUlog {
             self.data(id::VEHICLE_GPS_POSITION, row);
         }
         if let Some(alt) = s.baro_alt_m {
-            self.data(id::VEHICLE_AIR_DATA, UlogRow::at(t).u64(t).f32(alt));
+            let row = self.row(t).u64(t).f32(alt);
+            self.data(id::VEHICLE_AIR_DATA, row);
         }
         if let Some(m) = s.mag {
-            self.data(
-                id::VEHICLE_MAGNETOMETER,
-                UlogRow::at(t).u64(t).f32s(m.as_slice()),
-            );
+            let row = self.row(t).u64(t).f32s(m.as_slice());
+            self.data(id::VEHICLE_MAGNETOMETER, row);
         }
     }
 
@@ -371,7 +374,8 @@ impl FlightUlog {
         let tr = &est.translation;
         if self.due(id::BATTERY_STATUS, t) {
             let b = vehicle.battery;
-            let row = UlogRow::at(t)
+            let row = self
+                .row(t)
                 .f32(b.voltage_v)
                 .f32(b.current_a.unwrap_or(-1.0))
                 .f32(b.consumed_mah.unwrap_or(-1.0))
@@ -386,7 +390,8 @@ impl FlightUlog {
             let h_acc = s.gps.map_or(f64::NAN, |g| g.h_acc_m);
             // PX4's health bits: velocity, horizontal position, height.
             let health = ((tr.horizontal_valid as u8) * 0b011) | ((tr.vertical_valid as u8) << 2);
-            let row = UlogRow::at(t)
+            let row = self
+                .row(t)
                 .u64(t)
                 .f32s(&bias)
                 .f32s(&accel_bias)
@@ -397,7 +402,8 @@ impl FlightUlog {
             self.data(id::ESTIMATOR_STATUS, row);
         }
         if let Some(w) = est.wind.filter(|_| self.due(id::WIND, t)) {
-            let row = UlogRow::at(t)
+            let row = self
+                .row(t)
                 .u64(t)
                 .f32(w.wind_ned_m_s.x)
                 .f32(w.wind_ned_m_s.y)
@@ -428,7 +434,8 @@ impl FlightUlog {
             self.due_us[id::VEHICLE_LAND_DETECTED] = 0;
         }
         if self.due(id::VEHICLE_STATUS, t) {
-            let row = UlogRow::at(t)
+            let row = self
+                .row(t)
                 .u64(self.armed_us)
                 .u64(self.takeoff_us)
                 .u64(self.mode_us)
@@ -445,7 +452,7 @@ impl FlightUlog {
         }
         if self.due(id::VEHICLE_LAND_DETECTED, t) {
             let landed = st.landed == LandedState::OnGround;
-            let row = UlogRow::at(t).bool(landed).bool(landed).bool(landed);
+            let row = self.row(t).bool(landed).bool(landed).bool(landed);
             self.data(id::VEHICLE_LAND_DETECTED, row);
         }
     }

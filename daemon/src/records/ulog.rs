@@ -115,11 +115,12 @@ impl Format {
 pub struct UlogRow(pub Vec<u8>);
 
 impl UlogRow {
-    /// A row starting with its timestamp (µs).
-    pub fn at(t_us: u64) -> Self {
-        let mut r = Self(Vec::with_capacity(128));
-        r.0.extend_from_slice(&t_us.to_le_bytes());
-        r
+    /// A row starting with its timestamp (µs), built in `buf` (cleared): a buffer kept from
+    /// row to row costs no allocation.
+    pub fn reusing(mut buf: Vec<u8>, t_us: u64) -> Self {
+        buf.clear();
+        buf.extend_from_slice(&t_us.to_le_bytes());
+        Self(buf)
     }
     /// Adds a `uint8_t`.
     pub fn u8(mut self, v: u8) -> Self {
@@ -324,7 +325,7 @@ mod tests {
             ATT.text(),
             "vehicle_attitude:uint64_t timestamp;float[4] q;uint8_t quat_reset_counter;"
         );
-        let row = UlogRow::at(5).f32s(&[1.0, 0.0, 0.0, 0.0]).u8(0);
+        let row = UlogRow::reusing(Vec::new(), 5).f32s(&[1.0, 0.0, 0.0, 0.0]).u8(0);
         assert_eq!(row.0.len(), ATT.size());
     }
 
