@@ -127,8 +127,11 @@ def hover(bin_dir, hover_s, extra=()):
 def inclusive(profile, functions):
     """Each function's inclusive instructions in a callgrind profile; 0, and said, for one that
     is not there (never called, absent from that build, or inlined away)."""
-    text = subprocess.run(["callgrind_annotate", "--inclusive=yes", "--threshold=100", profile],
-                          capture_output=True, text=True, check=True).stdout
+    # The function list only, from `/`: callgrind_annotate shortens the paths under its working
+    # directory, and then splits a function's cost between its relative and absolute names.
+    text = subprocess.run(["callgrind_annotate", "--inclusive=yes", "--threshold=100",
+                           "--auto=no", str(Path(profile).resolve())],
+                          capture_output=True, text=True, check=True, cwd="/").stdout
     found = {}
     for line in text.splitlines():
         # "  1,234 (5.6%)  /path/file.rs:crate::function [/path/binary]"
@@ -136,7 +139,7 @@ def inclusive(profile, functions):
             continue
         count, _, rest = line.strip().partition(" ")
         name = rest.rsplit(" [", 1)[0].split(":", 1)[-1] if " [" in rest else ""
-        if name in functions and count.replace(",", "").isdigit():
+        if name in functions and name not in found and count.replace(",", "").isdigit():
             found[name] = int(count.replace(",", ""))
     for f in functions:
         if f not in found:
