@@ -325,7 +325,9 @@ mod tests {
             ATT.text(),
             "vehicle_attitude:uint64_t timestamp;float[4] q;uint8_t quat_reset_counter;"
         );
-        let row = UlogRow::reusing(Vec::new(), 5).f32s(&[1.0, 0.0, 0.0, 0.0]).u8(0);
+        let row = UlogRow::reusing(Vec::new(), 5)
+            .f32s(&[1.0, 0.0, 0.0, 0.0])
+            .u8(0);
         assert_eq!(row.0.len(), ATT.size());
     }
 
