@@ -222,16 +222,29 @@ impl SensorSuite {
         if !self.noise_per_exchange || interval_s <= 0.0 || self.health[0] != SensorHealth::Ok {
             return;
         }
+        let (a, g) = self.imu_white_noise(interval_s);
         let c = &self.cfg;
-        let rate_noise = 1.0 / interval_s.sqrt();
-        let a = *accel + self.accel_rng.normal3(c.accel_noise_density * rate_noise);
-        let g = *gyro + self.gyro_rng.normal3(c.gyro_noise_density * rate_noise);
-        *accel = a.map(|x| x.clamp(-c.accel_range, c.accel_range));
-        *gyro = g.map(|x| x.clamp(-c.gyro_range, c.gyro_range));
-        self.accel_bias += self
-            .accel_rng
-            .normal3(c.accel_bias_walk * interval_s.sqrt());
-        self.gyro_bias += self.gyro_rng.normal3(c.gyro_bias_walk * interval_s.sqrt());
+        *accel = (*accel + a).map(|x| x.clamp(-c.accel_range, c.accel_range));
+        *gyro = (*gyro + g).map(|x| x.clamp(-c.gyro_range, c.gyro_range));
+        self.walk_imu_biases(interval_s);
+    }
+
+    /// The accelerometer's and gyro's white noise over an interval of `dt` (or the mean of
+    /// samples spanning it): σ = N √(1/Δt) for band-limited white noise.
+    fn imu_white_noise(&mut self, dt: f64) -> (Vector3<f64>, Vector3<f64>) {
+        let rate_noise = 1.0 / dt.sqrt();
+        (
+            self.accel_rng
+                .normal3(self.cfg.accel_noise_density * rate_noise),
+            self.gyro_rng
+                .normal3(self.cfg.gyro_noise_density * rate_noise),
+        )
+    }
+
+    /// The accelerometer's and gyro's biases walked on by `dt`.
+    fn walk_imu_biases(&mut self, dt: f64) {
+        self.accel_bias += self.accel_rng.normal3(self.cfg.accel_bias_walk * dt.sqrt());
+        self.gyro_bias += self.gyro_rng.normal3(self.cfg.gyro_bias_walk * dt.sqrt());
     }
 
     /// The injected state of one sensor.
@@ -298,7 +311,6 @@ impl SensorSuite {
     fn sample_imu(&mut self, t: &Truth, q_inv: &UnitQuaternion<f64>, dt: f64) -> u32 {
         let mut updated = 0u32;
         let c = &self.cfg;
-        let rate_noise = 1.0 / dt.sqrt(); // σ = N √(1/Δt) for band-limited white noise
         // IMU: the specific force at the IMU's lever arm, Zabunov (50)–(54) with a rigid mount
         // (no relative velocity, so no Coriolis term).
         let r = self.imu_position_frd_m;
@@ -326,13 +338,10 @@ impl SensorSuite {
         let (accel_noise, gyro_noise) = if self.noise_per_exchange {
             (Vector3::zeros(), Vector3::zeros())
         } else {
-            self.accel_bias += self.accel_rng.normal3(c.accel_bias_walk * dt.sqrt());
-            self.gyro_bias += self.gyro_rng.normal3(c.gyro_bias_walk * dt.sqrt());
-            (
-                self.accel_rng.normal3(c.accel_noise_density * rate_noise),
-                self.gyro_rng.normal3(c.gyro_noise_density * rate_noise),
-            )
+            self.walk_imu_biases(dt);
+            self.imu_white_noise(dt)
         };
+        let c = &self.cfg;
         match self.health[0] {
             SensorHealth::Ok => {
                 // In the board's axes, which the mounting error tilts from the body's.
