@@ -104,18 +104,22 @@ impl JsonLink {
     /// The servo packet for these rotor commands (disarmed: every channel at 1000 µs).
     fn servo_packet(&mut self, controls: &[f64], armed: bool) {
         let n = self.channels.iter().max().map_or(0, |&c| c + 1).max(16);
-        let mut pwm = [hil::json::PWM_MIN; hil::json::MAX_CHANNELS];
+        self.frame_count = self.frame_count.wrapping_add(1);
+        let mut packet = ServoPacket::new(
+            FRAME_RATE_HZ,
+            self.frame_count,
+            &[hil::json::PWM_MIN; hil::json::MAX_CHANNELS][..n],
+        );
         for (rotor, &channel) in self.channels.iter().enumerate() {
             let c = if armed {
                 controls.get(rotor).copied().unwrap_or(0.0)
             } else {
                 0.0
             };
-            pwm[channel] = pwm_from_command(c);
+            packet.pwm_us[channel] = pwm_from_command(c);
         }
-        self.frame_count = self.frame_count.wrapping_add(1);
         self.packet.clear();
-        ServoPacket::new(FRAME_RATE_HZ, self.frame_count, &pwm[..n]).encode(&mut self.packet);
+        packet.encode(&mut self.packet);
     }
 
     fn send_packet(&mut self) -> io::Result<()> {
