@@ -59,16 +59,6 @@ struct Row {
     commands: [f64; MAX_ROTORS],
 }
 
-/// The landed state as its column has always read (its `Debug` word).
-fn landed_word(l: LandedState) -> &'static str {
-    match l {
-        LandedState::OnGround => "OnGround",
-        LandedState::Takeoff => "Takeoff",
-        LandedState::InAir => "InAir",
-        LandedState::Landing => "Landing",
-    }
-}
-
 /// Cells at a precision: each followed by a comma but the last.
 fn cells(out: &mut Vec<u8>, values: &[f64], decimals: usize) {
     for (i, &x) in values.iter().enumerate() {
@@ -97,7 +87,7 @@ fn write_row(out: &mut Vec<u8>, r: &Row, rotors: usize) {
     out.push(b',');
     out.extend_from_slice(r.mode.as_bytes());
     out.push(b',');
-    out.extend_from_slice(landed_word(r.landed).as_bytes());
+    out.extend_from_slice(r.landed.name().as_bytes());
     out.extend_from_slice(if r.armed { b",1," } else { b",0," });
     cells(out, &[p.x, p.y, p.z, v.x, v.y, v.z, s.x, s.y, s.z], 4);
     out.push(b',');

@@ -81,6 +81,18 @@ pub enum LandedState {
     Landing,
 }
 
+impl LandedState {
+    /// Its name as the flight-data CSV writes it.
+    pub fn name(self) -> &'static str {
+        match self {
+            LandedState::OnGround => "OnGround",
+            LandedState::Takeoff => "Takeoff",
+            LandedState::InAir => "InAir",
+            LandedState::Landing => "Landing",
+        }
+    }
+}
+
 /// The commander's state as telemetry shows it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CommanderStatus {
