@@ -217,11 +217,21 @@ pub enum UlogParam {
 
 /// Appends one message: size (u16), type, payload.
 fn message(out: &mut Vec<u8>, kind: u8, payload: &[u8]) {
+    message_of(out, kind, &[payload]);
+}
+
+/// A message whose payload is `parts` one after the other, framed without joining them first.
+fn message_of(out: &mut Vec<u8>, kind: u8, parts: &[&[u8]]) {
     // Every payload here is far below 64 KiB (a format, a string, one row).
-    let size = u16::try_from(payload.len()).unwrap_or(u16::MAX);
+    let mut left = usize::from(u16::MAX);
+    let size = parts.iter().map(|p| p.len()).sum::<usize>().min(left) as u16;
     out.extend_from_slice(&size.to_le_bytes());
     out.push(kind);
-    out.extend_from_slice(&payload[..usize::from(size)]);
+    for part in parts {
+        let n = part.len().min(left);
+        out.extend_from_slice(&part[..n]);
+        left -= n;
+    }
 }
 
 /// The header and flag bits: no compatibility or incompatibility flag (no appended data).
@@ -284,12 +294,7 @@ pub fn subscription(out: &mut Vec<u8>, msg_id: u16, f: &Format) {
 
 /// Logged data (`D`) of subscription `msg_id`.
 pub fn data(out: &mut Vec<u8>, msg_id: u16, row: &UlogRow) {
-    // As `message` frames it, without copying the payload twice: a row is far below 64 KiB.
-    let size = u16::try_from(2 + row.0.len()).unwrap_or(u16::MAX);
-    out.extend_from_slice(&size.to_le_bytes());
-    out.push(b'D');
-    out.extend_from_slice(&msg_id.to_le_bytes());
-    out.extend_from_slice(&row.0[..usize::from(size) - 2]);
+    message_of(out, b'D', &[&msg_id.to_le_bytes(), &row.0]);
 }
 
 /// A logged string (`L`) at `t_us`.
