@@ -31,7 +31,6 @@ K_TORQUE = 2.26e-7              # N m / (rad/s)²
 DRAG = 0.25                     # N s / m
 G = 9.80665
 DT = 0.001                      # s, physics step
-STEP = 0.004                    # s, simulated per servo packet (250 Hz)
 
 
 def quat_mul(a, b):
@@ -117,6 +116,9 @@ class Quad:
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--port", type=int, default=9002)
+    parser.add_argument("--step", type=float, default=0.004,
+                        help="simulated seconds per servo packet (a multiple of 1 ms; "
+                        "0.001: ArduPilot's usual 1 kHz physics)")
     parser.add_argument("--duration", type=float, default=120.0,
                         help="simulated seconds before it exits")
     args = parser.parse_args()
@@ -139,7 +141,7 @@ def main():
         last_frame = frame_count
         packets += 1
         commands = [min(max((p - 1000) / 1000.0, 0.0), 1.0) for p in pwm[:4]]
-        for _ in range(round(STEP / DT)):
+        for _ in range(max(1, round(args.step / DT))):
             quad.step(commands)
         reply = ("\n" + json.dumps(quad.state()) + "\n").encode()
         sock.sendto(reply, addr)

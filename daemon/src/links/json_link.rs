@@ -12,6 +12,11 @@
 //! ArduPilot's SITL adds its `SIM_ACC_RND`, `SIM_GYR_RND`; with the ideal preset it stays
 //! exact).
 //! The truth (`HIL_STATE_QUATERNION`, for logs and scoring) is the state itself.
+//!
+//! The autopilot steps at its own rate ([`FRAME_RATE_HZ`]), whatever the physics' rate, as
+//! ArduPilot's loop does: a physics faster than that (ArduPilot's usual 1 kHz) steps again under
+//! the command the link holds, answered at once with the same servo outputs in a new packet,
+//! and the IMU reaches the autopilot as the average of the states between two of its steps.
 
 use super::SensorLink;
 use super::frames::{Received, close};
@@ -34,8 +39,17 @@ const RESEND_AFTER: Duration = Duration::from_secs(1);
 /// A state this much older than the last is a physics started again, not a late datagram (s).
 const RESTART_BACK_S: f64 = 0.5;
 
-/// The servo packets' `frame_rate`: the rate the autopilot answers at (Hz).
+/// The rate the autopilot steps at on this link, told to the physics as the servo packets'
+/// `frame_rate` (Hz): the embedded simulator's exchange rate.
 const FRAME_RATE_HZ: u16 = 250;
+
+/// The IMU of the states since the autopilot last stepped, summed.
+#[derive(Debug, Default)]
+struct ImuSum {
+    gyro_frd_rad_s: Vector3<f64>,
+    accel_frd_m_s2: Vector3<f64>,
+    states: u32,
+}
 
 /// The link to a JSON physics.
 pub struct JsonLink {
@@ -50,6 +64,9 @@ pub struct JsonLink {
     /// The local frame at home: the truth's geodetic position.
     home: LocalFrame,
     last_timestamp_s: Option<f64>,
+    /// The state time of the last frame the autopilot stepped on (s).
+    last_frame_s: Option<f64>,
+    imu: ImuSum,
     next_truth_usec: u64,
     buf: Vec<u8>,
     /// The socket's read timeout as last set.
@@ -76,6 +93,9 @@ impl JsonLink {
             (std::net::Ipv6Addr::UNSPECIFIED, 0).into()
         };
         let socket = UdpSocket::bind(bind)?;
+        // Connected: the kernel takes datagrams from the physics alone, and each exchange's
+        // two system calls skip the address (`send`, `recv`).
+        socket.connect(physics)?;
         let sensors = SensorSuite::new(
             SensorConfig::preset(preset),
             EarthField::default(),
@@ -93,6 +113,8 @@ impl JsonLink {
             sensors,
             home: LocalFrame::new(home),
             last_timestamp_s: None,
+            last_frame_s: None,
+            imu: ImuSum::default(),
             next_truth_usec: 0,
             buf: vec![0; 65_536],
             read_timeout: None,
@@ -123,24 +145,51 @@ impl JsonLink {
     }
 
     fn send_packet(&mut self) -> io::Result<()> {
-        self.socket.send_to(&self.packet, self.physics)?;
+        self.socket.send(&self.packet)?;
         self.sent_at = Some(Instant::now());
         Ok(())
     }
 
+    /// The held servo outputs again in a new packet: the physics steps once more under them.
+    fn repeat_packet(&mut self) -> io::Result<()> {
+        if self.packet.len() < 8 {
+            self.servo_packet(&[], false);
+        }
+        self.frame_count = self.frame_count.wrapping_add(1);
+        // The frame count's place in the packet (`frame_count: u32` after two u16s).
+        self.packet[4..8].copy_from_slice(&self.frame_count.to_le_bytes());
+        self.send_packet()
+    }
+
+    /// Whether the autopilot steps on the state at `t_s` (`previous_s`: the state before it):
+    /// the first, one a step's period or more (less half the physics' own step) after the last
+    /// stepped on, or one from a physics started again.
+    fn step_due(&self, t_s: f64, previous_s: Option<f64>) -> bool {
+        let Some(last) = self.last_frame_s else {
+            return true;
+        };
+        let physics_step = previous_s.map_or(0.0, |p| (t_s - p).max(0.0));
+        t_s < last || t_s - last >= 1.0 / f64::from(FRAME_RATE_HZ) - 0.5 * physics_step
+    }
+
     /// The frame of one state, folded from its HIL messages: the sensor frame (the physics'
     /// IMU, the made sensors), a GPS solution when one is delivered, the truth at 50 Hz.
+    /// The IMU is the average of the states since the last frame (their sum taken here).
     fn frame(&mut self, s: &PhysicsState, into: &mut Received) {
         let time_usec = (s.timestamp_s.max(0.0) * 1e6).round() as u64;
         let gravity = Vector3::new(0.0, 0.0, sitl_core::GRAVITY_M_S2);
+        let imu = std::mem::take(&mut self.imu);
+        let n = f64::from(imu.states.max(1));
+        let (gyro, accel) = (imu.gyro_frd_rad_s / n, imu.accel_frd_m_s2 / n);
         let accel_ned = s.q_ned_from_frd * s.accel_frd_m_s2 + gravity;
         let truth = Truth {
             time_usec,
             pos_ned_m: s.pos_ned_m,
             vel_ned_m_s: s.vel_ned_m_s,
-            accel_ned_m_s2: accel_ned,
+            // The IMU models take the specific force back out of it: the average's.
+            accel_ned_m_s2: s.q_ned_from_frd * accel + gravity,
             q_ned_from_frd: s.q_ned_from_frd,
-            rate_frd_rad_s: s.gyro_frd_rad_s,
+            rate_frd_rad_s: gyro,
             ang_accel_frd_rad_s2: Vector3::zeros(),
             air: isa(self.home.origin().alt_m - s.pos_ned_m.z),
             rotor_speed_rad_s: &[],
@@ -189,18 +238,22 @@ impl SensorLink for JsonLink {
             }
             self.send_packet()?;
         }
+        // The read timeout is the call's (set only when it changes: one system call fewer per
+        // exchange), the deadline checked after each datagram: a call in which the physics
+        // answers and then falls silent may last up to twice `timeout`.
         let deadline = Instant::now() + timeout;
-        let mut wait = timeout;
+        let wait = Some(timeout.max(Duration::from_micros(1)));
+        if self.read_timeout != wait {
+            self.socket.set_read_timeout(wait)?;
+            self.read_timeout = wait;
+        }
+        let mut first = true;
         loop {
-            // One system call fewer per exchange: the timeout is set only when it changes.
-            let wait_for = Some(wait.max(Duration::from_micros(1)));
-            if self.read_timeout != wait_for {
-                self.socket.set_read_timeout(wait_for)?;
-                self.read_timeout = wait_for;
+            if !std::mem::take(&mut first) && Instant::now() > deadline {
+                return Ok(false);
             }
-            wait = deadline.saturating_duration_since(Instant::now());
-            let (n, from) = match self.socket.recv_from(&mut self.buf) {
-                Ok(r) => r,
+            let n = match self.socket.recv(&mut self.buf) {
+                Ok(n) => n,
                 Err(e)
                     if matches!(
                         e.kind(),
@@ -214,10 +267,6 @@ impl SensorLink for JsonLink {
                 Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => return Ok(false),
                 Err(e) => return Err(e),
             };
-            if from != self.physics {
-                into.malformed += 1;
-                continue;
-            }
             let state = match PhysicsState::parse_latest(&self.buf[..n]) {
                 Ok(s) => s,
                 Err(e) => {
@@ -226,7 +275,8 @@ impl SensorLink for JsonLink {
                     continue;
                 }
             };
-            if let Some(last) = self.last_timestamp_s
+            let previous = self.last_timestamp_s;
+            if let Some(last) = previous
                 && state.timestamp_s <= last
                 && state.timestamp_s > last - RESTART_BACK_S
             {
@@ -234,6 +284,19 @@ impl SensorLink for JsonLink {
                 continue;
             }
             self.last_timestamp_s = Some(state.timestamp_s);
+            if previous.is_some_and(|p| state.timestamp_s < p) {
+                // A physics started again: nothing from before it is averaged in.
+                self.imu = ImuSum::default();
+            }
+            self.imu.gyro_frd_rad_s += state.gyro_frd_rad_s;
+            self.imu.accel_frd_m_s2 += state.accel_frd_m_s2;
+            self.imu.states += 1;
+            if !self.step_due(state.timestamp_s, previous) {
+                // Between the autopilot's steps: the physics steps on under the held command.
+                self.repeat_packet()?;
+                continue;
+            }
+            self.last_frame_s = Some(state.timestamp_s);
             self.frame(&state, into);
             return Ok(true);
         }
@@ -287,10 +350,66 @@ mod tests {
     }
 
     fn reply(t: f64, z: f64) -> String {
+        turning(t, z, 0.1)
+    }
+
+    /// A state turning at `r` rad/s about the body's z axis.
+    fn turning(t: f64, z: f64, r: f64) -> String {
         // ArduPilot's documented form: Euler angles, extra keys.
         format!(
-            "\n{{\"timestamp\": {t}, \"imu\": {{\"gyro\": [0, 0, 0.1], \"accel_body\": [0, 0, -9.80665]}}, \"position\": [0, 0, {z}], \"velocity\": [0, 0, 0], \"attitude\": [0, 0, 0.5], \"airspeed\": 0}}\n"
+            "\n{{\"timestamp\": {t}, \"imu\": {{\"gyro\": [0, 0, {r}], \"accel_body\": [0, 0, -9.80665]}}, \"position\": [0, 0, {z}], \"velocity\": [0, 0, 0], \"attitude\": [0, 0, 0.5], \"airspeed\": 0}}\n"
         )
+    }
+
+    #[test]
+    fn a_faster_physics_steps_on_under_the_held_command_and_its_imu_is_averaged() {
+        let physics = physics();
+        let addr = physics.local_addr().unwrap();
+        let mut link = JsonLink::connect(
+            addr,
+            vec![0, 1, 2, 3],
+            SensorPreset::Ideal,
+            1,
+            LatLonAlt::default(),
+        )
+        .unwrap();
+        let mut into = Received::default();
+        assert!(!link.receive(Duration::from_millis(20), &mut into).unwrap());
+        let (_, from) = packet(&physics);
+        // A 1 kHz physics: the first state is stepped on.
+        physics
+            .send_to(turning(0.001, 0.0, 0.0).as_bytes(), from)
+            .unwrap();
+        assert!(link.receive(Duration::from_secs(5), &mut into).unwrap());
+        let answer = ActuatorCommand::as_sent(1000, &[0.5, 0.5, 0.6, 0.6], true);
+        link.send(&answer).unwrap();
+        let (held, _) = packet(&physics);
+        into.frames.clear();
+        // The next three states are not: each is answered at once with the held outputs in a
+        // new packet, and no frame reaches the autopilot.
+        for (k, t) in [0.002, 0.003, 0.004].into_iter().enumerate() {
+            let r = 0.1 * (k + 1) as f64;
+            physics
+                .send_to(turning(t, 0.0, r).as_bytes(), from)
+                .unwrap();
+            assert!(
+                !link.receive(Duration::from_millis(50), &mut into).unwrap(),
+                "{t}"
+            );
+            let (again, _) = packet(&physics);
+            assert_eq!(again.frame_count, held.frame_count + k as u32 + 1);
+            assert_eq!(again.pwm(), held.pwm());
+        }
+        assert!(into.frames.is_empty());
+        // The fourth, 4 ms on, is: its IMU the average of the four.
+        physics
+            .send_to(turning(0.005, 0.0, 0.4).as_bytes(), from)
+            .unwrap();
+        assert!(link.receive(Duration::from_secs(5), &mut into).unwrap());
+        let s = into.frames.pop().unwrap().sample;
+        assert_eq!(s.t_usec, 5000);
+        assert!((s.gyro.z - 0.25).abs() < 1e-6, "{}", s.gyro.z);
+        assert!((s.accel.z + 9.80665).abs() < 1e-5, "{}", s.accel.z);
     }
 
     #[test]
@@ -348,8 +467,8 @@ mod tests {
             .collect();
         assert_eq!(commands, [0.1, 0.2, 0.3, 0.4]);
 
-        // Dropped: a reply from elsewhere, garbage, a state older than the last; the newer one
-        // behind them is taken.
+        // Dropped: a reply from elsewhere (by the kernel: the socket is connected), garbage, a
+        // state older than the last; the newer one behind them is taken.
         into.frames.clear();
         let stranger = UdpSocket::bind("127.0.0.1:0").unwrap();
         stranger
@@ -361,7 +480,7 @@ mod tests {
             .send_to(reply(0.008, -2.1).as_bytes(), from)
             .unwrap();
         assert!(link.receive(Duration::from_secs(5), &mut into).unwrap());
-        assert_eq!(into.malformed, 2);
+        assert_eq!(into.malformed, 1);
         assert_eq!(link.stale, 1);
         assert_eq!(into.frames.len(), 1);
         assert_eq!(into.frames[0].sample.t_usec, 8000);

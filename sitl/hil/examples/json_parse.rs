@@ -8,15 +8,18 @@ fn main() {
         .nth(1)
         .and_then(|a| a.parse().ok())
         .unwrap_or(1000);
+    // Values as a flight computes them: most need all 17 digits to read back exactly.
+    let third = |x: f64| x / 3.0;
+    let v = |x: f64, y: f64, z: f64| Vector3::new(third(x), third(y), third(z));
     let state = PhysicsState {
-        timestamp_s: 12.004,
-        gyro_frd_rad_s: Vector3::new(0.0123456789, -0.0234567891, 0.3456789123),
-        accel_frd_m_s2: Vector3::new(0.1234567891, 0.2345678912, -9.8123456789),
-        pos_ned_m: Vector3::new(3.123456789, -4.23456789, -5.53456789),
-        vel_ned_m_s: Vector3::new(0.5123456789, 0.0123456789, -1.0123456789),
+        timestamp_s: 0.001 * 12004.0,
+        gyro_frd_rad_s: v(0.0123, -0.0234, 0.3456),
+        accel_frd_m_s2: v(0.1234, 0.2345, -29.4),
+        pos_ned_m: v(3.123, -4.234, -5.534),
+        vel_ned_m_s: v(0.5123, 0.0123, -1.0123),
         q_ned_from_frd: UnitQuaternion::from_euler_angles(0.1, -0.2, 2.0),
-        battery: Some((15.9123456789, 12.5123456789)),
-        airspeed_m_s: Some(7.25123456789),
+        battery: Some((third(47.7), third(37.5))),
+        airspeed_m_s: Some(third(21.7)),
     };
     let text = state.to_json();
     let mut sum = 0.0;

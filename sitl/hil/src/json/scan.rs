@@ -337,9 +337,26 @@ fn digits(b: &[u8], mut i: usize, m: &mut u64, n: &mut usize) -> usize {
     i
 }
 
+/// 10^k for k ≤ 21 (10^21 < 2^70), exact in 128 bits.
+const POW10_U128: [u128; 22] = {
+    let mut t = [1u128; 22];
+    let mut k = 1;
+    while k < 22 {
+        t[k] = t[k - 1] * 10;
+        k += 1;
+    }
+    t
+};
+
+/// 2^k for a k whose power is a normal double (|k| < 1022).
+fn pow2(k: i32) -> f64 {
+    f64::from_bits(((1023 + k) as u64) << 52)
+}
+
 /// m × 10^e correctly rounded, when one of the exact fast cases covers it: Clinger's (m and
-/// 10^|e| both exact doubles, one rounding), or an integer division in 128 bits whose quotient
-/// keeps at least 56 bits and a sticky bit for the remainder (one rounding, in the cast).
+/// 10^|e| both exact doubles, one rounding), or an integer product or quotient in 128 bits cut
+/// to 64 with a sticky bit for what is cut (at least 56 bits kept, so one rounding, in the
+/// conversion to a double).
 fn decimal_to_f64(m: u64, e: i64) -> Option<f64> {
     const POW10: [f64; 23] = [
         1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
@@ -352,19 +369,25 @@ fn decimal_to_f64(m: u64, e: i64) -> Option<f64> {
         let p = POW10[e.unsigned_abs() as usize];
         return Some(if e < 0 { m as f64 / p } else { m as f64 * p });
     }
-    if e >= 0 {
-        // The integer itself, when it fits: the cast rounds once.
-        let scale = 10u128.checked_pow(u32::try_from(e).ok()?)?;
-        return u128::from(m).checked_mul(scale).map(|n| n as f64);
-    }
-    // m / 10^k for 10^k < 2^70: m shifted to the top of 128 bits over it leaves a quotient of
-    // at least 2^57.
-    let k = u32::try_from(-e).ok().filter(|&k| k <= 21)?;
-    let d = 10u128.pow(k);
-    let shift = u128::from(m).leading_zeros();
-    let n = u128::from(m) << shift;
-    let q = n / d;
-    let sticky = u128::from(n - q * d != 0);
-    // 2^-shift is exact (shift ≤ 127 - 0, the result far from the subnormals).
-    Some((q | sticky) as f64 * f64::powi(2.0, -(shift as i32)))
+    let k = usize::try_from(e.unsigned_abs())
+        .ok()
+        .filter(|&k| k <= 21)?;
+    let (n, scale) = if e >= 0 {
+        // The integer itself, when it fits in 128 bits.
+        (u128::from(m).checked_mul(POW10_U128[k])?, 0)
+    } else {
+        // m shifted to the top of 128 bits over 10^k < 2^70 leaves a quotient of at least
+        // 2^57; the remainder, if any, goes into its lowest bit (sticky).
+        let shift = u128::from(m).leading_zeros();
+        let top = u128::from(m) << shift;
+        let d = POW10_U128[k];
+        let q = top / d;
+        let q = q | u128::from(top - q * d != 0);
+        (q, -(shift as i32))
+    };
+    // Cut to its top 64 bits, whatever is cut kept as a sticky bit: at least 57 bits stay (a
+    // product is exact), so the conversion below rounds once, and 2^(cut + scale) is exact.
+    let cut = 64u32.saturating_sub(n.leading_zeros());
+    let kept = (n >> cut) as u64 | u64::from(n & ((1u128 << cut) - 1) != 0);
+    Some(kept as f64 * pow2(cut as i32 + scale))
 }

@@ -332,16 +332,45 @@ fn the_reader_skips_every_kind_of_value_and_refuses_what_is_not_json() {
     }
 }
 
+/// j 5^k in decimal digits (a number of base-10^9 limbs, multiplied by 5 k times).
+fn times_power_of_five(j: u64, k: u32) -> String {
+    const BASE: u64 = 1_000_000_000;
+    let mut limbs = vec![j % BASE, (j / BASE) % BASE, j / BASE / BASE];
+    for _ in 0..k {
+        let mut carry = 0;
+        for l in &mut limbs {
+            let x = *l * 5 + carry;
+            (*l, carry) = (x % BASE, x / BASE);
+        }
+        if carry > 0 {
+            limbs.push(carry);
+        }
+    }
+    while limbs.len() > 1 && limbs.last() == Some(&0) {
+        limbs.pop();
+    }
+    let mut out = limbs.last().unwrap().to_string();
+    for l in limbs.iter().rev().skip(1) {
+        out += &format!("{l:09}");
+    }
+    out
+}
+
 proptest::proptest! {
     #![proptest_config(proptest::prelude::ProptestConfig::with_cases(4096))]
     /// The reader's numbers are the standard library's, bit for bit: every double written in
-    /// both of Rust's shortest forms, and decimal strings of any length and exponent.
+    /// both of Rust's shortest forms, decimal strings of any length and exponent, and the
+    /// hardest: a tie between two doubles (an odd 54-bit integer j times 2^-k, exactly
+    /// j 5^k 10^-k) and the 19-digit decimals either side of it (from 2^54 down to 2^-26, so
+    /// that every one of the exact cases' divisions by 10^k meets them).
     #[test]
     fn numbers_read_exactly_as_the_standard_library_reads_them(
         bits in proptest::num::u64::ANY,
         digits in "[0-9]{1,25}",
         fraction in "[0-9]{0,25}",
         exp in -340i32..340,
+        j in (1u64 << 53)..(1u64 << 54),
+        k in 0u32..=80,
     ) {
         let x = f64::from_bits(bits);
         let mut texts = vec![
@@ -354,6 +383,13 @@ proptest::proptest! {
         if x.is_finite() {
             texts.push(format!("{x:e}"));
             texts.push(format!("{x}"));
+        }
+        let tie = times_power_of_five(j | 1, k);
+        let below = &tie[..tie.len().min(19)];
+        let above = (below.parse::<u64>().unwrap() + 1).to_string();
+        let scale = |d: &str| tie.len() as i64 - d.len() as i64 - i64::from(k);
+        for d in [&tie[..], below, &above[..]] {
+            texts.push(format!("{d}e{}", scale(d)));
         }
         for t in texts {
             let doc = format!(r#"{{"timestamp": {t}, "imu": {{"gyro": [0,0,0], "accel_body": [0,0,-9.8]}}, "position": [0,0,0], "velocity": [0,0,0], "quaternion": [1,0,0,0]}}"#);
