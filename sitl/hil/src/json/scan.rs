@@ -118,6 +118,7 @@ impl<'a> Scanner<'a> {
         JsonError::State(format!("not JSON: {what} at byte {}", self.at))
     }
 
+    #[inline]
     fn blanks(&mut self) {
         while let Some(b' ' | b'\t' | b'\n' | b'\r') = self.b.get(self.at) {
             self.at += 1;
@@ -125,17 +126,24 @@ impl<'a> Scanner<'a> {
     }
 
     /// The next byte after blanks, not taken.
+    #[inline]
     fn peek(&mut self) -> Option<u8> {
         self.blanks();
         self.b.get(self.at).copied()
     }
 
+    #[inline]
     fn expect(&mut self, byte: u8) -> Result<(), JsonError> {
         if self.peek() != Some(byte) {
-            return Err(self.error(&format!("expected '{}'", byte as char)));
+            return Err(self.expected(byte));
         }
         self.at += 1;
         Ok(())
+    }
+
+    #[cold]
+    fn expected(&self, byte: u8) -> JsonError {
+        self.error(&format!("expected '{}'", byte as char))
     }
 
     /// An object, each member's value read by `member(scanner, key)`.
@@ -167,12 +175,15 @@ impl<'a> Scanner<'a> {
         }
     }
 
-    /// A string's raw bytes between its quotes (escapes checked, not decoded).
+    /// A string's raw bytes between its quotes (escapes checked, not decoded). Plain ASCII is
+    /// passed over eight bytes at a time; the first byte that is not (a quote, a backslash, a
+    /// control character or the start of a multi-byte character) is looked at on its own.
     fn string(&mut self) -> Result<&'a [u8], JsonError> {
         self.expect(b'"')?;
         let start = self.at;
         let mut non_ascii = false;
         loop {
+            self.at = plain_ascii(self.b, self.at);
             match self.b.get(self.at) {
                 None => return Err(self.error("unterminated string")),
                 Some(b'"') => break,
@@ -304,6 +315,35 @@ impl<'a> Scanner<'a> {
             Err(self.error("expected a value"))
         }
     }
+}
+
+/// Where the run of plain string bytes at `i` ends (printable ASCII but a quote and a
+/// backslash), eight bytes at a time (SWAR: each test flags a byte's top bit; the lowest flag
+/// is exact).
+pub(super) fn plain_ascii(b: &[u8], mut i: usize) -> usize {
+    const ONES: u64 = 0x0101_0101_0101_0101;
+    const TOPS: u64 = 0x8080_8080_8080_8080;
+    let zero_byte = |v: u64| v.wrapping_sub(ONES) & !v & TOPS;
+    while let Some(eight) = b.get(i..i + 8) {
+        let mut chunk = [0; 8];
+        chunk.copy_from_slice(eight);
+        let v = u64::from_le_bytes(chunk);
+        let special = zero_byte(v ^ (ONES * u64::from(b'"')))
+            | zero_byte(v ^ (ONES * u64::from(b'\\')))
+            | (v.wrapping_sub(ONES * 0x20) & !v & TOPS)
+            | (v & TOPS);
+        if special != 0 {
+            return i + (special.trailing_zeros() / 8) as usize;
+        }
+        i += 8;
+    }
+    while let Some(&c) = b.get(i) {
+        if c == b'"' || c == b'\\' || !(0x20..0x80).contains(&c) {
+            break;
+        }
+        i += 1;
+    }
+    i
 }
 
 /// Reads the run of ASCII digits at `i` into `m` (`m` × 10 + each, wrapping), counting them

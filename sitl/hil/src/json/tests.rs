@@ -421,3 +421,19 @@ fn the_latest_line_of_a_datagram_is_the_state() {
     let bad_utf8 = [&b"{\"name\": \"\xff\", "[..], &good.as_bytes()[2..]].concat();
     assert!(PhysicsState::parse_latest(&bad_utf8).is_err());
 }
+
+proptest::proptest! {
+    /// Plain string bytes are passed over eight at a time exactly as one at a time would: to
+    /// the first quote, backslash, control character or non-ASCII byte, wherever it is.
+    #[test]
+    fn plain_string_bytes_end_where_one_at_a_time_says(
+        bytes in proptest::collection::vec(
+            proptest::prop_oneof![8 => 0x20u8..0x7f, 1 => proptest::num::u8::ANY], 0..40),
+        from in 0usize..8,
+    ) {
+        let from = from.min(bytes.len());
+        let special = |c: u8| c == b'"' || c == b'\\' || !(0x20..0x80).contains(&c);
+        let expect = bytes[from..].iter().position(|&c| special(c)).map_or(bytes.len(), |p| from + p);
+        proptest::prop_assert_eq!(super::scan::plain_ascii(&bytes, from), expect);
+    }
+}
