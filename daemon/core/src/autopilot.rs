@@ -338,12 +338,10 @@ impl Autopilot {
         let output = self.core.step(&flown, &setpoint, armed);
         self.report_core(&output);
         // Magnetometer and barometer as last seen (a sample carries them only when fresh).
-        let prev = self.published.held_sample;
-        self.published.held_sample = Some(SensorSample {
-            mag: flown.mag.or(prev.and_then(|p| p.mag)),
-            baro_alt_m: flown.baro_alt_m.or(prev.and_then(|p| p.baro_alt_m)),
-            ..flown
-        });
+        let held = self.published.held_sample.get_or_insert(flown);
+        let (mag, baro_alt_m) = (flown.mag.or(held.mag), flown.baro_alt_m.or(held.baro_alt_m));
+        *held = flown;
+        (held.mag, held.baro_alt_m) = (mag, baro_alt_m);
         self.published.setpoint = armed.then_some(setpoint);
         if armed && !spooling && !self.monitor.imu_repeating() {
             // Not while the IMU repeats itself: if it is freezing, the loops fly blind and the
@@ -357,20 +355,33 @@ impl Autopilot {
         let mut commands = output.commands;
         self.injected
             .apply_to_commands(&mut commands[..self.rotors]);
-        self.last_answer = Some(AutopilotOutput {
-            t_usec,
-            commands,
-            armed,
-            kind: StepKind::Flown,
-            estimate: output,
-            setpoint,
-            raw_sample: SensorSample {
-                gps: received_gps,
-                ..sample
-            },
-            restarted,
-        });
         self.published.estimate = Some(output);
+        // The answer, written over the last one in place (it is 2 kB).
+        match &mut self.last_answer {
+            Some(a) => {
+                (a.t_usec, a.commands, a.armed, a.kind) =
+                    (t_usec, commands, armed, StepKind::Flown);
+                (a.setpoint, a.restarted) = (setpoint, restarted);
+                a.estimate = output;
+                a.raw_sample = sample;
+                a.raw_sample.gps = received_gps;
+            }
+            None => {
+                self.last_answer = Some(AutopilotOutput {
+                    t_usec,
+                    commands,
+                    armed,
+                    kind: StepKind::Flown,
+                    estimate: output,
+                    setpoint,
+                    raw_sample: SensorSample {
+                        gps: received_gps,
+                        ..sample
+                    },
+                    restarted,
+                })
+            }
+        }
         self.publish_with(status);
         true
     }
@@ -462,13 +473,17 @@ impl Autopilot {
     /// flight, the geofence and the failsafes decide with it. Before the flight core's first
     /// output: the origin, disarmed.
     fn command_setpoint(&mut self, t_s: f64, inputs: &StepInputs) -> (Setpoint, bool) {
-        let Some(e) = self.estimate() else {
+        if self.last_answer.is_none() {
+            return (origin_setpoint(), false);
+        }
+        self.fly_auto();
+        // Read in place (the fields below are the autopilot's others): no copy of the output.
+        let Some(e) = self.last_answer.as_ref().map(|a| &a.estimate) else {
             return (origin_setpoint(), false);
         };
         let attitude_valid = e.attitude.is_some_and(|a| a.valid);
         let ready =
             attitude_valid && e.translation.horizontal_valid && e.translation.vertical_valid;
-        self.fly_auto();
         if self.fence.is_none()
             && let Some(o) = e.translation.origin
         {
@@ -486,7 +501,7 @@ impl Autopilot {
                 .as_mut()
                 .is_some_and(|f| f.update(&tr.pos_ned_m.xy(), &tr.vel_ned_m_s.xy(), in_air, brake));
         let p = &self.core.config().position;
-        let (roll, pitch, yaw) = e.attitude.map_or((0.0, 0.0, 0.0), |a| a.q.euler_angles());
+        let (roll, pitch, yaw) = e.attitude.map_or((0.0, 0.0, 0.0), |a| a.euler_rad);
         let out = self.commander.update(&CommanderInput {
             t_s,
             ready,

@@ -261,7 +261,7 @@ impl Autopilot {
         let yaw = self
             .estimate()
             .and_then(|o| o.attitude)
-            .map_or(0.0, |a| a.q.euler_angles().2);
+            .map_or(0.0, |a| a.euler_rad.2);
         let target = if relative {
             yaw + angle_deg.to_radians() * if direction < 0 { -1.0 } else { 1.0 }
         } else {

@@ -79,7 +79,7 @@ impl FlightCore {
         if self.learn_disturbance {
             self.disturbance.update(&a.q, &s.accel, dt);
         }
-        let yaw = a.q.euler_angles().2;
+        let yaw = a.euler_rad.2;
         let m = self.config.position.mass_kg;
         let drag = |v: &Vector3<f64>| still_air_drag(v, yaw, m, &self.drag);
         let wind_share = self.disturbance.accel_ned_m_s2() - drag(&translation.vel_ned_m_s);
@@ -266,7 +266,7 @@ impl FlightCore {
             self.wind_age_s = 0.0;
             self.wind = self.disturbance.wind(
                 &translation.vel_ned_m_s,
-                a.q.euler_angles().2,
+                a.euler_rad.2,
                 self.config.position.mass_kg,
                 &self.drag,
             );
@@ -331,7 +331,7 @@ impl FlightCore {
                 let mut sp = self.position_step(&setpoint, translation, &a.q, dt);
                 if self.ground_contact == GroundContact::MaybeLanded {
                     // PX4's maybe landed: idle thrust, level, the rate integrators cleared.
-                    let (_, _, yaw) = a.q.euler_angles();
+                    let (_, _, yaw) = a.euler_rad;
                     sp.q_d = nalgebra::UnitQuaternion::from_euler_angles(0.0, 0.0, yaw);
                     sp.thrust_n = 0.0;
                     self.rate = rate_axes(&self.config.rate);

@@ -92,6 +92,9 @@ pub struct AttitudeInput {
 pub struct AttitudeEstimate {
     /// Attitude `q_ned_from_frd`, `w ≥ 0`.
     pub q: UnitQuaternion<f64>,
+    /// Roll, pitch and yaw of `q` (rad; Z-Y-X, as MAVLink's `ATTITUDE`), worked out once here
+    /// for the controller and the commander that read them every step.
+    pub euler_rad: (f64, f64, f64),
     /// Body rate corrected by the bias estimate (rad/s).
     pub rate: Vector3<f64>,
     /// Gyro bias estimate (rad/s).
@@ -268,21 +271,27 @@ impl AttitudeEstimator {
     /// The current estimate, if aligned.
     pub fn estimate(&self, gyro: &Vector3<f64>) -> Option<AttitudeEstimate> {
         if let Some(f) = &self.filter {
-            return self.status.aligned.then(|| AttitudeEstimate {
-                q: f.attitude(),
-                rate: gyro - f.bias(),
-                gyro_bias: f.bias(),
-                accel_bias: f.accel_bias().0,
-                valid: self.status.since_correction_s <= self.params.max_uncorrected_s,
-                bias_settled: f.bias_settled(),
-                imu_still: f.imu_still(),
-                // As this sample's update left them (`status.tilt_heading`, not worked out again).
-                reset: self.status.tilt_heading.reset,
+            return self.status.aligned.then(|| {
+                let q = f.attitude();
+                AttitudeEstimate {
+                    q,
+                    euler_rad: q.euler_angles(),
+                    rate: gyro - f.bias(),
+                    gyro_bias: f.bias(),
+                    accel_bias: f.accel_bias().0,
+                    valid: self.status.since_correction_s <= self.params.max_uncorrected_s,
+                    bias_settled: f.bias_settled(),
+                    imu_still: f.imu_still(),
+                    // As this sample's update left them (`status.tilt_heading`, not worked out again).
+                    reset: self.status.tilt_heading.reset,
+                }
             });
         }
         let o = self.observer.as_ref()?;
+        let q = crate::math::quat::shortest(&o.q);
         Some(AttitudeEstimate {
-            q: crate::math::quat::shortest(&o.q),
+            q,
+            euler_rad: q.euler_angles(),
             rate: o.rate(gyro),
             gyro_bias: o.bias,
             accel_bias: Vector3::zeros(),

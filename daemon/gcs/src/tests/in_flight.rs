@@ -457,6 +457,7 @@ fn an_attitude_estimate_reset_is_said_once() {
     let mut t = telemetry(false, FlightMode::Loiter);
     let estimate = |reset| AttitudeEstimate {
         q: nalgebra::UnitQuaternion::identity(),
+        euler_rad: (0.0, 0.0, 0.0),
         rate: nalgebra::Vector3::zeros(),
         gyro_bias: nalgebra::Vector3::zeros(),
         accel_bias: nalgebra::Vector3::zeros(),
