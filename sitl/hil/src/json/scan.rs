@@ -209,27 +209,19 @@ impl<'a> Scanner<'a> {
         self.blanks();
         let (b, start) = (self.b, self.at);
         let negative = b.get(start) == Some(&b'-');
-        let mut i = start + usize::from(negative);
-        // The significant digits as one integer m (wrapping past 19 of them: then not exact),
-        // the value m × 10^e.
-        let (mut m, mut e, mut significant) = (0u64, 0i64, 0usize);
-        let int_start = i;
-        i = digits(b, i, &mut m, &mut significant);
-        let mut well_formed = i > int_start;
+        let int_start = start + usize::from(negative);
+        // The digits as one integer m (wrapping past 19 of them: then not exact), the value
+        // m × 10^e.
+        let mut m = 0u64;
+        let int_end = digits(b, int_start, &mut m);
+        let (mut i, mut fraction) = (int_end, 0);
         if b.get(i) == Some(&b'.') {
-            i += 1;
-            let fraction_start = i;
-            if m == 0 {
-                // 0.000123: the zeros only scale.
-                while b.get(i) == Some(&b'0') {
-                    i += 1;
-                }
-                significant = 0;
-            }
-            i = digits(b, i, &mut m, &mut significant);
-            well_formed &= i > fraction_start;
-            e -= (i - fraction_start) as i64;
+            i = digits(b, int_end + 1, &mut m);
+            fraction = i - (int_end + 1);
         }
+        let mut well_formed = int_end > int_start && (i == int_end || fraction > 0);
+        let mantissa_end = i;
+        let mut e = -(fraction as i64);
         if let Some(b'e' | b'E') = b.get(i) {
             i += 1;
             let negative_exp = b.get(i) == Some(&b'-');
@@ -242,11 +234,19 @@ impl<'a> Scanner<'a> {
             well_formed &= i > exp_start;
             e += if negative_exp { -x } else { x };
         }
-        let exact = significant <= 19;
         self.at = i;
         if !well_formed {
             return Err(self.error("expected a number"));
         }
+        // m holds 19 significant digits exactly (leading zeros are not significant: 0.00123
+        // has three); past that it wrapped.
+        let exact = int_end - int_start + fraction <= 19
+            || b[int_start..mantissa_end]
+                .iter()
+                .filter(|c| c.is_ascii_digit())
+                .skip_while(|&&c| c == b'0')
+                .count()
+                <= 19;
         let magnitude = match exact.then(|| decimal_to_f64(m, e)).flatten() {
             Some(v) => v,
             // Past the fast cases: the standard library's parser (Eisel–Lemire and its
@@ -346,10 +346,9 @@ pub(super) fn plain_ascii(b: &[u8], mut i: usize) -> usize {
     i
 }
 
-/// Reads the run of ASCII digits at `i` into `m` (`m` × 10 + each, wrapping), counting them
-/// in `n`; where it ends. Eight at a time where eight are there (SWAR: one 64-bit load, a
+/// Reads the run of ASCII digits at `i` into `m` (`m` × 10 + each, wrapping); where it ends. Eight at a time where eight are there (SWAR: one 64-bit load, a
 /// range check of all eight bytes and three multiplications, as fast_float does).
-fn digits(b: &[u8], mut i: usize, m: &mut u64, n: &mut usize) -> usize {
+fn digits(b: &[u8], mut i: usize, m: &mut u64) -> usize {
     while let Some(eight) = b.get(i..i + 8) {
         let mut chunk = [0; 8];
         chunk.copy_from_slice(eight);
@@ -366,12 +365,10 @@ fn digits(b: &[u8], mut i: usize, m: &mut u64, n: &mut usize) -> usize {
             + ((pairs >> 16) & mask).wrapping_mul(0x0000_2710_0000_0001))
             >> 32;
         *m = m.wrapping_mul(100_000_000).wrapping_add(quads);
-        *n += 8;
         i += 8;
     }
     while let Some(d @ 0..=9) = b.get(i).map(|c| c.wrapping_sub(b'0')) {
         *m = m.wrapping_mul(10).wrapping_add(u64::from(d));
-        *n += 1;
         i += 1;
     }
     i
