@@ -145,9 +145,14 @@ impl JsonLink {
     }
 
     fn send_packet(&mut self) -> io::Result<()> {
-        self.socket.send(&self.packet)?;
         self.sent_at = Some(Instant::now());
-        Ok(())
+        match self.socket.send(&self.packet) {
+            // A physics not (yet) listening, told by an earlier packet's ICMP port unreachable
+            // (a connected socket reports it at its next call): the packet goes out again
+            // after RESEND_AFTER.
+            Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => Ok(()),
+            r => r.map(|_| ()),
+        }
     }
 
     /// The held servo outputs again in a new packet: the physics steps once more under them.
@@ -359,6 +364,27 @@ mod tests {
         format!(
             "\n{{\"timestamp\": {t}, \"imu\": {{\"gyro\": [0, 0, {r}], \"accel_body\": [0, 0, -9.80665]}}, \"position\": [0, 0, {z}], \"velocity\": [0, 0, 0], \"attitude\": [0, 0, 0.5], \"airspeed\": 0}}\n"
         )
+    }
+
+    #[test]
+    fn a_physics_not_listening_is_waited_for_not_an_error() {
+        let port = physics().local_addr().unwrap(); // bound, then closed: nothing listens
+        let mut link = JsonLink::connect(
+            port,
+            vec![0, 1, 2, 3],
+            SensorPreset::Ideal,
+            1,
+            LatLonAlt::default(),
+        )
+        .unwrap();
+        let mut into = Received::default();
+        let answer = ActuatorCommand::as_sent(1000, &[0.5; 4], true);
+        for _ in 0..3 {
+            // The port unreachable each packet brings back is reported at the next call.
+            assert!(!link.receive(Duration::from_millis(20), &mut into).unwrap());
+            link.send(&answer).unwrap();
+            link.send(&answer).unwrap();
+        }
     }
 
     #[test]
