@@ -348,6 +348,19 @@ mod tests {
         s
     }
 
+    /// A link to `physics` (ideal sensors, seed 1, home at the origin), rotor k on servo
+    /// channel `channels[k]`.
+    fn link_to(physics: SocketAddr, channels: Vec<usize>) -> JsonLink {
+        JsonLink::connect(
+            physics,
+            channels,
+            SensorPreset::Ideal,
+            1,
+            LatLonAlt::default(),
+        )
+        .unwrap()
+    }
+
     fn packet(physics: &UdpSocket) -> (ServoPacket, SocketAddr) {
         let mut buf = [0u8; 256];
         let (n, from) = physics.recv_from(&mut buf).unwrap();
@@ -369,14 +382,7 @@ mod tests {
     #[test]
     fn a_physics_not_listening_is_waited_for_not_an_error() {
         let port = physics().local_addr().unwrap(); // bound, then closed: nothing listens
-        let mut link = JsonLink::connect(
-            port,
-            vec![0, 1, 2, 3],
-            SensorPreset::Ideal,
-            1,
-            LatLonAlt::default(),
-        )
-        .unwrap();
+        let mut link = link_to(port, vec![0, 1, 2, 3]);
         let mut into = Received::default();
         let answer = ActuatorCommand::as_sent(1000, &[0.5; 4], true);
         for _ in 0..3 {
@@ -391,14 +397,7 @@ mod tests {
     fn a_faster_physics_steps_on_under_the_held_command_and_its_imu_is_averaged() {
         let physics = physics();
         let addr = physics.local_addr().unwrap();
-        let mut link = JsonLink::connect(
-            addr,
-            vec![0, 1, 2, 3],
-            SensorPreset::Ideal,
-            1,
-            LatLonAlt::default(),
-        )
-        .unwrap();
+        let mut link = link_to(addr, vec![0, 1, 2, 3]);
         let mut into = Received::default();
         assert!(!link.receive(Duration::from_millis(20), &mut into).unwrap());
         let (_, from) = packet(&physics);
@@ -443,14 +442,7 @@ mod tests {
         let physics = physics();
         let addr = physics.local_addr().unwrap();
         // Rotors 1–4 on servo channels 3, 1, 4, 2.
-        let mut link = JsonLink::connect(
-            addr,
-            vec![2, 0, 3, 1],
-            SensorPreset::Ideal,
-            1,
-            LatLonAlt::default(),
-        )
-        .unwrap();
+        let mut link = link_to(addr, vec![2, 0, 3, 1]);
         let mut into = Received::default();
         // The first receive starts the exchange: motors off.
         assert!(!link.receive(Duration::from_millis(20), &mut into).unwrap());
