@@ -346,8 +346,9 @@ pub(super) fn plain_ascii(b: &[u8], mut i: usize) -> usize {
     i
 }
 
-/// Reads the run of ASCII digits at `i` into `m` (`m` × 10 + each, wrapping); where it ends. Eight at a time where eight are there (SWAR: one 64-bit load, a
-/// range check of all eight bytes and three multiplications, as fast_float does).
+/// Reads the run of ASCII digits at `i` into `m` (`m` × 10 + each, wrapping); where it ends.
+/// Eight at a time where eight are there (SWAR: one 64-bit load, a range check of all eight
+/// bytes and three multiplications, as fast_float does).
 fn digits(b: &[u8], mut i: usize, m: &mut u64) -> usize {
     while let Some(eight) = b.get(i..i + 8) {
         let mut chunk = [0; 8];
