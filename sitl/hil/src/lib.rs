@@ -100,28 +100,30 @@ pub fn hil_gps(time_usec: u64, fix: &GpsFix) -> MavMessage {
 }
 
 /// `ESC_STATUS` messages (four rotors each, `index` = first rotor) for `rpm` of `count` rotors.
-pub fn esc_status(time_usec: u64, rpm: &[f64], voltage_v: f64, current_a: f64) -> Vec<MavMessage> {
+pub fn esc_status(
+    time_usec: u64,
+    rpm: &[f64],
+    voltage_v: f64,
+    current_a: f64,
+) -> impl Iterator<Item = MavMessage> + '_ {
     let per = current_a / rpm.len().max(1) as f64;
-    rpm.chunks(4)
-        .enumerate()
-        .map(|(k, chunk)| {
-            let mut r = [0i32; 4];
-            let mut v = [0f32; 4];
-            let mut c = [0f32; 4];
-            for (i, x) in chunk.iter().enumerate() {
-                r[i] = x.round() as i32;
-                v[i] = voltage_v as f32;
-                c[i] = per as f32;
-            }
-            MavMessage::ESC_STATUS(ESC_STATUS_DATA {
-                time_usec,
-                rpm: r,
-                voltage: v,
-                current: c,
-                index: (4 * k) as u8,
-            })
+    rpm.chunks(4).enumerate().map(move |(k, chunk)| {
+        let mut r = [0i32; 4];
+        let mut v = [0f32; 4];
+        let mut c = [0f32; 4];
+        for (i, x) in chunk.iter().enumerate() {
+            r[i] = x.round() as i32;
+            v[i] = voltage_v as f32;
+            c[i] = per as f32;
+        }
+        MavMessage::ESC_STATUS(ESC_STATUS_DATA {
+            time_usec,
+            rpm: r,
+            voltage: v,
+            current: c,
+            index: (4 * k) as u8,
         })
-        .collect()
+    })
 }
 
 /// `HIL_STATE_QUATERNION`: ground truth for logs and scoring (never for the estimator).
@@ -278,7 +280,7 @@ impl Accumulator {
 /// [`SensorUpdate`] in-process: the same messages, so the same quantisation either way.
 pub fn exchange_messages(
     f: &SensorFrame,
-    truth: &TruthState,
+    truth: impl FnOnce() -> TruthState,
     rotors: usize,
     send_state: bool,
     mut emit: impl FnMut(&MavMessage),
@@ -286,18 +288,16 @@ pub fn exchange_messages(
     if let Some(fix) = &f.gps {
         emit(&hil_gps(f.time_usec, fix));
     }
-    if let Some(rpm) = &f.rotor_rpm {
-        for m in esc_status(
-            f.time_usec,
-            &rpm[..rotors.min(rpm.len())],
-            truth.battery_voltage_v,
-            truth.battery_current_a,
-        ) {
+    // The truth is worked out only for the messages that carry it.
+    let truth = (f.rotor_rpm.is_some() || send_state).then(truth);
+    if let (Some(rpm), Some(t)) = (&f.rotor_rpm, &truth) {
+        let rpm = &rpm[..rotors.min(rpm.len())];
+        for m in esc_status(f.time_usec, rpm, t.battery_voltage_v, t.battery_current_a) {
             emit(&m);
         }
     }
-    if send_state {
-        emit(&hil_state_quaternion(truth));
+    if let (true, Some(t)) = (send_state, &truth) {
+        emit(&hil_state_quaternion(t));
     }
     emit(&hil_sensor(f));
 }
@@ -307,7 +307,7 @@ pub fn encode_exchange(
     encoder: &mut Encoder,
     out: &mut Vec<u8>,
     f: &SensorFrame,
-    truth: &TruthState,
+    truth: impl FnOnce() -> TruthState,
     rotors: usize,
     send_state: bool,
 ) {
@@ -517,7 +517,7 @@ mod tests {
             &mut sim_encoder(),
             &mut bytes,
             &frame,
-            &sim.truth(),
+            || sim.truth(),
             4,
             true,
         );
@@ -573,7 +573,7 @@ mod tests {
     #[test]
     fn esc_status_splits_rotors_in_fours() {
         let rpm: Vec<f64> = (0..12).map(|i| 1000.0 + i as f64).collect();
-        let msgs = esc_status(5, &rpm, 22.0, 24.0);
+        let msgs: Vec<_> = esc_status(5, &rpm, 22.0, 24.0).collect();
         assert_eq!(msgs.len(), 3);
         let MavMessage::ESC_STATUS(m) = &msgs[2] else {
             panic!()

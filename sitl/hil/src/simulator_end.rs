@@ -82,9 +82,9 @@ impl SimulatorEnd {
         let send_state = self.state_due();
         let frame = self.acc.frame();
         let rotors = self.sim.airframe().rotors.len();
-        let truth = self.sim.truth();
+        let truth = || self.sim.truth();
         if self.hil_gps || frame.gps.is_none() {
-            encode_exchange(&mut self.encoder, out, frame, &truth, rotors, send_state);
+            encode_exchange(&mut self.encoder, out, frame, truth, rotors, send_state);
         } else {
             let without_gps = SensorFrame {
                 gps: None,
@@ -94,7 +94,7 @@ impl SimulatorEnd {
                 &mut self.encoder,
                 out,
                 &without_gps,
-                &truth,
+                truth,
                 rotors,
                 send_state,
             );
@@ -115,9 +115,15 @@ impl SimulatorEnd {
         let send_state = self.state_due();
         let frame = self.acc.frame();
         let rotors = self.sim.airframe().rotors.len();
-        exchange_messages(frame, &self.sim.truth(), rotors, send_state, |m| {
-            into.absorb(m);
-        });
+        exchange_messages(
+            frame,
+            || self.sim.truth(),
+            rotors,
+            send_state,
+            |m| {
+                into.absorb(m);
+            },
+        );
         frame.time_usec
     }
 
