@@ -55,6 +55,9 @@ pub struct MagFieldMonitor {
     /// Time the field has been averaged (s); it starts again after a silence.
     averaged_s: f64,
     since_mag_s: f64,
+    /// The field measured, as of the last fresh reading ([`Self::measured`]): worked out when a
+    /// reading comes, not on every IMU step.
+    measured: Option<MagField>,
 }
 
 impl MagFieldMonitor {
@@ -80,6 +83,7 @@ impl MagFieldMonitor {
         let Some(raw) = raw_mag.filter(|m| m.iter().all(|x| x.is_finite())) else {
             if self.since_mag_s > Self::SETTLE_S {
                 self.averaged_s = 0.0;
+                self.measured = None;
             }
             return;
         };
@@ -92,10 +96,16 @@ impl MagFieldMonitor {
         };
         self.averaged_s += self.since_mag_s;
         self.since_mag_s = 0.0;
+        self.measured = self.field_measured();
     }
 
-    /// The field measured, once averaged for [`Self::SETTLE_S`].
+    /// The field measured, once averaged for [`Self::SETTLE_S`] (as of the last fresh reading).
     pub fn measured(&self) -> Option<MagField> {
+        self.measured
+    }
+
+    /// The averaged field's strength, and its inclination against the averaged specific force.
+    fn field_measured(&self) -> Option<MagField> {
         let g = self.specific_force.norm();
         if self.averaged_s < Self::SETTLE_S || g < 1e-3 {
             return None;
