@@ -8,7 +8,7 @@
 //! ```
 //!
 //! The links around it (a simulator in-process or over UDP, a serial flight board) turn bytes
-//! into [`SensorSample`]s and commands into bytes; the records (flight-data CSV, telemetry log,
+//! into [`SensorSample`](crate::sample::SensorSample)s and commands into bytes; the records (flight-data CSV, telemetry log,
 //! the score against a simulator's truth) observe each [`AutopilotOutput`] from outside. Time
 //! comes with the sample; the ground-station link's age with [`StepInputs`]: no clock is read.
 
@@ -18,13 +18,14 @@ mod calibration;
 pub mod command;
 pub mod rc;
 mod state;
+mod step;
 
 pub use auto_flight::AutoFlight;
 pub use state::VehicleState;
 
 use crate::commander::{Commander, CommanderInput, CommanderStatus, Health, LandedState};
+use crate::control::Setpoint;
 use crate::control::position::PositionSetpoint;
-use crate::control::{GroundContact, Setpoint};
 use crate::core::{FlightCore, FlightCoreConfig, nominal_battery_v};
 use crate::math::geo::LocalFrame;
 use crate::mixer::MixerError;
@@ -32,7 +33,7 @@ use crate::params::FlightParams;
 use crate::safety::blind_descent::{BlindDescent, HoverCommands};
 use crate::safety::failure_injection::FailureInjector;
 use crate::safety::geofence::{FenceMonitor, GeoZone, Geofence};
-use crate::sample::{SensorSample, StepOutput};
+use crate::sample::StepOutput;
 use crate::sensors::battery::{BatteryConfig, BatteryEstimator};
 use crate::sensors::imu_calibrator::ImuCalibrator;
 use crate::sensors::imu_correction::ImuCorrection;
@@ -80,7 +81,8 @@ fn origin_setpoint() -> Setpoint {
     })
 }
 
-/// One step's result.
+/// One step's result. The flight core's output it flew on is kept once, in the published
+/// state ([`VehicleState::estimate`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AutopilotOutput {
     /// Time of the sample (µs).
@@ -91,14 +93,8 @@ pub struct AutopilotOutput {
     pub armed: bool,
     /// What the step did.
     pub kind: StepKind,
-    /// The flight core's last output (this step's when flown).
-    pub estimate: StepOutput,
     /// The set-point flown.
     pub setpoint: Setpoint,
-    /// The sample as stepped, raw (before the IMU's calibration): after failure injection
-    /// and the sensor monitor, but for the GPS solution, which is the receiver's whether or not
-    /// the monitor took it (a 2D fix, a frozen receiver). What the logs record.
-    pub raw_sample: SensorSample,
     /// The sensor source started again before this sample (its clock went back by more than
     /// [`SOURCE_RESTART_S`]): the autopilot started afresh, and so do the records.
     pub restarted: bool,
@@ -266,7 +262,7 @@ impl Autopilot {
 
     /// The flight core's last output.
     fn estimate(&self) -> Option<StepOutput> {
-        self.last_answer.as_ref().map(|a| a.estimate)
+        self.published.estimate
     }
 
     /// Samples that repeated or went back in time, answered or dropped without a step.
@@ -274,187 +270,9 @@ impl Autopilot {
         self.repeated_frames
     }
 
-    /// One sensor sample: the whole chain, and what to tell the rotors. `None` for a sample
-    /// older than the last (stale: dropped). A sample more than [`SOURCE_RESTART_S`] older than
-    /// the last is a source that started again: the autopilot does too.
-    pub fn step(&mut self, sample: &SensorSample, inputs: &StepInputs) -> Option<AutopilotOutput> {
-        if self.step_in_place(sample, inputs) {
-            self.last_answer
-        } else {
-            None
-        }
-    }
-
-    /// [`Autopilot::step`] without copying its answer out: whether there is one, which
-    /// [`Autopilot::output`] then holds (the control loop's way: the answer is 2 kB).
-    pub fn step_in_place(&mut self, sample: &SensorSample, inputs: &StepInputs) -> bool {
-        let t_usec = sample.t_usec;
-        let mut restarted = false;
-        if let Some(last) = &self.last_answer
-            && t_usec.saturating_add(SOURCE_RESTART_USEC) < last.t_usec
-        {
-            let back_s = (last.t_usec - t_usec) as f64 * 1e-6;
-            self.source_restarted(back_s);
-            restarted = true;
-        }
-        if let Some(last) = self.last_answer.as_mut()
-            && t_usec <= last.t_usec
-        {
-            // A sample seen before: answered again without stepping; an older one is dropped.
-            self.repeated_frames += 1;
-            if t_usec == last.t_usec {
-                last.kind = StepKind::Repeated;
-                return true;
-            }
-            return false;
-        }
-        let mut sample = *sample;
-        self.power_and_gps(&sample, t_usec);
-        self.injected.apply_to_sample(&mut sample);
-        // What the receiver said, for the logs, whether or not the estimators take it.
-        let received_gps = sample.gps;
-        // Lost sensors are taken out: the estimators fall back as for a sensor that is off.
-        self.monitor.update(&mut sample);
-        if let Some(commands) = self.imu_frozen(t_usec) {
-            return self.blind_output(t_usec, commands, &sample, restarted);
-        }
-        let t_s = t_usec as f64 * 1e-6;
-        // The calibrations take the raw readings, the estimators the calibrated ones; the logs
-        // keep the raw.
-        self.step_calibrations(t_s, &sample);
-        let flown = self.imu_correction.apply(&sample);
-        if self.last_answer.is_some() {
-            let dt = self.dt_since_last(t_usec);
-            let p = &self.core.config().attitude;
-            self.mag_field.update(flown.mag, &flown.accel, p, dt);
-        }
-        if let Some(frame) = &inputs.rc {
-            self.rc_frame(t_s, frame);
-        }
-        let (setpoint, armed) = self.command_setpoint(t_s, inputs);
-        // The commander's state once a step: nothing below changes it.
-        let status = self.commander.status();
-        let spooling = self.set_flight_phase(&status);
-        let output = self.core.step(&flown, &setpoint, armed);
-        self.report_core(&output);
-        // Magnetometer and barometer as last seen (a sample carries them only when fresh).
-        let held = self.published.held_sample.get_or_insert(flown);
-        let (mag, baro_alt_m) = (flown.mag.or(held.mag), flown.baro_alt_m.or(held.baro_alt_m));
-        *held = flown;
-        (held.mag, held.baro_alt_m) = (mag, baro_alt_m);
-        self.published.setpoint = armed.then_some(setpoint);
-        if armed && !spooling && !self.monitor.imu_repeating() {
-            // Not while the IMU repeats itself: if it is freezing, the loops fly blind and the
-            // blind descent must not inherit what they command meanwhile. Nor at idle on the
-            // ground before the take-off: the filter starts from the climb's first commands.
-            let dt = self.dt_since_last(t_usec);
-            self.hover.update(&output.commands, dt);
-        } else if !armed {
-            self.hover.reset();
-        }
-        let mut commands = output.commands;
-        self.injected
-            .apply_to_commands(&mut commands[..self.rotors]);
-        self.published.estimate = Some(output);
-        // The answer, written over the last one in place (it is 2 kB).
-        match &mut self.last_answer {
-            Some(a) => {
-                (a.t_usec, a.commands, a.armed, a.kind) =
-                    (t_usec, commands, armed, StepKind::Flown);
-                (a.setpoint, a.restarted) = (setpoint, restarted);
-                a.estimate = output;
-                a.raw_sample = sample;
-                a.raw_sample.gps = received_gps;
-            }
-            None => {
-                self.last_answer = Some(AutopilotOutput {
-                    t_usec,
-                    commands,
-                    armed,
-                    kind: StepKind::Flown,
-                    estimate: output,
-                    setpoint,
-                    raw_sample: SensorSample {
-                        gps: received_gps,
-                        ..sample
-                    },
-                    restarted,
-                })
-            }
-        }
-        self.publish_with(status);
-        true
-    }
-
     /// The last answer: the last step's, or the one before it repeated.
     pub fn output(&self) -> Option<&AutopilotOutput> {
         self.last_answer.as_ref()
-    }
-
-    /// The battery's voltage and charge, and the last GPS solution, from `sample`.
-    fn power_and_gps(&mut self, sample: &SensorSample, t_usec: u64) {
-        self.published.battery_v = sample.battery_v.unwrap_or(self.nominal_v);
-        if let Some(g) = sample.gps {
-            self.published.gps = Some(g);
-        }
-        if let Some(v) = sample.battery_v {
-            let current = sample
-                .esc_current_a
-                .map(|c| c[..self.rotors.min(c.len())].iter().sum::<f64>());
-            let throttle = self.last_answer.as_ref().map_or(0.0, |a| {
-                a.estimate.commands[..self.rotors].iter().sum::<f64>() / self.rotors.max(1) as f64
-            });
-            let dt = self.dt_since_last(t_usec);
-            self.battery.step(v, current, throttle, dt);
-        }
-    }
-
-    /// Tells the flight core where the vehicle is in its flight (from the commander's state);
-    /// returns whether it is spooling up on the ground.
-    fn set_flight_phase(&mut self, status: &CommanderStatus) -> bool {
-        let spooling = status.armed && status.landed == LandedState::OnGround;
-        if spooling {
-            // Spooling up on the ground: the position loop starts fresh at take-off.
-            self.core.reset_position_loop();
-        }
-        self.core.set_in_air(matches!(
-            status.landed,
-            LandedState::InAir | LandedState::Landing
-        ));
-        self.core.set_learn_disturbance(matches!(
-            status.landed,
-            LandedState::InAir | LandedState::Takeoff
-        ));
-        // On the ground until a take-off begins: idle, level, held by the ground (PX4's spool-up
-        // at idle). Near the hover thrust the wind would slide it off on light feet.
-        self.core.set_ground_contact(if spooling {
-            GroundContact::MaybeLanded
-        } else {
-            status.ground_contact
-        });
-        spooling
-    }
-
-    /// Logs what the flight core's step found: a motor failure, an attitude estimate reset.
-    fn report_core(&mut self, output: &StepOutput) {
-        if let Some(f) = output.motor_failure {
-            tracing::error!(
-                motor = f.rotor + 1,
-                by = ?f.by,
-                lost = format!("{:.0} %", 100.0 * f.lost_fraction),
-                reallocated = self.core.config().motor_failure.reallocate,
-                "motor failure detected"
-            );
-        }
-        if let Some(r) = output.attitude.map(|a| a.reset) {
-            if r.tilt > self.estimate_resets.0 {
-                tracing::warn!(off_deg = %format!("{:.1}", r.tilt_rad.to_degrees()), "attitude estimate reset: tilt");
-            }
-            if r.heading > self.estimate_resets.1 {
-                tracing::warn!(off_deg = %format!("{:.1}", r.heading_rad.to_degrees()), "attitude estimate reset: heading");
-            }
-            self.estimate_resets = (r.tilt, r.heading);
-        }
     }
 
     /// Time of the last answered sample (µs; 0 before the first).
@@ -478,7 +296,7 @@ impl Autopilot {
         }
         self.fly_auto();
         // Read in place (the fields below are the autopilot's others): no copy of the output.
-        let Some(e) = self.last_answer.as_ref().map(|a| &a.estimate) else {
+        let Some(e) = self.published.estimate.as_ref() else {
             return (origin_setpoint(), false);
         };
         let attitude_valid = e.attitude.is_some_and(|a| a.valid);

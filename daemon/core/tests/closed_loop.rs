@@ -247,7 +247,7 @@ fn takeoff_hover_land_and_disarm() {
             let t = sim.time_s();
             let out = autopilot.step(&sample, &StepInputs::default()).unwrap();
             assert!(
-                out.estimate.motor_failure.is_none(),
+                autopilot.state().estimate.unwrap().motor_failure.is_none(),
                 "{name}: false motor failure at {t:.2} s"
             );
             commands = out.commands;
@@ -520,7 +520,7 @@ fn mission_legs_at_5_m_s_track_the_straight_line() {
             let sample = common::control_interval(&mut sim, &commands[..n]);
             let out = autopilot.step(&sample, &StepInputs::default()).unwrap();
             commands = out.commands;
-            let tr = &out.estimate.translation;
+            let tr = autopilot.state().estimate.unwrap().translation;
             let status = autopilot.status();
             if status.ready && !status.armed && !done {
                 let frame = LocalFrame::new(tr.origin.unwrap());
@@ -638,7 +638,7 @@ fn offboard_position_hold_in_still_air() {
                 }
             }
             let step = autopilot.step(&sample, &StepInputs::default()).unwrap();
-            let out = step.estimate;
+            let out = autopilot.state().estimate.unwrap();
             commands = step.commands;
             let gps_error = sim.sensors().gps_error_ned();
             if out.translation.horizontal_valid && gps_error_at_origin.is_none() {

@@ -62,7 +62,7 @@ fn fly(seed: u64, sensors: SensorConfig, glitch: bool) -> Outcome {
         }
         let out = autopilot.step(&s, &StepInputs::default()).unwrap();
         commands = out.commands;
-        let Some(estimate) = out.estimate.attitude else {
+        let Some(estimate) = autopilot.state().estimate.and_then(|e| e.attitude) else {
             continue;
         };
         // Resets in the air before the glitch are false ones (at start-up the estimate may be

@@ -158,9 +158,9 @@ impl Bench {
         let (mut tilt2, mut drift2, mut n) = (0.0, 0.0, 0.0);
         let end = self.sim.time_s() + 20.0;
         while self.sim.time_s() < end {
-            let out = self.step();
+            self.step();
             let truth = self.sim.truth().body;
-            let est = out.estimate.attitude.unwrap().q;
+            let est = self.autopilot.state().estimate.unwrap().attitude.unwrap().q;
             // The tilt error: the angle between the true and the estimated down axes.
             let down = |q: &nalgebra::UnitQuaternion<f64>| q.transform_vector(&Vector3::z());
             let tilt = down(&truth.q_ned_from_frd).angle(&down(&est)).to_degrees();

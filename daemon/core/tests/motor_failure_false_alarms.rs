@@ -53,7 +53,7 @@ fn orbit_in_wind(name: &str, seed: u64, esc_telemetry: bool) -> Flown {
     let mut orbit_since = None::<f64>;
     let mut flown = Flown::default();
     while sim.time_s() < 120.0 {
-        let out = common::autopilot_interval(
+        common::autopilot_interval(
             &mut sim,
             &mut autopilot,
             &mut commands,
@@ -61,7 +61,7 @@ fn orbit_in_wind(name: &str, seed: u64, esc_telemetry: bool) -> Flown {
             esc_telemetry,
         );
         let t = sim.time_s();
-        if let Some(f) = out.estimate.motor_failure {
+        if let Some(f) = autopilot.state().estimate.and_then(|e| e.motor_failure) {
             flown.declared.get_or_insert((f.rotor, t));
         }
         let status = autopilot.status();

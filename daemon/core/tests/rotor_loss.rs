@@ -5,10 +5,11 @@
 
 use airframe::MAX_ROTORS;
 use flight_core::autopilot::command::AutopilotCommand;
-use flight_core::autopilot::{AutoFlight, Autopilot, AutopilotOutput};
+use flight_core::autopilot::{AutoFlight, Autopilot};
 use flight_core::commander::{FlightMode, LandedState};
 use flight_core::mission::{MissionAltitude, MissionPoint};
 use flight_core::params::FlightParams;
+use flight_core::sample::StepOutput;
 use nalgebra::Vector3;
 use navmath::geo::LocalFrame;
 use sitl_core::environment::WindConfig;
@@ -109,12 +110,12 @@ fn keep_largest(largest: &mut [f64; 4], e: [f64; 4]) {
 /// The estimate's errors against the truth: tilt (deg), heading (deg), horizontal position (m),
 /// velocity (m/s). `origin_frame` keeps the estimator's local frame once it has an origin.
 fn estimate_errors(
-    out: &AutopilotOutput,
+    out: &StepOutput,
     truth: &TruthState,
     origin_frame: &mut Option<LocalFrame>,
 ) -> Option<[f64; 4]> {
-    let a = out.estimate.attitude?;
-    let tr = &out.estimate.translation;
+    let a = out.attitude?;
+    let tr = &out.translation;
     let origin = tr.origin?;
     let body = &truth.body;
     let tilt = (a.q * Vector3::z()).angle(&(body.q_ned_from_frd * Vector3::z()));
@@ -184,11 +185,14 @@ fn lose_a_rotor(case: Case, params: &FlightParams) -> Outcome {
         let truth = sim.truth();
         let body = truth.body;
         let status = autopilot.status();
-        if let Some(f) = out.estimate.motor_failure {
+        let Some(est) = autopilot.state().estimate else {
+            continue;
+        };
+        if let Some(f) = est.motor_failure {
             let after = cut_at.map_or(-1.0, |(c, _)| t - c);
             o.detected.get_or_insert((f.rotor, after));
         }
-        let errors = estimate_errors(&out, &truth, &mut origin_frame);
+        let errors = estimate_errors(&est, &truth, &mut origin_frame);
         match cut_at {
             None => {
                 let up = status.landed == LandedState::InAir && -body.pos_ned_m.z > 9.7;

@@ -6,6 +6,7 @@
 #![allow(clippy::unwrap_used, missing_docs)]
 
 use airframe::MAX_ROTORS;
+use flight_core::autopilot::StepInputs;
 use nalgebra::{UnitQuaternion, Vector3};
 use sitl_core::environment::WindConfig;
 use sitl_core::sim::SimConfig;
@@ -51,7 +52,11 @@ fn land_in_wind(seed: u64) -> Landing {
     let mut window: Vec<(f64, Vector3<f64>, UnitQuaternion<f64>)> = Vec::new();
     let mut was_airborne = false;
     while sim.time_s() < 90.0 {
-        let o = common::autopilot_interval(&mut sim, &mut autopilot, &mut commands, 4, true);
+        let sample = common::control_interval(&mut sim, &commands[..4]);
+        let o = autopilot
+            .step(&sample, &StepInputs::default())
+            .expect("a sample from the simulator steps");
+        commands = o.commands;
         let (t, truth) = (sim.time_s(), sim.truth());
         let body = truth.body;
         was_airborne |= -body.pos_ned_m.z > 2.0;
@@ -62,7 +67,8 @@ fn land_in_wind(seed: u64) -> Landing {
                 .to_degrees();
         }
         // A second before the touch: keep the last second of samples until it comes.
-        let gyro = autopilot_gyro(&o) - sim.sensors().gyro_bias();
+        // The gyro the autopilot was given (its sample's mean over the control interval).
+        let gyro = sample.gyro - sim.sensors().gyro_bias();
         window.push((t, gyro, body.q_ned_from_frd));
         if touch_at.is_none() {
             window.retain(|(w, ..)| *w > t - 1.0);
@@ -75,7 +81,7 @@ fn land_in_wind(seed: u64) -> Landing {
                 .max(body.rate_frd_rad_s.norm().to_degrees() * dt);
         }
         if (since - 2.0).abs() < 0.5 * DECIMATION as f64 * dt {
-            let est = o.estimate.attitude.unwrap().q;
+            let est = autopilot.state().estimate.unwrap().attitude.unwrap().q;
             out.estimate_error_2s_deg = est.angle_to(&body.q_ned_from_frd).to_degrees();
         }
         if out.disarm_after_s.is_none() && !o.armed {
@@ -99,11 +105,6 @@ fn land_in_wind(seed: u64) -> Landing {
     }
     out.touchdowns = sim.stats().touchdowns;
     out
-}
-
-/// The gyro the autopilot was given (its sample's mean over the control interval).
-fn autopilot_gyro(o: &flight_core::autopilot::AutopilotOutput) -> Vector3<f64> {
-    o.raw_sample.gyro
 }
 
 #[test]

@@ -13,7 +13,7 @@ mod common;
 
 use airframe::{Airframe, MAX_ROTORS};
 use flight_core::autopilot::command::AutopilotCommand;
-use flight_core::autopilot::{Autopilot, AutopilotOutput, StepInputs, VehicleState};
+use flight_core::autopilot::{Autopilot, StepInputs, VehicleState};
 use flight_core::commander::LandedState;
 use flight_core::math::geo::{LatLonAlt, LocalFrame};
 use flight_core::params::FlightParams;
@@ -67,7 +67,6 @@ struct Vehicle {
     autopilot: Autopilot,
     gcs: GroundStation,
     commands: [f64; MAX_ROTORS],
-    last: Option<AutopilotOutput>,
     limits: TargetLimits,
     /// Home once ready to arm (NED).
     first_home: nalgebra::Vector3<f64>,
@@ -92,14 +91,15 @@ impl Vehicle {
             autopilot: Autopilot::new(&a, &p, None).unwrap(),
             gcs: GroundStation::new(1, MavType::MAV_TYPE_QUADROTOR),
             commands: [0.0; MAX_ROTORS],
-            last: None,
             limits: TargetLimits::new(&p.safety),
             first_home: nalgebra::Vector3::zeros(),
         };
         v.fly_until(60.0, |v| {
             v.autopilot.status().ready
-                && v.last
-                    .is_some_and(|o| o.estimate.translation.origin.is_some())
+                && v.autopilot
+                    .state()
+                    .estimate
+                    .is_some_and(|e| e.translation.origin.is_some())
         });
         v.first_home = v.home().1;
         if hover {
@@ -125,7 +125,6 @@ impl Vehicle {
         let s = common::control_interval(&mut self.sim, &self.commands[..4]);
         if let Some(out) = self.autopilot.step(&s, &StepInputs::default()) {
             self.commands = out.commands;
-            self.last = Some(out);
         }
     }
 
@@ -148,7 +147,7 @@ impl Vehicle {
         Telemetry {
             vehicle: Some(VehicleState {
                 status: state.status,
-                estimate: self.last.map(|o| o.estimate),
+                estimate: state.estimate,
                 held_sample: None,
                 setpoint: state.setpoint,
                 gps: state.gps,
@@ -170,13 +169,25 @@ impl Vehicle {
 
     /// The origin, home (NED) and home's global position.
     fn home(&self) -> (LatLonAlt, nalgebra::Vector3<f64>, LatLonAlt) {
-        let origin = self.last.unwrap().estimate.translation.origin.unwrap();
+        let origin = self
+            .autopilot
+            .state()
+            .estimate
+            .unwrap()
+            .translation
+            .origin
+            .unwrap();
         let home = self.autopilot.status().home.map_or(self.here(), |h| h.0);
         (origin, home, LocalFrame::new(origin).to_geodetic(&home))
     }
 
     fn here(&self) -> nalgebra::Vector3<f64> {
-        self.last.unwrap().estimate.translation.pos_ned_m
+        self.autopilot
+            .state()
+            .estimate
+            .unwrap()
+            .translation
+            .pos_ned_m
     }
 
     /// Sends `msg`; the vehicle carries out what it is passed; the command's result (`None`:

@@ -342,8 +342,8 @@ impl<'a> ControlLoop<'a> {
             gcs_link_age_s: self.gcs_heartbeat.map(|t| t.elapsed().as_secs_f64()),
             rc: None,
         };
-        let received = std::mem::take(&mut self.received.frames);
-        let flow = self.step_on(&received, inputs);
+        let mut received = std::mem::take(&mut self.received.frames);
+        let flow = self.step_on(&mut received, inputs);
         self.received.frames = received;
         flow
     }
@@ -368,20 +368,21 @@ impl<'a> ControlLoop<'a> {
     }
 
     /// Steps on `frames` in order, answering each.
-    fn step_on(&mut self, frames: &[frames::LinkFrame], inputs: StepInputs) -> Result<Flow> {
+    fn step_on(&mut self, frames: &mut [frames::LinkFrame], inputs: StepInputs) -> Result<Flow> {
         for frame in frames {
             let inputs = StepInputs {
                 rc: frame.rc,
                 ..inputs
             };
-            if !self.autopilot.step_in_place(&frame.sample, &inputs) {
+            // The sample is flown in place, and left as the records take it.
+            if !self.autopilot.step_in_place(&mut frame.sample, &inputs) {
                 continue;
             }
             let Some(step) = self.autopilot.output() else {
                 continue;
             };
             self.records
-                .observe(step, self.autopilot.state(), frame.truth);
+                .observe(step, &frame.sample, self.autopilot.state(), frame.truth);
             self.t_s = step.t_usec as f64 * 1e-6;
             self.last_frame = Instant::now();
             self.silence_logged = false;
@@ -406,7 +407,7 @@ impl<'a> ControlLoop<'a> {
             }
             if self.autopilot.awaiting_takeoff()
                 && self.t_s > READY_TIMEOUT_S
-                && let Some(out) = self.autopilot.output().map(|s| &s.estimate)
+                && let Some(out) = self.autopilot.state().estimate.as_ref()
             {
                 bail!(
                     "not ready to arm after {READY_TIMEOUT_S} s of sensor time: attitude valid {}, horizontal position valid {}, vertical valid {}",

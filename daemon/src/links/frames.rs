@@ -81,7 +81,7 @@ pub fn close(u: &mut SensorUpdate) -> Option<LinkFrame> {
         accel,
         mag: u.mag_frd.take(),
         baro_alt_m: u.pressure_alt_m.take(),
-        gps: u.gps.take().map(|g| GpsMeasurement {
+        gps: fresh(&mut u.gps).map(|g| GpsMeasurement {
             fix_type: g.fix_type,
             position: LatLonAlt {
                 lat_deg: g.lat_deg,
@@ -96,13 +96,24 @@ pub fn close(u: &mut SensorUpdate) -> Option<LinkFrame> {
         // The pack's state as last reported (ESC_STATUS comes at its own rate).
         battery_v: u.battery_v,
         esc_current_a: u.esc_current_a,
-        rotor_speed_rad_s: u.rotor_speed_rad_s.take(),
+        rotor_speed_rad_s: fresh(&mut u.rotor_speed_rad_s),
     };
     Some(LinkFrame {
         rc: None,
         sample,
-        truth: u.truth.take(),
+        truth: fresh(&mut u.truth),
     })
+}
+
+/// Takes a fresh reading out; when there is none, copies nothing (`take` moves the whole
+/// `Option` every frame, and the GPS, the rotor speeds and the truth are hundreds of bytes
+/// that most frames do not carry).
+fn fresh<T>(reading: &mut Option<T>) -> Option<T> {
+    if reading.is_some() {
+        reading.take()
+    } else {
+        None
+    }
 }
 
 /// The answer to a step: the first `rotors` commands of `out`, quantised as

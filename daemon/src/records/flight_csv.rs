@@ -13,6 +13,7 @@ use crate::records::log_files::LogFile;
 use airframe::MAX_ROTORS;
 use flight_core::autopilot::AutopilotOutput;
 use flight_core::commander::{CommanderStatus, LandedState};
+use flight_core::sample::{SensorSample, StepOutput};
 use nalgebra::{UnitQuaternion, Vector3};
 use std::path::Path;
 use std::time::Duration;
@@ -180,10 +181,12 @@ impl FlightCsv {
         &mut self,
         status: &CommanderStatus,
         step: &AutopilotOutput,
+        out: &StepOutput,
+        sample: &SensorSample,
         true_pose: Option<(Vector3<f64>, UnitQuaternion<f64>)>,
         loop_late: Option<Duration>,
     ) -> std::io::Result<()> {
-        let (t_s, out, sample) = (step.t_usec as f64 * 1e-6, &step.estimate, &step.raw_sample);
+        let t_s = step.t_usec as f64 * 1e-6;
         let sp = out.attitude_setpoint;
         self.rows.push(Row {
             t_s,

@@ -14,6 +14,7 @@ use crate::records::ulog_topics::{MOTORS, OUTPUTS, PERIOD_US, TOPICS, id, nav_st
 use flight_core::autopilot::{AutopilotOutput, VehicleState};
 use flight_core::commander::{CommanderStatus, FlightMode, LandedState};
 use flight_core::params::{FlightParams, ParamKind};
+use flight_core::sample::{SensorSample, StepOutput};
 use nalgebra::UnitQuaternion;
 use std::path::Path;
 
@@ -183,15 +184,17 @@ impl FlightUlog {
     pub fn record(
         &mut self,
         step: &AutopilotOutput,
+        est: &StepOutput,
+        s: &SensorSample,
         vehicle: &VehicleState,
     ) -> std::io::Result<()> {
         let t = step.t_usec;
         self.first_us.get_or_insert(t);
-        self.record_imu(t, step);
-        self.record_control(t, step, vehicle);
-        self.record_position(t, step);
-        self.record_sensors(t, step);
-        self.record_health(t, step, vehicle);
+        self.record_imu(t, est, s);
+        self.record_control(t, step, est, vehicle);
+        self.record_position(t, step, est);
+        self.record_sensors(t, s);
+        self.record_health(t, est, s, vehicle);
         self.status(t, step, &vehicle.status);
         let due = self.shipped_us.is_none_or(|s| t < s || t >= s + ship_us());
         if due {
@@ -203,8 +206,7 @@ impl FlightUlog {
     }
 
     /// `sensor_combined`, `vehicle_attitude`, `vehicle_angular_velocity`.
-    fn record_imu(&mut self, t: u64, step: &AutopilotOutput) {
-        let (est, s) = (&step.estimate, &step.raw_sample);
+    fn record_imu(&mut self, t: u64, est: &StepOutput, s: &SensorSample) {
         let q = est.attitude.map(|a| a.q);
         if self.due(id::SENSOR_COMBINED, t) {
             let dt = 2_000; // the loop's nominal period (µs)
@@ -232,8 +234,13 @@ impl FlightUlog {
 
     /// `vehicle_rates_setpoint`, `vehicle_attitude_setpoint`, `actuator_motors`,
     /// `actuator_outputs`.
-    fn record_control(&mut self, t: u64, step: &AutopilotOutput, vehicle: &VehicleState) {
-        let est = &step.estimate;
+    fn record_control(
+        &mut self,
+        t: u64,
+        step: &AutopilotOutput,
+        est: &StepOutput,
+        vehicle: &VehicleState,
+    ) {
         let max_thrust = vehicle.max_thrust_n.max(1e-6);
         let sp = est.attitude_setpoint;
         let thrust_body = sp.map_or([f64::NAN; 3], |a| [0.0, 0.0, -a.thrust_n / max_thrust]);
@@ -271,9 +278,9 @@ impl FlightUlog {
     }
 
     /// `vehicle_local_position`, `vehicle_global_position`, `vehicle_local_position_setpoint`.
-    fn record_position(&mut self, t: u64, step: &AutopilotOutput) {
-        let tr = &step.estimate.translation;
-        let q = step.estimate.attitude.map(|a| a.q);
+    fn record_position(&mut self, t: u64, step: &AutopilotOutput, est: &StepOutput) {
+        let tr = &est.translation;
+        let q = est.attitude.map(|a| a.q);
         if self.due(id::VEHICLE_LOCAL_POSITION, t) {
             let (p, v, a) = (tr.pos_ned_m, tr.vel_ned_m_s, tr.accel_ned_m_s2);
             let origin = tr.origin;
@@ -326,8 +333,7 @@ impl FlightUlog {
 
     /// The sensors when fresh: `vehicle_gps_position`, `vehicle_air_data`,
     /// `vehicle_magnetometer`.
-    fn record_sensors(&mut self, t: u64, step: &AutopilotOutput) {
-        let s = &step.raw_sample;
+    fn record_sensors(&mut self, t: u64, s: &SensorSample) {
         if let Some(g) = s.gps {
             let since_start = t.saturating_sub(self.first_us.unwrap_or(t));
             let v = g.vel_ned_m_s;
@@ -369,8 +375,13 @@ impl FlightUlog {
     }
 
     /// `battery_status`, `estimator_status`, `wind`.
-    fn record_health(&mut self, t: u64, step: &AutopilotOutput, vehicle: &VehicleState) {
-        let (est, s) = (&step.estimate, &step.raw_sample);
+    fn record_health(
+        &mut self,
+        t: u64,
+        est: &StepOutput,
+        s: &SensorSample,
+        vehicle: &VehicleState,
+    ) {
         let tr = &est.translation;
         if self.due(id::BATTERY_STATUS, t) {
             let b = vehicle.battery;

@@ -14,6 +14,7 @@ mod ulog_topics;
 
 use anyhow::{Context, Result};
 use flight_core::autopilot::{AutopilotOutput, StepKind, VehicleState};
+use flight_core::sample::SensorSample;
 use flight_csv::FlightCsv;
 use flight_ulog::FlightUlog;
 use hil::TruthReport;
@@ -81,6 +82,7 @@ impl FlightRecords {
     pub fn observe(
         &mut self,
         step: &AutopilotOutput,
+        sample: &SensorSample,
         vehicle: &VehicleState,
         truth: Option<TruthReport>,
     ) {
@@ -99,14 +101,18 @@ impl FlightRecords {
                 }
             }
             StepKind::Flown => {
+                // A flown step always has the flight core's output.
+                let Some(est) = vehicle.estimate.as_ref() else {
+                    return;
+                };
                 let true_pose = truth.and_then(|truth| {
                     self.last_truth = Some(truth);
-                    let estimate = step.estimate.attitude.map(|a| a.q);
+                    let estimate = est.attitude.map(|a| a.q);
                     let p = self.score.add(&truth, estimate, status, step.armed)?;
                     Some((p, truth.q))
                 });
                 if let Some(csv) = self.csv.as_mut()
-                    && let Err(e) = csv.record(status, step, true_pose, self.loop_late)
+                    && let Err(e) = csv.record(status, step, est, sample, true_pose, self.loop_late)
                 {
                     // A full disk must not stop the flight: stop logging, report at the end.
                     tracing::error!("flight-data CSV: {e}; logging stopped");
@@ -114,7 +120,7 @@ impl FlightRecords {
                     self.csv_error = Some(e);
                 }
                 if let Some(ulog) = self.ulog.as_mut()
-                    && let Err(e) = ulog.record(step, vehicle)
+                    && let Err(e) = ulog.record(step, est, sample, vehicle)
                 {
                     tracing::error!("ULog flight log: {e}; logging stopped");
                     self.ulog = None;

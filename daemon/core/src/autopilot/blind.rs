@@ -4,7 +4,6 @@
 
 use super::{Autopilot, AutopilotOutput, StepKind};
 use crate::safety::blind_descent::BlindDescent;
-use crate::sample::SensorSample;
 use airframe::MAX_ROTORS;
 
 /// What to tell the rotors while the sensor samples are silent.
@@ -131,12 +130,11 @@ impl Autopilot {
         &mut self,
         t_usec: u64,
         commands: Option<[f64; MAX_ROTORS]>,
-        sample: &SensorSample,
         restarted: bool,
     ) -> bool {
-        let Some(estimate) = self.estimate() else {
+        if self.published.estimate.is_none() {
             return false;
-        };
+        }
         if !self.commander.armed() {
             self.imu_frozen_since_usec = None;
         }
@@ -149,12 +147,10 @@ impl Autopilot {
             commands,
             armed,
             kind: StepKind::Blind,
-            estimate,
             setpoint: self
                 .published
                 .setpoint
                 .unwrap_or_else(super::origin_setpoint),
-            raw_sample: *sample,
             restarted,
         };
         self.last_answer = Some(answer);

@@ -53,14 +53,13 @@ impl Autopilot {
     /// battery, the calibrations, the airframe's figures. Called at the end of every step and
     /// of whatever else changes them (commands, the sensors stopping or coming back).
     pub(super) fn publish(&mut self) {
-        let status = self.commander.status();
-        self.publish_with(status);
+        self.published.status = self.commander.status();
+        self.publish_besides_status();
     }
 
-    /// [`Autopilot::publish`] with the commander's state as just computed.
-    pub(super) fn publish_with(&mut self, status: CommanderStatus) {
+    /// [`Autopilot::publish`] but for the commander's state (published by the caller).
+    pub(super) fn publish_besides_status(&mut self) {
         let p = &mut self.published;
-        p.status = status;
         p.battery = self.battery.state();
         p.mag_cal = self.mag_cal.as_ref().map(MagCalibrator::status);
         p.imu_cal = self.imu_cal.as_ref().map(ImuCalibrator::status);

@@ -142,8 +142,22 @@ impl FlightCore {
 
     /// One step: estimate, then (armed) control toward `setpoint`.
     pub fn step(&mut self, s: &SensorSample, setpoint: &Setpoint, armed: bool) -> StepOutput {
+        let mut out = StepOutput::default();
+        self.step_into(s, setpoint, armed, &mut out);
+        out
+    }
+
+    /// [`FlightCore::step`] written over `out` in place: the output is 1.1 kB, and the
+    /// autopilot keeps it once.
+    pub fn step_into(
+        &mut self,
+        s: &SensorSample,
+        setpoint: &Setpoint,
+        armed: bool,
+        out: &mut StepOutput,
+    ) {
         let (raw_dt, dt) = self.intervals(s);
-        let mut out = self.estimate(s, armed, raw_dt, dt);
+        self.estimate(s, armed, raw_dt, dt, out);
         let (att, translation) = (out.attitude, out.translation);
         // Armed, the loops fly on any aligned attitude: one flagged invalid (no correction for
         // a while) is still the gyro's best, far better than stopping the motors in the air.
@@ -153,7 +167,7 @@ impl FlightCore {
                 self.reset_controllers();
             }
             self.flying = false;
-            return out;
+            return;
         };
         self.flying = true;
         self.step_disturbance(&a, s, &translation, setpoint, dt);
@@ -176,7 +190,6 @@ impl FlightCore {
         out.rate_reference = rate_reference;
         out.mixer = Some(m);
         self.last_mix = Some(m);
-        out
     }
 
     /// The interval since the last sample as it came (`raw_dt`) and clamped to the loops'
@@ -198,7 +211,14 @@ impl FlightCore {
     /// The estimators on the sample: the attitude, then the translation predicted through it
     /// and corrected by the GPS and barometer. Returns the step's output with the estimates
     /// and nothing flown yet.
-    fn estimate(&mut self, s: &SensorSample, armed: bool, raw_dt: f64, dt: f64) -> StepOutput {
+    fn estimate(
+        &mut self,
+        s: &SensorSample,
+        armed: bool,
+        raw_dt: f64,
+        dt: f64,
+        out: &mut StepOutput,
+    ) {
         // The accelerometer's reference: the translation filter's acceleration R̂f + g − b, whose
         // bias b is learned from GPS position innovations. A tilt error δ shows up in b as g·δ, so
         // this turns the attitude correction into a GPS-aided one; without it, horizontal
@@ -241,16 +261,15 @@ impl FlightCore {
         if let Some(b) = s.baro_alt_m {
             self.translation.fuse_baro(s.t_usec, b);
         }
-        StepOutput {
-            commands: [0.0; MAX_ROTORS],
-            attitude: att,
-            translation: self.translation.estimate(),
-            attitude_setpoint: None,
-            rate_reference: Vector3::zeros(),
-            mixer: None,
-            motor_failure: None,
-            wind: None,
-        }
+        // Field by field: the output is written in place.
+        out.commands = [0.0; MAX_ROTORS];
+        out.attitude = att;
+        out.translation = self.translation.estimate();
+        out.attitude_setpoint = None;
+        out.rate_reference = Vector3::zeros();
+        out.mixer = None;
+        out.motor_failure = None;
+        out.wind = None;
     }
 
     /// The wind the outside force means, for telemetry and logs (10 Hz at most, not on every

@@ -170,7 +170,12 @@ impl FailureInjector {
     pub fn apply_to_sample(&mut self, s: &mut SensorSample) {
         fn one<T: Copy>(kind: FailureType, reading: &mut Option<T>, held: &mut Option<T>) {
             match kind {
-                FailureType::Ok => *held = reading.or(*held),
+                // Held only when fresh (a GPS solution is 160 bytes: not copied every step).
+                FailureType::Ok => {
+                    if reading.is_some() {
+                        *held = *reading;
+                    }
+                }
                 FailureType::Off => *reading = None,
                 // At the sensor's own rate: only when a fresh reading would have come.
                 FailureType::Stuck => {

@@ -108,6 +108,14 @@ impl ImuCorrection {
     /// `sample` with its gyro and accelerometer calibrated, in the body's axes, the
     /// accelerometer's lever arm taken off.
     pub fn apply(&self, sample: &SensorSample) -> SensorSample {
+        let mut out = *sample;
+        self.apply_into(sample, &mut out);
+        out
+    }
+
+    /// [`ImuCorrection::apply`] written over `into` (the autopilot's way: into the sample it
+    /// publishes, with no copy between).
+    pub fn apply_into(&self, sample: &SensorSample, into: &mut SensorSample) {
         let gyro = sample.gyro - self.gyro_offset;
         let accel = (sample.accel - self.accel_offset).component_mul(&self.accel_scale);
         let (gyro, accel) = match self.board {
@@ -117,11 +125,8 @@ impl ImuCorrection {
         // The angular acceleration's share `ω̇ × r` is left in: it needs the gyro differentiated,
         // and its noise would cost more than the term.
         let accel = accel - gyro.cross(&gyro.cross(&self.imu_position));
-        SensorSample {
-            gyro,
-            accel,
-            ..*sample
-        }
+        *into = *sample;
+        (into.gyro, into.accel) = (gyro, accel);
     }
 }
 
