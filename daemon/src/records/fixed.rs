@@ -5,7 +5,7 @@
 //! its digits written: the same text. The product rounds once, but a rounding of `p` can only
 //! go the other way from the exact value's when `p` sits on a half, and there the product's
 //! exact error (a fused multiply-add) settles it. Values too large for that (|x| × 10^d ≥
-//! 2^52), NaN and infinities go through the standard library.
+//! 2^51), NaN and infinities go through the standard library.
 
 use std::io::Write;
 
@@ -23,6 +23,9 @@ const POW10_U64: [u64; 10] = [
     1_000_000_000,
 ];
 const TWO_52: f64 = 4_503_599_627_370_496.0;
+const TWO_51: f64 = 2_251_799_813_685_248.0;
+/// A double's 52 mantissa bits.
+const MANTISSA: u64 = (1 << 52) - 1;
 /// "00" to "99": two digits per lookup.
 const PAIRS: &[u8; 200] = b"0001020304050607080910111213141516171819\
 2021222324252627282930313233343536373839\
@@ -34,26 +37,28 @@ const PAIRS: &[u8; 200] = b"0001020304050607080910111213141516171819\
 pub fn push_fixed(out: &mut Vec<u8>, x: f64, decimals: usize) {
     let d = decimals.min(POW10.len() - 1);
     let p = x.abs() * POW10[d];
-    if !p.is_finite() || p >= TWO_52 {
-        // From 2^52, or not finite: the standard library (writing to a Vec cannot fail).
+    if !p.is_finite() || p >= TWO_51 {
+        // From 2^51, or not finite: the standard library (writing to a Vec cannot fail).
         let _ = write!(out, "{x:.d$}");
         return;
     }
     // Rounded half to even by the hardware's own rounding: below 2^52, adding 2^52 leaves no
-    // fraction bits (as `round_ties_even`, without a call to libm's `rint`).
-    let mut scaled = (p + TWO_52) - TWO_52;
+    // fraction bits (as `round_ties_even`, without a call to libm's `rint`); the sum's
+    // mantissa is then the rounded integer itself (below 2^51, the sum stays under 2^53).
+    let biased = p + TWO_52;
+    let scaled = biased - TWO_52;
+    let mut n = biased.to_bits() & MANTISSA;
     // Below 2^52, p - scaled is exact; off a half, the product's error (under half an ulp of
     // p) cannot carry the exact value past one.
     if (p - scaled).abs() == 0.5 {
         let error = x.abs().mul_add(POW10[d], -p);
         if p > scaled && error > 0.0 {
-            scaled += 1.0;
+            n += 1;
         } else if p < scaled && error < 0.0 {
-            scaled -= 1.0;
+            n -= 1;
         }
     }
     // The digits from the last, two at a time: d of the fraction, the point, the integer part.
-    let n = scaled as u64;
     let unit = POW10_U64[d];
     let (mut int, mut frac) = (n / unit, n % unit);
     let mut text = [0u8; 32];
@@ -74,13 +79,15 @@ pub fn push_fixed(out: &mut Vec<u8>, x: f64, decimals: usize) {
         at -= 1;
         text[at] = b'.';
     }
+    let units_at = at;
     while int >= 10 {
         at -= 2;
         let pair = (int % 100) as usize * 2;
         text[at..at + 2].copy_from_slice(&PAIRS[pair..pair + 2]);
         int /= 100;
     }
-    if at == text.len() || int > 0 || text[at] == b'.' {
+    // The last digit: one left, or the integer part 0 (no digit written for it yet).
+    if int > 0 || at == units_at {
         at -= 1;
         text[at] = b'0' + int as u8;
     }

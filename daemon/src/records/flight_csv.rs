@@ -45,7 +45,8 @@ struct Row {
     pos: Vector3<f64>,
     vel: Vector3<f64>,
     sp_pos: Vector3<f64>,
-    q: Option<UnitQuaternion<f64>>,
+    /// The attitude estimate's roll, pitch and yaw (rad), worked out once by the estimator.
+    euler: Option<(f64, f64, f64)>,
     q_d: Option<UnitQuaternion<f64>>,
     thrust_n: Option<f64>,
     /// The wind the outside force on the vehicle means (NED, m/s).
@@ -72,11 +73,13 @@ fn cells(out: &mut Vec<u8>, values: &[f64], decimals: usize) {
 
 /// Roll, pitch, yaw (deg) of an optional quaternion, or empty cells.
 fn euler_deg(out: &mut Vec<u8>, q: Option<UnitQuaternion<f64>>) {
-    match q {
-        Some(q) => {
-            let (r, p, y) = q.euler_angles();
-            cells(out, &[r.to_degrees(), p.to_degrees(), y.to_degrees()], 3);
-        }
+    angles_deg(out, q.map(|q| q.euler_angles()));
+}
+
+/// Roll, pitch, yaw (deg) from radians, or empty cells.
+fn angles_deg(out: &mut Vec<u8>, rpy: Option<(f64, f64, f64)>) {
+    match rpy {
+        Some((r, p, y)) => cells(out, &[r.to_degrees(), p.to_degrees(), y.to_degrees()], 3),
         None => out.extend_from_slice(b",,"),
     }
 }
@@ -92,7 +95,7 @@ fn write_row(out: &mut Vec<u8>, r: &Row, rotors: usize) {
     out.extend_from_slice(if r.armed { b",1," } else { b",0," });
     cells(out, &[p.x, p.y, p.z, v.x, v.y, v.z, s.x, s.y, s.z], 4);
     out.push(b',');
-    euler_deg(out, r.q);
+    angles_deg(out, r.euler);
     out.push(b',');
     euler_deg(out, r.q_d);
     out.push(b',');
@@ -200,7 +203,7 @@ impl FlightCsv {
                 .setpoint
                 .position()
                 .map_or(Vector3::repeat(f64::NAN), |p| p.pos_ned_m),
-            q: out.attitude.map(|a| a.q),
+            euler: out.attitude.map(|a| a.euler_rad),
             q_d: sp.map(|a| a.q_d),
             thrust_n: sp.map(|a| a.thrust_n),
             wind: out.wind.map(|w| w.wind_ned_m_s),

@@ -280,11 +280,10 @@ impl FlightUlog {
     /// `vehicle_local_position`, `vehicle_global_position`, `vehicle_local_position_setpoint`.
     fn record_position(&mut self, t: u64, step: &AutopilotOutput, est: &StepOutput) {
         let tr = &est.translation;
-        let q = est.attitude.map(|a| a.q);
         if self.due(id::VEHICLE_LOCAL_POSITION, t) {
             let (p, v, a) = (tr.pos_ned_m, tr.vel_ned_m_s, tr.accel_ned_m_s2);
             let origin = tr.origin;
-            let heading = q.map_or(f64::NAN, |q| q.euler_angles().2);
+            let heading = est.attitude.map_or(f64::NAN, |a| a.euler_rad.2);
             let row = self
                 .row(t)
                 .u64(t)
