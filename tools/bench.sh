@@ -125,7 +125,7 @@ printf '%-50s x%s, lag at most %s s, %s landed, %s, peak memory %s KiB\n' \
     "$(echo "$s" | field max_rss_kib)"
 logs=$(mktemp -d)
 for n in 50 100; do
-    t=$( { time SWARM_BIN="$bin" SWARM_LOG_DIR="$logs" SWARM_HIL_PORT=34560 SWARM_SITL_ARGS="--speed 1" \
+    t=$( { time SWARM_BIN="$bin" SWARM_LOG_DIR="$logs" SWARM_HIL_PORT=24560 SWARM_SITL_ARGS="--speed 1" \
         tools/swarm.sh "$n" "${swarm[@]}" >"$out" 2>/dev/null || true; } 2>&1 )
     slowest=$(awk '/autopilot summary/ {for (i = 1; i <= NF; i++) {split($i, kv, "="); v[kv[1]] = kv[2]}
         r = v["sim_time_s"] / v["wall_time_s"]; if (min == "" || r < min) min = r; landed += v["landed"] == "true"}

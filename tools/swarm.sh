@@ -12,12 +12,14 @@
 # lands every vehicle (twice: stops at once); the run ends when every autopilot has ended, and
 # each one's summary line is printed. Environment: SWARM_BIN (the binaries' directory; default
 # target/release, built if missing), SWARM_LOG_DIR (each process's output; default
-# logs/swarm), SWARM_HIL_PORT (default 4560), SWARM_SITL_ARGS (more simulator options, e.g.
-# "--speed 1" to watch in real time). The exit status is 0 when every autopilot's was.
+# logs/swarm), SWARM_HIL_PORT (default 4560; the N ports from it must lie outside the kernel's
+# ephemeral range, where a simulator's own port could take an autopilot's: refused otherwise),
+# SWARM_SITL_ARGS (more simulator options, e.g. "--speed 1" to watch in real time). The exit
+# status is 0 when every autopilot's was.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-usage() { sed -n '2,17p' "$0" | sed 's/^# \{0,1\}//'; exit 2; }
+usage() { sed -n '2,19p' "$0" | sed 's/^# \{0,1\}//'; exit 2; }
 [[ $# -ge 1 && $1 =~ ^[0-9]+$ && $1 -ge 1 && $1 -le 251 ]] || usage
 count=$1
 shift
@@ -25,6 +27,15 @@ bin=${SWARM_BIN:-target/release}
 log_dir=${SWARM_LOG_DIR:-logs/swarm}
 hil_port=${SWARM_HIL_PORT:-4560}
 read -r -a sitl_args <<<"${SWARM_SITL_ARGS:-}"
+# Each simulator sends from a port the kernel picks in its ephemeral range: an autopilot's HIL
+# port in that range could be taken before the autopilot binds it. Outside it, never.
+read -r eph_low eph_high </proc/sys/net/ipv4/ip_local_port_range 2>/dev/null || eph_low='' eph_high=''
+if [[ -n $eph_low ]] && ((hil_port <= eph_high && hil_port + count - 1 >= eph_low)); then
+    echo "swarm: HIL ports $hil_port-$((hil_port + count - 1)) overlap the kernel's ephemeral ports" \
+        "$eph_low-$eph_high (a simulator's own port could take an autopilot's):" \
+        "set SWARM_HIL_PORT below $((eph_low - count + 1)) or above $eph_high" >&2
+    exit 2
+fi
 if [[ ! -x $bin/sitl || ! -x $bin/autopilot ]]; then
     [[ $bin == target/release ]] || { echo "swarm: no sitl/autopilot in $bin" >&2; exit 1; }
     cargo build --release --bins
