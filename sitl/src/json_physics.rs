@@ -76,10 +76,7 @@ pub fn run(
     );
     let rotors = end.sim().airframe().rotors.len();
     let started = Instant::now();
-    let mut pacer = Pacer {
-        start: started,
-        factor: speed,
-    };
+    let mut pacer = Pacer::new(started, speed);
     let mut status = Status::new(cli.status_interval);
     let mut summary = Summary::default();
     let mut buf = vec![0u8; 2048];

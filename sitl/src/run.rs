@@ -256,11 +256,28 @@ impl AwaitAutopilot {
 
 /// Paces simulated time against the wall clock at a factor, by absolute deadlines.
 pub(crate) struct Pacer {
-    pub(crate) start: Instant,
-    pub(crate) factor: Option<f64>,
+    start: Instant,
+    factor: Option<f64>,
+    /// When a resume from now was last said (said at most every 10 s).
+    said: Option<Instant>,
 }
 
+/// Behind its deadline by more than this (wall time), the pace starts again from now: a process
+/// stopped (Ctrl-Z, a debugger, a suspended machine) or starved resumes where it is, not with
+/// the missed time replayed in a burst, which an autopilot would meet as seconds of frames
+/// with its last command held. Scheduling delays below it are caught up.
+const RESUME_AFTER: Duration = Duration::from_millis(250);
+
 impl Pacer {
+    /// Sim time 0 due at `start`, `factor` times real time (`None`: as fast as it goes).
+    pub(crate) fn new(start: Instant, factor: Option<f64>) -> Self {
+        Self {
+            start,
+            factor,
+            said: None,
+        }
+    }
+
     /// Paces from now on as if `sim_time_s` were due now (time spent waiting for an autopilot
     /// is not caught up in a burst).
     pub(crate) fn restart_at(&mut self, sim_time_s: f64) {
@@ -272,12 +289,24 @@ impl Pacer {
         }
     }
 
-    pub(crate) fn wait_until(&self, sim_time_s: f64) {
+    /// Sleeps until `sim_time_s` is due; far behind ([`RESUME_AFTER`]), paces from now on.
+    pub(crate) fn wait_until(&mut self, sim_time_s: f64) {
         if let Some(f) = self.factor {
             let due = self.start + Duration::from_secs_f64(sim_time_s / f);
             let now = Instant::now();
             if due > now {
                 std::thread::sleep(due - now);
+            } else if now - due > RESUME_AFTER {
+                if self.said.is_none_or(|t| now - t > Duration::from_secs(10)) {
+                    tracing::warn!(
+                        behind_s = format!("{:.2}", (now - due).as_secs_f64()),
+                        sim_time_s = format!("{sim_time_s:.3}"),
+                        "behind the wall clock (stopped or starved): going on from now, the \
+                         missed time not replayed"
+                    );
+                    self.said = Some(now);
+                }
+                self.restart_at(sim_time_s);
             }
         }
     }
@@ -303,10 +332,7 @@ pub fn open_loop(
     let mut dynamics = Dynamics::start(cli, scenario, &sim)?;
     let mut truth = open_truth(cli, &sim)?;
     let started = Instant::now();
-    let pacer = Pacer {
-        start: started,
-        factor: speed,
-    };
+    let mut pacer = Pacer::new(started, speed);
     let mut status = Status::new(cli.status_interval);
     let n = sim.airframe().rotors.len();
     let mut u = [0.0; MAX_ROTORS];

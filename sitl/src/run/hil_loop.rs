@@ -186,14 +186,8 @@ impl<'a> Exchange<'a> {
             cli,
             target,
             link,
-            pacer: Pacer {
-                start: started,
-                factor: speed,
-            },
-            boot_pacer: Pacer {
-                start: started,
-                factor: Some(speed.unwrap_or(1.0)),
-            },
+            pacer: Pacer::new(started, speed),
+            boot_pacer: Pacer::new(started, Some(speed.unwrap_or(1.0))),
             summary: Summary::default(),
             connected: false,
             timeout: Duration::from_millis(cli.timeout_ms.max(1)),
