@@ -132,7 +132,11 @@ fn write_atomically_with(path: &Path, text: &str, mode: u32) -> Result<()> {
         // The rename itself reaches the disk with the directory.
         std::fs::File::open(&dir)?.sync_all()
     };
-    write().with_context(|| format!("saving {}", path.display()))
+    write().with_context(|| {
+        // A failed write (a full disk) leaves no temporary file behind; the old file stands.
+        let _ = std::fs::remove_file(&tmp);
+        format!("saving {}", path.display())
+    })
 }
 
 #[cfg(test)]
@@ -140,6 +144,31 @@ mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
     use gcs::param_store::CHECKSUMMED;
+
+    #[test]
+    fn a_save_that_cannot_be_written_leaves_the_old_file_and_no_temporary_one() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("store.toml");
+        std::fs::write(&path, "old").unwrap();
+        // A directory where the file should be renamed over: the rename fails after the
+        // temporary file was written, as a full disk fails a write.
+        let blocked = dir.path().join("blocked");
+        std::fs::create_dir(&blocked).unwrap();
+        std::fs::write(blocked.join("inside"), "x").unwrap();
+        assert!(write_atomically(&blocked, "new").is_err());
+        assert!(
+            !dir.path().join(".blocked.tmp").exists(),
+            "temporary file removed"
+        );
+        assert!(blocked.is_dir());
+        write_atomically(&path, "new").unwrap();
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "new");
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names.len(), 2, "{names:?}");
+    }
 
     #[test]
     fn stored_values_apply_over_the_base_and_survive_a_save_and_load() {
