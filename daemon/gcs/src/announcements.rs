@@ -30,6 +30,8 @@ pub(crate) struct Announced {
     mission_current_next_s: f64,
     /// What has been said once of what happened.
     notices: Notices,
+    /// The logs' stop was said.
+    logs_stopped: bool,
     /// The follow target was last said to be lost.
     pub(crate) follow_lost: bool,
     /// The last refusal of a follow-target fix said.
@@ -41,6 +43,17 @@ impl GroundStation {
     pub(crate) fn announce(&mut self, now_s: f64, t: &Telemetry, unix: u64, out: &mut Outbox) {
         self.announce_heartbeat(now_s, t, unix, out);
         self.announced.notices.say(t, self.mav_type, out);
+        if let Some(why) = t.link.logs_stopped
+            && !self.announced.logs_stopped
+        {
+            // Once, in words and as an event: the flight goes on without its logs.
+            self.announced.logs_stopped = true;
+            out.say(
+                MavSeverity::MAV_SEVERITY_ERROR,
+                &format!("logging stopped: {}", why.describe()),
+            );
+            self.logging_stopped_event(why, t, out);
+        }
         self.announce_failsafes(t, out);
         let home = t
             .status()

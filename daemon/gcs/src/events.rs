@@ -8,7 +8,7 @@
 //! exercised at once; `CURRENT_EVENT_SEQUENCE` says the last one sent (with the reset flag until
 //! the first) every 3 s; the last [`KEPT`] events can be asked for again.
 
-use crate::telemetry::Telemetry;
+use crate::telemetry::{LogFault, Telemetry};
 use crate::{GroundStation, Outbox};
 use flight_core::commander::{ArmingDenial, FlightMode, LandedState};
 use flight_core::safety::failsafe::{CONDITIONS, Condition, FailsafeAction, SafetyEvent};
@@ -116,8 +116,15 @@ pub mod kinds {
         level: 6,
         arguments: &[],
     };
+    /// The flight's logs stopped (the flight goes on).
+    pub const LOGGING_STOPPED: EventKind = EventKind {
+        name: "logging_stopped",
+        message: "Logging stopped: {1}",
+        level: 3,
+        arguments: &[("log_fault_t", "reason")],
+    };
     /// Every kind.
-    pub const ALL: [EventKind; 8] = [
+    pub const ALL: [EventKind; 9] = [
         ARMING_DENIED,
         FAILSAFE_TRIGGERED,
         FAILSAFE_WARNING,
@@ -126,6 +133,7 @@ pub mod kinds {
         MODE_CHANGED,
         ARMED,
         DISARMED,
+        LOGGING_STOPPED,
     ];
 }
 
@@ -410,6 +418,13 @@ impl GroundStation {
         out.send(m);
     }
 
+    /// The flight's logs stopped, for `why`.
+    pub(crate) fn logging_stopped_event(&mut self, why: LogFault, t: &Telemetry, out: &mut Outbox) {
+        let ms = (t.link.t_s * 1e3) as u32;
+        let arg = LogFault::ALL.iter().position(|&f| f == why).unwrap_or(0) as u8;
+        out.send(self.events.emit(&kinds::LOGGING_STOPPED, &[arg], ms));
+    }
+
     /// Arming refused for `why`.
     pub(crate) fn arming_denied_event(&mut self, why: &ArmingDenial, out: &mut Outbox) {
         let ms = self.events_now_ms;
@@ -494,6 +509,9 @@ pub fn metadata_json() -> Value {
                     "navigation_mode_t": enum_of(
                         entries(&mut MODES.iter().map(|m| (words(m.name()), m.name().to_owned()))),
                         "a flight mode"),
+                    "log_fault_t": enum_of(
+                        entries(&mut LogFault::ALL.iter().map(|f| (f.name().to_owned(), f.describe().to_owned()))),
+                        "why the logs stopped"),
                 },
                 "event_groups": { "default": { "events": Value::Object(events) } },
             }

@@ -41,6 +41,51 @@ pub struct LinkState {
     pub finished: bool,
     /// The sensor frames have stopped (the watchdog has fired; the vehicle is reacting).
     pub sensors_silent: bool,
+    /// The flight's logs stopped, and why (the flight goes on).
+    pub logs_stopped: Option<LogFault>,
+}
+
+/// Why a flight's logs stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LogFault {
+    /// The disk is full.
+    DiskFull,
+    /// The log directory (or the file) is gone.
+    DirectoryGone,
+    /// Another write error.
+    WriteFailed,
+}
+
+impl LogFault {
+    /// Every fault, in the order of their `log_fault_t` values (the events metadata's).
+    pub const ALL: [LogFault; 3] = [Self::DiskFull, Self::DirectoryGone, Self::WriteFailed];
+
+    /// The fault of a write error.
+    pub fn of(e: &std::io::Error) -> Self {
+        match e.kind() {
+            std::io::ErrorKind::StorageFull | std::io::ErrorKind::QuotaExceeded => Self::DiskFull,
+            std::io::ErrorKind::NotFound => Self::DirectoryGone,
+            _ => Self::WriteFailed,
+        }
+    }
+
+    /// In words (what the ground station is told).
+    pub fn describe(self) -> &'static str {
+        match self {
+            Self::DiskFull => "disk full",
+            Self::DirectoryGone => "log directory gone",
+            Self::WriteFailed => "write failed",
+        }
+    }
+
+    /// Its name in the events metadata.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::DiskFull => "disk_full",
+            Self::DirectoryGone => "directory_gone",
+            Self::WriteFailed => "write_failed",
+        }
+    }
 }
 
 /// The deadline loop's timing over an interval (a flight board in real time).

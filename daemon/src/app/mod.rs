@@ -350,10 +350,11 @@ fn fly_together(cfg: Settings, source: Source) -> Result<()> {
                 .collect();
             let mut report = control_loop::fly_together(members, sim::EXCHANGE_HZ, speed);
             for ((system_id, _, records, _), flight) in cores.iter_mut().zip(&mut report.flights) {
-                if let Err(e) = records.finish()
-                    && flight.is_ok()
-                {
-                    *flight = Err(e.context(format!("system {system_id}")));
+                if let Err(e) = records.finish() {
+                    tracing::error!("system {system_id}: {e:#}: the logs end there");
+                    if let Ok(f) = flight {
+                        f.set_logs_stopped();
+                    }
                 }
             }
             Ok(report)
@@ -458,8 +459,13 @@ fn reboot() -> Result<()> {
     Err(err).context("reboot")
 }
 
-/// Flushes the vehicle's log and hands the report on.
-fn finish(records: &mut FlightRecords, report: FlightReport) -> Result<FlightReport> {
-    records.finish()?;
+/// Flushes the vehicle's logs and hands the report on. Logs that stopped (a full disk, a
+/// directory gone) do not fail the flight: they end where the fault was, and the summary says
+/// so.
+fn finish(records: &mut FlightRecords, mut report: FlightReport) -> Result<FlightReport> {
+    if let Err(e) = records.finish() {
+        tracing::error!("{e:#}: the logs end there");
+        report.set_logs_stopped();
+    }
     Ok(report)
 }

@@ -439,6 +439,7 @@ impl<'a> ControlLoop<'a> {
             loop_stats: self.loop_stats,
             finished: false,
             sensors_silent: false,
+            logs_stopped: self.records.logs_stopped(),
         };
         let state = self.autopilot.state();
         self.ports.telemetry.send_modify(|t| {

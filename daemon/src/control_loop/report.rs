@@ -17,6 +17,9 @@ pub struct FlightReport {
     pub(super) sensor_timeouts: u64,
     /// The deadline loop's rate and timing over the whole run.
     pub(super) deadline_loop: Option<(f64, LoopSummary)>,
+    /// The flight's logs stopped before its end (a full disk, a directory gone): the flight
+    /// went on; its logs end where the fault was.
+    pub(super) logs_stopped: bool,
 }
 
 impl FlightReport {
@@ -39,6 +42,11 @@ impl FlightReport {
     pub fn sensor_timeouts(&self) -> u64 {
         self.sensor_timeouts
     }
+
+    /// Says the flight's logs stopped before its end.
+    pub fn set_logs_stopped(&mut self) {
+        self.logs_stopped = true;
+    }
 }
 
 impl std::fmt::Display for FlightReport {
@@ -46,7 +54,7 @@ impl std::fmt::Display for FlightReport {
         let opt = |x: Option<f64>| x.map_or("nan".to_owned(), |x| format!("{x:.3}"));
         write!(
             f,
-            "autopilot summary: source={} sim_time_s={:.2} wall_time_s={:.2} realtime_factor={:.1} frames={} frames_per_s={:.0} malformed={} repeated={} sensor_timeouts={} max_alt_m={:.2} hover_alt_rms_m={} hover_drift_rms_m={} attitude_rms_deg={} touchdown_m_s={:.2} impact_m_s={:.2} max_tilt_deg={:.1} max_distance_m={:.2} failsafe={} landed={} disarmed={}",
+            "autopilot summary: source={} sim_time_s={:.2} wall_time_s={:.2} realtime_factor={:.1} frames={} frames_per_s={:.0} malformed={} repeated={} sensor_timeouts={} max_alt_m={:.2} hover_alt_rms_m={} hover_drift_rms_m={} attitude_rms_deg={} touchdown_m_s={:.2} impact_m_s={:.2} max_tilt_deg={:.1} max_distance_m={:.2} failsafe={} landed={} disarmed={} logs={}",
             self.source,
             self.sim_time_s,
             self.wall_time_s,
@@ -66,7 +74,12 @@ impl std::fmt::Display for FlightReport {
             self.score.max_distance_m,
             self.score.failsafe,
             self.score.on_ground(),
-            self.disarmed
+            self.disarmed,
+            if self.logs_stopped {
+                "stopped"
+            } else {
+                "whole"
+            }
         )?;
         match &self.deadline_loop {
             None => write!(f, " pacing=lockstep"),

@@ -6,9 +6,10 @@
 //! The producers fill a buffer (bytes, or rows the writer formats) and hand it over every
 //! [`SHIP_INTERVAL_S`]; a daemon killed outright loses at most that much of its logs.
 
-use std::io::Write;
+use std::io::{Seek, Write};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{SyncSender, TrySendError, sync_channel};
+use std::sync::{Arc, OnceLock};
 use std::thread::JoinHandle;
 
 /// How much of a log the producers hold before handing it to the writer (s).
@@ -25,6 +26,9 @@ pub struct LogFile<T: Send + 'static = Vec<u8>> {
     /// Chunks to write; `None` ends the file (other producers may still hold a sender).
     chunks: Option<SyncSender<Option<T>>>,
     writer: Option<JoinHandle<std::io::Result<()>>>,
+    /// What stopped the writer, for the producers as soon as it happens (the error itself comes
+    /// from [`LogFile::finish`]).
+    fault: Arc<OnceLock<std::io::ErrorKind>>,
     /// Chunks dropped because the writer was behind.
     dropped: u64,
     /// Wait for a writer that is behind instead of dropping (a simulation in lockstep, where
@@ -50,15 +54,29 @@ impl<T: Send + 'static> LogFile<T> {
         let mut file = std::fs::File::create(path)?;
         file.write_all(header)?;
         let (tx, rx) = sync_channel::<Option<T>>(QUEUE);
+        let mut whole = header.len() as u64;
+        let fault = Arc::new(OnceLock::new());
+        let stopped = Arc::clone(&fault);
         let writer = std::thread::Builder::new()
             .name("log-writer".into())
             .spawn(move || -> std::io::Result<()> {
                 let mut out = std::io::BufWriter::with_capacity(256 * 1024, file);
                 // Until the owner's end: another producer's sender may outlive it.
                 for chunk in rx.iter().map_while(|c| c) {
-                    encode(chunk, &mut out)?;
                     // To the kernel with every chunk: nothing is held here that a kill would lose.
-                    out.flush()?;
+                    let written = encode(chunk, &mut out).and_then(|()| out.flush());
+                    if let Err(e) = written {
+                        // A full disk, say: the file ends with the last chunk written whole (a
+                        // row, a message is never cut), and the writer stops.
+                        // What the buffer still holds is dropped unwritten (a drop would flush
+                        // it after the cut).
+                        let (file, _unwritten) = out.into_parts();
+                        let _ = file.set_len(whole);
+                        let _ = stopped.set(e.kind());
+                        return Err(e);
+                    }
+                    let mut file: &std::fs::File = out.get_ref();
+                    whole = file.stream_position()?;
                 }
                 Ok(())
             })?;
@@ -66,6 +84,7 @@ impl<T: Send + 'static> LogFile<T> {
             path: path.to_owned(),
             chunks: Some(tx),
             writer: Some(writer),
+            fault,
             dropped: 0,
             lossless: false,
         })
@@ -90,10 +109,18 @@ impl<T: Send + 'static> LogFile<T> {
         let Some(tx) = &self.chunks else {
             return Err(std::io::Error::other("log finished"));
         };
+        let stopped = || {
+            let kind = self.fault.get().copied();
+            std::io::Error::new(
+                kind.unwrap_or(std::io::ErrorKind::Other),
+                format!(
+                    "the log writer stopped ({})",
+                    kind.map_or("unknown".into(), |k| k.to_string())
+                ),
+            )
+        };
         if self.lossless {
-            return tx
-                .send(Some(chunk))
-                .map_err(|_| std::io::Error::other("the log writer stopped"));
+            return tx.send(Some(chunk)).map_err(|_| stopped());
         }
         match tx.try_send(Some(chunk)) {
             Ok(()) => Ok(()),
@@ -104,9 +131,7 @@ impl<T: Send + 'static> LogFile<T> {
                 }
                 Ok(())
             }
-            Err(TrySendError::Disconnected(_)) => {
-                Err(std::io::Error::other("the log writer stopped"))
-            }
+            Err(TrySendError::Disconnected(_)) => Err(stopped()),
         }
     }
 

@@ -17,6 +17,7 @@ use flight_core::autopilot::{AutopilotOutput, StepKind, VehicleState};
 use flight_core::sample::SensorSample;
 use flight_csv::FlightCsv;
 use flight_ulog::FlightUlog;
+use gcs::telemetry::LogFault;
 use hil::TruthReport;
 use score::FlightScore;
 use std::time::Duration;
@@ -34,6 +35,8 @@ pub struct FlightRecords {
     /// How late the control loop woke for the frames it is stepping (deadline pacing only).
     loop_late: Option<Duration>,
     last_truth: Option<TruthReport>,
+    /// The first fault that stopped a log.
+    fault: Option<LogFault>,
 }
 
 impl FlightRecords {
@@ -48,6 +51,7 @@ impl FlightRecords {
             ulog_error: None,
             loop_late: None,
             last_truth: None,
+            fault: None,
         }
     }
 
@@ -69,6 +73,11 @@ impl FlightRecords {
     /// The flight's figures against the simulator's truth, where it sends one.
     pub fn score(&self) -> &FlightScore {
         &self.score
+    }
+
+    /// Why the flight's logs stopped, if they did (the flight goes on).
+    pub fn logs_stopped(&self) -> Option<LogFault> {
+        self.fault
     }
 
     /// The simulator's last ground truth (SITL only).
@@ -117,6 +126,7 @@ impl FlightRecords {
                     // A full disk must not stop the flight: stop logging, report at the end.
                     tracing::error!("flight-data CSV: {e}; logging stopped");
                     self.csv = None;
+                    self.fault.get_or_insert(LogFault::of(&e));
                     self.csv_error = Some(e);
                 }
                 if let Some(ulog) = self.ulog.as_mut()
@@ -124,6 +134,7 @@ impl FlightRecords {
                 {
                     tracing::error!("ULog flight log: {e}; logging stopped");
                     self.ulog = None;
+                    self.fault.get_or_insert(LogFault::of(&e));
                     self.ulog_error = Some(e);
                 }
             }
