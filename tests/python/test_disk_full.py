@@ -29,20 +29,25 @@ def small_disk_available():
 
 @pytest.mark.skipif(not small_disk_available(),
                     reason="no user and mount namespaces here to mount a small disk in")
-def test_a_full_log_disk_stops_the_logs_cleanly_and_not_the_flight(tmp_path):
-    """The logs go to a 640 kB disk (a tmpfs in a namespace of the autopilot's own), full
-    during the take-off. Before, the vehicle flew and landed but the ground station was never
-    told, the run ended with exit status 1 and no summary, and the CSV's last row was cut
-    mid-field. Now: `STATUSTEXT` "logging stopped: disk full" and a `logging_stopped` EVENT, each
-    once; the flight lands; its summary says `logs=stopped`; exit 0; the CSV ends with a whole
-    row and the ULog reads to the moment of the fault."""
+@pytest.mark.parametrize("min_free_mb", [0, 50])
+def test_a_full_log_disk_stops_the_logs_cleanly_and_not_the_flight(tmp_path, min_free_mb):
+    """The logs go to a 640 kB disk (a tmpfs in a namespace of the autopilot's own). With no
+    free space kept (SDLOG_MIN_FREE 0) it is full during the take-off; with the default 50 MB
+    kept, the logs stop at their first write. Before, the vehicle flew and landed but the ground
+    station was never told, the run ended with exit status 1 and no summary, and the CSV's last
+    row was cut mid-field. Now: `STATUSTEXT` "logging stopped: disk full" and a
+    `logging_stopped` EVENT, each once; the flight lands; its summary says `logs=stopped`; exit
+    0; the CSV ends with a whole row and the ULog reads to the moment of the fault."""
     logs, kept = tmp_path / "logs", tmp_path / "kept"
     logs.mkdir()
     kept.mkdir()
+    params = tmp_path / "flight.toml"
+    params.write_text(f"[logger]\nmin_free_mb = {min_free_mb}\n")
     port = free_udp_port()
     gcs = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", source_system=255)
     autopilot = [str(binary("autopilot")), "--sim", "--speed", "5", "--takeoff", "5",
-                 "--hover", "5", "--params-dir", str(ROOT / "params"), "--param-store", "none",
+                 "--hover", "5", "--params-dir", str(ROOT / "params"), "--params", str(params),
+                 "--param-store", "none",
                  "--mavlink", f"udpout://127.0.0.1:{port}", "--log-dir", str(logs)]
     # The disk lives as long as the namespace: what is on it is copied out at the end.
     script = (f'mount -t tmpfs -o size={DISK} tmpfs "{logs}" || exit 90; "$@"; status=$?; '
@@ -79,11 +84,16 @@ def test_a_full_log_disk_stops_the_logs_cleanly_and_not_the_flight(tmp_path):
     text = table.read_text()
     assert text.endswith("\n"), text[-200:]
     rows = list(csv.reader(text.splitlines()))
-    assert len(rows) > 100 and all(len(r) == len(rows[0]) for r in rows), "every row whole"
+    assert all(len(r) == len(rows[0]) for r in rows), "every row whole"
     (flight_log,) = kept.glob("*.ulg")
     ulog = ULog(str(flight_log))
-    att = ulog.get_dataset("vehicle_attitude").data["timestamp"]
-    assert len(att) > 100 and att[-1] > att[0], "read to the fault"
+    if min_free_mb == 0:
+        assert len(rows) > 100, "logged until the disk was full"
+        att = ulog.get_dataset("vehicle_attitude").data["timestamp"]
+        assert len(att) > 100 and att[-1] > att[0], "read to the fault"
+    else:
+        assert len(rows) == 1, "the header alone: nothing written below the floor"
+        assert "SDLOG_MIN_FREE" in err, err[-2000:]
     assert not [p for p in kept.iterdir() if p.name.endswith(".tmp")], list(kept.iterdir())
     shutil.rmtree(kept)
 

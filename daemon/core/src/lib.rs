@@ -9,6 +9,7 @@ pub mod commander;
 pub mod control;
 pub mod core;
 pub mod estimator;
+pub mod logger_params;
 pub mod math;
 pub mod mission;
 pub mod mixer;

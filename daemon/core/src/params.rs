@@ -155,12 +155,13 @@ pub use crate::control::position::{POSITION_META, PositionGroup};
 pub use crate::control::rate::{RATE_META, RateGroup};
 pub use crate::estimator::attitude::{ATTITUDE_META, AttitudeParams};
 pub use crate::estimator::translation::{TRANSLATION_META, TranslationGroup};
+pub use crate::logger_params::{LOGGER_META, LoggerGroup};
 pub use crate::safety::failsafe::{SAFETY_META, SafetyParams};
 pub use crate::sensors::battery::{BATTERY_META, BatteryGroup};
 pub use crate::sensors::imu_correction::{IMU_META, ImuCalParams};
 
 /// Each group's title in the parameter reference, in [`FlightParams::metadata`]'s order.
-const GROUP_TITLES: [(&str, &str); 11] = [
+const GROUP_TITLES: [(&str, &str); 12] = [
     ("attitude", "Attitude estimator"),
     ("translation", "Position and velocity estimator"),
     ("position", "Position loops"),
@@ -172,6 +173,7 @@ const GROUP_TITLES: [(&str, &str); 11] = [
     ("battery", "Flight battery"),
     ("imu", "IMU calibration and board mounting"),
     ("rc", "RC transmitter: sticks, switches, calibration"),
+    ("logger", "Logs: runs kept, free space left"),
 ];
 
 /// Every flight-core parameter, as in `params/flight.toml`.
@@ -200,6 +202,8 @@ pub struct FlightParams {
     pub imu: ImuCalParams,
     /// The RC transmitter's sticks, switches and calibration.
     pub rc: RcGroup,
+    /// The logs' share of their disk.
+    pub logger: LoggerGroup,
 }
 
 /// Why a parameter value was refused (for the operator, `STATUSTEXT`).
@@ -235,6 +239,7 @@ impl FlightParams {
         v.extend(self.battery.validate());
         v.extend(self.imu.validate());
         v.extend(self.rc.validate());
+        v.extend(self.logger.validate());
         v.extend(
             self.battery
                 .inconsistencies()
@@ -284,6 +289,7 @@ impl FlightParams {
             "battery" => self.battery.get(key),
             "imu" => self.imu.get(key),
             "rc" => self.rc.get(key),
+            "logger" => self.logger.get(key),
             _ => None,
         }
     }
@@ -301,6 +307,7 @@ impl FlightParams {
             "battery" => self.battery.set(key, value),
             "imu" => self.imu.set(key, value),
             "rc" => self.rc.set(key, value),
+            "logger" => self.logger.set(key, value),
             _ => false,
         }
     }
@@ -374,6 +381,7 @@ impl FlightParams {
             ("battery", BATTERY_META),
             ("imu", IMU_META),
             ("rc", RC_META),
+            ("logger", LOGGER_META),
         ]
         .into_iter()
         .flat_map(|(g, m)| m.iter().map(move |p| (g, p)))
@@ -528,7 +536,9 @@ mod tests {
                 "COM_FLTMODE6",
                 "COM_RC_IN_MODE",
                 "COM_RC_OVERRIDE",
-                "MAN_ARM_GESTURE"
+                "MAN_ARM_GESTURE",
+                "SDLOG_DIRS_MAX",
+                "SDLOG_MIN_FREE"
             ]
         );
         assert!(FlightParams::default().validate().is_empty());

@@ -11,7 +11,7 @@ use crate::records::{param_file, signing_file};
 use crate::settings::Settings;
 use anyhow::{Context, Result};
 use flight_core::autopilot::{AutoFlight, Autopilot};
-use flight_core::params::FlightParams;
+use flight_core::params::{FlightParams, LoggerGroup};
 use gcs::component_metadata::{ComponentMetadata, METADATA_DIR};
 use gcs::param_store::ParamStore;
 use gcs::signing::{SecretKey, SigningMemory};
@@ -64,7 +64,7 @@ pub(super) fn prepare(
         flight_csv,
         tlog,
         ulog,
-    } = log_paths(cfg, instance, &mut notices);
+    } = log_paths(cfg, instance, &params.logger, &mut notices);
     if let Some(path) = &flight_csv {
         records.log_to(
             FlightCsv::create(path, airframe.rotors.len(), source.lockstep())
@@ -276,11 +276,29 @@ struct LogPaths {
 }
 
 /// The run's flight-data CSV, telemetry log and flight log: those named, else
-/// `LOG_DIR/<start time>.csv`, `.tlog` and `.ulg`. A log directory that cannot be made costs
-/// the default logs, not the flight: it is said in the log and to the first ground station.
-fn log_paths(cfg: &Settings, instance: u16, notices: &mut Vec<String>) -> LogPaths {
+/// `LOG_DIR/<start time>.csv`, `.tlog` and `.ulg`, the oldest runs there removed first as
+/// `logger` (`SDLOG_*`) keeps the directory. A log directory that cannot be made costs the
+/// default logs, not the flight: it is said in the log and to the first ground station.
+fn log_paths(
+    cfg: &Settings,
+    instance: u16,
+    logger: &LoggerGroup,
+    notices: &mut Vec<String>,
+) -> LogPaths {
+    let min_free = u64::from(logger.min_free_mb) * 1_000_000;
+    records::log_budget::keep_free(min_free);
     let all_named = cfg.flight_csv.is_some() && cfg.tlog.is_some() && cfg.ulog.is_some();
     let stem = cfg.log_dir().filter(|_| !all_named).and_then(|dir| {
+        // Once a process, before its first vehicle's logs (not between its vehicles').
+        if instance == cfg.instance && dir.is_dir() {
+            match records::log_budget::make_room(dir, logger.dirs_max, min_free) {
+                Ok(removed) if !removed.is_empty() => {
+                    tracing::info!(dir = %dir.display(), files = removed.len(), "oldest logs removed (SDLOG_DIRS_MAX, SDLOG_MIN_FREE)");
+                }
+                Ok(_) => {}
+                Err(e) => tracing::warn!(dir = %dir.display(), "removing the oldest logs: {e}"),
+            }
+        }
         let now = std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
             .map_or(0, |d| d.as_secs());

@@ -57,14 +57,19 @@ impl<T: Send + 'static> LogFile<T> {
         let mut whole = header.len() as u64;
         let fault = Arc::new(OnceLock::new());
         let stopped = Arc::clone(&fault);
+        let at = path.to_owned();
         let writer = std::thread::Builder::new()
             .name("log-writer".into())
             .spawn(move || -> std::io::Result<()> {
                 let mut out = std::io::BufWriter::with_capacity(256 * 1024, file);
                 // Until the owner's end: another producer's sender may outlive it.
                 for chunk in rx.iter().map_while(|c| c) {
-                    // To the kernel with every chunk: nothing is held here that a kill would lose.
-                    let written = encode(chunk, &mut out).and_then(|()| out.flush());
+                    // To the kernel with every chunk: nothing is held here that a kill would lose;
+                    // not below the free space kept (SDLOG_MIN_FREE), where it stops as on a
+                    // full disk.
+                    let written = below_floor(&at)
+                        .and_then(|()| encode(chunk, &mut out))
+                        .and_then(|()| out.flush());
                     if let Err(e) = written {
                         // A full disk, say: the file ends with the last chunk written whole (a
                         // row, a message is never cut), and the writer stops.
@@ -152,6 +157,23 @@ impl<T: Send + 'static> LogFile<T> {
             Some(Ok(r)) => r,
             Some(Err(_)) => Err(std::io::Error::other("the log writer panicked")),
         }
+    }
+}
+
+/// `Err` (as a full disk's) when the disk holding `path` has less free space than the logs
+/// keep ([`crate::records::log_budget::keep_free`]).
+fn below_floor(path: &Path) -> std::io::Result<()> {
+    let floor = crate::records::log_budget::kept_free();
+    match crate::records::log_budget::free_bytes(path) {
+        Some(free) if floor > 0 && free < floor => Err(std::io::Error::new(
+            std::io::ErrorKind::StorageFull,
+            format!(
+                "{} MB free, below the {} MB the logs keep (SDLOG_MIN_FREE)",
+                free / 1_000_000,
+                floor / 1_000_000
+            ),
+        )),
+        _ => Ok(()),
     }
 }
 

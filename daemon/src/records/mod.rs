@@ -5,6 +5,7 @@
 mod fixed;
 pub mod flight_csv;
 pub mod flight_ulog;
+pub mod log_budget;
 pub mod log_files;
 pub mod param_file;
 pub mod score;
