@@ -18,8 +18,8 @@ pub struct VehicleState {
     /// The flight core's last output.
     pub estimate: Option<StepOutput>,
     /// The last sample flown: calibrated, with the magnetometer and barometer held as last
-    /// seen (a sample carries them only when fresh). The logs record the raw sample
-    /// ([`super::AutopilotOutput::raw_sample`]).
+    /// seen (a sample carries them only when fresh). The logs record the raw sample, as
+    /// [`super::Autopilot::step_in_place`] leaves it.
     pub held_sample: Option<SensorSample>,
     /// The set-point flown (armed only).
     pub setpoint: Option<Setpoint>,

@@ -18,7 +18,7 @@ type LastSeen = (Option<Vector3<f64>>, Option<f64>);
 
 impl Autopilot {
     /// One sensor sample: the whole chain, and what to tell the rotors. `None` for a sample
-    /// older than the last (stale: dropped). A sample more than [`SOURCE_RESTART_S`] older than
+    /// older than the last (stale: dropped). A sample more than [`super::SOURCE_RESTART_S`] older than
     /// the last is a source that started again: the autopilot does too.
     pub fn step(&mut self, sample: &SensorSample, inputs: &StepInputs) -> Option<AutopilotOutput> {
         let mut sample = *sample;
