@@ -313,6 +313,9 @@ impl<'a> ControlLoop<'a> {
         if !self.silent {
             self.silent = true;
             self.report.sensor_timeouts += 1;
+            // Armed, the silence is a failsafe (the blind descent), whether or not a frame
+            // ever comes again to show it.
+            self.report.blind_failsafe |= self.autopilot.status().armed;
             self.autopilot.sensors_stopped();
             // No step publishes while the frames are silent: the ground station hears of it
             // (and of the failsafe) now.

@@ -17,6 +17,9 @@ pub struct FlightReport {
     pub(super) sensor_timeouts: u64,
     /// The deadline loop's rate and timing over the whole run.
     pub(super) deadline_loop: Option<(f64, LoopSummary)>,
+    /// The sensor frames stopped while armed: the blind descent, a failsafe the frames' score
+    /// cannot see (no frame comes while it flies).
+    pub(super) blind_failsafe: bool,
     /// The flight's logs stopped before its end (a full disk, a directory gone): the flight
     /// went on; its logs end where the fault was.
     pub(super) logs_stopped: bool,
@@ -41,6 +44,12 @@ impl FlightReport {
     /// Times the sensor frames stopped (the watchdog fired).
     pub fn sensor_timeouts(&self) -> u64 {
         self.sensor_timeouts
+    }
+
+    /// A failsafe acted in the flight: one the commander showed on a frame, or the blind
+    /// descent of frames that stopped while armed.
+    pub fn failsafe(&self) -> bool {
+        self.score.failsafe || self.blind_failsafe
     }
 
     /// Says the flight's logs stopped before its end.
@@ -72,7 +81,7 @@ impl std::fmt::Display for FlightReport {
             self.score.impact_m_s,
             self.score.max_tilt_deg,
             self.score.max_distance_m,
-            self.score.failsafe,
+            self.failsafe(),
             self.score.on_ground(),
             self.disarmed,
             if self.logs_stopped {

@@ -291,6 +291,10 @@ fn frames_that_stop_in_the_air_start_a_blind_descent_to_the_ground() {
             "seed {seed}: reacted {reaction:.3} s after the last frame"
         );
         assert_eq!(report.sensor_timeouts, 1);
+        assert!(
+            report.failsafe(),
+            "seed {seed}: the summary counts the blind descent"
+        );
         descents.push(assert_came_down_blind(&link, &vehicle, seed));
     }
     assert_typical_blind_descents(&mut descents);
@@ -344,6 +348,10 @@ fn frames_that_stop_on_the_ground_disarm_at_once() {
     assert!(!link.last_answer_armed && vehicle.finished());
     assert!(report.disarmed);
     assert!(link.max_height_m < 0.1, "never left the ground");
+    assert!(
+        report.failsafe(),
+        "armed when the frames stopped: the failsafe that disarmed it is counted"
+    );
 }
 
 #[test]
