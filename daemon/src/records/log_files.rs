@@ -66,8 +66,8 @@ impl<T: Send + 'static> LogFile<T> {
                 for chunk in rx.iter().map_while(|c| c) {
                     // To the kernel with every chunk: nothing is held here that a kill would lose;
                     // not below the free space kept (SDLOG_MIN_FREE), where it stops as on a
-                    // full disk.
-                    let written = below_floor(&at)
+                    // full disk, nor into a file whose directory was removed.
+                    let written = room_to_write(&at)
                         .and_then(|()| encode(chunk, &mut out))
                         .and_then(|()| out.flush());
                     if let Err(e) = written {
@@ -160,9 +160,18 @@ impl<T: Send + 'static> LogFile<T> {
     }
 }
 
-/// `Err` (as a full disk's) when the disk holding `path` has less free space than the logs
-/// keep ([`crate::records::log_budget::keep_free`]).
-fn below_floor(path: &Path) -> std::io::Result<()> {
+/// `Err` when the log at `path` is gone (its directory removed: the writes would go on into a
+/// file no one can open, lost without a word), or (as a full disk's) when its disk has less
+/// free space than the logs keep ([`crate::records::log_budget::keep_free`]).
+fn room_to_write(path: &Path) -> std::io::Result<()> {
+    if let Err(e) = std::fs::metadata(path)
+        && e.kind() == std::io::ErrorKind::NotFound
+    {
+        return Err(std::io::Error::new(
+            e.kind(),
+            format!("{} is gone (its directory removed?)", path.display()),
+        ));
+    }
     let floor = crate::records::log_budget::kept_free();
     match crate::records::log_budget::free_bytes(path) {
         Some(free) if floor > 0 && free < floor => Err(std::io::Error::new(
@@ -323,6 +332,22 @@ mod tests {
         assert_eq!(utc_stamp(4_107_542_399), "2100-02-28_23-59-59");
         assert_eq!(utc_stamp(4_107_542_400), "2100-03-01_00-00-00");
         assert_eq!(utc_stamp(1_795_432_502), "2026-11-23_11-15-02");
+    }
+
+    #[test]
+    fn a_log_whose_directory_is_removed_stops_and_says_why() {
+        let dir = tempfile::tempdir().unwrap();
+        let logs = dir.path().join("logs");
+        std::fs::create_dir(&logs).unwrap();
+        let mut log = LogFile::create(&logs.join("run.tlog")).unwrap().lossless();
+        log.write(b"first".to_vec()).unwrap();
+        std::fs::remove_dir_all(&logs).unwrap();
+        // The writer meets the removal at its next chunk at the latest; until it has, a write
+        // is handed over.
+        let _ = log.write(b"second".to_vec());
+        let e = log.finish().unwrap_err();
+        assert_eq!(e.kind(), std::io::ErrorKind::NotFound, "{e}");
+        assert!(e.to_string().contains("is gone"), "{e}");
     }
 
     #[test]
