@@ -361,6 +361,18 @@ mod tests {
         .unwrap()
     }
 
+    /// A physics and a link to it (rotor k on servo channel `channels[k]`) whose first receive
+    /// has started the exchange: the physics holds the first servo packet and its sender.
+    fn started(channels: Vec<usize>) -> (UdpSocket, JsonLink, Received, ServoPacket, SocketAddr) {
+        let physics = physics();
+        let mut link = link_to(physics.local_addr().unwrap(), channels);
+        let mut into = Received::default();
+        // The first receive starts the exchange: motors off.
+        assert!(!link.receive(Duration::from_millis(20), &mut into).unwrap());
+        let (first, from) = packet(&physics);
+        (physics, link, into, first, from)
+    }
+
     fn packet(physics: &UdpSocket) -> (ServoPacket, SocketAddr) {
         let mut buf = [0u8; 256];
         let (n, from) = physics.recv_from(&mut buf).unwrap();
@@ -395,12 +407,7 @@ mod tests {
 
     #[test]
     fn a_faster_physics_steps_on_under_the_held_command_and_its_imu_is_averaged() {
-        let physics = physics();
-        let addr = physics.local_addr().unwrap();
-        let mut link = link_to(addr, vec![0, 1, 2, 3]);
-        let mut into = Received::default();
-        assert!(!link.receive(Duration::from_millis(20), &mut into).unwrap());
-        let (_, from) = packet(&physics);
+        let (physics, mut link, mut into, _, from) = started(vec![0, 1, 2, 3]);
         // A 1 kHz physics: the first state is stepped on.
         physics
             .send_to(turning(0.001, 0.0, 0.0).as_bytes(), from)
@@ -439,14 +446,8 @@ mod tests {
 
     #[test]
     fn plays_ardupilots_side_of_the_json_interface() {
-        let physics = physics();
-        let addr = physics.local_addr().unwrap();
         // Rotors 1–4 on servo channels 3, 1, 4, 2.
-        let mut link = link_to(addr, vec![2, 0, 3, 1]);
-        let mut into = Received::default();
-        // The first receive starts the exchange: motors off.
-        assert!(!link.receive(Duration::from_millis(20), &mut into).unwrap());
-        let (first, from) = packet(&physics);
+        let (physics, mut link, mut into, first, from) = started(vec![2, 0, 3, 1]);
         assert_eq!((first.frame_count, first.frame_rate), (1, FRAME_RATE_HZ));
         assert!(first.pwm().iter().all(|&p| p == 1000), "{:?}", first.pwm());
 
