@@ -21,7 +21,7 @@ cargo test --workspace
 # The Python tests drive the debug binaries that `cargo test` has just built.
 cargo build --workspace --bins --quiet
 
-echo "== python tests (at $SECONDS s)"
+echo "== python tests (at $SECONDS s; $(df -h --output=avail /tmp | tail -1 | tr -d ' ') free in /tmp)"
 venv=.venv
 stamp="$venv/.requirements"
 if ! cat tests/requirements.txt tests/requirements-nodeps.txt | cmp -s - "$stamp" 2>/dev/null; then
@@ -33,7 +33,8 @@ if ! cat tests/requirements.txt tests/requirements-nodeps.txt | cmp -s - "$stamp
 fi
 # -rs: the summary says why a test was skipped (the BROAD data not fetched, and how to fetch it).
 # -n 2: two workers, one per CPU of the CI machine (every test takes its own ports and files).
-"$venv/bin/python" -m pytest -q -rs -n 2 --durations=20 tests/python
+# Only a failed test's files are kept: a passing run leaves nothing behind.
+"$venv/bin/python" -m pytest -q -rs -n 2 --durations=20 -o tmp_path_retention_policy=failed tests/python
 
 echo "== the Python package: its wheel in a fresh venv, its examples through the plugin (at $SECONDS s)"
 tools/check_wheel.sh
