@@ -57,6 +57,8 @@ pub struct FlightCore {
     last_t_usec: Option<u64>,
     /// The attitude estimate's tilt resets seen so far.
     tilt_resets: u64,
+    /// The attitude estimate was unknown at the last sample (after a gap in flight).
+    attitude_unknown: bool,
     flying: bool,
     /// The position loop's last output, the time since it ran (s), and the time since its
     /// schedule last fell due (s; negative: it ran early, within half a sample).
@@ -125,6 +127,7 @@ impl FlightCore {
             ground_contact: GroundContact::None,
             last_t_usec: None,
             tilt_resets: 0,
+            attitude_unknown: false,
             flying: false,
             position_output: None,
             since_position_s: 0.0,

@@ -173,7 +173,11 @@ impl FlightCore {
         self.step_disturbance(&a, s, &translation, setpoint, dt);
         out.wind = self.wind(&a, &translation, dt);
         out.motor_failure = self.detect_motor_failure(s, dt);
-        let (sp, rate_ff, rate_only) = self.attitude_setpoint(setpoint, &a, &translation, dt);
+        let (sp, rate_ff, rate_only) = if a.realigning {
+            self.rates_held(&a)
+        } else {
+            self.attitude_setpoint(setpoint, &a, &translation, dt)
+        };
         // The density of the last barometer sample, held between samples (the barometer is
         // fresh at 50 Hz: falling back to sea level in between made the thrust jump by the
         // density ratio, 5 % at 500 m, four samples in five).
@@ -248,9 +252,15 @@ impl FlightCore {
                 // What was learned through the wrong tilt is wrong too: the velocity and
                 // accelerometer bias integrated through it, the outside force it caused.
                 self.tilt_resets = a.reset.tilt;
-                self.translation.forget_tilt_error();
+                if self.attitude_unknown {
+                    // Found again after a gap in flight: the height went through it too.
+                    self.translation.forget_unknown_attitude();
+                } else {
+                    self.translation.forget_tilt_error();
+                }
                 self.disturbance.reset();
             }
+            self.attitude_unknown = a.realigning;
             // The accelerometer's bias learned in flight is the position estimator's too.
             let accel = s.accel - a.accel_bias;
             self.translation.predict(s.t_usec, &accel, &a.q, dt);
@@ -376,6 +386,22 @@ impl FlightCore {
                 (sp, rate, target.q_d.is_none())
             }
         }
+    }
+
+    /// The attitude unknown after a gap in flight (`realign.rs`): the rotation stopped on the
+    /// gyro alone, at the thrust of the vehicle's weight, until the attitude is found again
+    /// (a fraction of a second with a GPS); the position loop starts afresh then.
+    fn rates_held(&mut self, a: &AttitudeEstimate) -> (AttitudeSetpoint, Vector3<f64>, bool) {
+        self.reset_position_loop();
+        let nan = Vector3::repeat(f64::NAN);
+        let sp = AttitudeSetpoint {
+            // Rate mode: the attitude held is wherever the vehicle is (no proportional term).
+            q_d: a.q,
+            thrust_n: self.config.position.mass_kg * crate::GRAVITY_M_S2,
+            accel_ned_m_s2: nan,
+            vel_ned_m_s: nan,
+        };
+        (sp, Vector3::zeros(), true)
     }
 
     /// The rotor speeds for `sp`: through the attitude law, the rate loop and the mixer, or,

@@ -104,6 +104,10 @@ pub struct AttitudeEstimate {
     pub accel_bias: Vector3<f64>,
     /// Whether the estimate can be flown on: aligned, and corrected recently enough.
     pub valid: bool,
+    /// After a gap in the samples in flight, the attitude is unknown until found again from
+    /// the GPS and the magnetometer (`realign.rs`): only the body rates can be flown (invalid
+    /// meanwhile).
+    pub realigning: bool,
     /// The last reset of the estimate (the tilt or heading taken afresh from a steady
     /// accelerometer or a clean magnetometer, `recovery.rs`), and how many there have been (as
     /// PX4's `quat_reset_counter`).
@@ -279,7 +283,9 @@ impl AttitudeEstimator {
                     rate: gyro - f.bias(),
                     gyro_bias: f.bias(),
                     accel_bias: f.accel_bias().0,
-                    valid: self.status.since_correction_s <= self.params.max_uncorrected_s,
+                    valid: self.status.since_correction_s <= self.params.max_uncorrected_s
+                        && !f.realigning(),
+                    realigning: f.realigning(),
                     bias_settled: f.bias_settled(),
                     imu_still: f.imu_still(),
                     // As this sample's update left them (`status.tilt_heading`, not worked out again).
@@ -296,6 +302,7 @@ impl AttitudeEstimator {
             gyro_bias: o.bias,
             accel_bias: Vector3::zeros(),
             valid: self.status.since_correction_s <= self.params.max_uncorrected_s,
+            realigning: false,
             bias_settled: true,
             imu_still: false,
             reset: EstimateReset::default(),
@@ -464,9 +471,14 @@ impl AttitudeEstimator {
         }
         let filter = self.filter.as_mut()?;
         if self.realign {
-            // After a gap the low-passed accelerometer and the heading start again from the next
-            // samples; the bias is kept.
-            filter.start_at(filter.attitude());
+            // After a gap the bias is kept. In flight the attitude is unknown until found again
+            // (`realign.rs`); on the ground the low-passed accelerometer and the heading start
+            // again from the next samples (a steady accelerometer is the tilt at once).
+            if input.armed {
+                filter.lost_in_flight();
+            } else {
+                filter.start_at(filter.attitude());
+            }
             self.realign = false;
             self.status.realigned += 1;
         }
@@ -539,6 +551,8 @@ impl AttitudeEstimator {
 
 #[cfg(test)]
 mod flight_bias_tests;
+#[cfg(test)]
+mod in_flight_tests;
 #[cfg(test)]
 mod recovery_tests;
 #[cfg(test)]

@@ -122,6 +122,8 @@ pub struct GpsTiltCheck {
     fixes: VecDeque<Fix>,
     /// The newest window's halves, when a solution completed one.
     halves: Option<(Half, Half)>,
+    /// A solution was taken at this sample.
+    fresh: bool,
 }
 
 impl GpsTiltCheck {
@@ -130,6 +132,7 @@ impl GpsTiltCheck {
         self.steps.clear();
         self.fixes.clear();
         self.halves = None;
+        self.fresh = false;
     }
 
     /// One sample: the specific force in the gyro frame, the gyro frame's rotation from the
@@ -160,6 +163,7 @@ impl GpsTiltCheck {
             self.steps.pop_front();
         }
         self.halves = None;
+        self.fresh = false;
         let Some(g) = gps.filter(|g| (0.0..=MAX_AGE_S).contains(&g.age_s)) else {
             return;
         };
@@ -175,6 +179,7 @@ impl GpsTiltCheck {
             return;
         }
         self.fixes.push_back(fix);
+        self.fresh = true;
         // Keep a window and a little more, so the oldest is about a window before the newest.
         while self.fixes.len() > 2 && self.fixes[1].t_s <= fix.t_s - WINDOW_S {
             self.fixes.pop_front();
@@ -217,6 +222,15 @@ impl GpsTiltCheck {
         self.halves?;
         let (first, last) = (self.fixes.front()?, self.fixes.back()?);
         GpsWindow::between(first, last)
+    }
+
+    /// From the oldest solution kept to the one taken at this sample, if one was (up to about a
+    /// second): after [`Self::clear`], the stretch since then.
+    pub fn span(&self) -> Option<GpsWindow> {
+        if !self.fresh {
+            return None;
+        }
+        GpsWindow::between(self.fixes.front()?, self.fixes.back()?)
     }
 
     /// The reset to make now, if the window a GPS solution just completed shows a tilt error

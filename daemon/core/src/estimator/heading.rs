@@ -207,6 +207,11 @@ impl HeadingCorrector {
         self.reference.map(|r| r.strength)
     }
 
+    /// The learned field's dip (rad, positive down), once known.
+    pub fn reference_dip(&self) -> Option<f64> {
+        self.reference.map(|r| r.dip)
+    }
+
     /// Samples rejected as disturbed.
     pub fn disturbed_samples(&self) -> u64 {
         self.disturbed_samples

@@ -9,6 +9,7 @@ pub mod heading;
 pub mod lowpass;
 pub mod motion_start;
 pub mod observer;
+pub mod realign;
 pub mod recovery;
 pub mod replay;
 pub mod rest;

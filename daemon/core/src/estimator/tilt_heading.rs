@@ -38,15 +38,18 @@ use super::gps_tilt::GpsTiltCheck;
 use super::hard_iron::HardIronEstimator;
 use super::heading::HeadingCorrector;
 use super::lowpass::LowPass;
-use super::motion_start::{FitSample, MotionStart, MotionStartFit};
+use super::motion_start::{FitSample, MotionStartFit};
 use super::recovery::TiltRecovery;
 use super::rest::{RestDetector, RestThresholds};
 use crate::GRAVITY_M_S2;
 use crate::math::quat;
 use nalgebra::{UnitQuaternion, Vector3};
 
+mod in_flight;
 mod settings;
+mod start;
 mod status;
+pub use in_flight::GIVE_UP_S as REALIGN_GIVE_UP_S;
 pub use settings::TiltHeadingSettings;
 pub use status::{EstimateReset, TiltHeadingStatus};
 
@@ -102,6 +105,8 @@ pub struct TiltHeadingFilter {
     /// After a fitted start, the heading is held to the field until the bias about the vertical
     /// is known ([`BIAS_SETTLED_RAD_S`]).
     heading_held: bool,
+    /// After a gap in flight, the attitude is sought again (`in_flight.rs`).
+    realigning: Option<super::realign::InFlightAlignment>,
     status: TiltHeadingStatus,
 }
 
@@ -164,6 +169,7 @@ impl TiltHeadingFilter {
             rest_aligned: false,
             motion_start: MotionStartFit::default(),
             heading_held: false,
+            realigning: None,
             status: TiltHeadingStatus::default(),
         }
     }
@@ -232,65 +238,6 @@ impl TiltHeadingFilter {
         self.bias.sigma() <= BIAS_SETTLED_RAD_S
     }
 
-    /// The first rest: the mean rate becomes the bias, and the tilt and heading start again from
-    /// the mean specific force and the next magnetometer samples. What the gyro integrated
-    /// before, with the bias unknown, is dropped: through the accelerometer's 3 s low-pass a
-    /// 0.5°/s bias leaves 1.5° of tilt that would take seconds to fade, and through the tilt
-    /// 4° of heading.
-    fn align_at_rest(&mut self) {
-        self.rest_aligned = true;
-        self.bias
-            .take_rest_mean(&self.rest.mean_rate(), self.rest.min_time_s());
-        let q = self.attitude();
-        let up = Vector3::new(0.0, 0.0, -1.0);
-        let mean_accel = self.rest.mean_accel();
-        let level = UnitQuaternion::rotation_between(&(q * mean_accel), &up).map_or(q, |c| c * q);
-        self.start_at(level);
-        // Still at rest: the low-passes start steady at the rest's values, not from the samples
-        // to come (the take-off may be among them).
-        self.accel_lp.reset_to(self.q_gyro * mean_accel);
-        self.vel_accel_lp.reset_to(Vector3::zeros());
-        self.bias.restart_tilt_at(&self.q_gyro.to_rotation_matrix());
-    }
-
-    /// A start in motion fitted (`motion_start.rs`): its bias is taken, the tilt starts again
-    /// from its frame and the heading from its field, with the low-passes steady there (the
-    /// vehicle's acceleration low-passed as it was).
-    /// The estimate jumps: that is said as a tilt reset, so what was learned through the
-    /// estimate before it (the position estimator's velocity and bias) is forgotten too.
-    fn align_in_motion(&mut self, fit: &MotionStart, integrated_bias: &Vector3<f64>) {
-        let before = self.attitude();
-        self.bias.take_fit(
-            &(integrated_bias + fit.bias_correction),
-            &fit.bias_covariance,
-        );
-        let up = Vector3::new(0.0, 0.0, -1.0);
-        let start = UnitQuaternion::from_rotation_matrix(&fit.start_from_body);
-        let level_from_start =
-            UnitQuaternion::rotation_between(&fit.up, &up).unwrap_or_else(UnitQuaternion::identity);
-        let (vel_accel_lp, last_vel) = (self.vel_accel_lp, self.last_vel);
-        self.start_at(level_from_start * start);
-        self.heading
-            .take_field(&(level_from_start * fit.field), fit.field_samples);
-        (self.vel_accel_lp, self.last_vel) = (vel_accel_lp, last_vel);
-        let accel = if self.vel_accel_lp.started() {
-            self.vel_accel_lp.value()
-        } else {
-            Vector3::zeros()
-        };
-        self.accel_lp
-            .reset_to(up * GRAVITY_M_S2 + self.heading.rotation().inverse() * accel);
-        self.bias.restart_tilt_at(&self.q_gyro.to_rotation_matrix());
-        // The tilt starts steady, but at the window's mean acceleration: one time constant to
-        // settle (not two, as from a first sample) before its corrections are taken for drift.
-        self.running_s = self.settings.tau_acc_s;
-        self.status.started_in_motion = true;
-        self.heading_held = true;
-        let down = |q: UnitQuaternion<f64>| q * Vector3::z();
-        self.status.reset.tilt += 1;
-        self.status.reset.tilt_rad = down(before).angle(&down(self.attitude()));
-    }
-
     /// Counters.
     pub fn status(&self) -> TiltHeadingStatus {
         TiltHeadingStatus {
@@ -334,6 +281,14 @@ impl TiltHeadingFilter {
             (self.unseen_turn_s - dt).max(0.0)
         };
         self.bias.predict(dt);
+        if self.realigning.is_some() {
+            // After a gap in flight only the gyro carries the attitude until it is found again.
+            if let Some(v) = vel_ned {
+                self.last_vel = Some(*v);
+            }
+            self.realign_step(accel, mag, gps_vel.as_ref(), dt);
+            return;
+        }
 
         // Bias at rest: the mean rate. Armed, the vehicle is never at rest: a hover sways slowly
         // enough to pass for stillness, and its rate would be learned as bias.
@@ -492,12 +447,17 @@ impl TiltHeadingFilter {
             self.status.reset.tilt_rad = r.error_rad;
             self.unseen_turn_s = UNSEEN_TURN_S;
         }
-        let v = self.q_tilt * lp - self.heading.rotation().inverse() * accel_lp;
+        let force = self.q_tilt * lp;
+        let accel = self.heading.rotation().inverse() * accel_lp;
         let up = Vector3::new(0.0, 0.0, -1.0);
-        // The shortest turn of the low-passed vector to the vertical: about a horizontal axis.
-        let correction = (v.norm() > 0.1 * GRAVITY_M_S2)
-            .then(|| UnitQuaternion::rotation_between(&v, &up))
-            .flatten();
+        // The shortest turn of the low-passed force that makes it, less the known acceleration,
+        // vertical: about a horizontal axis when the acceleration is small (then the force's own
+        // turn to the vertical). Turning the difference alone to the vertical would be out of
+        // proportion by |force|/|force − accel|, and grow, under a sustained acceleration near g.
+        let correction = ((force - accel).norm() > 0.1 * GRAVITY_M_S2)
+            .then(|| force_target(&force, &accel, &up))
+            .flatten()
+            .and_then(|target| UnitQuaternion::rotation_between(&force, &target));
         if let Some(c) = correction {
             self.q_tilt = UnitQuaternion::new_normalize((c * self.q_tilt).into_inner());
             self.status.tilt_correction_rad = c.angle();
@@ -569,4 +529,17 @@ impl TiltHeadingFilter {
             }
         }
     }
+}
+
+/// Where the low-passed `force` (level frame) must point for `force − accel` to point `up`,
+/// at the force's own length: `accel + s·up` with `s > 0`, if the force is long enough to
+/// reach the vertical through the acceleration.
+fn force_target(
+    force: &Vector3<f64>,
+    accel: &Vector3<f64>,
+    up: &Vector3<f64>,
+) -> Option<Vector3<f64>> {
+    let b = accel.dot(up);
+    let disc = b * b - accel.norm_squared() + force.norm_squared();
+    (disc >= 0.0).then(|| accel + up * (disc.sqrt() - b))
 }

@@ -167,6 +167,8 @@ pub struct TranslationEstimator {
     bias: Vector3<f64>,
     /// The next GPS velocity is taken whole ([`Self::forget_tilt_error`]).
     take_next_gps_velocity: bool,
+    /// The next barometer height is taken whole ([`Self::forget_unknown_attitude`]).
+    take_next_baro_height: bool,
     /// The steps those resets made, summed.
     vel_resets: Vector3<f64>,
     accel: Vector3<f64>,
@@ -191,6 +193,7 @@ impl TranslationEstimator {
             vel: Vector3::zeros(),
             bias: Vector3::zeros(),
             take_next_gps_velocity: false,
+            take_next_baro_height: false,
             vel_resets: Vector3::zeros(),
             accel: Vector3::zeros(),
             history: VecDeque::with_capacity(HISTORY),
@@ -243,10 +246,19 @@ impl TranslationEstimator {
 
     /// The attitude was reset: what was integrated through its error is dropped. The
     /// accelerometer bias took the error's `g·δ`; the velocity lags the GPS's, so the next GPS
-    /// velocity is taken whole (as EKF2 resets its velocity to the GNSS's after a yaw reset).
+    /// velocity is taken whole (as EKF2 resets its velocity to the GNSS's after a yaw reset),
+    /// its vertical part too where the receiver measures one.
     pub fn forget_tilt_error(&mut self) {
         self.bias = Vector3::zeros();
         self.take_next_gps_velocity = true;
+    }
+
+    /// The attitude was unknown for a while in flight (`realign.rs`): the height integrated
+    /// through it is dropped too, and the next barometer sample taken whole (as EKF2 resets
+    /// its height to the barometer's), besides [`Self::forget_tilt_error`].
+    pub fn forget_unknown_attitude(&mut self) {
+        self.forget_tilt_error();
+        self.take_next_baro_height = true;
     }
 
     /// The local frame (origin), once set.
@@ -352,11 +364,19 @@ impl TranslationEstimator {
         let tau_xy = self.params.tau_xy_s * stretch(Some(gps.h_acc_m), self.params.gps_p_noise_m);
         self.correct([true, true, false], &e, tau_xy, interval);
         let ev = gps.vel_ned_m_s - then.vel;
-        let ev = Vector3::new(ev.x, ev.y, 0.0);
         if std::mem::take(&mut self.take_next_gps_velocity) {
+            // The vertical velocity was integrated through the same error; the barometer would
+            // take seconds to correct it.
+            let ez = if gps.details.no_vertical_velocity || !ev.z.is_finite() {
+                0.0
+            } else {
+                ev.z
+            };
+            let ev = Vector3::new(ev.x, ev.y, ez);
             self.vel += ev;
             self.vel_resets += ev;
         } else {
+            let ev = Vector3::new(ev.x, ev.y, 0.0);
             let tau_vel =
                 self.params.tau_vel_s * stretch(gps.details.s_acc_m_s, self.params.gps_v_noise_m_s);
             self.vel += ev * (interval / tau_vel).min(1.0);
@@ -382,6 +402,14 @@ impl TranslationEstimator {
         let measured_down = -(pressure_alt_m - reference);
         let e = Vector3::new(0.0, 0.0, measured_down - self.pos.z);
         self.status.baro_innovation_m = e.z;
+        if std::mem::take(&mut self.take_next_baro_height) {
+            self.pos.z = measured_down;
+            for s in self.history.iter_mut() {
+                s.pos.z += e.z;
+            }
+            self.status.baro_fused += 1;
+            return;
+        }
         self.correct([false, false, true], &e, self.params.tau_z_s, interval);
         self.status.baro_fused += 1;
     }

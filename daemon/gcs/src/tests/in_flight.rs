@@ -462,6 +462,7 @@ fn an_attitude_estimate_reset_is_said_once() {
         gyro_bias: nalgebra::Vector3::zeros(),
         accel_bias: nalgebra::Vector3::zeros(),
         valid: true,
+        realigning: false,
         bias_settled: true,
         imu_still: false,
         reset,

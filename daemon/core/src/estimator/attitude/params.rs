@@ -291,6 +291,7 @@ impl AttitudeParams {
             bias_tau_motion_s: self.bias_tau_s,
             bias_limit_rad_s: self.bias_limit_rad_s,
             learn_hard_iron: self.mag_learn != 0,
+            mag_inclination_rad: self.mag_inclination_deg.to_radians(),
             ..d
         }
     }

@@ -25,6 +25,9 @@ pub struct TiltHeadingSettings {
     pub learn_hard_iron: bool,
     /// Online hard-iron settings.
     pub hard_iron: HardIronSettings,
+    /// The field's expected inclination (rad, positive down), until one is learned: it only
+    /// chooses between two headings an in-flight alignment finds (`realign.rs`).
+    pub mag_inclination_rad: f64,
 }
 
 impl Default for TiltHeadingSettings {
@@ -38,6 +41,7 @@ impl Default for TiltHeadingSettings {
             bias_max_rate_rad_s: 20f64.to_radians(),
             learn_hard_iron: false,
             hard_iron: HardIronSettings::default(),
+            mag_inclination_rad: 63.3f64.to_radians(),
         }
     }
 }
