@@ -148,9 +148,13 @@ impl PositionController {
         }
         v_sp.z = v_sp.z.clamp(-p.max_speed_up, p.max_speed_down);
         // Smooth set-point changes: the velocity set-point moves at most at the acceleration limits.
-        // After a reset the slew starts from the vehicle's own velocity.
+        // After a reset the slew starts from the vehicle's own velocity, but never from a descent
+        // faster than the largest: a vehicle found falling (its attitude found again after a gap
+        // in the samples) is braked by the whole loop, not eased out of the fall at 4 m/s².
         {
-            let prev = self.vel_sp.unwrap_or(*vel);
+            let prev = self
+                .vel_sp
+                .unwrap_or_else(|| Vector3::new(vel.x, vel.y, vel.z.min(p.max_speed_down)));
             let mut dv = v_sp - prev;
             let dh = dv.xy().norm();
             if dh > p.max_accel_h * dt {
@@ -178,13 +182,18 @@ impl PositionController {
             a_sp.x *= p.max_accel_h / h;
             a_sp.y *= p.max_accel_h / h;
         }
-        let z_limited = a_sp.z.abs() > p.max_accel_v;
-        a_sp.z = a_sp.z.clamp(-p.max_accel_v, p.max_accel_v);
+        // Downward the manoeuvre limit holds; upward only the thrust bounds the answer, as PX4
+        // bounds MPC_ACC_UP_MAX in the set-point's trajectory (above) and the velocity loop's
+        // output by MPC_THR_MAX alone: a vehicle found falling (its attitude found again after
+        // a gap in the samples) brakes with all it has, not at 4 m/s².
+        let mut z_limited = a_sp.z > p.max_accel_v;
+        a_sp.z = a_sp.z.min(p.max_accel_v);
         a_sp += self.integral;
         // Thrust vector, tilt-limited: keep the vertical component, shorten the horizontal one.
         // The outside force is answered first (the vehicle's acceleration is thrust + it + g).
         let mut t = (a_sp - self.disturbance - Vector3::new(0.0, 0.0, G)) * p.mass_kg;
         t.z = t.z.min(-0.1 * p.mass_kg * G); // always some thrust up
+        z_limited |= -t.z > p.max_thrust_n;
         let horizontal = t.xy().norm();
         let max_h = -t.z * p.max_tilt.tan();
         let tilt_limited = horizontal > max_h;
@@ -193,7 +202,7 @@ impl PositionController {
             t.y *= max_h / horizontal;
         }
         // Anti-windup: integrate unless the thrust is saturated on that axis (the tilt limit;
-        // the vertical acceleration limit). A limited manoeuvre does not stop it: the integral
+        // the downward acceleration limit or the largest thrust). A limited manoeuvre does not stop it: the integral
         // must still learn a push stronger than the manoeuvre limit.
         for i in 0..3 {
             let frozen = free[i] || if i < 2 { tilt_limited } else { z_limited };
