@@ -18,6 +18,9 @@ use std::path::PathBuf;
 enum Fault {
     /// All frames, `after_s` after take-off (0: at once), for `for_s` seconds.
     Frames { after_s: f64, for_s: f64 },
+    /// The link both ways (frames and commands), `after_s` into the hover, for `for_s`
+    /// seconds: the simulator holds the last command meanwhile.
+    Blackout { after_s: f64, for_s: f64 },
     /// All frames, half a second after arming, on the ground, for good.
     FramesOnGround,
     /// The GPS messages, two seconds into the hover, for good.
@@ -43,8 +46,9 @@ struct FaultyLink {
     last_answer_armed: bool,
     /// Largest tilt after the fault began, in the air (before the first touch of the ground).
     max_tilt_after_deg: f64,
-    /// The ground has been touched since the fault began.
+    /// The ground has been touched since the fault began, and when first.
     touched: bool,
+    touched_at_s: Option<f64>,
     /// Horizontal speed at the first touch after the fault (m/s).
     touch_speed_xy_m_s: f64,
     /// Largest tilt on the ground after the first touch (deg): over 90°, it tipped over.
@@ -61,10 +65,12 @@ struct FaultyLink {
     seed: u64,
     airframe: Airframe,
     restarted: bool,
+    /// The hover's height (m).
+    height_m: f64,
 }
 
 impl FaultyLink {
-    fn new(fault: Fault, seed: u64) -> Self {
+    fn new(fault: Fault, seed: u64, height_m: f64) -> Self {
         let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../params");
         let airframe = Airframe::load(&dir.join("airframes/quad_x.toml")).unwrap();
         Self {
@@ -83,6 +89,7 @@ impl FaultyLink {
             last_answer_armed: false,
             max_tilt_after_deg: 0.0,
             touched: false,
+            touched_at_s: None,
             touch_speed_xy_m_s: 0.0,
             max_tilt_on_ground_deg: 0.0,
             max_tilt_closed_loop_deg: 0.0,
@@ -91,6 +98,7 @@ impl FaultyLink {
             horizontal_at_fault: Vector3::zeros(),
             max_drift_after_m: 0.0,
             frozen_imu: None,
+            height_m,
         }
     }
 
@@ -104,11 +112,11 @@ impl FaultyLink {
         let t = self.now_s();
         let height = -truth.body.pos_ned_m.z;
         self.max_height_m = self.max_height_m.max(height);
-        if height > 4.9 && self.hover_from_s.is_none() {
+        if height > self.height_m - 0.1 && self.hover_from_s.is_none() {
             self.hover_from_s = Some(t);
         }
         let start = match self.fault {
-            Fault::Frames { after_s, for_s } => {
+            Fault::Frames { after_s, for_s } | Fault::Blackout { after_s, for_s } => {
                 self.lost_until_s = f64::INFINITY;
                 self.hover_from_s.map(|h| {
                     self.lost_until_s = h + after_s + for_s;
@@ -130,6 +138,7 @@ impl FaultyLink {
             let tilt = (truth.body.q_ned_from_frd * up).angle(&up).to_degrees();
             if truth.landed && !self.touched && self.max_height_m > 1.0 {
                 self.touched = true;
+                self.touched_at_s = Some(t);
                 self.touch_speed_xy_m_s = truth.body.vel_ned_m_s.xy().norm();
             }
             if self.touched {
@@ -154,10 +163,12 @@ impl FaultyLink {
         if matches!(self.fault, Fault::SimRestart) {
             return !self.restarted && self.began_s.is_some();
         }
-        matches!(self.fault, Fault::Frames { .. } | Fault::FramesOnGround)
-            && self
-                .began_s
-                .is_some_and(|_| self.now_s() < self.lost_until_s)
+        matches!(
+            self.fault,
+            Fault::Frames { .. } | Fault::Blackout { .. } | Fault::FramesOnGround
+        ) && self
+            .began_s
+            .is_some_and(|_| self.now_s() < self.lost_until_s)
     }
 }
 
@@ -217,6 +228,9 @@ impl SensorLink for FaultyLink {
             self.reaction_s = Some(self.now_s() - self.last_frame_s);
         }
         self.last_answer_armed = armed;
+        if matches!(self.fault, Fault::Blackout { .. }) && self.frames_lost() {
+            return Ok(()); // lost on the way: the simulator holds the last command
+        }
         self.sim.send(command)
     }
 
@@ -234,17 +248,28 @@ fn fly_with(fault: Fault) -> (FaultyLink, FlightReport, Autopilot) {
 }
 
 fn fly_seed(fault: Fault, seed: u64) -> (FaultyLink, FlightReport, Autopilot) {
+    fly_at(fault, seed, 5.0)
+}
+
+/// `fault` flown from a hover at `takeoff_m`. With `FAULT_TEST_CSV=PREFIX` in the environment
+/// each flight's CSV is written to `PREFIX-SEED-HEIGHT.csv` (to look at one).
+fn fly_at(fault: Fault, seed: u64, takeoff_m: f64) -> (FaultyLink, FlightReport, Autopilot) {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../params");
     let airframe = Airframe::load(&dir.join("airframes/quad_x.toml")).unwrap();
     let mut params = FlightParams::load(&dir.join("flight.toml")).unwrap();
     crate::links::Source::Embedded.preset_params(&mut params);
     let auto = AutoFlight {
-        takeoff_m: 5.0,
+        takeoff_m,
         hover_s: 30.0,
     };
     let mut autopilot = Autopilot::new(&airframe, &params, Some(auto)).unwrap();
     let mut records = FlightRecords::new(auto.takeoff_m);
-    let mut link = FaultyLink::new(fault, seed);
+    if let Ok(path) = std::env::var("FAULT_TEST_CSV") {
+        let path = format!("{path}-{seed}-{takeoff_m}.csv");
+        records
+            .log_to(crate::records::flight_csv::FlightCsv::create(path.as_ref(), 4, true).unwrap());
+    }
+    let mut link = FaultyLink::new(fault, seed, takeoff_m);
     let (mut ports, _ends) = Ports::new(4);
     let vehicle = Onboard {
         link: &mut link,
@@ -558,4 +583,60 @@ fn ten_vehicles_fly_together_on_one_clock_each_as_it_flies_alone() {
             together.score.attitude_rms_deg()
         );
     }
+}
+
+/// A link dark both ways in a hover (a radio out of range, a cable pulled): the simulator
+/// holds the last command while nothing is seen. From the frames' return the attitude is
+/// unknown, the rates are held on the gyro alone, and the GPS's velocity and the magnetometer
+/// find the attitude again (`realign.rs`); the position loop then brakes whatever fall it
+/// finds. Where the vehicle is still in the air a second after the return, the estimate is
+/// within 5° of the truth from then on; from 20 m after 2 s it lands gently whatever the held
+/// command did. What the held command does in the dark is physics: a hover's command holds
+/// its rate loop's last correction, a torque that turns the vehicle over within 2–5 s (and
+/// nothing the autopilot sends can reach it); those flights are printed, not judged.
+#[test]
+fn a_link_dark_both_ways_in_the_air_finds_the_attitude_again() {
+    let mut judged = 0;
+    for (gap_s, height_m) in [(2.0, 5.0), (2.0, 20.0), (5.0, 5.0), (5.0, 20.0)] {
+        for seed in 1..=3 {
+            let (link, report, _) = fly_at(
+                Fault::Blackout {
+                    after_s: 3.0,
+                    for_s: gap_s,
+                },
+                seed,
+                height_m,
+            );
+            let score = report.score();
+            let back_s = link.lost_until_s;
+            let flying_after_1s = link.touched_at_s.is_none_or(|t| t > back_s + 1.0);
+            eprintln!(
+                "dark {gap_s} s at {height_m} m, seed {seed}: tilt up to {:.0}° in the air, first touch {}, attitude error from 1 s after the return ≤ {:.1}°, fastest touch of the ground {:.2} m/s",
+                link.max_tilt_after_deg,
+                link.touched_at_s.map_or("none".into(), |t| format!(
+                    "{:+.2} s after the return",
+                    t - back_s
+                )),
+                score.max_attitude_err_after_gap_deg,
+                link.touchdown_m_s,
+            );
+            assert_eq!(score.gaps, 1, "one gap seen");
+            if flying_after_1s {
+                judged += 1;
+                assert!(
+                    score.max_attitude_err_after_gap_deg <= 5.0,
+                    "dark {gap_s} s at {height_m} m, seed {seed}: {:.1}°",
+                    score.max_attitude_err_after_gap_deg
+                );
+            }
+            if gap_s == 2.0 && height_m == 20.0 {
+                assert!(
+                    link.touchdown_m_s <= 2.0,
+                    "dark 2 s at 20 m, seed {seed}: touched at {:.2} m/s",
+                    link.touchdown_m_s
+                );
+            }
+        }
+    }
+    assert!(judged >= 4, "{judged} flights flew on after the return");
 }

@@ -38,7 +38,19 @@ pub struct FlightScore {
     pub distance_m: f64,
     /// A failsafe acted at some point.
     pub failsafe: bool,
+    /// Gaps in the frames (over [`GAP_S`]) while armed, and the time the last one ended (µs).
+    pub gaps: u64,
+    last_frame_usec: Option<u64>,
+    gap_ended_usec: Option<u64>,
+    /// Largest attitude-estimate error from [`SETTLE_AFTER_GAP_S`] after a gap on, while
+    /// armed (deg): how well the attitude was found again.
+    pub max_attitude_err_after_gap_deg: f64,
 }
+
+/// A longer interval between frames is a gap in them (s): `ATT_MAX_DR_T`'s default.
+pub const GAP_S: f64 = 0.5;
+/// How long after a gap the attitude estimate may take to be right again (s).
+pub const SETTLE_AFTER_GAP_S: f64 = 1.0;
 
 #[derive(Debug, Clone, Copy, Default)]
 struct Rms {
@@ -103,8 +115,23 @@ impl FlightScore {
             self.hover.add(height - self.takeoff_m);
             self.hover_h.add(p.xy().norm());
         }
+        let gap = self
+            .last_frame_usec
+            .is_some_and(|last| truth.time_usec.saturating_sub(last) as f64 * 1e-6 > GAP_S);
+        self.last_frame_usec = Some(truth.time_usec);
+        if armed && gap {
+            self.gaps += 1;
+            self.gap_ended_usec = Some(truth.time_usec);
+        }
         if armed && let Some(q) = estimate {
-            self.attitude.add(q.angle_to(&truth.q).to_degrees());
+            let err = q.angle_to(&truth.q).to_degrees();
+            self.attitude.add(err);
+            let settled = self.gap_ended_usec.is_some_and(|end| {
+                truth.time_usec.saturating_sub(end) as f64 * 1e-6 >= SETTLE_AFTER_GAP_S
+            });
+            if settled {
+                self.max_attitude_err_after_gap_deg = self.max_attitude_err_after_gap_deg.max(err);
+            }
         }
         if status.landed == LandedState::Landing && height < 0.3 {
             self.touchdown_m_s = self.touchdown_m_s.max(truth.vel_ned_m_s.z);
