@@ -19,12 +19,15 @@
 //! put it there. Under thrust `|v|` is about `g T`, so a window of 0.4 s is a vector of 4 m/s
 //! against GPS velocity noise of a few cm/s: about a degree.
 
-use super::gps_tilt::GpsWindow;
+use super::gps_tilt::{DelayedVelocity, GpsTiltCheck, GpsWindow};
 use crate::GRAVITY_M_S2;
 use nalgebra::{Unit, UnitQuaternion, Vector3};
 
 /// The shortest GPS window solved (s): six solutions of a 10 Hz receiver.
 pub const MIN_WINDOW_S: f64 = 0.5;
+/// The window that refines the first solution, flown on meanwhile (s): twice as long, half
+/// the error (about a degree of tilt, two of heading through a steep field's dip).
+pub const REFINE_WINDOW_S: f64 = 0.9;
 /// The shortest `v` solved, over gravity's in the same time: the vehicle under at least this
 /// fraction of its weight's thrust (in a free fall the force shows nothing).
 const MIN_FORCE_FRACTION: f64 = 0.3;
@@ -47,24 +50,54 @@ pub struct Alignment {
     pub accel_ned: Vector3<f64>,
 }
 
-/// The magnetic field collected in the gyro frame since the samples returned.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+/// What the search collects from the samples' return on, in the frame the gyro carried from
+/// there (the search frame): the specific force's integral and the GPS solutions
+/// (`gps_tilt.rs`), the magnetic field's mean direction.
+#[derive(Debug, Clone, Default)]
 pub struct InFlightAlignment {
+    check: GpsTiltCheck,
     field_sum: Vector3<f64>,
     field_samples: u32,
     /// Time since the samples returned (s).
     pub elapsed_s: f64,
+    /// The first frame found (NED from the search frame) and when, flown on while a longer
+    /// window refines it.
+    pub found: Option<(UnitQuaternion<f64>, f64)>,
 }
 
 impl InFlightAlignment {
-    /// One sample's time, and the field (calibrated, FRD) turned into the gyro frame, if one
-    /// came.
-    pub fn update(&mut self, field_gyro_frame: Option<&Vector3<f64>>, dt: f64) {
+    /// One sample: the search frame from the body, the specific force and the calibrated field
+    /// (FRD), and a GPS velocity if one arrived.
+    pub fn update(
+        &mut self,
+        search_from_body: &UnitQuaternion<f64>,
+        accel: &Vector3<f64>,
+        field: Option<&Vector3<f64>>,
+        gps: Option<&DelayedVelocity>,
+        dt: f64,
+    ) {
         self.elapsed_s += dt;
-        if let Some(m) = field_gyro_frame.and_then(|m| m.try_normalize(1e-9)) {
+        let rotation = search_from_body.to_rotation_matrix();
+        self.check
+            .update(&(search_from_body * accel), rotation.matrix(), gps, dt);
+        if let Some(m) = field.and_then(|m| (search_from_body * m).try_normalize(1e-9)) {
             self.field_sum += m;
             self.field_samples += 1;
         }
+    }
+
+    /// The frame (NED from the search frame), when the GPS solution taken at this sample
+    /// completes a window long enough: [`MIN_WINDOW_S`] first, [`REFINE_WINDOW_S`] after.
+    pub fn try_solve(&self, declination_rad: f64, dip_rad: f64) -> Option<Alignment> {
+        let window = self.check.span()?;
+        let least = if self.found.is_some() {
+            REFINE_WINDOW_S
+        } else {
+            MIN_WINDOW_S
+        };
+        (window.duration_s >= least)
+            .then(|| self.solve(&window, declination_rad, dip_rad))
+            .flatten()
     }
 
     /// The frame, from a GPS window taken wholly after the return, the declination (rad) and

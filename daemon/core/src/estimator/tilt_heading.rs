@@ -281,12 +281,11 @@ impl TiltHeadingFilter {
             (self.unseen_turn_s - dt).max(0.0)
         };
         self.bias.predict(dt);
-        if self.realigning.is_some() {
+        if self.realigning.is_some() && self.realign_step(accel, mag, gps_vel.as_ref(), dt) {
             // After a gap in flight only the gyro carries the attitude until it is found again.
             if let Some(v) = vel_ned {
                 self.last_vel = Some(*v);
             }
-            self.realign_step(accel, mag, gps_vel.as_ref(), dt);
             return;
         }
 
