@@ -281,7 +281,10 @@ impl TiltHeadingFilter {
             (self.unseen_turn_s - dt).max(0.0)
         };
         self.bias.predict(dt);
-        if self.realigning.is_some() && self.realign_step(accel, mag, gps_vel.as_ref(), dt) {
+        if self.realigning.is_some() {
+            self.realign_step(accel, mag, gps_vel.as_ref(), dt);
+        }
+        if self.realigning.is_some() {
             // After a gap in flight only the gyro carries the attitude until it is found again.
             if let Some(v) = vel_ned {
                 self.last_vel = Some(*v);

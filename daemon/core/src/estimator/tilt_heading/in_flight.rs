@@ -1,6 +1,5 @@
 //! A gap in the samples in flight: the attitude unknown until found again from the GPS's
-//! velocity and the magnetic field (`realign.rs`), the gyro carrying a frame meanwhile; then
-//! flown on while a window twice as long refines it.
+//! velocity and the magnetic field (`realign.rs`), the gyro carrying a frame meanwhile.
 
 use super::{TiltHeadingFilter, UNSEEN_TURN_S};
 use crate::estimator::gps_tilt::DelayedVelocity;
@@ -10,11 +9,6 @@ use nalgebra::{UnitQuaternion, Vector3};
 /// How long the alignment is sought before the filter goes on from the accelerometer (s): no
 /// GPS, or a vehicle in a free fall, shows nothing.
 pub const GIVE_UP_S: f64 = 5.0;
-/// How long after the first solution a refinement is waited for (s).
-const REFINE_WAIT_S: f64 = 2.0;
-/// A refinement closer than this to the attitude flown is not taken (rad): no reset for
-/// nothing.
-const REFINE_MIN_RAD: f64 = 0.5 * std::f64::consts::PI / 180.0;
 
 impl TiltHeadingFilter {
     /// The samples stopped for a while in flight: what the gyro did meanwhile is lost, and the
@@ -25,22 +19,21 @@ impl TiltHeadingFilter {
         self.status.realigning = true;
     }
 
-    /// Whether the attitude is unknown after a gap in flight (not yet found).
+    /// Whether the attitude is unknown after a gap in flight.
     pub fn realigning(&self) -> bool {
-        self.realigning.as_ref().is_some_and(|r| r.found.is_none())
+        self.realigning.is_some()
     }
 
-    /// One sample of the search or its refinement: the force and field collected in the
-    /// search's frame, and the alignment tried at each GPS solution. Returns whether the
-    /// attitude is still unknown: then nothing else corrects (the accelerometer under thrust
-    /// would show the stale attitude as level).
+    /// One sample while the attitude is unknown: the force and field collected in the gyro
+    /// frame, and the alignment tried at each GPS solution. Nothing else corrects meanwhile:
+    /// the accelerometer under thrust would show the stale attitude as level.
     pub(super) fn realign_step(
         &mut self,
         accel: &Vector3<f64>,
         mag: Option<&Vector3<f64>>,
         gps_vel: Option<&DelayedVelocity>,
         dt: f64,
-    ) -> bool {
+    ) {
         let field = mag.map(|m| {
             if self.settings.learn_hard_iron {
                 m - self.hard_iron.offset()
@@ -55,44 +48,19 @@ impl TiltHeadingFilter {
         let declination = self.settings.heading.declination_rad;
         let q_gyro = self.q_gyro;
         let Some(r) = self.realigning.as_mut() else {
-            return false;
+            return;
         };
-        // The search's frame: the gyro frame it began in (the gyro frame was turned by the
-        // first solution since).
-        let search_from_body = match r.found {
-            Some((c1, _)) => c1.inverse() * q_gyro,
-            None => q_gyro,
-        };
-        r.update(&search_from_body, accel, field.as_ref(), gps_vel, dt);
-        let solved = r.try_solve(declination, dip);
-        match (r.found, solved) {
-            (None, Some(a)) => {
-                r.found = Some((a.ned_from_gyro_frame, r.elapsed_s));
-                self.realigned(&a);
-                self.status.realigned_in_flight += 1;
-            }
-            (None, None) if r.elapsed_s > GIVE_UP_S => {
-                self.realigning = None;
-                self.status.realign_abandoned += 1;
-                self.start_at(self.attitude());
-            }
-            (Some((c1, _)), Some(a)) => {
-                // The longer window's frame, for the gyro frame as it is now.
-                let refined = Alignment {
-                    ned_from_gyro_frame: a.ned_from_gyro_frame * c1.inverse(),
-                    ..a
-                };
-                let now = refined.ned_from_gyro_frame * self.q_gyro;
-                if now.angle_to(&self.attitude()) > REFINE_MIN_RAD {
-                    self.realigned(&refined);
-                }
-                self.realigning = None;
-            }
-            (Some((_, at)), None) if r.elapsed_s > at + REFINE_WAIT_S => self.realigning = None,
-            _ => {}
+        r.update(&q_gyro, accel, field.as_ref(), gps_vel, dt);
+        if let Some(a) = r.try_solve(declination, dip) {
+            self.realigning = None;
+            self.realigned(&a);
+            self.status.realigned_in_flight += 1;
+        } else if r.elapsed_s > GIVE_UP_S {
+            self.realigning = None;
+            self.status.realign_abandoned += 1;
+            self.start_at(self.attitude());
         }
         self.status.realigning = self.realigning();
-        self.realigning()
     }
 
     /// The attitude found: the filter starts again from it, with the low-passes steady at
