@@ -57,7 +57,9 @@ pub struct SensorSuite {
     /// The board's attitude in the body (a small roll and pitch): the IMU reads `R⁻¹ v`.
     board: UnitQuaternion<f64>,
     gyro_bias: Vector3<f64>,
-    baro_drift_pa: f64,
+    /// The weather's pressure change (Pa) and its rate of change (Pa/s).
+    weather_pa: f64,
+    weather_rate_pa_s: f64,
     gps_error_ned: Vector3<f64>,
     vibration_axis: [Vector3<f64>; MAX_ROTORS],
     vibration_phase: [f64; MAX_ROTORS],
@@ -169,7 +171,8 @@ impl SensorSuite {
             accel_scale,
             board,
             gyro_bias,
-            baro_drift_pa: 0.0,
+            weather_pa: 0.0,
+            weather_rate_pa_s: 0.0,
             gps_error_ned: Vector3::zeros(),
             vibration_axis,
             vibration_phase,
@@ -390,11 +393,16 @@ impl SensorSuite {
         let c = &self.cfg;
         if self.baro_due.due(t.time_usec) {
             let period = self.baro_due.period_usec as f64 * 1e-6;
-            self.baro_drift_pa += c.baro_drift_pa * period.sqrt() * self.baro_rng.normal();
+            // The weather: a Gauss–Markov rate of change, integrated and returning to zero.
+            let a = (-period / c.weather_rate_tau_s).exp();
+            self.weather_rate_pa_s = self.weather_rate_pa_s * a
+                + c.weather_rate_pa_s * (1.0 - a * a).sqrt() * self.baro_rng.normal();
+            self.weather_pa +=
+                (self.weather_rate_pa_s - self.weather_pa / c.weather_tau_s) * period;
             let noise = c.baro_noise_pa * self.baro_rng.normal();
             match self.health[2] {
                 SensorHealth::Ok => {
-                    let p = t.air.pressure_pa + self.baro_drift_pa + noise;
+                    let p = t.air.pressure_pa + self.weather_pa + noise;
                     self.last.abs_pressure_hpa = p * 0.01;
                     self.last.pressure_alt_m = isa_altitude_m(p);
                     self.last.temperature_c = t.air.temperature_k - 273.15;

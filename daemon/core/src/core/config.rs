@@ -87,6 +87,7 @@ impl FlightCoreConfig {
                 gps_timeout_s: t.gps_timeout_s,
                 baro_timeout_s: t.baro_timeout_s,
                 accel_bias_limit: t.accel_bias_limit,
+                gps_hgt_tau_s: t.gps_hgt_tau_s,
             },
             position: PositionParams {
                 mass_kg: a.mass_kg,

@@ -42,6 +42,8 @@ pub struct TranslationParams {
     pub baro_timeout_s: f64,
     /// Bound on the accelerometer bias estimate (m/s²).
     pub accel_bias_limit: f64,
+    /// Time constant of the barometer's offset learned from the GPS's height (s; 0: none).
+    pub gps_hgt_tau_s: f64,
 }
 
 impl Default for TranslationParams {
@@ -57,6 +59,7 @@ impl Default for TranslationParams {
             gps_timeout_s: 1.0,
             baro_timeout_s: 0.5,
             accel_bias_limit: 1.0,
+            gps_hgt_tau_s: 200.0,
         }
     }
 }
@@ -146,6 +149,8 @@ pub struct TranslationStatus {
     pub baro_innovation_m: f64,
     /// Accelerometer bias estimate, NED (m/s²).
     pub accel_bias: [f64; 3],
+    /// The barometer's offset from the GPS's height (m, down).
+    pub baro_offset_m: f64,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -156,6 +161,8 @@ struct Snapshot {
 }
 
 const HISTORY: usize = 512;
+/// The worst stated vertical accuracy whose height corrects the barometer's offset (m).
+const MAX_V_ACC_M: f64 = 5.0;
 
 /// The translation estimator.
 #[derive(Debug, Clone)]
@@ -169,6 +176,10 @@ pub struct TranslationEstimator {
     take_next_gps_velocity: bool,
     /// The next barometer height is taken whole ([`Self::forget_unknown_attitude`]).
     take_next_baro_height: bool,
+    /// The barometer's offset from the GPS's height (m, down): the weather's pressure change
+    /// and the sensor's drift, learned over `gps_hgt_tau_s` and taken off every sample, as
+    /// EKF2's baro bias estimator and EKF3 keep the barometer to the GNSS's height.
+    baro_offset_m: f64,
     /// The steps those resets made, summed.
     vel_resets: Vector3<f64>,
     accel: Vector3<f64>,
@@ -194,6 +205,7 @@ impl TranslationEstimator {
             bias: Vector3::zeros(),
             take_next_gps_velocity: false,
             take_next_baro_height: false,
+            baro_offset_m: 0.0,
             vel_resets: Vector3::zeros(),
             accel: Vector3::zeros(),
             history: VecDeque::with_capacity(HISTORY),
@@ -363,6 +375,7 @@ impl TranslationEstimator {
         self.status.gps_innovation_m = e.xy().norm();
         let tau_xy = self.params.tau_xy_s * stretch(Some(gps.h_acc_m), self.params.gps_p_noise_m);
         self.correct([true, true, false], &e, tau_xy, interval);
+        self.learn_baro_offset(measured.z - then.pos.z, gps, interval);
         let ev = gps.vel_ned_m_s - then.vel;
         if std::mem::take(&mut self.take_next_gps_velocity) {
             // The vertical velocity was integrated through the same error; the barometer would
@@ -384,6 +397,20 @@ impl TranslationEstimator {
         self.status.gps_fused += 1;
     }
 
+    /// The barometer's offset pulled toward the GPS's height: `gps_minus_estimate` (m, down)
+    /// is the GPS's height less the estimate at the solution's time, which follows the
+    /// corrected barometer within seconds; over `gps_hgt_tau_s` (minutes) the offset takes it
+    /// up, so the height keeps the barometer's short-term smoothness and the GPS's long-term
+    /// mean. A receiver stating a vertical accuracy worse than 5 m is not used.
+    fn learn_baro_offset(&mut self, gps_minus_estimate: f64, gps: &GpsMeasurement, interval: f64) {
+        let tau = self.params.gps_hgt_tau_s;
+        let vertical_ok = gps.details.v_acc_m.is_none_or(|a| a <= MAX_V_ACC_M);
+        if tau > 0.0 && vertical_ok && gps_minus_estimate.is_finite() {
+            self.baro_offset_m -= gps_minus_estimate * (interval / tau).min(1.0);
+            self.status.baro_offset_m = self.baro_offset_m;
+        }
+    }
+
     /// Fuses a barometric altitude (m AMSL, ISA) measured at `t_usec`.
     pub fn fuse_baro(&mut self, t_usec: u64, pressure_alt_m: f64) {
         if !pressure_alt_m.is_finite() {
@@ -399,7 +426,7 @@ impl TranslationEstimator {
             *n += 1;
         }
         let reference = *sum / *n as f64;
-        let measured_down = -(pressure_alt_m - reference);
+        let measured_down = -(pressure_alt_m - reference) - self.baro_offset_m;
         let e = Vector3::new(0.0, 0.0, measured_down - self.pos.z);
         self.status.baro_innovation_m = e.z;
         if std::mem::take(&mut self.take_next_baro_height) {
@@ -456,6 +483,8 @@ crate::params::param_group! {
         baro_timeout_s: f64 = 0.5, "EST_BARO_TOUT", "s", [0.05, 10.0], "Altitude is invalid after this long without the barometer";
         /// Accelerometer bias bound.
         accel_bias_limit: f64 = 1.0, "EST_ACC_B_MAX", "m/s^2", [0.0, 5.0], "Bound on the accelerometer bias estimate";
+        /// The barometer's offset from the GPS's height.
+        gps_hgt_tau_s: f64 = 200.0, "EST_HGT_GPS_TAU", "s", [0.0, 3600.0], "Time constant of the barometer's offset learned from the GPS's height (the weather's pressure change, drift): the height keeps the barometer's smoothness and the GPS's mean (0: the barometer alone)";
     }
 }
 

@@ -99,8 +99,16 @@ pub struct SensorConfig {
     pub baro_rate_hz: f64,
     /// Barometer white noise (Pa).
     pub baro_noise_pa: f64,
-    /// Barometer drift random walk (Pa/√s).
-    pub baro_drift_pa: f64,
+    /// The weather's pressure change the barometer reads: its rate of change is a Gauss–Markov
+    /// process of this stationary σ (Pa/s; 0.014 is 0.5 hPa an hour, a passing front about
+    /// twice that) and correlation time `weather_rate_tau_s`, and the change returns to zero
+    /// over `weather_tau_s`: smooth, bounded (σ ≈ rate σ · √(τ_rate · τ), about 1.7 hPa or
+    /// 14 m for the typical sensors) and seeded.
+    pub weather_rate_pa_s: f64,
+    /// Correlation time of the pressure's rate of change (s).
+    pub weather_rate_tau_s: f64,
+    /// Time over which the pressure change returns to zero (s).
+    pub weather_tau_s: f64,
     /// GPS output rate (Hz).
     pub gps_rate_hz: f64,
     /// GPS horizontal position error, 1σ (m), correlated over `gps_correlation_s`.
@@ -145,7 +153,9 @@ impl SensorConfig {
             mag_motor_field: Vector3::zeros(),
             baro_rate_hz: 50.0,
             baro_noise_pa: 3.0,
-            baro_drift_pa: 0.3,
+            weather_rate_pa_s: 0.014,
+            weather_rate_tau_s: 3600.0,
+            weather_tau_s: 43_200.0,
             gps_rate_hz: 10.0,
             gps_h_sigma: 0.3,
             gps_v_sigma: 0.6,
@@ -169,7 +179,7 @@ impl SensorConfig {
                 gyro_bias_walk: 0.0,
                 mag_noise: 0.0,
                 baro_noise_pa: 0.0,
-                baro_drift_pa: 0.0,
+                weather_rate_pa_s: 0.0,
                 gps_h_sigma: 0.0,
                 gps_v_sigma: 0.0,
                 gps_vel_sigma: 0.0,
@@ -190,7 +200,7 @@ impl SensorConfig {
                 mag_hard_iron: Vector3::new(0.12, -0.08, 0.2),
                 mag_soft_iron: Matrix3::new(1.08, 0.04, -0.02, 0.04, 0.95, 0.03, -0.02, 0.03, 1.02),
                 baro_noise_pa: 10.0,
-                baro_drift_pa: 1.5,
+                weather_rate_pa_s: 0.028,
                 gps_h_sigma: 1.5,
                 gps_v_sigma: 3.0,
                 gps_vel_sigma: 0.2,
