@@ -130,9 +130,9 @@ pub struct SensorConfig {
 }
 
 impl SensorConfig {
-    /// The parameters of a preset.
-    pub fn preset(p: SensorPreset) -> Self {
-        let typical = Self {
+    /// The typical preset (the default).
+    fn typical() -> Self {
+        Self {
             accel_noise_density: 2.0e-3,
             // Residual after the user's accelerometer calibration (every PX4/ArduPilot setup
             // does one): ≈ 2 mg. The raw datasheet offset (±20 mg) is the noisy preset's.
@@ -165,7 +165,12 @@ impl SensorConfig {
             gps_satellites: 14,
             rpm_rate_hz: 50.0,
             rpm_noise: 0.005,
-        };
+        }
+    }
+
+    /// The parameters of a preset.
+    pub fn preset(p: SensorPreset) -> Self {
+        let typical = Self::typical();
         match p {
             SensorPreset::Typical => typical,
             SensorPreset::Ideal => Self {
