@@ -82,7 +82,7 @@ pub struct FlightArgs {
     /// the run once disarmed [default: wait for ground-station commands].
     #[arg(long, value_name = "M")]
     pub takeoff: Option<f64>,
-    /// With --takeoff: hover time before landing (s, 0 to 3600) [default: 10].
+    /// With --takeoff: hover time before landing (s, 0 to 604800: a week, for a tethered vehicle or a soak) [default: 10].
     #[arg(long, value_name = "S")]
     pub hover: Option<f64>,
     /// Embedded simulator: real-time factor, 1 (real time), 20, or "max" (as fast as lockstep
@@ -260,7 +260,7 @@ pub struct BatchArgs {
     /// Take-off height (m, 1 to 100).
     #[arg(long, default_value_t = 5.0)]
     pub takeoff: f64,
-    /// Hover time (s, 0 to 3600).
+    /// Hover time (s, 0 to 604800).
     #[arg(long, default_value_t = 20.0)]
     pub hover: f64,
     /// Largest mean wind (m/s): each run's is drawn from 0 to this, from any direction.

@@ -157,7 +157,7 @@ impl Default for Settings {
 /// Allowed take-off altitudes (m).
 pub const TAKEOFF_RANGE_M: RangeInclusive<f64> = 1.0..=100.0;
 /// Allowed hover times (s).
-pub const HOVER_RANGE_S: RangeInclusive<f64> = 0.0..=3600.0;
+pub const HOVER_RANGE_S: RangeInclusive<f64> = 0.0..=604_800.0;
 /// Allowed instance numbers.
 pub const INSTANCE_RANGE: RangeInclusive<u16> = 0..=250;
 /// Allowed numbers of vehicles flown together (instances `instance` … `instance + count − 1`,

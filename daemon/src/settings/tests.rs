@@ -61,7 +61,7 @@ fn bad_files_name_the_file_the_key_and_the_range() {
         (
             "hover.toml",
             "hover_s = -1\n",
-            "`hover_s`: -1 is out of range [0, 3600] s",
+            "`hover_s`: -1 is out of range [0, 604800] s",
         ),
         (
             "inst.toml",
