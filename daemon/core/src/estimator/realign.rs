@@ -16,8 +16,9 @@
 //! `gps_tilt.rs` checks). The third, about `v`, is the one that puts the magnetic field, seen in
 //! the gyro frame, in the magnetic meridian (the declination's vertical plane): the field's
 //! direction within that plane (its dip) is not needed, only to choose between the two turns that
-//! put it there. Under thrust `|v|` is about `g T`, so a window of 0.4 s is a vector of 4 m/s
-//! against GPS velocity noise of a few cm/s: about a degree.
+//! put it there. Under thrust `|v|` is about `g T`, so a window of 0.5 s is a vector of 5 m/s
+//! against GPS velocity noise of a few cm/s: about a degree of tilt, twice that of heading
+//! through a steep field's dip.
 
 use super::gps_tilt::{DelayedVelocity, GpsTiltCheck, GpsWindow};
 use crate::GRAVITY_M_S2;
@@ -36,15 +37,11 @@ const MIN_ACROSS: f64 = 0.2;
 /// The least magnetometer samples averaged.
 const MIN_FIELD_SAMPLES: u32 = 5;
 
-/// What an alignment found: the attitude's frame and how far it turned the old one.
+/// What an alignment found: the attitude's frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Alignment {
-    /// NED from the gyro frame.
+    /// NED from the gyro frame (the search's).
     pub ned_from_gyro_frame: UnitQuaternion<f64>,
-    /// The window's mean specific force in NED (m/s²): the low-passes start from it.
-    pub force_ned: Vector3<f64>,
-    /// The window's mean acceleration, NED (m/s²).
-    pub accel_ned: Vector3<f64>,
 }
 
 /// What the search collects from the samples' return on, in the frame the gyro carried from
@@ -132,11 +129,8 @@ impl InFlightAlignment {
             let d = |psi: f64| (turned(psi) * w).dot(&expected);
             d(*p).total_cmp(&d(*q))
         })?;
-        let ned_from_gyro_frame = turned(psi) * onto_v;
         Some(Alignment {
-            ned_from_gyro_frame,
-            force_ned: ned_from_gyro_frame * u,
-            accel_ned: window.accel,
+            ned_from_gyro_frame: turned(psi) * onto_v,
         })
     }
 }
