@@ -52,6 +52,8 @@ pub struct InFlightAlignment {
     check: GpsTiltCheck,
     field_sum: Vector3<f64>,
     field_samples: u32,
+    /// Samples taken since the return.
+    samples: u64,
     /// Time since the samples returned (s).
     pub elapsed_s: f64,
 }
@@ -67,6 +69,11 @@ impl InFlightAlignment {
         gps: Option<&DelayedVelocity>,
         dt: f64,
     ) {
+        // The first sample closes the gap: its interval is the gap's, not one the force was
+        // measured over, and a GPS solution measured in the dark (arriving just after) must
+        // find no integral to pair with. The search's clock starts here.
+        let dt = if self.samples == 0 { 0.0 } else { dt };
+        self.samples += 1;
         self.elapsed_s += dt;
         let rotation = search_from_body.to_rotation_matrix();
         self.check
