@@ -287,6 +287,7 @@ fn log_paths(
 ) -> LogPaths {
     let min_free = u64::from(logger.min_free_mb) * 1_000_000;
     records::log_budget::keep_free(min_free);
+    records::log_budget::rotate_at(u64::from(logger.max_size_mb) * 1_000_000, logger.rotate);
     let all_named = cfg.flight_csv.is_some() && cfg.tlog.is_some() && cfg.ulog.is_some();
     let stem = cfg.log_dir().filter(|_| !all_named).and_then(|dir| {
         // Once a process, before its first vehicle's logs (not between its vehicles').

@@ -26,6 +26,26 @@ pub fn kept_free() -> u64 {
     KEEP_FREE.load(Ordering::Relaxed)
 }
 
+/// The size at which a log file goes on in a new part (bytes; 0: never) and the parts kept
+/// (0: all): set once at start-up from `SDLOG_MAX_SIZE` and `SDLOG_ROTATE`.
+static ROTATE_BYTES: AtomicU64 = AtomicU64::new(0);
+static ROTATE_KEEP: AtomicU64 = AtomicU64::new(0);
+
+/// Sets the size at which a log file goes on in a new part (bytes; 0: never) and how many
+/// parts are kept (0: all).
+pub fn rotate_at(bytes: u64, keep: u32) {
+    ROTATE_BYTES.store(bytes, Ordering::Relaxed);
+    ROTATE_KEEP.store(u64::from(keep), Ordering::Relaxed);
+}
+
+/// The size at which a log file goes on in a new part (bytes; 0: never) and the parts kept.
+pub fn rotation() -> (u64, u32) {
+    (
+        ROTATE_BYTES.load(Ordering::Relaxed),
+        ROTATE_KEEP.load(Ordering::Relaxed) as u32,
+    )
+}
+
 /// Free space (bytes) for an unprivileged writer on the disk holding `path`; `None` where it
 /// cannot be told.
 pub fn free_bytes(path: &Path) -> Option<u64> {
@@ -52,6 +72,11 @@ fn runs(dir: &Path) -> std::io::Result<Vec<Vec<PathBuf>>> {
             continue;
         };
         let stem = stem.to_string_lossy().into_owned();
+        // A later part of a run's file (`NAME.2.ulg`) is the run's.
+        let stem = match stem.rsplit_once('.') {
+            Some((run, part)) if part.parse::<u32>().is_ok() => run.to_owned(),
+            _ => stem,
+        };
         if !EXTENSIONS.iter().any(|e| ext == *e) || !is_run_stem(&stem) {
             continue;
         }
@@ -141,6 +166,9 @@ mod tests {
             }
         }
         touch(d, "2026-11-25_10-00-00_i2-2.csv", 50);
+        // A long run's later parts (SDLOG_MAX_SIZE) are its own.
+        touch(d, "2026-11-22_10-00-00.2.csv", 290);
+        touch(d, "2026-11-22_10-00-00.3.csv", 280);
         touch(d, "notes.csv", 1000);
         touch(d, "2026-11-21_10-00-00.txt", 1000);
         // Three kept with the new one: the two newest stay.
@@ -150,7 +178,7 @@ mod tests {
             .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
             .collect();
         names.sort();
-        assert_eq!(names.len(), 9, "{names:?}");
+        assert_eq!(names.len(), 11, "{names:?}");
         assert!(
             names.iter().all(|n| n.starts_with("2026-11-2")),
             "{names:?}"

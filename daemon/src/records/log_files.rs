@@ -45,11 +45,23 @@ impl LogFile<Vec<u8>> {
 
 impl<T: Send + 'static> LogFile<T> {
     /// Creates (truncates) `path`, writes `header`, and starts the writer, which writes each
-    /// chunk it is handed with `encode`.
+    /// chunk it is handed with `encode`, in parts as `SDLOG_MAX_SIZE` and `SDLOG_ROTATE` say
+    /// ([`crate::records::log_budget::rotation`]).
     pub fn create_with(
         path: &Path,
         header: &[u8],
+        encode: impl FnMut(T, &mut dyn Write) -> std::io::Result<()> + Send + 'static,
+    ) -> std::io::Result<Self> {
+        Self::create_in_parts(path, header, encode, crate::records::log_budget::rotation())
+    }
+
+    /// [`LogFile::create_with`], going on in a new part (its own `header` first) once a part
+    /// has `rotation.0` bytes (0: never), keeping the newest `rotation.1` parts (0: all).
+    pub fn create_in_parts(
+        path: &Path,
+        header: &[u8],
         mut encode: impl FnMut(T, &mut dyn Write) -> std::io::Result<()> + Send + 'static,
+        rotation: (u64, u32),
     ) -> std::io::Result<Self> {
         let mut file = std::fs::File::create(path)?;
         file.write_all(header)?;
@@ -57,13 +69,38 @@ impl<T: Send + 'static> LogFile<T> {
         let mut whole = header.len() as u64;
         let fault = Arc::new(OnceLock::new());
         let stopped = Arc::clone(&fault);
-        let at = path.to_owned();
+        let first = path.to_owned();
+        let mut at = path.to_owned();
+        let header = header.to_vec();
+        let (rotate_bytes, keep) = rotation;
         let writer = std::thread::Builder::new()
             .name("log-writer".into())
             .spawn(move || -> std::io::Result<()> {
                 let mut out = std::io::BufWriter::with_capacity(256 * 1024, file);
+                let mut part = 1;
                 // Until the owner's end: another producer's sender may outlive it.
                 for chunk in rx.iter().map_while(|c| c) {
+                    // Past SDLOG_MAX_SIZE, between two chunks: the next part, its own header
+                    // first, readable on its own; the oldest beyond SDLOG_ROTATE removed.
+                    if rotate_bytes > 0 && whole >= rotate_bytes {
+                        part += 1;
+                        let next = part_path(&first, part);
+                        let started = std::fs::File::create(&next).and_then(|mut f| {
+                            f.write_all(&header)?;
+                            Ok(f)
+                        });
+                        match started {
+                            Ok(f) => out = std::io::BufWriter::with_capacity(256 * 1024, f),
+                            Err(e) => {
+                                let _ = stopped.set(e.kind());
+                                return Err(e);
+                            }
+                        }
+                        (at, whole) = (next, header.len() as u64);
+                        if keep > 0 && part > keep {
+                            let _ = std::fs::remove_file(part_path(&first, part - keep));
+                        }
+                    }
                     // To the kernel with every chunk: nothing is held here that a kill would lose;
                     // not below the free space kept (SDLOG_MIN_FREE), where it stops as on a
                     // full disk, nor into a file whose directory was removed.
@@ -158,6 +195,20 @@ impl<T: Send + 'static> LogFile<T> {
             Some(Err(_)) => Err(std::io::Error::other("the log writer panicked")),
         }
     }
+}
+
+/// Part `n` of the log file whose first part is `first`: `first` itself, then `NAME.2.ulg` and
+/// so on (`SDLOG_MAX_SIZE`).
+pub fn part_path(first: &Path, n: u32) -> PathBuf {
+    if n <= 1 {
+        return first.to_owned();
+    }
+    let stem = first.file_stem().unwrap_or_default().to_string_lossy();
+    let name = match first.extension() {
+        Some(ext) => format!("{stem}.{n}.{}", ext.to_string_lossy()),
+        None => format!("{stem}.{n}"),
+    };
+    first.with_file_name(name)
 }
 
 /// `Err` when the log at `path` is gone (its directory removed: the writes would go on into a
@@ -348,6 +399,50 @@ mod tests {
         let e = log.finish().unwrap_err();
         assert_eq!(e.kind(), std::io::ErrorKind::NotFound, "{e}");
         assert!(e.to_string().contains("is gone"), "{e}");
+    }
+
+    /// Past the size, a log goes on in a new part with its own header, between two chunks (a
+    /// row, a message never split); beyond the parts kept the oldest is removed. Every byte
+    /// handed over is in the parts kept, in order.
+    #[test]
+    fn a_long_log_goes_on_in_parts_and_keeps_the_newest() {
+        let dir = tempfile::tempdir().unwrap();
+        let first = dir.path().join("2026-11-23_11-15-02.csv");
+        let mut log = LogFile::create_in_parts(
+            &first,
+            b"HEADER\n",
+            |chunk: Vec<u8>, out| out.write_all(&chunk),
+            (100, 3),
+        )
+        .unwrap()
+        .lossless();
+        for i in 0..60 {
+            log.write(format!("row {i:03}\n").into_bytes()).unwrap();
+        }
+        log.finish().unwrap();
+        let mut names: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        // 7 + 8 × 12 = 103 bytes ≥ 100: parts of 12 rows, the last of the 60 rows in part 5.
+        assert_eq!(
+            names,
+            [
+                "2026-11-23_11-15-02.3.csv",
+                "2026-11-23_11-15-02.4.csv",
+                "2026-11-23_11-15-02.5.csv"
+            ]
+        );
+        let rows: Vec<String> = (3..=5)
+            .flat_map(|n| {
+                let text = std::fs::read_to_string(part_path(&first, n)).unwrap();
+                assert!(text.starts_with("HEADER\n"), "part {n}: {text}");
+                text.lines().skip(1).map(str::to_owned).collect::<Vec<_>>()
+            })
+            .collect();
+        let expected: Vec<String> = (24..60).map(|i| format!("row {i:03}")).collect();
+        assert_eq!(rows, expected);
     }
 
     #[test]

@@ -74,7 +74,9 @@ fn every_parameter_has_a_unique_mavlink_name_that_fits_and_a_valid_default() {
             "COM_RC_OVERRIDE",
             "MAN_ARM_GESTURE",
             "SDLOG_DIRS_MAX",
-            "SDLOG_MIN_FREE"
+            "SDLOG_MIN_FREE",
+            "SDLOG_MAX_SIZE",
+            "SDLOG_ROTATE"
         ]
     );
     assert!(FlightParams::default().validate().is_empty());
