@@ -235,8 +235,8 @@ fn refuses_what_it_cannot_fly() {
             "unknown field `takeof_m`",
         ),
         (
-            "source = \"sim\"\nhover_s = 7200\n",
-            "`hover_s`: 7200 is out of range [0, 3600] s",
+            "source = \"sim\"\nhover_s = 700000\n",
+            "`hover_s`: 700000 is out of range [0, 604800] s",
         ),
     ] {
         std::fs::write(&config, text).unwrap();
