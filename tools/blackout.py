@@ -25,6 +25,7 @@ import threading
 from pathlib import Path
 
 os.environ.setdefault("MAVLINK20", "1")
+from peer_flight import tilt_deg  # noqa: E402
 from pymavlink.dialects.v20 import common as mavlink2  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -102,10 +103,6 @@ def quat_from_euler_deg(roll, pitch, yaw):
 def angle_between_deg(a, b):
     dot = abs(sum(x * y for x, y in zip(a, b)))
     return math.degrees(2 * math.acos(min(1.0, dot)))
-
-
-def tilt_deg(q):
-    return math.degrees(math.acos(max(-1.0, min(1.0, 1 - 2 * (q[1] ** 2 + q[2] ** 2)))))
 
 
 def fly(bins, height_m, gap_s, seed, workdir, speed=1.0):

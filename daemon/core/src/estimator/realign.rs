@@ -37,13 +37,6 @@ const MIN_ACROSS: f64 = 0.2;
 /// The least magnetometer samples averaged.
 const MIN_FIELD_SAMPLES: u32 = 5;
 
-/// What an alignment found: the attitude's frame.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Alignment {
-    /// NED from the gyro frame (the search's).
-    pub ned_from_gyro_frame: UnitQuaternion<f64>,
-}
-
 /// What the search collects from the samples' return on, in the frame the gyro carried from
 /// there (the search frame): the specific force's integral and the GPS solutions
 /// (`gps_tilt.rs`), the magnetic field's mean direction.
@@ -52,8 +45,8 @@ pub struct InFlightAlignment {
     check: GpsTiltCheck,
     field_sum: Vector3<f64>,
     field_samples: u32,
-    /// Samples taken since the return.
-    samples: u64,
+    /// The first sample after the return has been taken.
+    started: bool,
     /// Time since the samples returned (s).
     pub elapsed_s: f64,
 }
@@ -72,8 +65,8 @@ impl InFlightAlignment {
         // The first sample closes the gap: its interval is the gap's, not one the force was
         // measured over, and a GPS solution measured in the dark (arriving just after) must
         // find no integral to pair with. The search's clock starts here.
-        let dt = if self.samples == 0 { 0.0 } else { dt };
-        self.samples += 1;
+        let dt = if self.started { dt } else { 0.0 };
+        self.started = true;
         self.elapsed_s += dt;
         let rotation = search_from_body.to_rotation_matrix();
         self.check
@@ -84,21 +77,22 @@ impl InFlightAlignment {
         }
     }
 
-    /// The frame (NED from the search frame), when the GPS solution taken at this sample
+    /// The search frame's attitude (NED from it), when the GPS solution taken at this sample
     /// completes a window of [`MIN_WINDOW_S`]. (A longer window, taken while the vehicle levels
     /// on the first, was no better: 1.4° became 5.5° in one flight, 2.2° 0.5° in another.)
-    pub fn try_solve(&self, declination_rad: f64, dip_rad: f64) -> Option<Alignment> {
+    pub fn try_solve(&self, declination_rad: f64, dip_rad: f64) -> Option<UnitQuaternion<f64>> {
         self.solve(&self.check.span()?, declination_rad, dip_rad)
     }
 
-    /// The frame, from a GPS window taken wholly after the return, the declination (rad) and
-    /// the field's expected dip (rad, positive down), if they pin it.
+    /// The search frame's attitude (NED from it), from a GPS window taken wholly after the
+    /// return, the declination (rad) and the field's expected dip (rad, positive down), if they
+    /// pin it.
     pub fn solve(
         &self,
         window: &GpsWindow,
         declination_rad: f64,
         dip_rad: f64,
-    ) -> Option<Alignment> {
+    ) -> Option<UnitQuaternion<f64>> {
         if window.duration_s < MIN_WINDOW_S || self.field_samples < MIN_FIELD_SAMPLES {
             return None;
         }
@@ -136,9 +130,7 @@ impl InFlightAlignment {
             let d = |psi: f64| (turned(psi) * w).dot(&expected);
             d(*p).total_cmp(&d(*q))
         })?;
-        Some(Alignment {
-            ned_from_gyro_frame: turned(psi) * onto_v,
-        })
+        Some(turned(psi) * onto_v)
     }
 }
 

@@ -3,7 +3,7 @@
 
 use super::{TiltHeadingFilter, UNSEEN_TURN_S};
 use crate::estimator::gps_tilt::DelayedVelocity;
-use crate::estimator::realign::{Alignment, InFlightAlignment};
+use crate::estimator::realign::InFlightAlignment;
 use nalgebra::{UnitQuaternion, Vector3};
 
 /// How long the alignment is sought before the filter goes on from the accelerometer (s): no
@@ -16,7 +16,6 @@ impl TiltHeadingFilter {
     pub fn lost_in_flight(&mut self) {
         self.start_at(self.attitude());
         self.realigning = Some(InFlightAlignment::default());
-        self.status.realigning = true;
     }
 
     /// Whether the attitude is unknown after a gap in flight.
@@ -51,16 +50,15 @@ impl TiltHeadingFilter {
             return;
         };
         r.update(&q_gyro, accel, field.as_ref(), gps_vel, dt);
-        if let Some(a) = r.try_solve(declination, dip) {
+        if let Some(found) = r.try_solve(declination, dip) {
             self.realigning = None;
-            self.realigned(&a);
+            self.realigned(&found);
             self.status.realigned_in_flight += 1;
         } else if r.elapsed_s > GIVE_UP_S {
             self.realigning = None;
             self.status.realign_abandoned += 1;
             self.start_at(self.attitude());
         }
-        self.status.realigning = self.realigning();
     }
 
     /// The attitude found: the filter starts again from it, with the low-passes steady at
@@ -69,11 +67,11 @@ impl TiltHeadingFilter {
     /// agree; started at a fall's acceleration, about g, the correction's turn of the force
     /// alone would be out of proportion and grow). Said as a tilt reset: what was learned
     /// through the unknown attitude (the position estimator's velocity) is forgotten.
-    fn realigned(&mut self, a: &Alignment) {
+    fn realigned(&mut self, ned_from_gyro_frame: &UnitQuaternion<f64>) {
         let down = |q: UnitQuaternion<f64>| q * Vector3::z();
         let before = self.attitude();
         let last_vel = self.last_vel;
-        self.start_at(a.ned_from_gyro_frame * self.q_gyro);
+        self.start_at(ned_from_gyro_frame * self.q_gyro);
         // The gyro frame is NED now (no tilt or heading correction yet).
         self.accel_lp
             .reset_to(Vector3::new(0.0, 0.0, -crate::GRAVITY_M_S2));

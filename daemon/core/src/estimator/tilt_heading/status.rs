@@ -20,8 +20,6 @@ pub struct TiltHeadingStatus {
     pub reset: EstimateReset,
     /// The bias and attitude were fitted to the first seconds of a start in motion.
     pub started_in_motion: bool,
-    /// The attitude is unknown after a gap in flight, until found again (`realign.rs`).
-    pub realigning: bool,
     /// Attitudes found again in flight.
     pub realigned_in_flight: u64,
     /// Gaps in flight after which none could be (no GPS, or no thrust): the filter went on
